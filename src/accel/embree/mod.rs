@@ -1,0 +1,754 @@
+//! Safe wrappers over Debian's Embree (3.13 or 4.x, chosen by build.rs), and
+//! the Embree backend of [`Intersector`]. The only module with `unsafe`.
+//!
+//! Promises:
+//! - Errors reported by Embree's error callback become `Result`s; the error
+//!   slot is read after building calls, never per ray.
+//! - Rays are traced only on a [`CommittedScene`]; a scene keeps its device
+//!   alive (Embree reference counts), so nothing dangles.
+//! - Moving an instance (`set_instance_transform`) needs `&mut`, so no ray is
+//!   in flight while the scene is re-committed; static geometry is not rebuilt.
+
+mod sys;
+
+use std::ffi::{c_char, c_void, CStr};
+use std::sync::Mutex;
+
+use glam::{Affine3A, Vec3};
+
+use super::Intersector;
+use crate::geometry::{Object, Placement, Shape};
+use crate::ray::{lanes, Hit, HitPacket, LaneMask, Ray, RayPacket, PACKET_WIDTH};
+
+const INVALID_ID: u32 = u32::MAX;
+
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("Embree error ({code}): {message}")]
+pub struct EmbreeError {
+    pub code: &'static str,
+    pub message: String,
+}
+
+fn error_name(code: sys::RTCError) -> &'static str {
+    match code {
+        sys::RTCError::RTC_ERROR_NONE => "none",
+        sys::RTCError::RTC_ERROR_INVALID_ARGUMENT => "invalid argument",
+        sys::RTCError::RTC_ERROR_INVALID_OPERATION => "invalid operation",
+        sys::RTCError::RTC_ERROR_OUT_OF_MEMORY => "out of memory",
+        sys::RTCError::RTC_ERROR_UNSUPPORTED_CPU => "unsupported CPU",
+        sys::RTCError::RTC_ERROR_CANCELLED => "cancelled",
+        _ => "unknown",
+    }
+}
+
+/// Where the error callback leaves the first error it sees.
+struct ErrorSlot {
+    first: Mutex<Option<EmbreeError>>,
+}
+
+unsafe extern "C" fn record_error(user: *mut c_void, code: sys::RTCError, text: *const c_char) {
+    // A panic must not unwind into C: catch it and drop the report instead.
+    let _ = std::panic::catch_unwind(|| {
+        // SAFETY: `user` is the `ErrorSlot` registered in `Device::new`; it is
+        // boxed and lives until after `rtcReleaseDevice` in `Drop`.
+        let slot = unsafe { &*(user as *const ErrorSlot) };
+        let message = if text.is_null() {
+            String::new()
+        } else {
+            // SAFETY: Embree passes a NUL-terminated string valid for the call.
+            unsafe { CStr::from_ptr(text) }
+                .to_string_lossy()
+                .into_owned()
+        };
+        if let Ok(mut first) = slot.first.lock() {
+            first.get_or_insert(EmbreeError {
+                code: error_name(code),
+                message,
+            });
+        }
+    });
+}
+
+struct DeviceInner {
+    raw: sys::RTCDevice,
+    errors: Box<ErrorSlot>,
+}
+
+impl Drop for DeviceInner {
+    fn drop(&mut self) {
+        // SAFETY: `raw` came from rtcNewDevice and this is its last Rust
+        // owner; scenes hold their own `Arc` to this, so none outlives it.
+        unsafe { sys::rtcReleaseDevice(self.raw) };
+    }
+}
+
+// SAFETY: Embree devices are thread-safe; the error slot is behind a Mutex.
+unsafe impl Send for DeviceInner {}
+// SAFETY: as above.
+unsafe impl Sync for DeviceInner {}
+
+/// An Embree device. Cheap to clone (shared).
+#[derive(Clone)]
+pub struct Device {
+    inner: std::sync::Arc<DeviceInner>,
+}
+
+impl Device {
+    pub fn new() -> Result<Device, EmbreeError> {
+        // SAFETY: the config is a NUL-terminated literal.
+        let raw = unsafe { sys::rtcNewDevice(c"verbose=0".as_ptr()) };
+        if raw.is_null() {
+            // SAFETY: a null device asks for the error of device creation.
+            let code = unsafe { sys::rtcGetDeviceError(std::ptr::null_mut()) };
+            return Err(EmbreeError {
+                code: error_name(code),
+                message: "rtcNewDevice failed".into(),
+            });
+        }
+        let errors = Box::new(ErrorSlot {
+            first: Mutex::new(None),
+        });
+        // SAFETY: `raw` is a live device; the slot pointer stays valid for the
+        // device's lifetime (both live in `DeviceInner`, released together).
+        unsafe {
+            sys::rtcSetDeviceErrorFunction(
+                raw,
+                Some(record_error),
+                &*errors as *const ErrorSlot as *mut c_void,
+            )
+        };
+        Ok(Device {
+            inner: std::sync::Arc::new(DeviceInner { raw, errors }),
+        })
+    }
+
+    /// Returns (and clears) the first error Embree reported since the last call.
+    fn take_error(&self) -> Result<(), EmbreeError> {
+        let mut first = self
+            .inner
+            .errors
+            .first
+            .lock()
+            .unwrap_or_else(|e| e.into_inner());
+        match first.take() {
+            Some(err) => Err(err),
+            None => Ok(()),
+        }
+    }
+
+    /// Embree's version as a number, e.g. 31305 for 3.13.5.
+    pub fn version(&self) -> i64 {
+        // SAFETY: querying a property of a live device.
+        unsafe {
+            sys::rtcGetDeviceProperty(
+                self.inner.raw,
+                sys::RTCDeviceProperty::RTC_DEVICE_PROPERTY_VERSION,
+            ) as i64
+        }
+    }
+
+    pub fn native_packet8(&self) -> bool {
+        // SAFETY: querying a property of a live device.
+        unsafe {
+            sys::rtcGetDeviceProperty(
+                self.inner.raw,
+                sys::RTCDeviceProperty::RTC_DEVICE_PROPERTY_NATIVE_RAY8_SUPPORTED,
+            ) != 0
+        }
+    }
+}
+
+/// A scene being built. Attach geometry, then [`SceneBuilder::commit`].
+pub struct SceneBuilder {
+    raw: sys::RTCScene,
+    device: Device,
+    children: Vec<CommittedScene>,
+    instance_ids: Vec<u32>,
+}
+
+impl SceneBuilder {
+    pub fn new(device: &Device) -> Result<SceneBuilder, EmbreeError> {
+        // SAFETY: creating a scene on a live device.
+        let raw = unsafe { sys::rtcNewScene(device.inner.raw) };
+        device.take_error()?;
+        if raw.is_null() {
+            return Err(EmbreeError {
+                code: "unknown",
+                message: "rtcNewScene returned null".into(),
+            });
+        }
+        // SAFETY: `raw` is a live scene.
+        unsafe { sys::rtcSetSceneBuildQuality(raw, sys::RTCBuildQuality::RTC_BUILD_QUALITY_HIGH) };
+        Ok(SceneBuilder {
+            raw,
+            device: device.clone(),
+            children: Vec::new(),
+            instance_ids: Vec::new(),
+        })
+    }
+
+    fn new_geometry(&self, kind: sys::RTCGeometryType) -> Result<sys::RTCGeometry, EmbreeError> {
+        // SAFETY: creating a geometry on a live device.
+        let geometry = unsafe { sys::rtcNewGeometry(self.device.inner.raw, kind) };
+        self.device.take_error()?;
+        Ok(geometry)
+    }
+
+    /// Fills a new Embree-owned buffer (Embree pads it as its SIMD loads need).
+    fn fill_buffer<T: Copy>(
+        &self,
+        geometry: sys::RTCGeometry,
+        kind: sys::RTCBufferType,
+        format: sys::RTCFormat,
+        items: &[T],
+    ) -> Result<(), EmbreeError> {
+        // SAFETY: `geometry` is live; Embree allocates `items.len()` elements
+        // of `size_of::<T>()` bytes (plus padding) and returns that memory.
+        let ptr = unsafe {
+            sys::rtcSetNewGeometryBuffer(
+                geometry,
+                kind,
+                0,
+                format,
+                std::mem::size_of::<T>(),
+                items.len(),
+            )
+        };
+        self.device.take_error()?;
+        if ptr.is_null() {
+            return Err(EmbreeError {
+                code: "out of memory",
+                message: "rtcSetNewGeometryBuffer returned null".into(),
+            });
+        }
+        // SAFETY: `ptr` points to at least `items.len()` writable elements of
+        // T's size; Embree aligns buffers to 16 bytes (T is f32/u32 based).
+        unsafe { std::ptr::copy_nonoverlapping(items.as_ptr(), ptr as *mut T, items.len()) };
+        Ok(())
+    }
+
+    fn attach(&mut self, geometry: sys::RTCGeometry, id: u32) -> Result<(), EmbreeError> {
+        // SAFETY: `geometry` is live and fully set up; the scene takes its own
+        // reference, so ours is released right after.
+        unsafe {
+            sys::rtcCommitGeometry(geometry);
+            sys::rtcAttachGeometryByID(self.raw, geometry, id);
+            sys::rtcReleaseGeometry(geometry);
+        }
+        self.device.take_error()
+    }
+
+    pub fn attach_triangles(
+        &mut self,
+        id: u32,
+        positions: &[Vec3],
+        triangles: &[[u32; 3]],
+    ) -> Result<(), EmbreeError> {
+        let geometry = self.new_geometry(sys::RTCGeometryType::RTC_GEOMETRY_TYPE_TRIANGLE)?;
+        let vertices: Vec<[f32; 3]> = positions.iter().map(|p| p.to_array()).collect();
+        self.fill_buffer(
+            geometry,
+            sys::RTCBufferType::RTC_BUFFER_TYPE_VERTEX,
+            sys::RTCFormat::RTC_FORMAT_FLOAT3,
+            &vertices,
+        )?;
+        self.fill_buffer(
+            geometry,
+            sys::RTCBufferType::RTC_BUFFER_TYPE_INDEX,
+            sys::RTCFormat::RTC_FORMAT_UINT3,
+            triangles,
+        )?;
+        self.attach(geometry, id)
+    }
+
+    pub fn attach_sphere(&mut self, id: u32, center: Vec3, radius: f32) -> Result<(), EmbreeError> {
+        let geometry = self.new_geometry(sys::RTCGeometryType::RTC_GEOMETRY_TYPE_SPHERE_POINT)?;
+        self.fill_buffer(
+            geometry,
+            sys::RTCBufferType::RTC_BUFFER_TYPE_VERTEX,
+            sys::RTCFormat::RTC_FORMAT_FLOAT4,
+            &[[center.x, center.y, center.z, radius]],
+        )?;
+        self.attach(geometry, id)
+    }
+
+    /// Places `child` into this scene through `transform`; hits on it report
+    /// `id` as their object.
+    pub fn attach_instance(
+        &mut self,
+        id: u32,
+        child: CommittedScene,
+        transform: &Affine3A,
+    ) -> Result<(), EmbreeError> {
+        let geometry = self.new_geometry(sys::RTCGeometryType::RTC_GEOMETRY_TYPE_INSTANCE)?;
+        // SAFETY: both handles are live; Embree keeps its own reference to the
+        // child scene, and we keep `child` too for as long as this scene.
+        unsafe { sys::rtcSetGeometryInstancedScene(geometry, child.raw) };
+        set_transform(geometry, transform);
+        self.children.push(child);
+        self.instance_ids.push(id);
+        self.attach(geometry, id)
+    }
+
+    pub fn commit(self) -> Result<CommittedScene, EmbreeError> {
+        // SAFETY: `raw` is live and no ray is traced on it while committing
+        // (we own it exclusively).
+        unsafe { sys::rtcCommitScene(self.raw) };
+        self.device.take_error()?;
+        let this = std::mem::ManuallyDrop::new(self);
+        // SAFETY: moving fields out of a ManuallyDrop that is never used again,
+        // so the scene is released exactly once (by CommittedScene).
+        let (device, children, instance_ids) = unsafe {
+            (
+                std::ptr::read(&this.device),
+                std::ptr::read(&this.children),
+                std::ptr::read(&this.instance_ids),
+            )
+        };
+        Ok(CommittedScene {
+            raw: this.raw,
+            device,
+            _children: children,
+            instance_ids,
+        })
+    }
+}
+
+impl Drop for SceneBuilder {
+    fn drop(&mut self) {
+        // SAFETY: a builder dropped before commit owns its scene reference.
+        unsafe { sys::rtcReleaseScene(self.raw) };
+    }
+}
+
+fn set_transform(geometry: sys::RTCGeometry, transform: &Affine3A) {
+    // Column-major 3x4: the three basis columns, then the translation.
+    let m = transform.matrix3;
+    let t = transform.translation;
+    let columns: [f32; 12] = [
+        m.x_axis.x, m.x_axis.y, m.x_axis.z, m.y_axis.x, m.y_axis.y, m.y_axis.z, m.z_axis.x,
+        m.z_axis.y, m.z_axis.z, t.x, t.y, t.z,
+    ];
+    // SAFETY: `geometry` is a live instance; Embree copies the 12 floats.
+    unsafe {
+        sys::rtcSetGeometryTransform(
+            geometry,
+            0,
+            sys::RTCFormat::RTC_FORMAT_FLOAT3X4_COLUMN_MAJOR,
+            columns.as_ptr() as *const c_void,
+        )
+    };
+}
+
+/// A committed scene: the only kind rays can be traced on.
+pub struct CommittedScene {
+    raw: sys::RTCScene,
+    device: Device,
+    _children: Vec<CommittedScene>,
+    instance_ids: Vec<u32>,
+}
+
+// SAFETY: Embree allows concurrent rtcIntersect*/rtcOccluded* calls on a
+// committed scene; mutation (`set_instance_transform`) takes `&mut self`.
+unsafe impl Sync for CommittedScene {}
+// SAFETY: the scene handle may be used and released from any thread.
+unsafe impl Send for CommittedScene {}
+
+impl Drop for CommittedScene {
+    fn drop(&mut self) {
+        // SAFETY: we own one reference to the scene.
+        unsafe { sys::rtcReleaseScene(self.raw) };
+    }
+}
+
+#[cfg(embree_version = "3")]
+fn intersect_context() -> sys::RTCIntersectContext {
+    // Re-creation of the header's inline rtcInitIntersectContext.
+    sys::RTCIntersectContext {
+        flags: sys::RTCIntersectContextFlags::RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT,
+        filter: None,
+        instID: [INVALID_ID; sys::RTC_MAX_INSTANCE_LEVEL_COUNT as usize],
+        ..Default::default()
+    }
+}
+
+#[repr(C, align(32))]
+struct ValidMask8([i32; PACKET_WIDTH]);
+
+impl ValidMask8 {
+    fn new(mask: LaneMask) -> Self {
+        ValidMask8(std::array::from_fn(|lane| {
+            if mask & (1 << lane) != 0 {
+                -1
+            } else {
+                0
+            }
+        }))
+    }
+}
+
+fn embree_ray(ray: &Ray) -> sys::RTCRay {
+    sys::RTCRay {
+        org_x: ray.origin.x,
+        org_y: ray.origin.y,
+        org_z: ray.origin.z,
+        tnear: ray.tmin,
+        dir_x: ray.dir.x,
+        dir_y: ray.dir.y,
+        dir_z: ray.dir.z,
+        time: 0.0,
+        tfar: ray.tmax,
+        mask: u32::MAX,
+        id: 0,
+        flags: 0,
+    }
+}
+
+fn hit_object(geom_id: u32, inst_id: u32) -> u32 {
+    if inst_id != INVALID_ID {
+        inst_id
+    } else {
+        geom_id
+    }
+}
+
+impl CommittedScene {
+    pub fn device(&self) -> &Device {
+        &self.device
+    }
+
+    /// Moves instance `id` and re-commits; only the top level is rebuilt.
+    pub fn set_instance_transform(
+        &mut self,
+        id: u32,
+        transform: &Affine3A,
+    ) -> Result<(), EmbreeError> {
+        // Debian's Embree asserts (aborts) on an unknown id, so check first.
+        if !self.instance_ids.contains(&id) {
+            return Err(EmbreeError {
+                code: "invalid argument",
+                message: format!("no instance with id {id}"),
+            });
+        }
+        // SAFETY: `&mut self` guarantees no concurrent tracing; `id` names an
+        // attached instance, whose handle the scene keeps alive.
+        unsafe {
+            let geometry = sys::rtcGetGeometry(self.raw, id);
+            set_transform(geometry, transform);
+            sys::rtcCommitGeometry(geometry);
+            sys::rtcCommitScene(self.raw);
+        }
+        self.device.take_error()
+    }
+
+    pub fn intersect1(&self, ray: &Ray) -> Option<Hit> {
+        let mut rayhit = sys::RTCRayHit {
+            ray: embree_ray(ray),
+            hit: sys::RTCHit {
+                geomID: INVALID_ID,
+                primID: INVALID_ID,
+                instID: [INVALID_ID; sys::RTC_MAX_INSTANCE_LEVEL_COUNT as usize],
+                ..Default::default()
+            },
+        };
+        #[cfg(embree_version = "3")]
+        // SAFETY: the scene is committed; context and rayhit are valid for the call.
+        unsafe {
+            let mut context = intersect_context();
+            sys::rtcIntersect1(self.raw, &mut context, &mut rayhit);
+        }
+        #[cfg(embree_version = "4")]
+        // SAFETY: the scene is committed; null arguments select the defaults.
+        unsafe {
+            sys::rtcIntersect1(self.raw, &mut rayhit, std::ptr::null_mut());
+        }
+        (rayhit.hit.geomID != INVALID_ID).then(|| Hit {
+            t: rayhit.ray.tfar,
+            object: hit_object(rayhit.hit.geomID, rayhit.hit.instID[0]),
+            prim: rayhit.hit.primID,
+            u: rayhit.hit.u,
+            v: rayhit.hit.v,
+        })
+    }
+
+    pub fn occluded1(&self, ray: &Ray) -> bool {
+        let mut r = embree_ray(ray);
+        #[cfg(embree_version = "3")]
+        // SAFETY: the scene is committed; context and ray are valid for the call.
+        unsafe {
+            let mut context = intersect_context();
+            sys::rtcOccluded1(self.raw, &mut context, &mut r);
+        }
+        #[cfg(embree_version = "4")]
+        // SAFETY: the scene is committed; null arguments select the defaults.
+        unsafe {
+            sys::rtcOccluded1(self.raw, &mut r, std::ptr::null_mut());
+        }
+        r.tfar == f32::NEG_INFINITY
+    }
+
+    fn ray8(rays: &RayPacket) -> sys::RTCRay8 {
+        sys::RTCRay8 {
+            org_x: rays.map(|r| r.origin.x),
+            org_y: rays.map(|r| r.origin.y),
+            org_z: rays.map(|r| r.origin.z),
+            tnear: rays.map(|r| r.tmin),
+            dir_x: rays.map(|r| r.dir.x),
+            dir_y: rays.map(|r| r.dir.y),
+            dir_z: rays.map(|r| r.dir.z),
+            time: [0.0; PACKET_WIDTH],
+            tfar: rays.map(|r| r.tmax),
+            mask: [u32::MAX; PACKET_WIDTH],
+            id: [0; PACKET_WIDTH],
+            flags: [0; PACKET_WIDTH],
+        }
+    }
+
+    pub fn intersect8(&self, rays: &RayPacket, mask: LaneMask, hits: &mut HitPacket) {
+        let valid = ValidMask8::new(mask);
+        let mut rayhit = sys::RTCRayHit8 {
+            ray: Self::ray8(rays),
+            hit: sys::RTCHit8 {
+                geomID: [INVALID_ID; PACKET_WIDTH],
+                primID: [INVALID_ID; PACKET_WIDTH],
+                instID: [[INVALID_ID; PACKET_WIDTH]; sys::RTC_MAX_INSTANCE_LEVEL_COUNT as usize],
+                ..Default::default()
+            },
+        };
+        #[cfg(embree_version = "3")]
+        // SAFETY: the scene is committed; `valid` and `rayhit` are 32-byte
+        // aligned as rtcIntersect8 requires (repr(align(32)) on both).
+        unsafe {
+            let mut context = intersect_context();
+            sys::rtcIntersect8(valid.0.as_ptr(), self.raw, &mut context, &mut rayhit);
+        }
+        #[cfg(embree_version = "4")]
+        // SAFETY: as above; null arguments select the defaults.
+        unsafe {
+            sys::rtcIntersect8(
+                valid.0.as_ptr(),
+                self.raw,
+                &mut rayhit,
+                std::ptr::null_mut(),
+            );
+        }
+        for lane in lanes(mask) {
+            let geom = rayhit.hit.geomID[lane];
+            hits[lane] = (geom != INVALID_ID).then(|| Hit {
+                t: rayhit.ray.tfar[lane],
+                object: hit_object(geom, rayhit.hit.instID[0][lane]),
+                prim: rayhit.hit.primID[lane],
+                u: rayhit.hit.u[lane],
+                v: rayhit.hit.v[lane],
+            });
+        }
+    }
+
+    pub fn occluded8(&self, rays: &RayPacket, mask: LaneMask) -> LaneMask {
+        let valid = ValidMask8::new(mask);
+        let mut ray = Self::ray8(rays);
+        #[cfg(embree_version = "3")]
+        // SAFETY: the scene is committed; `valid` and `ray` are 32-byte aligned.
+        unsafe {
+            let mut context = intersect_context();
+            sys::rtcOccluded8(valid.0.as_ptr(), self.raw, &mut context, &mut ray);
+        }
+        #[cfg(embree_version = "4")]
+        // SAFETY: as above; null arguments select the defaults.
+        unsafe {
+            sys::rtcOccluded8(valid.0.as_ptr(), self.raw, &mut ray, std::ptr::null_mut());
+        }
+        lanes(mask)
+            .filter(|&lane| ray.tfar[lane] == f32::NEG_INFINITY)
+            .fold(0, |acc, lane| acc | (1 << lane))
+    }
+}
+
+/// The Embree backend: one geometry per scene object, attached under the
+/// object's index so a hit names its object directly. Instanced objects get
+/// a child scene of their own, placed by an instance transform.
+pub struct EmbreeIntersector {
+    scene: CommittedScene,
+}
+
+impl EmbreeIntersector {
+    pub fn build(objects: &[Object]) -> Result<EmbreeIntersector, EmbreeError> {
+        let device = Device::new()?;
+        let mut top = SceneBuilder::new(&device)?;
+        for (id, object) in objects.iter().enumerate() {
+            let id = id as u32;
+            match object.placement {
+                Placement::World => attach_shape(&mut top, id, &object.shape)?,
+                Placement::Instance(transform) => {
+                    if matches!(object.shape, Shape::Plane(_)) {
+                        continue;
+                    }
+                    let mut child = SceneBuilder::new(&device)?;
+                    attach_shape(&mut child, 0, &object.shape)?;
+                    top.attach_instance(id, child.commit()?, &transform)?;
+                }
+            }
+        }
+        Ok(EmbreeIntersector {
+            scene: top.commit()?,
+        })
+    }
+
+    pub fn scene_mut(&mut self) -> &mut CommittedScene {
+        &mut self.scene
+    }
+
+    pub fn device(&self) -> &Device {
+        self.scene.device()
+    }
+}
+
+/// Planes are left out: [`super::Accelerator`] tests them for every backend.
+fn attach_shape(scene: &mut SceneBuilder, id: u32, shape: &Shape) -> Result<(), EmbreeError> {
+    match shape {
+        Shape::Mesh(mesh) if !mesh.triangles.is_empty() => {
+            scene.attach_triangles(id, &mesh.positions, &mesh.triangles)
+        }
+        Shape::Mesh(_) | Shape::Plane(_) => Ok(()),
+        Shape::Sphere(sphere) => scene.attach_sphere(id, sphere.center, sphere.radius),
+    }
+}
+
+impl Intersector for EmbreeIntersector {
+    fn intersect(&self, ray: &Ray) -> Option<Hit> {
+        self.scene.intersect1(ray)
+    }
+
+    fn occluded(&self, ray: &Ray) -> bool {
+        self.scene.occluded1(ray)
+    }
+
+    fn intersect8(&self, rays: &RayPacket, mask: LaneMask, hits: &mut HitPacket) {
+        self.scene.intersect8(rays, mask, hits)
+    }
+
+    fn occluded8(&self, rays: &RayPacket, mask: LaneMask) -> LaneMask {
+        self.scene.occluded8(rays, mask)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn unit_triangle_scene(device: &Device) -> CommittedScene {
+        let mut builder = SceneBuilder::new(device).unwrap();
+        builder
+            .attach_triangles(
+                3,
+                &[
+                    Vec3::new(-1.0, -1.0, 0.0),
+                    Vec3::new(1.0, -1.0, 0.0),
+                    Vec3::new(0.0, 1.0, 0.0),
+                ],
+                &[[0, 1, 2]],
+            )
+            .unwrap();
+        builder
+            .attach_sphere(5, Vec3::new(0.0, 0.0, -5.0), 1.0)
+            .unwrap();
+        builder.commit().unwrap()
+    }
+
+    #[test]
+    fn device_reports_version_and_packet_support() {
+        let device = Device::new().unwrap();
+        assert!(device.version() >= 30000, "version {}", device.version());
+        let _ = device.native_packet8();
+    }
+
+    #[test]
+    fn single_ray_hits_triangle_then_sphere() {
+        let device = Device::new().unwrap();
+        let scene = unit_triangle_scene(&device);
+        let hit = scene
+            .intersect1(&Ray::new(Vec3::new(0.0, 0.0, 2.0), -Vec3::Z))
+            .unwrap();
+        assert_eq!((hit.object, hit.prim), (3, 0));
+        assert!((hit.t - 2.0).abs() < 1e-6);
+        let hit = scene.intersect1(&Ray::new(Vec3::new(0.0, 1.5, 2.0), -Vec3::Z));
+        assert!(hit.is_none());
+        let behind = Ray::new(Vec3::new(0.0, 0.0, -1.0), -Vec3::Z);
+        let hit = scene.intersect1(&behind).unwrap();
+        assert_eq!(hit.object, 5);
+        assert!((hit.t - 3.0).abs() < 1e-5);
+        assert!(scene.occluded1(&behind));
+        assert!(!scene.occluded1(&Ray::segment(behind.origin, behind.dir, 2.5)));
+    }
+
+    #[test]
+    fn packets_agree_with_single_rays_and_respect_the_mask() {
+        let device = Device::new().unwrap();
+        let scene = unit_triangle_scene(&device);
+        let rays: RayPacket = std::array::from_fn(|i| {
+            Ray::new(Vec3::new(-1.2 + 0.35 * i as f32, 0.1, 2.0), -Vec3::Z)
+        });
+        let mask = 0b1011_0111;
+        let mut hits = [None; PACKET_WIDTH];
+        scene.intersect8(&rays, mask, &mut hits);
+        let occluded = scene.occluded8(&rays, mask);
+        for lane in 0..PACKET_WIDTH {
+            if mask & (1 << lane) == 0 {
+                assert_eq!(hits[lane], None);
+                assert_eq!(occluded & (1 << lane), 0);
+            } else {
+                assert_eq!(
+                    hits[lane].map(|h| h.object),
+                    scene.intersect1(&rays[lane]).map(|h| h.object)
+                );
+                assert_eq!(occluded & (1 << lane) != 0, scene.occluded1(&rays[lane]));
+            }
+        }
+        assert!(hits.iter().any(Option::is_some) && hits.iter().any(Option::is_none));
+    }
+
+    #[test]
+    fn instances_move_without_rebuilding_and_report_their_id() {
+        let device = Device::new().unwrap();
+        let mut child = SceneBuilder::new(&device).unwrap();
+        child.attach_sphere(0, Vec3::ZERO, 1.0).unwrap();
+        let mut top = SceneBuilder::new(&device).unwrap();
+        top.attach_instance(
+            7,
+            child.commit().unwrap(),
+            &Affine3A::from_translation(Vec3::new(0.0, 0.0, -10.0)),
+        )
+        .unwrap();
+        let mut scene = top.commit().unwrap();
+        let ray = Ray::new(Vec3::ZERO, -Vec3::Z);
+        let hit = scene.intersect1(&ray).unwrap();
+        assert_eq!(hit.object, 7);
+        assert!((hit.t - 9.0).abs() < 1e-5);
+        scene
+            .set_instance_transform(7, &Affine3A::from_translation(Vec3::new(0.0, 0.0, -4.0)))
+            .unwrap();
+        assert!((scene.intersect1(&ray).unwrap().t - 3.0).abs() < 1e-5);
+        scene
+            .set_instance_transform(7, &Affine3A::from_translation(Vec3::new(5.0, 0.0, -4.0)))
+            .unwrap();
+        assert!(scene.intersect1(&ray).is_none());
+    }
+
+    #[test]
+    fn embree_errors_become_results() {
+        let device = Device::new().unwrap();
+        let builder = SceneBuilder::new(&device).unwrap();
+        // A geometry type Embree does not know: reported through the callback.
+        let err = builder
+            .new_geometry(sys::RTCGeometryType(9999))
+            .unwrap_err();
+        assert!(err.message.contains("geometry type"), "{err}");
+        // The slot was cleared: later calls succeed again.
+        assert!(device.take_error().is_ok());
+        let mut scene = unit_triangle_scene(&device);
+        let err = scene
+            .set_instance_transform(42, &Affine3A::IDENTITY)
+            .unwrap_err();
+        assert_eq!(err.code, "invalid argument");
+    }
+}

@@ -1,0 +1,182 @@
+//! Ray/scene intersection behind one trait, with two backends: Embree (fast,
+//! through FFI) and a pure-Rust uniform grid (readable, the reference).
+//!
+//! Backends see bounded shapes only. Infinite planes are tested here, once,
+//! for every backend ([`Accelerator`]), so both give the same answer for them.
+
+pub mod embree;
+
+use std::fmt;
+use std::str::FromStr;
+
+use crate::geometry::{intersect_plane, Object, Placement, Plane, Shape};
+use crate::ray::{lanes, Hit, HitPacket, LaneMask, Ray, RayPacket, PACKET_WIDTH};
+
+/// Closest-hit and any-hit queries, one ray or an 8-wide packet at a time.
+///
+/// Only the single-ray calls are required; packet calls default to a loop.
+/// Lanes outside `mask` are neither traced nor written.
+pub trait Intersector: Sync {
+    fn intersect(&self, ray: &Ray) -> Option<Hit>;
+
+    /// True if anything lies on the ray strictly between `tmin` and `tmax`.
+    fn occluded(&self, ray: &Ray) -> bool;
+
+    fn intersect8(&self, rays: &RayPacket, mask: LaneMask, hits: &mut HitPacket) {
+        for lane in lanes(mask) {
+            hits[lane] = self.intersect(&rays[lane]);
+        }
+    }
+
+    /// Sets bit `i` of the result for each occluded lane `i` in `mask`.
+    fn occluded8(&self, rays: &RayPacket, mask: LaneMask) -> LaneMask {
+        lanes(mask)
+            .filter(|&lane| self.occluded(&rays[lane]))
+            .fold(0, |acc, lane| acc | (1 << lane))
+    }
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum BackendKind {
+    #[default]
+    Embree,
+    Grid,
+}
+
+impl fmt::Display for BackendKind {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            BackendKind::Embree => "embree",
+            BackendKind::Grid => "grid",
+        })
+    }
+}
+
+impl FromStr for BackendKind {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "embree" => Ok(BackendKind::Embree),
+            "grid" => Ok(BackendKind::Grid),
+            other => Err(format!(
+                "unknown backend '{other}' (expected embree or grid)"
+            )),
+        }
+    }
+}
+
+#[derive(Debug, thiserror::Error)]
+pub enum AccelError {
+    #[error(transparent)]
+    Embree(#[from] embree::EmbreeError),
+    #[error("backend '{0}' is not available in this build")]
+    Unavailable(BackendKind),
+}
+
+/// A backend plus the scene's infinite planes: what the renderer traces.
+pub struct Accelerator {
+    bounded: Box<dyn Intersector + Send>,
+    planes: Vec<(u32, Plane)>,
+    kind: BackendKind,
+}
+
+impl Accelerator {
+    pub fn build(kind: BackendKind, objects: &[Object]) -> Result<Accelerator, AccelError> {
+        let bounded: Box<dyn Intersector + Send> = match kind {
+            BackendKind::Embree => Box::new(embree::EmbreeIntersector::build(objects)?),
+            BackendKind::Grid => return Err(AccelError::Unavailable(kind)),
+        };
+        let planes = objects
+            .iter()
+            .enumerate()
+            .filter_map(|(id, object)| match (&object.shape, &object.placement) {
+                (Shape::Plane(plane), Placement::World) => Some((id as u32, *plane)),
+                (Shape::Plane(plane), Placement::Instance(xf)) => Some((
+                    id as u32,
+                    Plane {
+                        point: xf.transform_point3(plane.point),
+                        normal: xf
+                            .matrix3
+                            .inverse()
+                            .transpose()
+                            .mul_vec3(plane.normal.into())
+                            .normalize()
+                            .into(),
+                    },
+                )),
+                _ => None,
+            })
+            .collect();
+        Ok(Accelerator {
+            bounded,
+            planes,
+            kind,
+        })
+    }
+
+    pub fn kind(&self) -> BackendKind {
+        self.kind
+    }
+
+    fn nearest_plane(&self, ray: &Ray, tmax: f32) -> Option<Hit> {
+        let mut best: Option<Hit> = None;
+        for &(object, ref plane) in &self.planes {
+            let limit = best.map_or(tmax, |h| h.t);
+            if let Some(t) = intersect_plane(plane, ray.origin, ray.dir, ray.tmin, limit) {
+                best = Some(Hit {
+                    t,
+                    object,
+                    prim: 0,
+                    u: 0.0,
+                    v: 0.0,
+                });
+            }
+        }
+        best
+    }
+
+    fn plane_blocks(&self, ray: &Ray) -> bool {
+        self.planes.iter().any(|(_, plane)| {
+            intersect_plane(plane, ray.origin, ray.dir, ray.tmin, ray.tmax).is_some()
+        })
+    }
+}
+
+impl Intersector for Accelerator {
+    fn intersect(&self, ray: &Ray) -> Option<Hit> {
+        let hit = self.bounded.intersect(ray);
+        let limit = hit.map_or(ray.tmax, |h| h.t);
+        self.nearest_plane(ray, limit).or(hit)
+    }
+
+    fn occluded(&self, ray: &Ray) -> bool {
+        self.plane_blocks(ray) || self.bounded.occluded(ray)
+    }
+
+    fn intersect8(&self, rays: &RayPacket, mask: LaneMask, hits: &mut HitPacket) {
+        self.bounded.intersect8(rays, mask, hits);
+        if self.planes.is_empty() {
+            return;
+        }
+        for lane in lanes(mask) {
+            let limit = hits[lane].map_or(rays[lane].tmax, |h| h.t);
+            if let Some(hit) = self.nearest_plane(&rays[lane], limit) {
+                hits[lane] = Some(hit);
+            }
+        }
+    }
+
+    fn occluded8(&self, rays: &RayPacket, mask: LaneMask) -> LaneMask {
+        let by_planes = lanes(mask)
+            .filter(|&lane| self.plane_blocks(&rays[lane]))
+            .fold(0, |acc, lane| acc | (1 << lane));
+        let rest = mask & !by_planes;
+        if rest == 0 {
+            return by_planes;
+        }
+        by_planes | self.bounded.occluded8(rays, rest)
+    }
+}
+
+const _: () = assert!(PACKET_WIDTH == 8, "packet calls below assume 8 lanes");

@@ -1,0 +1,234 @@
+//! The shapes a scene is made of, as every backend receives them.
+//!
+//! Spheres and planes stay analytic (no tessellation). Triangle meshes keep
+//! only non-degenerate triangles: the loader drops zero-area ones and counts
+//! them, so backends never see a triangle without a normal.
+
+use glam::{Affine3A, Vec3};
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Aabb {
+    pub min: Vec3,
+    pub max: Vec3,
+}
+
+impl Aabb {
+    pub const EMPTY: Aabb = Aabb {
+        min: Vec3::splat(f32::INFINITY),
+        max: Vec3::splat(f32::NEG_INFINITY),
+    };
+
+    pub fn from_points(points: impl IntoIterator<Item = Vec3>) -> Aabb {
+        points.into_iter().fold(Aabb::EMPTY, |b, p| b.grow(p))
+    }
+
+    pub fn grow(self, p: Vec3) -> Aabb {
+        Aabb {
+            min: self.min.min(p),
+            max: self.max.max(p),
+        }
+    }
+
+    pub fn union(self, other: Aabb) -> Aabb {
+        Aabb {
+            min: self.min.min(other.min),
+            max: self.max.max(other.max),
+        }
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.min.cmpgt(self.max).any()
+    }
+
+    pub fn is_finite(&self) -> bool {
+        self.min.is_finite() && self.max.is_finite()
+    }
+
+    pub fn extent(&self) -> Vec3 {
+        self.max - self.min
+    }
+
+    pub fn center(&self) -> Vec3 {
+        (self.min + self.max) * 0.5
+    }
+
+    /// The box around this box after an affine transform.
+    pub fn transformed(&self, transform: &Affine3A) -> Aabb {
+        if self.is_empty() {
+            return *self;
+        }
+        Aabb::from_points((0..8).map(|corner| {
+            let pick = |bit: u32, lo: f32, hi: f32| if corner & bit == 0 { lo } else { hi };
+            transform.transform_point3(Vec3::new(
+                pick(1, self.min.x, self.max.x),
+                pick(2, self.min.y, self.max.y),
+                pick(4, self.min.z, self.max.z),
+            ))
+        }))
+    }
+}
+
+#[derive(Clone, Debug, Default)]
+pub struct TriangleMesh {
+    pub positions: Vec<Vec3>,
+    pub triangles: Vec<[u32; 3]>,
+    /// Per-vertex shading normals (same length as `positions`), or empty for
+    /// flat shading.
+    pub normals: Vec<Vec3>,
+}
+
+impl TriangleMesh {
+    pub fn bounds(&self) -> Aabb {
+        Aabb::from_points(self.positions.iter().copied())
+    }
+
+    pub fn vertices(&self, prim: u32) -> [Vec3; 3] {
+        let [a, b, c] = self.triangles[prim as usize];
+        [
+            self.positions[a as usize],
+            self.positions[b as usize],
+            self.positions[c as usize],
+        ]
+    }
+
+    /// Area-weighted vertex normals, for meshes whose file gave none.
+    pub fn compute_smooth_normals(&mut self) {
+        let mut normals = vec![Vec3::ZERO; self.positions.len()];
+        for tri in &self.triangles {
+            let [a, b, c] = tri.map(|i| self.positions[i as usize]);
+            let n = (b - a).cross(c - a);
+            for &i in tri {
+                normals[i as usize] += n;
+            }
+        }
+        self.normals = normals.into_iter().map(|n| n.normalize_or_zero()).collect();
+    }
+}
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Sphere {
+    pub center: Vec3,
+    pub radius: f32,
+}
+
+/// An infinite plane: every point p with `normal . p == offset`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Plane {
+    pub point: Vec3,
+    /// Unit length.
+    pub normal: Vec3,
+}
+
+#[derive(Clone, Debug)]
+pub enum Shape {
+    Mesh(TriangleMesh),
+    Sphere(Sphere),
+    Plane(Plane),
+}
+
+impl Shape {
+    /// Object-space bounds; infinite for planes.
+    pub fn bounds(&self) -> Aabb {
+        match self {
+            Shape::Mesh(mesh) => mesh.bounds(),
+            Shape::Sphere(s) => Aabb {
+                min: s.center - Vec3::splat(s.radius),
+                max: s.center + Vec3::splat(s.radius),
+            },
+            Shape::Plane(_) => Aabb {
+                min: Vec3::splat(f32::NEG_INFINITY),
+                max: Vec3::splat(f32::INFINITY),
+            },
+        }
+    }
+}
+
+/// How an object is placed in the world.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Placement {
+    /// The shape is already in world space (static objects: their transform
+    /// was applied once at load time).
+    World,
+    /// The shape is in object space and reaches the world through this
+    /// transform; backends build it once and only update the transform when
+    /// the object moves.
+    Instance(Affine3A),
+}
+
+#[derive(Clone, Debug)]
+pub struct Object {
+    pub name: String,
+    pub shape: Shape,
+    pub material: usize,
+    pub placement: Placement,
+}
+
+impl Object {
+    pub fn world_bounds(&self) -> Aabb {
+        match &self.placement {
+            Placement::World => self.shape.bounds(),
+            Placement::Instance(xf) => self.shape.bounds().transformed(xf),
+        }
+    }
+}
+
+/// Ray/plane intersection shared by all backends (Embree has no infinite
+/// primitive, and a huge quad would lose precision far from the eye).
+pub fn intersect_plane(
+    plane: &Plane,
+    origin: Vec3,
+    dir: Vec3,
+    tmin: f32,
+    tmax: f32,
+) -> Option<f32> {
+    let denom = plane.normal.dot(dir);
+    if denom == 0.0 || !denom.is_finite() {
+        return None;
+    }
+    let t = plane.normal.dot(plane.point - origin) / denom;
+    (t > tmin && t < tmax).then_some(t)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn transformed_box_contains_transformed_corners() {
+        let b = Aabb {
+            min: Vec3::new(-1.0, 0.0, 2.0),
+            max: Vec3::new(1.0, 3.0, 4.0),
+        };
+        let xf =
+            Affine3A::from_rotation_y(0.7) * Affine3A::from_translation(Vec3::new(5.0, 1.0, -2.0));
+        let t = b.transformed(&xf);
+        for p in [b.min, b.max, Vec3::new(b.min.x, b.max.y, b.min.z)] {
+            let q = xf.transform_point3(p);
+            assert!(q.cmpge(t.min - 1e-5).all() && q.cmple(t.max + 1e-5).all());
+        }
+    }
+
+    #[test]
+    fn plane_hit_and_parallel_miss() {
+        let plane = Plane {
+            point: Vec3::ZERO,
+            normal: Vec3::Y,
+        };
+        let t = intersect_plane(
+            &plane,
+            Vec3::new(0.0, 2.0, 0.0),
+            Vec3::new(0.0, -1.0, 1.0),
+            0.0,
+            f32::INFINITY,
+        );
+        assert_eq!(t, Some(2.0));
+        assert_eq!(
+            intersect_plane(&plane, Vec3::Y, Vec3::X, 0.0, f32::INFINITY),
+            None
+        );
+        assert_eq!(
+            intersect_plane(&plane, Vec3::Y, Vec3::Y, 0.0, f32::INFINITY),
+            None
+        );
+    }
+}
