@@ -172,6 +172,15 @@ impl Object {
     }
 }
 
+/// Two unit vectors spanning the plane with unit normal `n` (a right-handed
+/// frame u, v, n), used for finite planes and plane checkers.
+pub fn plane_axes(n: Vec3) -> (Vec3, Vec3) {
+    let helper = if n.y.abs() < 0.9 { Vec3::Y } else { Vec3::X };
+    let u = helper.cross(n).normalize();
+    let v = n.cross(u);
+    (u, v)
+}
+
 /// Ray/plane intersection shared by all backends (Embree has no infinite
 /// primitive, and a huge quad would lose precision far from the eye).
 pub fn intersect_plane(

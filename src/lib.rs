@@ -7,3 +7,9 @@
 pub mod accel;
 pub mod geometry;
 pub mod ray;
+pub mod camera;
+pub mod scene;
+pub mod bench;
+pub mod output;
+pub mod render;
+pub mod shade;

@@ -1,1 +1,205 @@
-fn main() {}
+//! The `retrace` command line: parses arguments, calls the library, reports.
+
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::time::Instant;
+
+use anyhow::{Context, Result};
+use clap::{Args, Parser, Subcommand};
+
+use retrace::accel::{Accelerator, BackendKind};
+use retrace::camera::Projection;
+use retrace::output::save_image;
+use retrace::render::render_frame;
+use retrace::scene::{load_scene, paper_scene, Scene, SceneOverrides};
+
+#[derive(Parser)]
+#[command(name = "retrace", version, about = "A ray tracer for animation that re-traces only what changed")]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Render one image of a scene file (.toml) or a bare model (.obj).
+    Render(RenderArgs),
+    /// Measure rendering costs (release builds only make sense here).
+    Bench(BenchArgs),
+}
+
+#[derive(Args)]
+struct SceneArgs {
+    /// Scene file (.toml) or OBJ model; the built-in paper scene if omitted.
+    scene: Option<PathBuf>,
+    /// Image width in pixels.
+    #[arg(long)]
+    width: Option<u32>,
+    /// Image height in pixels.
+    #[arg(long)]
+    height: Option<u32>,
+    /// Camera projection.
+    #[arg(long, value_parser = parse_projection)]
+    camera: Option<Projection>,
+    /// Horizontal field of view in degrees.
+    #[arg(long)]
+    fov: Option<f64>,
+    /// Intersection backend.
+    #[arg(long, default_value = "embree", value_parser = parse_backend)]
+    backend: BackendKind,
+}
+
+fn parse_projection(s: &str) -> Result<Projection, String> {
+    s.parse()
+}
+
+fn parse_backend(s: &str) -> Result<BackendKind, String> {
+    s.parse()
+}
+
+#[derive(Args)]
+struct RenderArgs {
+    #[command(flatten)]
+    scene: SceneArgs,
+    /// Output image (.png or .tga).
+    #[arg(short, long, default_value = "out/render.png")]
+    output: PathBuf,
+}
+
+#[derive(Args)]
+struct BenchArgs {
+    #[command(flatten)]
+    scene: SceneArgs,
+    /// Which measurement: `frame` (a full frame against bare Embree on the
+    /// same ray packets).
+    #[arg(long, default_value = "frame")]
+    only: String,
+    /// Timed repetitions (the median is reported).
+    #[arg(long, default_value_t = 15)]
+    repeats: usize,
+    /// Also write the result as JSON here.
+    #[arg(long)]
+    json: Option<PathBuf>,
+}
+
+fn load(args: &SceneArgs) -> Result<Scene> {
+    let overrides = SceneOverrides {
+        width: args.width,
+        height: args.height,
+        projection: args.camera,
+        fov: args.fov,
+    };
+    let scene = match &args.scene {
+        Some(path) => load_scene(path, &overrides)?,
+        None => paper_scene(&overrides)?,
+    };
+    for warning in &scene.warnings {
+        eprintln!("warning: {warning}");
+    }
+    Ok(scene)
+}
+
+fn scene_name(args: &SceneArgs) -> String {
+    args.scene
+        .as_deref()
+        .map_or("built-in paper scene".to_string(), |p| p.display().to_string())
+}
+
+fn ensure_parent(path: &Path) -> Result<()> {
+    if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).with_context(|| format!("cannot create output folder {}", dir.display()))?;
+    }
+    Ok(())
+}
+
+fn render(args: RenderArgs) -> Result<()> {
+    // Check the output name before any work: a typo should not cost a render.
+    retrace::output::format_for(&args.output)?;
+    let scene = load(&args.scene)?;
+    let accel = Accelerator::build(args.scene.backend, &scene.objects)?;
+    let start = Instant::now();
+    let (frame, rays) = render_frame(&scene, &accel);
+    let elapsed = start.elapsed();
+    ensure_parent(&args.output)?;
+    save_image(&args.output, &frame.to_rgb8())?;
+    let seconds = elapsed.as_secs_f64();
+    println!(
+        "{}: {}x{} {} via {} in {:.1} ms -> {}",
+        scene_name(&args.scene),
+        frame.width,
+        frame.height,
+        scene.camera.projection,
+        accel.kind(),
+        seconds * 1e3,
+        args.output.display()
+    );
+    println!(
+        "rays: {} primary, {} shadow, {} reflection ({:.1} Mrays/s)",
+        rays.primary,
+        rays.shadow,
+        rays.reflection,
+        rays.total() as f64 / seconds / 1e6
+    );
+    Ok(())
+}
+
+fn bench(args: BenchArgs) -> Result<()> {
+    if args.only != "frame" {
+        anyhow::bail!("unknown measurement '{}' for --only (available: frame)", args.only);
+    }
+    if cfg!(debug_assertions) {
+        eprintln!("warning: this is a debug build; timings mean little (use `cargo run --release`)");
+    }
+    let scene = load(&args.scene)?;
+    let accel = Accelerator::build(args.scene.backend, &scene.objects)?;
+    let bar = indicatif::ProgressBar::new(args.repeats.max(1) as u64)
+        .with_style(indicatif::ProgressStyle::with_template("{msg} {bar:30} {pos}/{len}").expect("static template"))
+        .with_message("frame vs bare Embree");
+    let result = retrace::bench::bench_frame(&scene, &accel, args.repeats, || bar.inc(1))?;
+    bar.finish_and_clear();
+    println!(
+        "{}: {}x{}, {} packets ({} primary, {} shadow, {} reflection rays), {} threads, median of {}",
+        scene_name(&args.scene),
+        result.width,
+        result.height,
+        result.packets,
+        result.rays.primary,
+        result.rays.shadow,
+        result.rays.reflection,
+        result.threads,
+        result.repeats
+    );
+    println!("full frame ({}):      {:8.2} ms", accel.kind(), result.full_ms);
+    println!("bare Embree, same packets: {:8.2} ms", result.embree_ms);
+    println!("ratio:                     {:8.3}x", result.ratio);
+    if let Some(path) = &args.json {
+        ensure_parent(path)?;
+        let text = serde_json::to_string_pretty(&result)?;
+        retrace::output::write_atomically(path, |temp| {
+            std::fs::write(temp, &text).map_err(|source| retrace::output::OutputError::Write {
+                path: path.clone(),
+                source,
+            })
+        })?;
+    }
+    Ok(())
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Render(args) => render(args),
+        Command::Bench(args) => bench(args),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(err) => {
+            eprint!("error: {err}");
+            for cause in err.chain().skip(1) {
+                eprint!(": {cause}");
+            }
+            eprintln!();
+            ExitCode::FAILURE
+        }
+    }
+}

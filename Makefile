@@ -1,0 +1,51 @@
+# retrace: two commands on a fresh Debian machine.
+#   make demo   renders the paper scene (out/paper.png) and the bunny (out/bunny.png)
+#   make test   runs the whole test suite (format, lints, unit and integration tests)
+# Both install the Debian packages they need first (Embree, libclang for bindgen).
+
+DEBIAN_PACKAGES := libembree-dev libclang-dev pkg-config
+RETRACE := ./target/release/retrace
+
+.PHONY: all deps build demo test lint test-embree4 bench clean
+
+all: demo
+
+deps:
+	@missing=""; \
+	for pkg in $(DEBIAN_PACKAGES); do \
+	  dpkg-query -W -f='$${Status}' $$pkg 2>/dev/null | grep -q "ok installed" || missing="$$missing $$pkg"; \
+	done; \
+	if [ -n "$$missing" ]; then \
+	  echo "make: installing Debian packages:$$missing"; \
+	  if [ "$$(id -u)" = 0 ]; then sudo=""; else sudo="sudo"; fi; \
+	  $$sudo apt-get update -qq && \
+	  DEBIAN_FRONTEND=noninteractive $$sudo apt-get install -y -qq --no-install-recommends $$missing; \
+	fi
+
+build: deps
+	cargo build --release
+
+demo: build
+	@mkdir -p out
+	$(RETRACE) render -o out/paper.png
+	$(RETRACE) render scenes/bunny.toml -o out/bunny.png
+
+lint: deps
+	cargo fmt --all -- --check
+	cargo clippy --all-targets -- -D warnings
+
+test: lint
+	cargo test --all-targets
+	cargo bench --no-run
+
+# The whole suite against Embree 4 (Debian 13) in a chroot; see .ci/embree4.sh.
+test-embree4:
+	bash .ci/embree4.sh
+
+bench: build
+	$(RETRACE) bench --only frame
+	$(RETRACE) bench --only frame scenes/bunny.toml
+
+clean:
+	cargo clean
+	rm -rf out

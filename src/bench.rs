@@ -1,0 +1,147 @@
+//! Measurements behind `retrace bench`.
+//!
+//! `frame`: how much a full frame costs beyond Embree itself. The frame is
+//! rendered once through a recording intersector that keeps every packet
+//! call (primary, shadow, reflection: rays and lane masks); then full
+//! renders and replays of exactly those packets through bare Embree (no ray
+//! generation, no shading, no plane tests) alternate, and the medians are
+//! compared. Both sides run on the same rayon pool.
+
+use std::sync::Mutex;
+use std::time::Instant;
+
+use rayon::prelude::*;
+
+use crate::accel::embree::{EmbreeError, EmbreeIntersector};
+use crate::accel::{Accelerator, Intersector};
+use crate::ray::{Hit, HitPacket, LaneMask, Ray, RayPacket, PACKET_WIDTH};
+use crate::render::render_frame;
+use crate::scene::Scene;
+use crate::shade::RayCounts;
+
+#[derive(Clone, Copy)]
+enum Call {
+    Intersect,
+    Occluded,
+}
+
+struct Recorded {
+    call: Call,
+    rays: RayPacket,
+    mask: LaneMask,
+}
+
+/// Forwards to an intersector and keeps a copy of every packet call.
+struct Recorder<'a> {
+    inner: &'a dyn Intersector,
+    log: Mutex<Vec<Recorded>>,
+}
+
+impl Recorder<'_> {
+    fn record(&self, call: Call, rays: &RayPacket, mask: LaneMask) {
+        self.log.lock().unwrap_or_else(|e| e.into_inner()).push(Recorded {
+            call,
+            rays: *rays,
+            mask,
+        });
+    }
+}
+
+impl Intersector for Recorder<'_> {
+    fn intersect(&self, ray: &Ray) -> Option<Hit> {
+        let mut rays = [Ray::INACTIVE; PACKET_WIDTH];
+        rays[0] = *ray;
+        self.record(Call::Intersect, &rays, 1);
+        self.inner.intersect(ray)
+    }
+
+    fn occluded(&self, ray: &Ray) -> bool {
+        let mut rays = [Ray::INACTIVE; PACKET_WIDTH];
+        rays[0] = *ray;
+        self.record(Call::Occluded, &rays, 1);
+        self.inner.occluded(ray)
+    }
+
+    fn intersect8(&self, rays: &RayPacket, mask: LaneMask, hits: &mut HitPacket) {
+        self.record(Call::Intersect, rays, mask);
+        self.inner.intersect8(rays, mask, hits)
+    }
+
+    fn occluded8(&self, rays: &RayPacket, mask: LaneMask) -> LaneMask {
+        self.record(Call::Occluded, rays, mask);
+        self.inner.occluded8(rays, mask)
+    }
+}
+
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct FrameBench {
+    pub width: u32,
+    pub height: u32,
+    pub repeats: usize,
+    pub packets: usize,
+    pub rays: RayCounts,
+    /// Median of the full renders (ray generation, Embree, planes, shading).
+    pub full_ms: f64,
+    /// Median of the bare Embree replays of the same packets.
+    pub embree_ms: f64,
+    /// full / embree.
+    pub ratio: f64,
+    pub threads: usize,
+}
+
+fn median(mut values: Vec<f64>) -> f64 {
+    values.sort_by(f64::total_cmp);
+    values[values.len() / 2]
+}
+
+/// Measures a full frame of `scene` against bare Embree on the same packets.
+pub fn bench_frame(scene: &Scene, accel: &Accelerator, repeats: usize, mut progress: impl FnMut()) -> Result<FrameBench, EmbreeError> {
+    let bare = EmbreeIntersector::build(&scene.objects)?;
+    let recorder = Recorder {
+        inner: accel,
+        log: Mutex::new(Vec::new()),
+    };
+    let (_, rays) = render_frame(scene, &recorder);
+    let log = recorder.log.into_inner().unwrap_or_else(|e| e.into_inner());
+
+    let replay = || {
+        log.par_iter().with_min_len(16).for_each(|packet| match packet.call {
+            Call::Intersect => {
+                let mut hits = [None; PACKET_WIDTH];
+                bare.intersect8(&packet.rays, packet.mask, &mut hits);
+                std::hint::black_box(&hits);
+            }
+            Call::Occluded => {
+                std::hint::black_box(bare.occluded8(&packet.rays, packet.mask));
+            }
+        })
+    };
+    // Warm both paths (page faults, caches, rayon's threads).
+    replay();
+    std::hint::black_box(render_frame(scene, accel));
+
+    let repeats = repeats.max(1);
+    let mut full = Vec::with_capacity(repeats);
+    let mut embree = Vec::with_capacity(repeats);
+    for _ in 0..repeats {
+        let start = Instant::now();
+        std::hint::black_box(render_frame(scene, accel));
+        full.push(start.elapsed().as_secs_f64() * 1e3);
+        let start = Instant::now();
+        replay();
+        embree.push(start.elapsed().as_secs_f64() * 1e3);
+        progress();
+    }
+    let (full_ms, embree_ms) = (median(full), median(embree));
+    Ok(FrameBench {
+        width: scene.camera.width,
+        height: scene.camera.height,
+        repeats,
+        packets: log.len(),
+        rays,
+        full_ms,
+        embree_ms,
+        ratio: full_ms / embree_ms,
+        threads: rayon::current_num_threads(),
+    })
+}

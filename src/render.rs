@@ -1,0 +1,220 @@
+//! Turning samples into colours: full frames, and "trace just these sample
+//! groups" for the reuse algorithms. The one way samples get traced.
+//!
+//! Samples are traced in fixed groups of 4x2 (one 8-wide packet), aligned to
+//! multiples of 4 columns and 2 rows of the sample lattice. Embree does not
+//! promise that a ray gives bit-identical results in a different packet, so
+//! a sample is always traced with the same seven neighbours: a partial
+//! re-trace then equals a full render bit for bit.
+
+use glam::Vec3;
+use rayon::prelude::*;
+
+use crate::accel::Intersector;
+use crate::camera::Camera;
+use crate::ray::{LaneMask, Ray, PACKET_WIDTH};
+use crate::scene::Scene;
+use crate::shade::{RayCounts, Shader};
+
+pub const GROUP_WIDTH: u32 = 4;
+pub const GROUP_HEIGHT: u32 = 2;
+const _: () = assert!((GROUP_WIDTH * GROUP_HEIGHT) as usize == PACKET_WIDTH);
+
+/// The aligned group holding a sample: column and row of its top-left sample.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct SampleGroup {
+    pub col: i64,
+    pub row: i64,
+}
+
+impl SampleGroup {
+    pub fn containing(col: i64, row: i64) -> SampleGroup {
+        SampleGroup {
+            col: col.div_euclid(i64::from(GROUP_WIDTH)) * i64::from(GROUP_WIDTH),
+            row: row.div_euclid(i64::from(GROUP_HEIGHT)) * i64::from(GROUP_HEIGHT),
+        }
+    }
+
+    /// (column, row) of each lane.
+    pub fn lane_samples(self) -> [(i64, i64); PACKET_WIDTH] {
+        std::array::from_fn(|lane| {
+            (
+                self.col + (lane as i64 % i64::from(GROUP_WIDTH)),
+                self.row + (lane as i64 / i64::from(GROUP_WIDTH)),
+            )
+        })
+    }
+
+    /// The groups covering columns `cols` and rows `rows` (half-open).
+    pub fn covering(cols: std::ops::Range<i64>, rows: std::ops::Range<i64>) -> Vec<SampleGroup> {
+        if cols.is_empty() || rows.is_empty() {
+            return Vec::new();
+        }
+        let first = SampleGroup::containing(cols.start, rows.start);
+        let (gw, gh) = (i64::from(GROUP_WIDTH), i64::from(GROUP_HEIGHT));
+        let mut groups = Vec::new();
+        let mut row = first.row;
+        while row < rows.end {
+            let mut col = first.col;
+            while col < cols.end {
+                groups.push(SampleGroup { col, row });
+                col += gw;
+            }
+            row += gh;
+        }
+        groups
+    }
+}
+
+/// Where primary rays come from: a sample lattice addressed by integer
+/// column and row. None = no ray there (outside the image, or outside
+/// what the projection covers).
+pub trait PrimaryRays: Sync {
+    fn primary(&self, col: i64, row: i64) -> Option<Ray>;
+}
+
+/// A camera's lattice is its image: one sample per pixel centre.
+impl PrimaryRays for Camera {
+    fn primary(&self, col: i64, row: i64) -> Option<Ray> {
+        let inside = (0..i64::from(self.width)).contains(&col) && (0..i64::from(self.height)).contains(&row);
+        if !inside {
+            return None;
+        }
+        self.primary_ray(col as u32, row as u32)
+    }
+}
+
+/// Traces one group; lanes without a ray come back black.
+pub fn trace_group(
+    shader: &Shader,
+    source: &dyn PrimaryRays,
+    group: SampleGroup,
+    counts: &mut RayCounts,
+) -> [Vec3; PACKET_WIDTH] {
+    let mut rays = [Ray::INACTIVE; PACKET_WIDTH];
+    let mut mask: LaneMask = 0;
+    for (lane, (col, row)) in group.lane_samples().into_iter().enumerate() {
+        if let Some(ray) = source.primary(col, row) {
+            rays[lane] = ray;
+            mask |= 1 << lane;
+        }
+    }
+    shader.shade(&rays, mask, 0, counts)
+}
+
+/// Traces `groups` in parallel; colours come back in the order given.
+pub fn trace_groups(
+    shader: &Shader,
+    source: &dyn PrimaryRays,
+    groups: &[SampleGroup],
+) -> (Vec<[Vec3; PACKET_WIDTH]>, RayCounts) {
+    let (colors, counts): (Vec<_>, Vec<_>) = groups
+        .par_iter()
+        .with_min_len(16)
+        .map(|&group| {
+            let mut counts = RayCounts::default();
+            let colors = trace_group(shader, source, group, &mut counts);
+            (colors, counts)
+        })
+        .unzip();
+    (colors, counts.into_iter().fold(RayCounts::default(), |a, b| a + b))
+}
+
+/// A linear-light RGB image.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Frame {
+    pub width: u32,
+    pub height: u32,
+    pub pixels: Vec<Vec3>,
+}
+
+impl Frame {
+    pub fn new(width: u32, height: u32) -> Frame {
+        Frame {
+            width,
+            height,
+            pixels: vec![Vec3::ZERO; width as usize * height as usize],
+        }
+    }
+
+    pub fn get(&self, x: u32, y: u32) -> Vec3 {
+        self.pixels[y as usize * self.width as usize + x as usize]
+    }
+
+    /// 8-bit sRGB, clamped.
+    pub fn to_rgb8(&self) -> image::RgbImage {
+        let mut out = image::RgbImage::new(self.width, self.height);
+        for (dst, src) in out.pixels_mut().zip(&self.pixels) {
+            *dst = image::Rgb(src.to_array().map(encode_srgb));
+        }
+        out
+    }
+}
+
+/// Linear [0, 1] to an sRGB byte.
+pub fn encode_srgb(linear: f32) -> u8 {
+    let c = if linear.is_nan() { 0.0 } else { linear.clamp(0.0, 1.0) };
+    let s = if c <= 0.003_130_8 {
+        12.92 * c
+    } else {
+        1.055 * c.powf(1.0 / 2.4) - 0.055
+    };
+    (s * 255.0 + 0.5) as u8
+}
+
+/// The groups covering a whole `width` x `height` image.
+pub fn image_groups(width: u32, height: u32) -> Vec<SampleGroup> {
+    SampleGroup::covering(0..i64::from(width), 0..i64::from(height))
+}
+
+/// Renders the scene's camera view in full.
+pub fn render_frame(scene: &Scene, intersector: &dyn Intersector) -> (Frame, RayCounts) {
+    let camera = &scene.camera;
+    let shader = Shader { scene, intersector };
+    let groups = image_groups(camera.width, camera.height);
+    let (colors, counts) = trace_groups(&shader, camera, &groups);
+    let mut frame = Frame::new(camera.width, camera.height);
+    for (group, colors) in groups.iter().zip(&colors) {
+        for (lane, (col, row)) in group.lane_samples().into_iter().enumerate() {
+            if col < i64::from(camera.width) && row < i64::from(camera.height) {
+                frame.pixels[row as usize * camera.width as usize + col as usize] = colors[lane];
+            }
+        }
+    }
+    (frame, counts)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn groups_align_and_cover() {
+        assert_eq!(SampleGroup::containing(5, 3), SampleGroup { col: 4, row: 2 });
+        assert_eq!(SampleGroup::containing(-1, -1), SampleGroup { col: -4, row: -2 });
+        let groups = SampleGroup::covering(3..9, 1..4);
+        let mut covered = std::collections::HashSet::new();
+        for g in &groups {
+            assert_eq!(g.col % 4, 0);
+            assert_eq!(g.row % 2, 0);
+            covered.extend(g.lane_samples());
+        }
+        for col in 3..9 {
+            for row in 1..4 {
+                assert!(covered.contains(&(col, row)));
+            }
+        }
+        assert_eq!(groups.len(), 3 * 2);
+        assert_eq!(image_groups(640, 480).len(), 160 * 240);
+    }
+
+    #[test]
+    fn srgb_encoding_endpoints() {
+        assert_eq!(encode_srgb(0.0), 0);
+        assert_eq!(encode_srgb(1.0), 255);
+        assert_eq!(encode_srgb(2.0), 255);
+        assert_eq!(encode_srgb(f32::NAN), 0);
+        assert_eq!(encode_srgb(-1.0), 0);
+        assert!(encode_srgb(0.5) > 180);
+    }
+}

@@ -1,0 +1,636 @@
+//! The TOML scene file: parsing, checking, and conversion to a [`Scene`].
+//!
+//! Every error names the file, the line (of the offending value or of the
+//! table it sits in) and the field path, e.g.
+//! `scenes/x.toml:14: object[2].radius: must be above 0, got -1`.
+
+use std::collections::BTreeMap;
+use std::path::Path;
+
+use glam::{Affine3A, DVec3, EulerRot, Quat, Vec3};
+use serde::Deserialize;
+use toml::Spanned;
+
+use super::{Checker, Light, Material, Scene, SceneError};
+use crate::camera::{yaw_pitch_toward, Camera, Projection};
+use crate::geometry::{Object, Placement, Plane, Shape, Sphere, TriangleMesh};
+
+/// Settings from the command line that replace the file's.
+#[derive(Clone, Debug, Default)]
+pub struct SceneOverrides {
+    pub width: Option<u32>,
+    pub height: Option<u32>,
+    pub projection: Option<Projection>,
+    /// Degrees.
+    pub fov: Option<f64>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SceneFile {
+    #[serde(default)]
+    render: RenderDef,
+    camera: Spanned<CameraDef>,
+    #[serde(default)]
+    light: Vec<Spanned<LightDef>>,
+    #[serde(default)]
+    material: BTreeMap<String, Spanned<MaterialDef>>,
+    #[serde(default)]
+    object: Vec<Spanned<ObjectDef>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RenderDef {
+    #[serde(default = "default_width")]
+    width: u32,
+    #[serde(default = "default_height")]
+    height: u32,
+    #[serde(default = "default_depth")]
+    max_depth: u32,
+    #[serde(default)]
+    background: [f32; 3],
+    #[serde(default = "default_ambient")]
+    ambient: [f32; 3],
+}
+
+impl Default for RenderDef {
+    fn default() -> Self {
+        RenderDef {
+            width: default_width(),
+            height: default_height(),
+            max_depth: default_depth(),
+            background: [0.0; 3],
+            ambient: default_ambient(),
+        }
+    }
+}
+
+fn default_width() -> u32 {
+    640
+}
+fn default_height() -> u32 {
+    480
+}
+fn default_depth() -> u32 {
+    4
+}
+fn default_ambient() -> [f32; 3] {
+    [0.1; 3]
+}
+
+/// Deepest reflection recursion accepted (each level can double the rays).
+pub const MAX_DEPTH_LIMIT: u32 = 16;
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct CameraDef {
+    #[serde(default = "default_projection")]
+    projection: Projection,
+    position: [f64; 3],
+    /// Degrees.
+    yaw: Option<f64>,
+    /// Degrees.
+    pitch: Option<f64>,
+    look_at: Option<[f64; 3]>,
+    /// Horizontal field of view, degrees.
+    fov: f64,
+}
+
+fn default_projection() -> Projection {
+    Projection::Perspective
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct LightDef {
+    position: [f32; 3],
+    #[serde(default = "white")]
+    color: [f32; 3],
+    #[serde(default = "one")]
+    intensity: f32,
+}
+
+fn white() -> [f32; 3] {
+    [1.0; 3]
+}
+fn one() -> f32 {
+    1.0
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct MaterialDef {
+    #[serde(default = "grey")]
+    diffuse: [f32; 3],
+    checker: Option<CheckerDef>,
+    #[serde(default)]
+    specular: [f32; 3],
+    #[serde(default = "default_shininess")]
+    shininess: f32,
+    #[serde(default)]
+    reflectivity: f32,
+}
+
+fn grey() -> [f32; 3] {
+    [0.7; 3]
+}
+fn default_shininess() -> f32 {
+    32.0
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct CheckerDef {
+    colors: [[f32; 3]; 2],
+    #[serde(default = "one")]
+    scale: f32,
+}
+
+#[derive(Deserialize, Clone, Copy, PartialEq, Eq, Debug)]
+#[serde(rename_all = "lowercase")]
+enum ObjectKind {
+    Sphere,
+    Plane,
+    Quad,
+    Polygon,
+    Mesh,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ObjectDef {
+    #[serde(rename = "type")]
+    kind: ObjectKind,
+    name: Option<String>,
+    material: Option<Spanned<String>>,
+    center: Option<[f32; 3]>,
+    radius: Option<f32>,
+    point: Option<[f32; 3]>,
+    normal: Option<[f32; 3]>,
+    /// Finite plane: side lengths along the plane's two in-plane axes.
+    size: Option<[f32; 2]>,
+    vertices: Option<Vec<[f32; 3]>>,
+    file: Option<String>,
+    #[serde(default)]
+    translate: [f32; 3],
+    /// Degrees about x, then y, then z.
+    #[serde(default)]
+    rotate: [f32; 3],
+    #[serde(default = "one")]
+    scale: f32,
+    /// Meshes without normals in the file: interpolate area-weighted vertex
+    /// normals instead of shading each triangle flat.
+    #[serde(default)]
+    smooth: bool,
+}
+
+/// Line (1-based) of a byte offset.
+fn line_of(text: &str, offset: usize) -> usize {
+    text[..offset.min(text.len())].bytes().filter(|&b| b == b'\n').count() + 1
+}
+
+struct Ctx<'a> {
+    path: &'a Path,
+    text: &'a str,
+}
+
+impl Ctx<'_> {
+    fn error(&self, span: std::ops::Range<usize>, field: impl Into<String>, message: impl Into<String>) -> SceneError {
+        SceneError::new(self.path, message)
+            .at_line(line_of(self.text, span.start))
+            .field(field)
+    }
+}
+
+fn finite3(values: [f32; 3]) -> Result<Vec3, String> {
+    let v = Vec3::from_array(values);
+    if v.is_finite() {
+        Ok(v)
+    } else {
+        Err(format!("must be finite, got {values:?}"))
+    }
+}
+
+fn colour(values: [f32; 3]) -> Result<Vec3, String> {
+    let v = finite3(values)?;
+    if v.min_element() < 0.0 {
+        return Err(format!("colour components must not be negative, got {values:?}"));
+    }
+    Ok(v)
+}
+
+pub fn parse_scene_str(text: &str, path: &Path, overrides: &SceneOverrides) -> Result<Scene, SceneError> {
+    let deserializer = toml::Deserializer::new(text);
+    let file: SceneFile = serde_path_to_error::deserialize(deserializer).map_err(|err| {
+        let field = err.path().to_string();
+        let inner = err.into_inner();
+        let mut e = SceneError::new(path, inner.message().to_string());
+        if let Some(span) = inner.span() {
+            e = e.at_line(line_of(text, span.start));
+        }
+        if field != "." && !field.is_empty() {
+            e = e.field(field);
+        }
+        e
+    })?;
+    let ctx = Ctx { path, text };
+
+    let render = &file.render;
+    let to_err = |field: &str| {
+        let field = field.to_string();
+        move |message: String| SceneError::new(path, message).field(field.clone())
+    };
+    let background = colour(render.background).map_err(to_err("render.background"))?;
+    let ambient = colour(render.ambient).map_err(to_err("render.ambient"))?;
+    if render.max_depth > MAX_DEPTH_LIMIT {
+        return Err(SceneError::new(
+            path,
+            format!("at most {MAX_DEPTH_LIMIT}, got {}", render.max_depth),
+        )
+        .field("render.max_depth"));
+    }
+
+    let camera = convert_camera(&ctx, &file.camera, render, overrides)?;
+
+    let mut materials = Vec::with_capacity(file.material.len() + 1);
+    for (name, def) in &file.material {
+        materials.push(convert_material(&ctx, name, def)?);
+    }
+    let default_material = materials.len();
+    materials.push(Material::matte("default", Vec3::splat(0.7)));
+
+    let lights = file
+        .light
+        .iter()
+        .enumerate()
+        .map(|(i, def)| {
+            let field = |f: &str| format!("light[{i}].{f}");
+            let l = def.get_ref();
+            let position = finite3(l.position).map_err(|m| ctx.error(def.span(), field("position"), m))?;
+            let color = colour(l.color).map_err(|m| ctx.error(def.span(), field("color"), m))?;
+            if !(l.intensity.is_finite() && l.intensity >= 0.0) {
+                return Err(ctx.error(
+                    def.span(),
+                    field("intensity"),
+                    format!("must be a finite number >= 0, got {}", l.intensity),
+                ));
+            }
+            Ok(Light {
+                position,
+                power: color * l.intensity,
+            })
+        })
+        .collect::<Result<Vec<_>, _>>()?;
+
+    let mut warnings = Vec::new();
+    let mut objects = Vec::with_capacity(file.object.len());
+    for (i, def) in file.object.iter().enumerate() {
+        let material = match &def.get_ref().material {
+            None => default_material,
+            Some(name) => materials
+                .iter()
+                .position(|m| m.name == *name.get_ref())
+                .ok_or_else(|| {
+                    let known: Vec<&str> = file.material.keys().map(String::as_str).collect();
+                    ctx.error(
+                        name.span(),
+                        format!("object[{i}].material"),
+                        format!(
+                            "unknown material '{}' (defined: {})",
+                            name.get_ref(),
+                            if known.is_empty() { "none".to_string() } else { known.join(", ") }
+                        ),
+                    )
+                })?,
+        };
+        objects.extend(convert_object(&ctx, i, def, material, &mut materials, &mut warnings)?);
+    }
+
+    Ok(Scene {
+        camera,
+        objects,
+        materials,
+        lights,
+        background,
+        ambient,
+        max_depth: render.max_depth,
+        warnings,
+    })
+}
+
+fn convert_camera(
+    ctx: &Ctx,
+    def: &Spanned<CameraDef>,
+    render: &RenderDef,
+    overrides: &SceneOverrides,
+) -> Result<Camera, SceneError> {
+    let c = def.get_ref();
+    let position = DVec3::from_array(c.position);
+    let (yaw, pitch) = match (c.look_at, c.yaw, c.pitch) {
+        (Some(_), Some(_), _) | (Some(_), _, Some(_)) => {
+            return Err(ctx.error(
+                def.span(),
+                "camera.look_at",
+                "give either look_at or yaw/pitch, not both",
+            ))
+        }
+        (Some(target), None, None) => {
+            let target = DVec3::from_array(target);
+            if (target - position).length() == 0.0 {
+                return Err(ctx.error(def.span(), "camera.look_at", "must differ from camera.position"));
+            }
+            yaw_pitch_toward(position, target)
+        }
+        (None, yaw, pitch) => (
+            yaw.unwrap_or(0.0).to_radians(),
+            pitch.unwrap_or(0.0).to_radians(),
+        ),
+    };
+    let camera = Camera {
+        projection: overrides.projection.unwrap_or(c.projection),
+        position,
+        yaw,
+        pitch,
+        fov: overrides.fov.unwrap_or(c.fov).to_radians(),
+        width: overrides.width.unwrap_or(render.width),
+        height: overrides.height.unwrap_or(render.height),
+    };
+    camera.validate().map_err(|err| {
+        let field = match err {
+            crate::camera::CameraError::EmptyImage { .. } | crate::camera::CameraError::ImageTooLarge { .. } => {
+                "render.width/height"
+            }
+            crate::camera::CameraError::FieldOfView { .. } => "camera.fov",
+            crate::camera::CameraError::ElevationOutOfRange { .. } => "camera.pitch",
+            crate::camera::CameraError::NotFinite { field, .. } => field,
+        };
+        ctx.error(def.span(), field, err.to_string())
+    })?;
+    Ok(camera)
+}
+
+fn convert_material(ctx: &Ctx, name: &str, def: &Spanned<MaterialDef>) -> Result<Material, SceneError> {
+    let m = def.get_ref();
+    let field = |f: &str| format!("material.{name}.{f}");
+    let err = |f: &str| {
+        let f = field(f);
+        move |message: String| ctx.error(def.span(), f.clone(), message)
+    };
+    let checker = match &m.checker {
+        None => None,
+        Some(c) => {
+            if !(c.scale.is_finite() && c.scale > 0.0) {
+                return Err(err("checker.scale")(format!("must be above 0, got {}", c.scale)));
+            }
+            Some(Checker {
+                colors: [
+                    colour(c.colors[0]).map_err(err("checker.colors"))?,
+                    colour(c.colors[1]).map_err(err("checker.colors"))?,
+                ],
+                scale: c.scale,
+            })
+        }
+    };
+    if !(m.shininess.is_finite() && m.shininess >= 0.0) {
+        return Err(err("shininess")(format!("must be >= 0, got {}", m.shininess)));
+    }
+    if !(0.0..=1.0).contains(&m.reflectivity) {
+        return Err(err("reflectivity")(format!("must be within 0..1, got {}", m.reflectivity)));
+    }
+    Ok(Material {
+        name: name.to_string(),
+        diffuse: colour(m.diffuse).map_err(err("diffuse"))?,
+        checker,
+        specular: colour(m.specular).map_err(err("specular"))?,
+        shininess: m.shininess,
+        reflectivity: m.reflectivity,
+    })
+}
+
+fn convert_object(
+    ctx: &Ctx,
+    index: usize,
+    def: &Spanned<ObjectDef>,
+    material: usize,
+    materials: &mut Vec<Material>,
+    warnings: &mut Vec<String>,
+) -> Result<Vec<Object>, SceneError> {
+    let o = def.get_ref();
+    let field = |f: &str| format!("object[{index}].{f}");
+    let err = |f: &str, message: String| ctx.error(def.span(), field(f), message);
+    let require = |value: Option<[f32; 3]>, f: &str| -> Result<Vec3, SceneError> {
+        let v = value.ok_or_else(|| err(f, format!("required for type = \"{:?}\"", o.kind).to_lowercase()))?;
+        finite3(v).map_err(|m| err(f, m))
+    };
+
+    let translate = finite3(o.translate).map_err(|m| err("translate", m))?;
+    let rotate = finite3(o.rotate).map_err(|m| err("rotate", m))?;
+    if !(o.scale.is_finite() && o.scale > 0.0) {
+        return Err(err("scale", format!("must be above 0, got {}", o.scale)));
+    }
+    let transform = Affine3A::from_scale_rotation_translation(
+        Vec3::splat(o.scale),
+        Quat::from_euler(
+            EulerRot::ZYX,
+            rotate.z.to_radians(),
+            rotate.y.to_radians(),
+            rotate.x.to_radians(),
+        ),
+        translate,
+    );
+
+    let shape = match o.kind {
+        ObjectKind::Sphere => {
+            let center = require(o.center, "center")?;
+            let radius = o.radius.ok_or_else(|| err("radius", "required for type = \"sphere\"".into()))?;
+            if !(radius.is_finite() && radius > 0.0) {
+                return Err(err("radius", format!("must be above 0, got {radius}")));
+            }
+            Shape::Sphere(Sphere {
+                center: transform.transform_point3(center),
+                radius: radius * o.scale,
+            })
+        }
+        ObjectKind::Plane => {
+            let point = transform.transform_point3(require(o.point, "point")?);
+            let normal = transform.transform_vector3(require(o.normal, "normal")?);
+            if normal.length_squared() == 0.0 {
+                return Err(err("normal", "must not be zero".into()));
+            }
+            let normal = normal.normalize();
+            match o.size {
+                None => Shape::Plane(Plane { point, normal }),
+                Some(size) => {
+                    if !(size[0].is_finite() && size[1].is_finite() && size[0] > 0.0 && size[1] > 0.0) {
+                        return Err(err("size", format!("both sides must be above 0, got {size:?}")));
+                    }
+                    let (u, v) = crate::geometry::plane_axes(normal);
+                    let (hu, hv) = (u * size[0] * 0.5, v * size[1] * 0.5);
+                    let corners = vec![point - hu - hv, point + hu - hv, point + hu + hv, point - hu + hv];
+                    polygon_mesh(corners).map_err(|m| err("size", m))?
+                }
+            }
+        }
+        ObjectKind::Quad | ObjectKind::Polygon => {
+            let vertices = o
+                .vertices
+                .as_ref()
+                .ok_or_else(|| err("vertices", "required for quads and polygons".into()))?;
+            if o.kind == ObjectKind::Quad && vertices.len() != 4 {
+                return Err(err("vertices", format!("a quad needs 4 vertices, got {}", vertices.len())));
+            }
+            let points = vertices
+                .iter()
+                .map(|&v| finite3(v).map(|p| transform.transform_point3(p)))
+                .collect::<Result<Vec<_>, _>>()
+                .map_err(|m| err("vertices", m))?;
+            polygon_mesh(points).map_err(|m| err("vertices", m))?
+        }
+        ObjectKind::Mesh => {
+            let file = o
+                .file
+                .as_ref()
+                .ok_or_else(|| err("file", "required for type = \"mesh\"".into()))?;
+            let obj_path = ctx.path.parent().unwrap_or(Path::new(".")).join(file);
+            let loaded = super::load_obj_mesh(&obj_path)?;
+            if loaded.dropped_degenerate > 0 {
+                warnings.push(format!(
+                    "{}: dropped {} degenerate triangle(s) (zero area or repeated vertices)",
+                    obj_path.display(),
+                    loaded.dropped_degenerate
+                ));
+            }
+            if loaded.triangle_count() == 0 {
+                warnings.push(format!("{}: mesh has no triangles", obj_path.display()));
+            }
+            let name = o.name.clone().unwrap_or_else(|| format!("object[{index}]"));
+            let normal_xf = transform.matrix3.inverse().transpose();
+            let mut objects = Vec::new();
+            for (part_index, part) in loaded.parts.into_iter().enumerate() {
+                let mut mesh = part.mesh;
+                for p in &mut mesh.positions {
+                    *p = transform.transform_point3(*p);
+                }
+                for n in &mut mesh.normals {
+                    *n = Vec3::from(normal_xf * glam::Vec3A::from(*n)).normalize_or_zero();
+                }
+                if o.smooth && mesh.normals.is_empty() {
+                    mesh.compute_smooth_normals();
+                }
+                // The scene's material wins; without one, the MTL's.
+                let part_material = match (&o.material, part.material) {
+                    (None, Some(mtl)) => {
+                        materials.push(mtl);
+                        materials.len() - 1
+                    }
+                    _ => material,
+                };
+                objects.push(Object {
+                    name: if part_index == 0 { name.clone() } else { format!("{name} part {part_index}") },
+                    shape: Shape::Mesh(mesh),
+                    material: part_material,
+                    placement: Placement::World,
+                });
+            }
+            return Ok(objects);
+        }
+    };
+    Ok(vec![Object {
+        name: o.name.clone().unwrap_or_else(|| format!("object[{index}]")),
+        shape,
+        material,
+        placement: Placement::World,
+    }])
+}
+
+/// Fan-triangulates a planar convex polygon, rejecting degenerate ones.
+fn polygon_mesh(points: Vec<Vec3>) -> Result<Shape, String> {
+    if points.len() < 3 {
+        return Err(format!("a polygon needs at least 3 vertices, got {}", points.len()));
+    }
+    let triangles: Vec<[u32; 3]> = (1..points.len() as u32 - 1).map(|i| [0, i, i + 1]).collect();
+    let mesh = TriangleMesh {
+        positions: points,
+        triangles,
+        normals: Vec::new(),
+    };
+    let area: f32 = (0..mesh.triangles.len() as u32)
+        .map(|t| {
+            let [a, b, c] = mesh.vertices(t);
+            (b - a).cross(c - a).length()
+        })
+        .sum();
+    if area == 0.0 {
+        return Err("polygon has zero area".into());
+    }
+    Ok(Shape::Mesh(mesh))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn parse(text: &str) -> Result<Scene, SceneError> {
+        parse_scene_str(text, Path::new("t.toml"), &SceneOverrides::default())
+    }
+
+    const CAMERA: &str = "[camera]\nposition = [0, 1, 5]\nfov = 60\n";
+
+    #[test]
+    fn minimal_scene_parses() {
+        let scene = parse(&format!(
+            "{CAMERA}[material.red]\ndiffuse = [1, 0, 0]\n[[object]]\ntype = \"sphere\"\ncenter = [0, 0, 0]\nradius = 1\nmaterial = \"red\"\n"
+        ))
+        .unwrap();
+        assert_eq!(scene.objects.len(), 1);
+        assert_eq!(scene.materials[scene.objects[0].material].name, "red");
+        assert_eq!(scene.camera.width, 640);
+    }
+
+    #[test]
+    fn unknown_material_names_line_and_field() {
+        let err = parse(&format!(
+            "{CAMERA}[[object]]\ntype = \"sphere\"\ncenter = [0, 0, 0]\nradius = 1\nmaterial = \"nope\"\n"
+        ))
+        .unwrap_err();
+        assert_eq!(err.line, Some(8));
+        assert_eq!(err.field.as_deref(), Some("object[0].material"));
+        assert!(err.message.contains("unknown material 'nope'"), "{err}");
+    }
+
+    #[test]
+    fn type_errors_name_line_and_field() {
+        let err = parse(&format!("{CAMERA}[[object]]\ntype = \"sphere\"\ncenter = [0, 0, 0]\nradius = \"big\"\n")).unwrap_err();
+        assert_eq!(err.line, Some(7), "{err}");
+        assert_eq!(err.field.as_deref(), Some("object[0].radius"), "{err}");
+        let err = parse("[camera]\nposition = [0, 1, 5\nfov = 60\n").unwrap_err();
+        assert!(err.line.is_some(), "{err}");
+        let err = parse(&format!("{CAMERA}[[object]]\ntype = \"sphere\"\ncentre = [0, 0, 0]\n")).unwrap_err();
+        assert!(err.message.contains("centre"), "{err}");
+    }
+
+    #[test]
+    fn bad_values_are_rejected() {
+        for (body, field) in [
+            ("[[object]]\ntype = \"sphere\"\ncenter = [0, 0, 0]\nradius = -1\n", "object[0].radius"),
+            ("[[object]]\ntype = \"sphere\"\ncenter = [0, nan, 0]\nradius = 1\n", "object[0].center"),
+            ("[[object]]\ntype = \"sphere\"\ncenter = [0, inf, 0]\nradius = 1\n", "object[0].center"),
+            ("[[object]]\ntype = \"quad\"\nvertices = [[0,0,0],[1,0,0],[2,0,0],[3,0,0]]\n", "object[0].vertices"),
+            ("[[light]]\nposition = [0, nan, 0]\n", "light[0].position"),
+        ] {
+            let err = parse(&format!("{CAMERA}{body}")).unwrap_err();
+            assert_eq!(err.field.as_deref(), Some(field), "{err}");
+            assert!(err.line.is_some());
+        }
+        for (camera, field) in [
+            ("[camera]\nposition = [0, 1, 5]\nfov = 0\n", "camera.fov"),
+            ("[camera]\nposition = [0, 1, 5]\nfov = 180\n", "camera.fov"),
+            ("[render]\nwidth = 0\n[camera]\nposition = [0, 1, 5]\nfov = 60\n", "render.width/height"),
+            ("[render]\nwidth = 4000000\nheight = 4000000\n[camera]\nposition = [0, 1, 5]\nfov = 60\n", "render.width/height"),
+        ] {
+            let err = parse(camera).unwrap_err();
+            assert_eq!(err.field.as_deref(), Some(field), "{err}");
+        }
+    }
+}

@@ -1,0 +1,162 @@
+//! Render-ready scenes: what a scene file (TOML), a bare OBJ, or the built-in
+//! paper scene turn into.
+//!
+//! Promises: every number in a [`Scene`] is finite, every material index is
+//! valid, every mesh triangle has non-zero area, and the camera validated.
+
+mod file;
+mod obj;
+
+use std::path::{Path, PathBuf};
+
+use glam::Vec3;
+
+use crate::camera::Camera;
+use crate::geometry::{Object, Shape};
+
+pub use file::{parse_scene_str, SceneOverrides};
+pub use obj::{load_obj_mesh, ObjMesh};
+
+/// The paper's scene (checkerboard plane, 12 polygons, 19 spheres, 2 lights),
+/// built into the binary so `retrace render` works with no files at all.
+pub const PAPER_SCENE_TOML: &str = include_str!("../../scenes/paper.toml");
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Checker {
+    pub colors: [Vec3; 2],
+    /// Edge length of one square, in world units.
+    pub scale: f32,
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct Material {
+    pub name: String,
+    pub diffuse: Vec3,
+    pub checker: Option<Checker>,
+    pub specular: Vec3,
+    pub shininess: f32,
+    /// Share of the mirror reflection added to the colour (0 = none).
+    pub reflectivity: f32,
+}
+
+impl Material {
+    pub fn matte(name: &str, diffuse: Vec3) -> Material {
+        Material {
+            name: name.to_string(),
+            diffuse,
+            checker: None,
+            specular: Vec3::ZERO,
+            shininess: 1.0,
+            reflectivity: 0.0,
+        }
+    }
+}
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Light {
+    pub position: Vec3,
+    /// Colour times intensity.
+    pub power: Vec3,
+}
+
+#[derive(Clone, Debug)]
+pub struct Scene {
+    pub camera: Camera,
+    pub objects: Vec<Object>,
+    pub materials: Vec<Material>,
+    pub lights: Vec<Light>,
+    pub background: Vec3,
+    pub ambient: Vec3,
+    /// Reflection bounces after the primary hit.
+    pub max_depth: u32,
+    /// Things the user should know that did not stop loading (e.g. dropped
+    /// degenerate triangles).
+    pub warnings: Vec<String>,
+}
+
+impl Scene {
+    pub fn triangle_count(&self) -> usize {
+        self.objects
+            .iter()
+            .map(|o| match &o.shape {
+                Shape::Mesh(m) => m.triangles.len(),
+                _ => 0,
+            })
+            .sum()
+    }
+
+    pub fn count_shapes(&self) -> (usize, usize, usize) {
+        let mut counts = (0, 0, 0);
+        for object in &self.objects {
+            match object.shape {
+                Shape::Mesh(_) => counts.0 += 1,
+                Shape::Sphere(_) => counts.1 += 1,
+                Shape::Plane(_) => counts.2 += 1,
+            }
+        }
+        counts
+    }
+}
+
+/// A scene problem a user can act on: the file, the line when known, the
+/// field when known.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub struct SceneError {
+    pub file: PathBuf,
+    pub line: Option<usize>,
+    pub field: Option<String>,
+    pub message: String,
+}
+
+impl std::fmt::Display for SceneError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}", self.file.display())?;
+        if let Some(line) = self.line {
+            write!(f, ":{line}")?;
+        }
+        if let Some(field) = &self.field {
+            write!(f, ": {field}")?;
+        }
+        write!(f, ": {}", self.message)
+    }
+}
+
+impl SceneError {
+    pub fn new(file: &Path, message: impl Into<String>) -> SceneError {
+        SceneError {
+            file: file.to_path_buf(),
+            line: None,
+            field: None,
+            message: message.into(),
+        }
+    }
+
+    pub fn at_line(mut self, line: usize) -> SceneError {
+        self.line = Some(line);
+        self
+    }
+
+    pub fn field(mut self, field: impl Into<String>) -> SceneError {
+        self.field = Some(field.into());
+        self
+    }
+}
+
+/// Loads a scene from a `.toml` scene file or a bare `.obj` model (framed by
+/// a default camera, light and ground plane).
+pub fn load_scene(path: &Path, overrides: &SceneOverrides) -> Result<Scene, SceneError> {
+    let is_obj = path
+        .extension()
+        .is_some_and(|ext| ext.eq_ignore_ascii_case("obj"));
+    if is_obj {
+        return obj::scene_around_obj(path, overrides);
+    }
+    let text = std::fs::read_to_string(path)
+        .map_err(|err| SceneError::new(path, format!("cannot read scene file: {err}")))?;
+    parse_scene_str(&text, path, overrides)
+}
+
+/// The built-in paper scene.
+pub fn paper_scene(overrides: &SceneOverrides) -> Result<Scene, SceneError> {
+    parse_scene_str(PAPER_SCENE_TOML, Path::new("scenes/paper.toml"), overrides)
+}

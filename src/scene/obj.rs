@@ -1,0 +1,311 @@
+//! OBJ/MTL models through tobj, after a line-by-line check of our own so that
+//! a broken file is reported with its line (tobj reports no positions), and
+//! the scene made around a bare `.obj` given on the command line.
+
+use std::path::Path;
+
+use glam::{DVec3, Vec3};
+
+use super::file::SceneOverrides;
+use super::{Checker, Light, Material, Scene, SceneError};
+use crate::camera::{yaw_pitch_toward, Camera, Projection};
+use crate::geometry::{Aabb, Object, Placement, Plane, Shape, TriangleMesh};
+
+/// One material's worth of an OBJ file.
+#[derive(Clone, Debug)]
+pub struct ObjPart {
+    pub mesh: TriangleMesh,
+    /// From the MTL file, when the model names one that loaded.
+    pub material: Option<Material>,
+}
+
+#[derive(Clone, Debug)]
+pub struct ObjMesh {
+    pub parts: Vec<ObjPart>,
+    /// Zero-area triangles (repeated vertices, collinear points) left out.
+    pub dropped_degenerate: usize,
+}
+
+impl ObjMesh {
+    pub fn triangle_count(&self) -> usize {
+        self.parts.iter().map(|p| p.mesh.triangles.len()).sum()
+    }
+
+    pub fn bounds(&self) -> Aabb {
+        self.parts
+            .iter()
+            .fold(Aabb::EMPTY, |b, p| b.union(p.mesh.bounds()))
+    }
+}
+
+/// Checks what tobj would accept silently or report without a line: numbers
+/// that do not parse, NaN/Inf coordinates, and face indices out of range.
+fn check_obj_text(path: &Path, text: &str) -> Result<(), SceneError> {
+    let mut vertex_count: i64 = 0;
+    for (number, line) in text.lines().enumerate() {
+        let line_no = number + 1;
+        let fail = |field: &str, message: String| Err(SceneError::new(path, message).at_line(line_no).field(field));
+        let mut words = line.split_whitespace();
+        let Some(keyword) = words.next() else { continue };
+        match keyword {
+            "v" | "vn" | "vt" => {
+                let wanted = if keyword == "vt" { 1 } else { 3 };
+                let values: Vec<&str> = words.collect();
+                if values.len() < wanted {
+                    return fail(keyword, format!("expected {wanted} numbers, got {}", values.len()));
+                }
+                for word in values.iter().take(if keyword == "v" { 3 } else { values.len() }) {
+                    match word.parse::<f32>() {
+                        Ok(x) if x.is_finite() => {}
+                        Ok(_) => return fail(keyword, format!("coordinate '{word}' is not finite")),
+                        Err(_) => return fail(keyword, format!("'{word}' is not a number")),
+                    }
+                }
+                if keyword == "v" {
+                    vertex_count += 1;
+                }
+            }
+            "f" => {
+                let refs: Vec<&str> = words.collect();
+                if refs.len() < 3 {
+                    return fail("f", format!("a face needs at least 3 vertices, got {}", refs.len()));
+                }
+                for r in refs {
+                    let index = r.split('/').next().unwrap_or("");
+                    let Ok(index) = index.parse::<i64>() else {
+                        return fail("f", format!("'{r}' is not a vertex index"));
+                    };
+                    let resolved = if index < 0 { vertex_count + index + 1 } else { index };
+                    if index == 0 || resolved < 1 || resolved > vertex_count {
+                        return fail(
+                            "f",
+                            format!("vertex index {index} is out of range (1..={vertex_count} defined so far)"),
+                        );
+                    }
+                }
+            }
+            _ => {}
+        }
+    }
+    Ok(())
+}
+
+fn material_from_mtl(m: &tobj::Material) -> Material {
+    let rgb = |c: Option<[f32; 3]>, default: f32| c.map(Vec3::from_array).unwrap_or(Vec3::splat(default));
+    let specular = rgb(m.specular, 0.0);
+    // illum 3, 5 and 7 are the MTL modes with ray-traced reflection.
+    let reflective = matches!(m.illumination_model, Some(3 | 5 | 7));
+    Material {
+        name: m.name.clone(),
+        diffuse: rgb(m.diffuse, 0.7).clamp(Vec3::ZERO, Vec3::ONE),
+        checker: None,
+        specular: specular.clamp(Vec3::ZERO, Vec3::ONE),
+        shininess: m.shininess.unwrap_or(32.0).clamp(0.0, 10_000.0),
+        reflectivity: if reflective { specular.max_element().clamp(0.0, 1.0) } else { 0.0 },
+    }
+}
+
+/// Loads an OBJ (and its MTL, when present) as triangle meshes, one part per
+/// material, dropping degenerate triangles.
+pub fn load_obj_mesh(path: &Path) -> Result<ObjMesh, SceneError> {
+    let text = std::fs::read_to_string(path)
+        .map_err(|err| SceneError::new(path, format!("cannot read OBJ file: {err}")))?;
+    check_obj_text(path, &text)?;
+    let options = tobj::LoadOptions {
+        triangulate: true,
+        single_index: true,
+        ignore_points: true,
+        ignore_lines: true,
+    };
+    let (models, materials) =
+        tobj::load_obj(path, &options).map_err(|err| SceneError::new(path, format!("cannot parse OBJ: {err}")))?;
+    // A missing or broken MTL is not fatal: the model renders with the
+    // scene's material instead.
+    let materials = materials.unwrap_or_default();
+
+    let mut dropped_degenerate = 0;
+    let mut parts: Vec<ObjPart> = Vec::new();
+    for model in models {
+        let m = &model.mesh;
+        let positions: Vec<Vec3> = m
+            .positions
+            .chunks_exact(3)
+            .map(|c| Vec3::new(c[0], c[1], c[2]))
+            .collect();
+        let mut normals: Vec<Vec3> = m.normals.chunks_exact(3).map(|c| Vec3::new(c[0], c[1], c[2])).collect();
+        if normals.len() != positions.len() {
+            normals.clear();
+        }
+        let mut triangles = Vec::with_capacity(m.indices.len() / 3);
+        for t in m.indices.chunks_exact(3) {
+            let [a, b, c] = [t[0], t[1], t[2]].map(|i| positions[i as usize]);
+            if (b - a).cross(c - a).length_squared() > 0.0 {
+                triangles.push([t[0], t[1], t[2]]);
+            } else {
+                dropped_degenerate += 1;
+            }
+        }
+        let material = m.material_id.and_then(|id| materials.get(id)).map(material_from_mtl);
+        let mesh = TriangleMesh {
+            positions,
+            triangles,
+            normals,
+        };
+        // Parts with the same material merge: fewer objects, same picture.
+        match parts.iter_mut().find(|p| p.material == material) {
+            Some(part) => append_mesh(&mut part.mesh, mesh),
+            None => parts.push(ObjPart { mesh, material }),
+        }
+    }
+    Ok(ObjMesh {
+        parts,
+        dropped_degenerate,
+    })
+}
+
+fn append_mesh(into: &mut TriangleMesh, mesh: TriangleMesh) {
+    let base = into.positions.len() as u32;
+    let keep_normals = !into.normals.is_empty() && !mesh.normals.is_empty()
+        || into.positions.is_empty() && !mesh.normals.is_empty();
+    into.positions.extend(mesh.positions);
+    into.triangles
+        .extend(mesh.triangles.into_iter().map(|t| t.map(|i| i + base)));
+    if keep_normals {
+        into.normals.extend(mesh.normals);
+    } else {
+        into.normals.clear();
+    }
+}
+
+/// A scene for a bare model: the model (smooth-shaded where the file has no
+/// normals), a checkered ground plane under it, a key light, and a camera
+/// that frames its bounds.
+pub(super) fn scene_around_obj(path: &Path, overrides: &SceneOverrides) -> Result<Scene, SceneError> {
+    let loaded = load_obj_mesh(path)?;
+    let mut warnings = Vec::new();
+    if loaded.dropped_degenerate > 0 {
+        warnings.push(format!(
+            "{}: dropped {} degenerate triangle(s) (zero area or repeated vertices)",
+            path.display(),
+            loaded.dropped_degenerate
+        ));
+    }
+    let bounds = loaded.bounds();
+    if loaded.triangle_count() == 0 || !bounds.is_finite() {
+        return Err(SceneError::new(path, "the model has no triangles to render"));
+    }
+    let center = bounds.center();
+    let radius = (bounds.extent().length() * 0.5).max(f32::MIN_POSITIVE);
+
+    let mut materials = vec![
+        Material {
+            specular: Vec3::splat(0.25),
+            shininess: 48.0,
+            ..Material::matte("model", Vec3::new(0.75, 0.72, 0.68))
+        },
+        Material {
+            checker: Some(Checker {
+                colors: [Vec3::splat(0.85), Vec3::splat(0.35)],
+                scale: radius * 0.25,
+            }),
+            reflectivity: 0.15,
+            ..Material::matte("ground", Vec3::splat(0.7))
+        },
+    ];
+    let mut objects = Vec::new();
+    for (i, part) in loaded.parts.into_iter().enumerate() {
+        let material = match part.material {
+            Some(m) => {
+                materials.push(m);
+                materials.len() - 1
+            }
+            None => 0,
+        };
+        let mut mesh = part.mesh;
+        if mesh.normals.is_empty() {
+            mesh.compute_smooth_normals();
+        }
+        objects.push(Object {
+            name: format!("model part {i}"),
+            shape: Shape::Mesh(mesh),
+            material,
+            placement: Placement::World,
+        });
+    }
+    objects.push(Object {
+        name: "ground".into(),
+        shape: Shape::Plane(Plane {
+            point: Vec3::new(center.x, bounds.min.y, center.z),
+            normal: Vec3::Y,
+        }),
+        material: 1,
+        placement: Placement::World,
+    });
+
+    let width = overrides.width.unwrap_or(640);
+    let height = overrides.height.unwrap_or(480);
+    let projection = overrides.projection.unwrap_or(Projection::Perspective);
+    let fov = overrides.fov.unwrap_or(45.0).to_radians();
+    // Fit the bounding sphere into the narrower of the two fields of view.
+    let aspect = f64::from(height) / f64::from(width);
+    let narrow = match projection {
+        Projection::Perspective => 2.0 * ((0.5 * fov).tan() * aspect).atan(),
+        _ => fov * aspect,
+    }
+    .clamp(1e-6, std::f64::consts::PI * 0.9);
+    let distance = f64::from(radius) / (0.5 * narrow).sin() * 1.05;
+    let view_dir = DVec3::new(0.45, 0.35, 1.0).normalize();
+    let target = center.as_dvec3();
+    let position = target + view_dir * distance;
+    let (yaw, pitch) = yaw_pitch_toward(position, target);
+    let camera = Camera {
+        projection,
+        position,
+        yaw,
+        pitch,
+        fov,
+        width,
+        height,
+    };
+    camera.validate().map_err(|err| SceneError::new(path, err.to_string()).field("camera"))?;
+    let key = center + Vec3::new(-1.5, 3.0, 2.0) * radius;
+    Ok(Scene {
+        camera,
+        objects,
+        materials,
+        lights: vec![Light {
+            position: key,
+            power: Vec3::splat(1.0),
+        }],
+        background: Vec3::new(0.08, 0.09, 0.12),
+        ambient: Vec3::splat(0.12),
+        max_depth: 3,
+        warnings,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn check(text: &str) -> Result<(), SceneError> {
+        check_obj_text(Path::new("m.obj"), text)
+    }
+
+    #[test]
+    fn reports_the_line_of_bad_numbers_and_indices() {
+        let err = check("v 0 0 0\nv 1 0 0\nv 0 x 0\n").unwrap_err();
+        assert_eq!(err.line, Some(3));
+        let err = check("v 0 0 0\nv 1 nan 0\n").unwrap_err();
+        assert_eq!(err.line, Some(2));
+        assert!(err.message.contains("not finite"));
+        let err = check("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 4\n").unwrap_err();
+        assert_eq!(err.line, Some(4));
+        assert!(err.message.contains("out of range"));
+        let err = check("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2\n").unwrap_err();
+        assert_eq!(err.line, Some(4));
+        let err = check("v 0 0 inf\n").unwrap_err();
+        assert_eq!(err.field.as_deref(), Some("v"));
+        assert!(check("# c\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf -3 -2 -1\nf 1/1/1 2//2 3\n").is_ok());
+    }
+}
