@@ -14,7 +14,9 @@
 # there need Debian 13's glibc.
 #
 # Every mount lives in a private mount namespace when possible (so nothing is
-# left mounted even after kill -9) and is unmounted on exit in any case.
+# left mounted even after kill -9; EMBREE4_NO_UNSHARE=1 mounts in the host's
+# namespace instead) and is unmounted on exit in any case; a rerun first
+# unmounts whatever a killed run left behind.
 set -euo pipefail
 
 SUITE=trixie
@@ -138,11 +140,12 @@ if [[ -z ${EMBREE4_INNER:-} ]]; then
         log "unmounting what an interrupted run left under $ROOT"
         unmount_all
     fi
-    if unshare --mount --propagation private true 2>/dev/null; then
+    if [[ ${EMBREE4_NO_UNSHARE:-} != 1 ]] \
+        && unshare --mount --propagation private true 2>/dev/null; then
         # The lock (fd 9) stays held across exec.
         EMBREE4_INNER=1 exec unshare --mount --propagation private bash "$0" "$@"
     fi
-    log "no private mount namespace available; mounting in the host's"
+    log "mounting in the host's mount namespace (no private one: EMBREE4_NO_UNSHARE=1 or no unshare)"
 fi
 trap cleanup EXIT
 trap 'exit 130' INT
@@ -177,7 +180,9 @@ sync_ca_certificates() {
     shopt -u nullglob
     if [[ -n $changed || ! -s $ROOT/etc/ssl/certs/ca-certificates.crt ]]; then
         log "updating CA certificates in the chroot"
-        in_chroot update-ca-certificates >/dev/null
+        # (Its "rehash: warning: skipping ca-certificates.crt" is expected.)
+        in_chroot update-ca-certificates >/dev/null 2>&1 \
+            || die "update-ca-certificates failed in the chroot"
     fi
 }
 

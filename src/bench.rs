@@ -39,11 +39,14 @@ struct Recorder<'a> {
 
 impl Recorder<'_> {
     fn record(&self, call: Call, rays: &RayPacket, mask: LaneMask) {
-        self.log.lock().unwrap_or_else(|e| e.into_inner()).push(Recorded {
-            call,
-            rays: *rays,
-            mask,
-        });
+        self.log
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .push(Recorded {
+                call,
+                rays: *rays,
+                mask,
+            });
     }
 }
 
@@ -95,7 +98,12 @@ fn median(mut values: Vec<f64>) -> f64 {
 }
 
 /// Measures a full frame of `scene` against bare Embree on the same packets.
-pub fn bench_frame(scene: &Scene, accel: &Accelerator, repeats: usize, mut progress: impl FnMut()) -> Result<FrameBench, EmbreeError> {
+pub fn bench_frame(
+    scene: &Scene,
+    accel: &Accelerator,
+    repeats: usize,
+    mut progress: impl FnMut(),
+) -> Result<FrameBench, EmbreeError> {
     let bare = EmbreeIntersector::build(&scene.objects)?;
     let recorder = Recorder {
         inner: accel,
@@ -105,16 +113,18 @@ pub fn bench_frame(scene: &Scene, accel: &Accelerator, repeats: usize, mut progr
     let log = recorder.log.into_inner().unwrap_or_else(|e| e.into_inner());
 
     let replay = || {
-        log.par_iter().with_min_len(16).for_each(|packet| match packet.call {
-            Call::Intersect => {
-                let mut hits = [None; PACKET_WIDTH];
-                bare.intersect8(&packet.rays, packet.mask, &mut hits);
-                std::hint::black_box(&hits);
-            }
-            Call::Occluded => {
-                std::hint::black_box(bare.occluded8(&packet.rays, packet.mask));
-            }
-        })
+        log.par_iter()
+            .with_min_len(16)
+            .for_each(|packet| match packet.call {
+                Call::Intersect => {
+                    let mut hits = [None; PACKET_WIDTH];
+                    bare.intersect8(&packet.rays, packet.mask, &mut hits);
+                    std::hint::black_box(&hits);
+                }
+                Call::Occluded => {
+                    std::hint::black_box(bare.occluded8(&packet.rays, packet.mask));
+                }
+            })
     };
     // Warm both paths (page faults, caches, rayon's threads).
     replay();

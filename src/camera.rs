@@ -121,9 +121,15 @@ impl Camera {
     pub fn validate(&self) -> Result<(), CameraError> {
         let (w, h) = (self.width, self.height);
         if w == 0 || h == 0 {
-            return Err(CameraError::EmptyImage { width: w, height: h });
+            return Err(CameraError::EmptyImage {
+                width: w,
+                height: h,
+            });
         }
-        if w > MAX_IMAGE_SIDE || h > MAX_IMAGE_SIDE || u64::from(w) * u64::from(h) > MAX_IMAGE_PIXELS {
+        if w > MAX_IMAGE_SIDE
+            || h > MAX_IMAGE_SIDE
+            || u64::from(w) * u64::from(h) > MAX_IMAGE_PIXELS
+        {
             return Err(CameraError::ImageTooLarge {
                 width: w,
                 height: h,
@@ -144,12 +150,20 @@ impl Camera {
         }
         let fov_deg = self.fov.to_degrees();
         let (ok, limit) = match self.projection {
-            Projection::Perspective => (self.fov > 0.0 && self.fov < PI, "below 180 for perspective"),
-            Projection::EqualAngle => (self.fov > 0.0 && self.fov <= TAU, "at most 360 for equal-angle"),
+            Projection::Perspective => {
+                (self.fov > 0.0 && self.fov < PI, "below 180 for perspective")
+            }
+            Projection::EqualAngle => (
+                self.fov > 0.0 && self.fov <= TAU,
+                "at most 360 for equal-angle",
+            ),
             Projection::Fisheye => (self.fov > 0.0 && self.fov <= TAU, "at most 360 for fisheye"),
         };
         if !ok || !self.fov.is_finite() {
-            return Err(CameraError::FieldOfView { fov: fov_deg, limit });
+            return Err(CameraError::FieldOfView {
+                fov: fov_deg,
+                limit,
+            });
         }
         if self.projection == Projection::EqualAngle {
             let half = 0.5 * f64::from(h) * self.angle_step();
@@ -215,9 +229,9 @@ impl Camera {
     }
 
     /// The image point a world direction lands on (the inverse of
-    /// [`Camera::direction`]); None if the direction is outside what the
-    /// projection can show (behind a perspective camera, beyond a fisheye's
-    /// field). The point may lie outside the image rectangle.
+    /// [`Camera::direction`]); None if the projection cannot show the
+    /// direction at all (behind a perspective camera). The point may lie
+    /// outside the image rectangle.
     pub fn project(&self, d: DVec3) -> Option<DVec2> {
         let centre = self.half_size();
         match self.projection {
@@ -226,7 +240,10 @@ impl Camera {
                 let (az, el) = angles_from_direction(d);
                 // Azimuth relative to the view centre, wrapped into (-pi, pi].
                 let rel = (az - self.yaw + PI).rem_euclid(TAU) - PI;
-                Some(DVec2::new(centre.x + rel / step, centre.y - (el - self.pitch) / step))
+                Some(DVec2::new(
+                    centre.x + rel / step,
+                    centre.y - (el - self.pitch) / step,
+                ))
             }
             Projection::Perspective => {
                 let (right, up, forward) = self.basis();
@@ -245,9 +262,6 @@ impl Camera {
                 let local = DVec3::new(d.dot(right), d.dot(up), d.dot(forward));
                 let sideways = local.x.hypot(local.y);
                 let theta = sideways.atan2(local.z);
-                if theta > 0.5 * self.fov {
-                    return None;
-                }
                 let r = theta * centre.x / (0.5 * self.fov);
                 let radial = if sideways > 0.0 {
                     DVec2::new(local.x, local.y) / sideways
@@ -268,6 +282,78 @@ impl Camera {
 
     pub fn origin(&self) -> Vec3 {
         self.position.as_vec3()
+    }
+}
+
+/// Per-frame tables of the separable part of the projections: azimuth and
+/// elevation terms depend only on the column or only on the row, so the
+/// trigonometry runs w + h times instead of w * h. Directions come out bit
+/// for bit as [`Camera::direction`] gives them.
+pub struct RayTable<'a> {
+    camera: &'a Camera,
+    columns: Vec<(f64, f64)>,
+    rows: Vec<(f64, f64)>,
+}
+
+impl<'a> RayTable<'a> {
+    pub fn new(camera: &'a Camera) -> RayTable<'a> {
+        let centre = camera.half_size();
+        let pixel = |i: u32| f64::from(i) + 0.5;
+        let (columns, rows) = match camera.projection {
+            Projection::EqualAngle => {
+                let step = camera.angle_step();
+                (
+                    (0..camera.width)
+                        .map(|x| (camera.yaw + (pixel(x) - centre.x) * step).sin_cos())
+                        .collect(),
+                    (0..camera.height)
+                        .map(|y| (camera.pitch + (centre.y - pixel(y)) * step).sin_cos())
+                        .collect(),
+                )
+            }
+            Projection::Perspective => {
+                let scale = (0.5 * camera.fov).tan() / centre.x;
+                (
+                    (0..camera.width)
+                        .map(|x| ((pixel(x) - centre.x) * scale, 0.0))
+                        .collect(),
+                    (0..camera.height)
+                        .map(|y| ((centre.y - pixel(y)) * scale, 0.0))
+                        .collect(),
+                )
+            }
+            Projection::Fisheye => (Vec::new(), Vec::new()),
+        };
+        RayTable {
+            camera,
+            columns,
+            rows,
+        }
+    }
+
+    pub fn size(&self) -> (u32, u32) {
+        (self.camera.width, self.camera.height)
+    }
+
+    /// The primary ray through the centre of pixel (x, y), which must lie
+    /// inside the image.
+    pub fn primary_ray(&self, x: u32, y: u32) -> Option<Ray> {
+        let cam = self.camera;
+        let d = match cam.projection {
+            Projection::EqualAngle => {
+                let (sin_az, cos_az) = self.columns[x as usize];
+                let (sin_el, cos_el) = self.rows[y as usize];
+                DVec3::new(cos_el * sin_az, sin_el, -cos_el * cos_az)
+            }
+            Projection::Perspective => {
+                let (right, up, forward) = cam.basis();
+                let lx = self.columns[x as usize].0;
+                let ly = self.rows[y as usize].0;
+                (right * lx + up * ly + forward).normalize()
+            }
+            Projection::Fisheye => return cam.primary_ray(x, y),
+        };
+        Some(Ray::new(cam.origin(), d.as_vec3()))
     }
 }
 
@@ -293,7 +379,9 @@ mod tests {
         cam.validate().unwrap();
         let (w, h) = (f64::from(cam.width), f64::from(cam.height));
         let mut points: Vec<DVec2> = (0..cam.height)
-            .flat_map(|y| (0..cam.width).map(move |x| DVec2::new(f64::from(x) + 0.5, f64::from(y) + 0.5)))
+            .flat_map(|y| {
+                (0..cam.width).map(move |x| DVec2::new(f64::from(x) + 0.5, f64::from(y) + 0.5))
+            })
             .collect();
         for t in [0.0, 0.25, 0.5, 0.75, 1.0] {
             points.extend([
@@ -306,11 +394,17 @@ mod tests {
         let mut checked = 0;
         for p in points {
             let Some(d) = cam.direction(p) else {
-                assert_eq!(cam.projection, Projection::Fisheye, "only fisheye corners lack rays");
+                assert_eq!(
+                    cam.projection,
+                    Projection::Fisheye,
+                    "only fisheye corners lack rays"
+                );
                 continue;
             };
             assert!((d.length() - 1.0).abs() < 1e-12);
-            let q = cam.project(d).unwrap_or_else(|| panic!("{:?}: no projection for {p}", cam.projection));
+            let q = cam
+                .project(d)
+                .unwrap_or_else(|| panic!("{:?}: no projection for {p}", cam.projection));
             let mut err = (q - p).abs();
             if cam.projection == Projection::EqualAngle && cam.fov >= TAU - 1e-12 {
                 // A full turn: the left and right borders are the same azimuth.
@@ -324,7 +418,11 @@ mod tests {
 
     #[test]
     fn round_trips_across_the_whole_image() {
-        for projection in [Projection::Perspective, Projection::EqualAngle, Projection::Fisheye] {
+        for projection in [
+            Projection::Perspective,
+            Projection::EqualAngle,
+            Projection::Fisheye,
+        ] {
             for fov in [0.01, 30.0, 100.0, 170.0] {
                 assert_round_trip(&camera(projection, fov, 64, 48));
             }
@@ -338,7 +436,11 @@ mod tests {
 
     #[test]
     fn centre_pixel_looks_forward_and_right_is_right() {
-        for projection in [Projection::Perspective, Projection::EqualAngle, Projection::Fisheye] {
+        for projection in [
+            Projection::Perspective,
+            Projection::EqualAngle,
+            Projection::Fisheye,
+        ] {
             let cam = camera(projection, 90.0, 64, 64);
             let (right, up, forward) = cam.basis();
             let d = cam.direction(DVec2::new(32.0, 32.0)).unwrap();
@@ -372,6 +474,27 @@ mod tests {
     }
 
     #[test]
+    fn ray_table_matches_direct_rays_bit_for_bit() {
+        for projection in [
+            Projection::Perspective,
+            Projection::EqualAngle,
+            Projection::Fisheye,
+        ] {
+            let cam = camera(projection, 100.0, 40, 30);
+            let table = RayTable::new(&cam);
+            for y in 0..cam.height {
+                for x in 0..cam.width {
+                    assert_eq!(
+                        table.primary_ray(x, y),
+                        cam.primary_ray(x, y),
+                        "{projection:?} ({x}, {y})"
+                    );
+                }
+            }
+        }
+    }
+
+    #[test]
     fn rejects_bad_settings() {
         let bad_fovs = [
             (Projection::Perspective, 180.0),
@@ -384,12 +507,21 @@ mod tests {
             let err = camera(projection, fov, 64, 48).validate().unwrap_err();
             assert!(matches!(err, CameraError::FieldOfView { .. }), "{err}");
         }
-        let err = camera(Projection::Perspective, 60.0, 0, 48).validate().unwrap_err();
+        let err = camera(Projection::Perspective, 60.0, 0, 48)
+            .validate()
+            .unwrap_err();
         assert!(matches!(err, CameraError::EmptyImage { .. }));
-        let err = camera(Projection::Perspective, 60.0, 100_000, 100_000).validate().unwrap_err();
+        let err = camera(Projection::Perspective, 60.0, 100_000, 100_000)
+            .validate()
+            .unwrap_err();
         assert!(matches!(err, CameraError::ImageTooLarge { .. }));
-        // 200 degrees wide at 4:3 is 150 degrees tall: beyond the poles.
-        let err = camera(Projection::EqualAngle, 200.0, 64, 48).validate().unwrap_err();
-        assert!(matches!(err, CameraError::ElevationOutOfRange { .. }), "{err}");
+        // 250 degrees wide at 4:3 is 187.5 degrees tall: beyond the poles.
+        let err = camera(Projection::EqualAngle, 250.0, 64, 48)
+            .validate()
+            .unwrap_err();
+        assert!(
+            matches!(err, CameraError::ElevationOutOfRange { .. }),
+            "{err}"
+        );
     }
 }

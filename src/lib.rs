@@ -5,11 +5,11 @@
 //! Jevans (OSTC).
 
 pub mod accel;
-pub mod geometry;
-pub mod ray;
-pub mod camera;
-pub mod scene;
 pub mod bench;
+pub mod camera;
+pub mod geometry;
 pub mod output;
+pub mod ray;
 pub mod render;
+pub mod scene;
 pub mod shade;

@@ -14,8 +14,15 @@ use retrace::render::render_frame;
 use retrace::scene::{load_scene, paper_scene, Scene, SceneOverrides};
 
 #[derive(Parser)]
-#[command(name = "retrace", version, about = "A ray tracer for animation that re-traces only what changed")]
+#[command(
+    name = "retrace",
+    version,
+    about = "A ray tracer for animation that re-traces only what changed"
+)]
 struct Cli {
+    /// Worker threads (default: one per core).
+    #[arg(long, global = true)]
+    threads: Option<usize>,
     #[command(subcommand)]
     command: Command,
 }
@@ -42,7 +49,7 @@ struct SceneArgs {
     #[arg(long, value_parser = parse_projection)]
     camera: Option<Projection>,
     /// Horizontal field of view in degrees.
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     fov: Option<f64>,
     /// Intersection backend.
     #[arg(long, default_value = "embree", value_parser = parse_backend)]
@@ -102,12 +109,15 @@ fn load(args: &SceneArgs) -> Result<Scene> {
 fn scene_name(args: &SceneArgs) -> String {
     args.scene
         .as_deref()
-        .map_or("built-in paper scene".to_string(), |p| p.display().to_string())
+        .map_or("built-in paper scene".to_string(), |p| {
+            p.display().to_string()
+        })
 }
 
 fn ensure_parent(path: &Path) -> Result<()> {
     if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
-        std::fs::create_dir_all(dir).with_context(|| format!("cannot create output folder {}", dir.display()))?;
+        std::fs::create_dir_all(dir)
+            .with_context(|| format!("cannot create output folder {}", dir.display()))?;
     }
     Ok(())
 }
@@ -145,15 +155,23 @@ fn render(args: RenderArgs) -> Result<()> {
 
 fn bench(args: BenchArgs) -> Result<()> {
     if args.only != "frame" {
-        anyhow::bail!("unknown measurement '{}' for --only (available: frame)", args.only);
+        anyhow::bail!(
+            "unknown measurement '{}' for --only (available: frame)",
+            args.only
+        );
     }
     if cfg!(debug_assertions) {
-        eprintln!("warning: this is a debug build; timings mean little (use `cargo run --release`)");
+        eprintln!(
+            "warning: this is a debug build; timings mean little (use `cargo run --release`)"
+        );
     }
     let scene = load(&args.scene)?;
     let accel = Accelerator::build(args.scene.backend, &scene.objects)?;
     let bar = indicatif::ProgressBar::new(args.repeats.max(1) as u64)
-        .with_style(indicatif::ProgressStyle::with_template("{msg} {bar:30} {pos}/{len}").expect("static template"))
+        .with_style(
+            indicatif::ProgressStyle::with_template("{msg} {bar:30} {pos}/{len}")
+                .expect("static template"),
+        )
         .with_message("frame vs bare Embree");
     let result = retrace::bench::bench_frame(&scene, &accel, args.repeats, || bar.inc(1))?;
     bar.finish_and_clear();
@@ -169,7 +187,11 @@ fn bench(args: BenchArgs) -> Result<()> {
         result.threads,
         result.repeats
     );
-    println!("full frame ({}):      {:8.2} ms", accel.kind(), result.full_ms);
+    println!(
+        "full frame ({}):      {:8.2} ms",
+        accel.kind(),
+        result.full_ms
+    );
     println!("bare Embree, same packets: {:8.2} ms", result.embree_ms);
     println!("ratio:                     {:8.3}x", result.ratio);
     if let Some(path) = &args.json {
@@ -187,6 +209,15 @@ fn bench(args: BenchArgs) -> Result<()> {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    if let Some(threads) = cli.threads {
+        if let Err(err) = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads.max(1))
+            .build_global()
+        {
+            eprintln!("error: cannot set up {threads} worker threads: {err}");
+            return ExitCode::FAILURE;
+        }
+    }
     let result = match cli.command {
         Command::Render(args) => render(args),
         Command::Bench(args) => bench(args),

@@ -44,7 +44,10 @@ pub fn write_atomically(
         Some(dir) if !dir.as_os_str().is_empty() => dir.to_path_buf(),
         _ => PathBuf::from("."),
     };
-    let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
     let temp = dir.join(format!(".{name}.{}.tmp", std::process::id()));
     let result = write(&temp).and_then(|()| {
         std::fs::rename(&temp, path).map_err(|source| OutputError::Write {
@@ -61,16 +64,18 @@ pub fn write_atomically(
 pub fn save_image(path: &Path, image: &image::RgbImage) -> Result<(), OutputError> {
     let format = format_for(path)?;
     write_atomically(path, |temp| {
-        image.save_with_format(temp, format).map_err(|source| match source {
-            image::ImageError::IoError(source) => OutputError::Write {
-                path: path.to_path_buf(),
-                source,
-            },
-            source => OutputError::Encode {
-                path: path.to_path_buf(),
-                source,
-            },
-        })
+        image
+            .save_with_format(temp, format)
+            .map_err(|source| match source {
+                image::ImageError::IoError(source) => OutputError::Write {
+                    path: path.to_path_buf(),
+                    source,
+                },
+                source => OutputError::Encode {
+                    path: path.to_path_buf(),
+                    source,
+                },
+            })
     })
 }
 

@@ -74,19 +74,28 @@ pub struct Hit {
 pub type HitPacket = [Option<Hit>; PACKET_WIDTH];
 pub type RayPacket = [Ray; PACKET_WIDTH];
 
-/// Iterates over the lanes set in `mask`.
+/// Iterates over the lanes set in `mask`, lowest first.
 pub fn lanes(mask: LaneMask) -> impl Iterator<Item = usize> {
-    (0..PACKET_WIDTH).filter(move |lane| mask & (1 << lane) != 0)
+    let mut rest = mask;
+    std::iter::from_fn(move || {
+        if rest == 0 {
+            return None;
+        }
+        let lane = rest.trailing_zeros() as usize;
+        rest &= rest - 1;
+        Some(lane)
+    })
 }
 
 /// Relative error bound used for reconstructed hit points: a few ULPs of the
 /// largest coordinate involved (the reconstruction does a handful of f32
-/// operations, each within half an ULP).
-const HIT_POINT_RELATIVE_ERROR: f32 = 64.0 * f32::EPSILON;
+/// operations, each within half an ULP), with a safety margin.
+const HIT_POINT_RELATIVE_ERROR: f32 = 16.0 * f32::EPSILON;
 
-/// Moves a surface point off its surface, to the side `dir` leaves from, far
-/// enough that a ray from there cannot hit the same surface again yet close
-/// enough that no nearby geometry is skipped.
+/// Moves a surface point off its surface along `normal` (which must point to
+/// the side the new rays leave from), far enough that a ray from there cannot
+/// hit the same surface again yet close enough that no nearby geometry is
+/// skipped.
 ///
 /// The distance scales with the magnitude of the point (the error of an f32
 /// position is relative to its size), in the spirit of Waechter & Binder,
@@ -94,35 +103,14 @@ const HIT_POINT_RELATIVE_ERROR: f32 = 64.0 * f32::EPSILON;
 /// scenes at 1e7 from the origin and scenes 1e-4 across both work. `scale`
 /// is the magnitude the point was computed from (at least |p|; larger when
 /// the point came from larger coordinates, such as a far-away sphere centre).
-pub fn offset_origin(p: Vec3, normal: Vec3, dir: Vec3, scale: f32) -> Vec3 {
+/// The distance is at least 16 ULPs of that magnitude, so the rounding of the
+/// final add (half an ULP) cannot bring the point back onto the surface.
+pub fn offset_origin(p: Vec3, normal: Vec3, scale: f32) -> Vec3 {
     let magnitude = p.abs().max_element().max(scale);
     // Never below the smallest normal float: keeps the offset meaningful for
     // a point exactly at the origin.
-    let error = (magnitude * HIT_POINT_RELATIVE_ERROR).max(f32::MIN_POSITIVE * 64.0);
-    let n = if normal.dot(dir) < 0.0 {
-        -normal
-    } else {
-        normal
-    };
-    let distance = error * n.abs().element_sum().max(1.0);
-    let moved = p + n * distance;
-    // Round every component away from the surface so rounding in the add
-    // cannot bring the point back onto it.
-    Vec3::new(
-        step_away(moved.x, n.x),
-        step_away(moved.y, n.y),
-        step_away(moved.z, n.z),
-    )
-}
-
-fn step_away(x: f32, direction: f32) -> f32 {
-    if direction > 0.0 {
-        next_up(x)
-    } else if direction < 0.0 {
-        next_down(x)
-    } else {
-        x
-    }
+    let distance = (magnitude * HIT_POINT_RELATIVE_ERROR).max(f32::MIN_POSITIVE * 64.0);
+    p + normal * distance
 }
 
 pub fn next_up(x: f32) -> f32 {
@@ -145,19 +133,21 @@ mod tests {
     use super::*;
 
     #[test]
-    fn offset_moves_to_the_side_of_the_new_direction() {
+    fn offset_moves_along_the_normal() {
         let p = Vec3::new(1.0, 0.0, 2.0);
-        let up = offset_origin(p, Vec3::Y, Vec3::new(0.3, 1.0, 0.0), 0.0);
-        assert!(up.y > 0.0);
-        let down = offset_origin(p, Vec3::Y, Vec3::new(0.3, -1.0, 0.0), 0.0);
-        assert!(down.y < 0.0);
+        assert!(offset_origin(p, Vec3::Y, 0.0).y > 0.0);
+        assert!(offset_origin(p, -Vec3::Y, 0.0).y < 0.0);
+        // Every component of a tilted normal moves the point off the plane.
+        let n = Vec3::new(1.0, 1.0, 0.0).normalize();
+        let q = offset_origin(Vec3::new(3.0, -3.0, 0.0), n, 0.0);
+        assert!(q.dot(n) > 0.0);
     }
 
     #[test]
     fn offset_scales_with_magnitude() {
         for magnitude in [1e-4f32, 1.0, 1e5, 1e7] {
             let p = Vec3::new(magnitude, 0.0, magnitude);
-            let q = offset_origin(p, Vec3::Y, Vec3::Y, 0.0);
+            let q = offset_origin(p, Vec3::Y, 0.0);
             assert!(q.y > 0.0, "offset lost at {magnitude}");
             // Far below the size of any feature at that scale.
             assert!(
@@ -166,6 +156,13 @@ mod tests {
                 q.y
             );
         }
+    }
+
+    #[test]
+    fn lanes_lists_set_bits_in_order() {
+        assert_eq!(lanes(0b1010_0101).collect::<Vec<_>>(), vec![0, 2, 5, 7]);
+        assert_eq!(lanes(0).count(), 0);
+        assert_eq!(lanes(ALL_LANES).count(), PACKET_WIDTH);
     }
 
     #[test]

@@ -11,7 +11,7 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 use crate::accel::Intersector;
-use crate::camera::Camera;
+use crate::camera::RayTable;
 use crate::ray::{LaneMask, Ray, PACKET_WIDTH};
 use crate::scene::Scene;
 use crate::shade::{RayCounts, Shader};
@@ -74,9 +74,10 @@ pub trait PrimaryRays: Sync {
 }
 
 /// A camera's lattice is its image: one sample per pixel centre.
-impl PrimaryRays for Camera {
+impl PrimaryRays for RayTable<'_> {
     fn primary(&self, col: i64, row: i64) -> Option<Ray> {
-        let inside = (0..i64::from(self.width)).contains(&col) && (0..i64::from(self.height)).contains(&row);
+        let (width, height) = self.size();
+        let inside = (0..i64::from(width)).contains(&col) && (0..i64::from(height)).contains(&row);
         if !inside {
             return None;
         }
@@ -117,7 +118,10 @@ pub fn trace_groups(
             (colors, counts)
         })
         .unzip();
-    (colors, counts.into_iter().fold(RayCounts::default(), |a, b| a + b))
+    (
+        colors,
+        counts.into_iter().fold(RayCounts::default(), |a, b| a + b),
+    )
 }
 
 /// A linear-light RGB image.
@@ -153,7 +157,11 @@ impl Frame {
 
 /// Linear [0, 1] to an sRGB byte.
 pub fn encode_srgb(linear: f32) -> u8 {
-    let c = if linear.is_nan() { 0.0 } else { linear.clamp(0.0, 1.0) };
+    let c = if linear.is_nan() {
+        0.0
+    } else {
+        linear.clamp(0.0, 1.0)
+    };
     let s = if c <= 0.003_130_8 {
         12.92 * c
     } else {
@@ -170,9 +178,9 @@ pub fn image_groups(width: u32, height: u32) -> Vec<SampleGroup> {
 /// Renders the scene's camera view in full.
 pub fn render_frame(scene: &Scene, intersector: &dyn Intersector) -> (Frame, RayCounts) {
     let camera = &scene.camera;
-    let shader = Shader { scene, intersector };
+    let shader = Shader::new(scene, intersector);
     let groups = image_groups(camera.width, camera.height);
-    let (colors, counts) = trace_groups(&shader, camera, &groups);
+    let (colors, counts) = trace_groups(&shader, &RayTable::new(camera), &groups);
     let mut frame = Frame::new(camera.width, camera.height);
     for (group, colors) in groups.iter().zip(&colors) {
         for (lane, (col, row)) in group.lane_samples().into_iter().enumerate() {
@@ -190,8 +198,14 @@ mod tests {
 
     #[test]
     fn groups_align_and_cover() {
-        assert_eq!(SampleGroup::containing(5, 3), SampleGroup { col: 4, row: 2 });
-        assert_eq!(SampleGroup::containing(-1, -1), SampleGroup { col: -4, row: -2 });
+        assert_eq!(
+            SampleGroup::containing(5, 3),
+            SampleGroup { col: 4, row: 2 }
+        );
+        assert_eq!(
+            SampleGroup::containing(-1, -1),
+            SampleGroup { col: -4, row: -2 }
+        );
         let groups = SampleGroup::covering(3..9, 1..4);
         let mut covered = std::collections::HashSet::new();
         for g in &groups {

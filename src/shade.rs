@@ -53,8 +53,11 @@ pub struct Surface {
     pub geometric_normal: Vec3,
     /// Unit shading normal (interpolated for smooth meshes), same side.
     pub shading_normal: Vec3,
-    /// Magnitude of the coordinates `point` was computed from.
-    pub scale: f32,
+    /// Where rays leaving the surface start: `point` moved off the surface
+    /// to the side the incoming ray came from. Every ray shading spawns
+    /// leaves from that side (lights behind the surface are skipped, and
+    /// reflections are kept above it).
+    pub spawn_point: Vec3,
     pub material: usize,
     /// In-plane coordinates for plane checkers; None elsewhere.
     pub plane_uv: Option<(f32, f32)>,
@@ -112,7 +115,13 @@ impl Surface {
                 let (origin, normal) = match transform {
                     Some(xf) => (
                         xf.transform_point3(plane.point),
-                        Vec3::from(xf.matrix3.inverse().transpose().mul_vec3(plane.normal.into())).normalize(),
+                        Vec3::from(
+                            xf.matrix3
+                                .inverse()
+                                .transpose()
+                                .mul_vec3(plane.normal.into()),
+                        )
+                        .normalize(),
                     ),
                     None => (plane.point, plane.normal),
                 };
@@ -120,24 +129,29 @@ impl Surface {
                 let point = rough - normal * normal.dot(rough - origin);
                 let (u_axis, v_axis) = plane_axes(normal);
                 let local = point - origin;
-                let scale = origin.abs().max_element().max(ray.origin.abs().max_element());
-                (point, normal, normal, scale, Some((local.dot(u_axis), local.dot(v_axis))))
+                let scale = origin
+                    .abs()
+                    .max_element()
+                    .max(ray.origin.abs().max_element());
+                (
+                    point,
+                    normal,
+                    normal,
+                    scale,
+                    Some((local.dot(u_axis), local.dot(v_axis))),
+                )
             }
         };
         let facing = if normal.dot(ray.dir) > 0.0 { -1.0 } else { 1.0 };
+        let geometric_normal = normal * facing;
         Surface {
             point,
-            geometric_normal: normal * facing,
+            geometric_normal,
             shading_normal: shading * facing,
-            scale,
+            spawn_point: offset_origin(point, geometric_normal, scale),
             material: object.material,
             plane_uv,
         }
-    }
-
-    /// Origin for a ray leaving this surface in direction `dir`.
-    pub fn spawn_origin(&self, dir: Vec3) -> Vec3 {
-        offset_origin(self.point, self.geometric_normal, dir, self.scale)
     }
 }
 
@@ -161,14 +175,52 @@ fn reflect(d: Vec3, n: Vec3) -> Vec3 {
 
 /// Traces and shades packets for one scene through one intersector.
 pub struct Shader<'a> {
-    pub scene: &'a Scene,
-    pub intersector: &'a dyn Intersector,
+    scene: &'a Scene,
+    intersector: &'a dyn Intersector,
+    /// Per material: R.V below which its highlight is negligible.
+    highlight_cutoffs: Vec<f32>,
+    /// Per material: the Phong exponent when it is a whole number, so the
+    /// highlight is a few multiplications (powi) instead of a powf.
+    whole_exponents: Vec<Option<i32>>,
 }
 
-impl Shader<'_> {
+fn phong(r_dot_v: f32, shininess: f32, whole: Option<i32>) -> f32 {
+    match whole {
+        Some(n) => r_dot_v.powi(n),
+        None => r_dot_v.powf(shininess),
+    }
+}
+
+impl<'a> Shader<'a> {
+    pub fn new(scene: &'a Scene, intersector: &'a dyn Intersector) -> Shader<'a> {
+        Shader {
+            scene,
+            intersector,
+            highlight_cutoffs: scene
+                .materials
+                .iter()
+                .map(Material::highlight_cutoff)
+                .collect(),
+            whole_exponents: scene
+                .materials
+                .iter()
+                .map(|m| {
+                    (m.shininess.fract() == 0.0 && m.shininess <= 65_536.0)
+                        .then_some(m.shininess as i32)
+                })
+                .collect(),
+        }
+    }
+
     /// Colours of the rays in `mask`; other lanes come back black. `depth`
     /// is the number of reflections so far (0 for primary rays).
-    pub fn shade(&self, rays: &RayPacket, mask: LaneMask, depth: u32, counts: &mut RayCounts) -> [Vec3; PACKET_WIDTH] {
+    pub fn shade(
+        &self,
+        rays: &RayPacket,
+        mask: LaneMask,
+        depth: u32,
+        counts: &mut RayCounts,
+    ) -> [Vec3; PACKET_WIDTH] {
         let scene = self.scene;
         let mut colors = [Vec3::ZERO; PACKET_WIDTH];
         if mask == 0 {
@@ -211,7 +263,7 @@ impl Shader<'_> {
                 if to_light.dot(surface.geometric_normal) <= 0.0 {
                     continue;
                 }
-                let origin = surface.spawn_origin(to_light);
+                let origin = surface.spawn_point;
                 // The segment ends at the light: dir spans it, so t < 1.
                 shadow_rays[lane] = Ray::segment(origin, light.position - origin, 1.0);
                 lit_mask |= 1 << lane;
@@ -228,9 +280,15 @@ impl Shader<'_> {
                 let l = shadow_rays[lane].dir.normalize();
                 let n_dot_l = n.dot(l).max(0.0);
                 let view = -rays[lane].dir.normalize();
-                let r_dot_v = reflect(-l, n).dot(view).max(0.0);
-                let specular = if material.specular != Vec3::ZERO && r_dot_v > 0.0 {
-                    material.specular * r_dot_v.powf(material.shininess)
+                let r_dot_v = reflect(-l, n).dot(view);
+                // Below the cutoff the highlight is under 1e-5: skip the powf.
+                let specular = if r_dot_v > self.highlight_cutoffs[surface.material] {
+                    material.specular
+                        * phong(
+                            r_dot_v,
+                            material.shininess,
+                            self.whole_exponents[surface.material],
+                        )
                 } else {
                     Vec3::ZERO
                 };
@@ -252,7 +310,7 @@ impl Shader<'_> {
                 if r.dot(surface.geometric_normal) <= 0.0 {
                     r = reflect(d, surface.geometric_normal);
                 }
-                reflected[lane] = Ray::new(surface.spawn_origin(r), r);
+                reflected[lane] = Ray::new(surface.spawn_point, r);
                 mirror_mask |= 1 << lane;
             }
             if mirror_mask != 0 {

@@ -5,6 +5,7 @@
 //! for every backend ([`Accelerator`]), so both give the same answer for them.
 
 pub mod embree;
+pub mod grid;
 
 use std::fmt;
 use std::str::FromStr;
@@ -85,7 +86,7 @@ impl Accelerator {
     pub fn build(kind: BackendKind, objects: &[Object]) -> Result<Accelerator, AccelError> {
         let bounded: Box<dyn Intersector + Send> = match kind {
             BackendKind::Embree => Box::new(embree::EmbreeIntersector::build(objects)?),
-            BackendKind::Grid => return Err(AccelError::Unavailable(kind)),
+            BackendKind::Grid => Box::new(grid::GridIntersector::build(objects, None)),
         };
         let planes = objects
             .iter()
@@ -136,9 +137,25 @@ impl Accelerator {
         best
     }
 
-    fn plane_blocks(&self, ray: &Ray) -> bool {
-        self.planes.iter().any(|(_, plane)| {
-            intersect_plane(plane, ray.origin, ray.dir, ray.tmin, ray.tmax).is_some()
+    /// For each plane, its hit distance in every lane (infinity where it
+    /// misses), computed lane-parallel so the compiler can vectorize it.
+    /// Same arithmetic as [`intersect_plane`], so single rays and packets
+    /// agree bit for bit.
+    fn plane_distances(
+        plane: &Plane,
+        rays: &RayPacket,
+        tmax: &[f32; PACKET_WIDTH],
+    ) -> [f32; PACKET_WIDTH] {
+        std::array::from_fn(|lane| {
+            let ray = &rays[lane];
+            let denom = plane.normal.dot(ray.dir);
+            let t = plane.normal.dot(plane.point - ray.origin) / denom;
+            let valid = denom != 0.0 && denom.is_finite() && t > ray.tmin && t < tmax[lane];
+            if valid {
+                t
+            } else {
+                f32::INFINITY
+            }
         })
     }
 }
@@ -151,26 +168,42 @@ impl Intersector for Accelerator {
     }
 
     fn occluded(&self, ray: &Ray) -> bool {
-        self.plane_blocks(ray) || self.bounded.occluded(ray)
+        let blocked_by_plane = self.planes.iter().any(|(_, plane)| {
+            intersect_plane(plane, ray.origin, ray.dir, ray.tmin, ray.tmax).is_some()
+        });
+        blocked_by_plane || self.bounded.occluded(ray)
     }
 
     fn intersect8(&self, rays: &RayPacket, mask: LaneMask, hits: &mut HitPacket) {
         self.bounded.intersect8(rays, mask, hits);
-        if self.planes.is_empty() {
-            return;
-        }
-        for lane in lanes(mask) {
-            let limit = hits[lane].map_or(rays[lane].tmax, |h| h.t);
-            if let Some(hit) = self.nearest_plane(&rays[lane], limit) {
-                hits[lane] = Some(hit);
+        for &(object, ref plane) in &self.planes {
+            let limits: [f32; PACKET_WIDTH] =
+                std::array::from_fn(|lane| hits[lane].map_or(rays[lane].tmax, |h| h.t));
+            let distances = Self::plane_distances(plane, rays, &limits);
+            for lane in lanes(mask) {
+                if distances[lane] < f32::INFINITY {
+                    hits[lane] = Some(Hit {
+                        t: distances[lane],
+                        object,
+                        prim: 0,
+                        u: 0.0,
+                        v: 0.0,
+                    });
+                }
             }
         }
     }
 
     fn occluded8(&self, rays: &RayPacket, mask: LaneMask) -> LaneMask {
-        let by_planes = lanes(mask)
-            .filter(|&lane| self.plane_blocks(&rays[lane]))
-            .fold(0, |acc, lane| acc | (1 << lane));
+        let tmax: [f32; PACKET_WIDTH] = std::array::from_fn(|lane| rays[lane].tmax);
+        let mut by_planes: LaneMask = 0;
+        for (_, plane) in &self.planes {
+            let distances = Self::plane_distances(plane, rays, &tmax);
+            for (lane, t) in distances.iter().enumerate() {
+                by_planes |= u8::from(*t < f32::INFINITY) << lane;
+            }
+        }
+        let by_planes = by_planes & mask;
         let rest = mask & !by_planes;
         if rest == 0 {
             return by_planes;

@@ -187,7 +187,11 @@ struct ObjectDef {
 
 /// Line (1-based) of a byte offset.
 fn line_of(text: &str, offset: usize) -> usize {
-    text[..offset.min(text.len())].bytes().filter(|&b| b == b'\n').count() + 1
+    text[..offset.min(text.len())]
+        .bytes()
+        .filter(|&b| b == b'\n')
+        .count()
+        + 1
 }
 
 struct Ctx<'a> {
@@ -196,7 +200,12 @@ struct Ctx<'a> {
 }
 
 impl Ctx<'_> {
-    fn error(&self, span: std::ops::Range<usize>, field: impl Into<String>, message: impl Into<String>) -> SceneError {
+    fn error(
+        &self,
+        span: std::ops::Range<usize>,
+        field: impl Into<String>,
+        message: impl Into<String>,
+    ) -> SceneError {
         SceneError::new(self.path, message)
             .at_line(line_of(self.text, span.start))
             .field(field)
@@ -215,15 +224,25 @@ fn finite3(values: [f32; 3]) -> Result<Vec3, String> {
 fn colour(values: [f32; 3]) -> Result<Vec3, String> {
     let v = finite3(values)?;
     if v.min_element() < 0.0 {
-        return Err(format!("colour components must not be negative, got {values:?}"));
+        return Err(format!(
+            "colour components must not be negative, got {values:?}"
+        ));
     }
     Ok(v)
 }
 
-pub fn parse_scene_str(text: &str, path: &Path, overrides: &SceneOverrides) -> Result<Scene, SceneError> {
+pub fn parse_scene_str(
+    text: &str,
+    path: &Path,
+    overrides: &SceneOverrides,
+) -> Result<Scene, SceneError> {
     let deserializer = toml::Deserializer::new(text);
     let file: SceneFile = serde_path_to_error::deserialize(deserializer).map_err(|err| {
-        let field = err.path().to_string();
+        // Spanned<T> shows up in the path as a private key; users never wrote it.
+        let field = err
+            .path()
+            .to_string()
+            .replace("$__serde_spanned_private_value.", "");
         let inner = err.into_inner();
         let mut e = SceneError::new(path, inner.message().to_string());
         if let Some(span) = inner.span() {
@@ -267,7 +286,8 @@ pub fn parse_scene_str(text: &str, path: &Path, overrides: &SceneOverrides) -> R
         .map(|(i, def)| {
             let field = |f: &str| format!("light[{i}].{f}");
             let l = def.get_ref();
-            let position = finite3(l.position).map_err(|m| ctx.error(def.span(), field("position"), m))?;
+            let position =
+                finite3(l.position).map_err(|m| ctx.error(def.span(), field("position"), m))?;
             let color = colour(l.color).map_err(|m| ctx.error(def.span(), field("color"), m))?;
             if !(l.intensity.is_finite() && l.intensity >= 0.0) {
                 return Err(ctx.error(
@@ -299,12 +319,23 @@ pub fn parse_scene_str(text: &str, path: &Path, overrides: &SceneOverrides) -> R
                         format!(
                             "unknown material '{}' (defined: {})",
                             name.get_ref(),
-                            if known.is_empty() { "none".to_string() } else { known.join(", ") }
+                            if known.is_empty() {
+                                "none".to_string()
+                            } else {
+                                known.join(", ")
+                            }
                         ),
                     )
                 })?,
         };
-        objects.extend(convert_object(&ctx, i, def, material, &mut materials, &mut warnings)?);
+        objects.extend(convert_object(
+            &ctx,
+            i,
+            def,
+            material,
+            &mut materials,
+            &mut warnings,
+        )?);
     }
 
     Ok(Scene {
@@ -338,7 +369,11 @@ fn convert_camera(
         (Some(target), None, None) => {
             let target = DVec3::from_array(target);
             if (target - position).length() == 0.0 {
-                return Err(ctx.error(def.span(), "camera.look_at", "must differ from camera.position"));
+                return Err(ctx.error(
+                    def.span(),
+                    "camera.look_at",
+                    "must differ from camera.position",
+                ));
             }
             yaw_pitch_toward(position, target)
         }
@@ -358,9 +393,8 @@ fn convert_camera(
     };
     camera.validate().map_err(|err| {
         let field = match err {
-            crate::camera::CameraError::EmptyImage { .. } | crate::camera::CameraError::ImageTooLarge { .. } => {
-                "render.width/height"
-            }
+            crate::camera::CameraError::EmptyImage { .. }
+            | crate::camera::CameraError::ImageTooLarge { .. } => "render.width/height",
             crate::camera::CameraError::FieldOfView { .. } => "camera.fov",
             crate::camera::CameraError::ElevationOutOfRange { .. } => "camera.pitch",
             crate::camera::CameraError::NotFinite { field, .. } => field,
@@ -370,7 +404,11 @@ fn convert_camera(
     Ok(camera)
 }
 
-fn convert_material(ctx: &Ctx, name: &str, def: &Spanned<MaterialDef>) -> Result<Material, SceneError> {
+fn convert_material(
+    ctx: &Ctx,
+    name: &str,
+    def: &Spanned<MaterialDef>,
+) -> Result<Material, SceneError> {
     let m = def.get_ref();
     let field = |f: &str| format!("material.{name}.{f}");
     let err = |f: &str| {
@@ -381,7 +419,10 @@ fn convert_material(ctx: &Ctx, name: &str, def: &Spanned<MaterialDef>) -> Result
         None => None,
         Some(c) => {
             if !(c.scale.is_finite() && c.scale > 0.0) {
-                return Err(err("checker.scale")(format!("must be above 0, got {}", c.scale)));
+                return Err(err("checker.scale")(format!(
+                    "must be above 0, got {}",
+                    c.scale
+                )));
             }
             Some(Checker {
                 colors: [
@@ -393,10 +434,16 @@ fn convert_material(ctx: &Ctx, name: &str, def: &Spanned<MaterialDef>) -> Result
         }
     };
     if !(m.shininess.is_finite() && m.shininess >= 0.0) {
-        return Err(err("shininess")(format!("must be >= 0, got {}", m.shininess)));
+        return Err(err("shininess")(format!(
+            "must be >= 0, got {}",
+            m.shininess
+        )));
     }
     if !(0.0..=1.0).contains(&m.reflectivity) {
-        return Err(err("reflectivity")(format!("must be within 0..1, got {}", m.reflectivity)));
+        return Err(err("reflectivity")(format!(
+            "must be within 0..1, got {}",
+            m.reflectivity
+        )));
     }
     Ok(Material {
         name: name.to_string(),
@@ -420,7 +467,12 @@ fn convert_object(
     let field = |f: &str| format!("object[{index}].{f}");
     let err = |f: &str, message: String| ctx.error(def.span(), field(f), message);
     let require = |value: Option<[f32; 3]>, f: &str| -> Result<Vec3, SceneError> {
-        let v = value.ok_or_else(|| err(f, format!("required for type = \"{:?}\"", o.kind).to_lowercase()))?;
+        let v = value.ok_or_else(|| {
+            err(
+                f,
+                format!("required for type = \"{:?}\"", o.kind).to_lowercase(),
+            )
+        })?;
         finite3(v).map_err(|m| err(f, m))
     };
 
@@ -443,7 +495,9 @@ fn convert_object(
     let shape = match o.kind {
         ObjectKind::Sphere => {
             let center = require(o.center, "center")?;
-            let radius = o.radius.ok_or_else(|| err("radius", "required for type = \"sphere\"".into()))?;
+            let radius = o
+                .radius
+                .ok_or_else(|| err("radius", "required for type = \"sphere\"".into()))?;
             if !(radius.is_finite() && radius > 0.0) {
                 return Err(err("radius", format!("must be above 0, got {radius}")));
             }
@@ -462,12 +516,24 @@ fn convert_object(
             match o.size {
                 None => Shape::Plane(Plane { point, normal }),
                 Some(size) => {
-                    if !(size[0].is_finite() && size[1].is_finite() && size[0] > 0.0 && size[1] > 0.0) {
-                        return Err(err("size", format!("both sides must be above 0, got {size:?}")));
+                    if !(size[0].is_finite()
+                        && size[1].is_finite()
+                        && size[0] > 0.0
+                        && size[1] > 0.0)
+                    {
+                        return Err(err(
+                            "size",
+                            format!("both sides must be above 0, got {size:?}"),
+                        ));
                     }
                     let (u, v) = crate::geometry::plane_axes(normal);
                     let (hu, hv) = (u * size[0] * 0.5, v * size[1] * 0.5);
-                    let corners = vec![point - hu - hv, point + hu - hv, point + hu + hv, point - hu + hv];
+                    let corners = vec![
+                        point - hu - hv,
+                        point + hu - hv,
+                        point + hu + hv,
+                        point - hu + hv,
+                    ];
                     polygon_mesh(corners).map_err(|m| err("size", m))?
                 }
             }
@@ -478,7 +544,10 @@ fn convert_object(
                 .as_ref()
                 .ok_or_else(|| err("vertices", "required for quads and polygons".into()))?;
             if o.kind == ObjectKind::Quad && vertices.len() != 4 {
-                return Err(err("vertices", format!("a quad needs 4 vertices, got {}", vertices.len())));
+                return Err(err(
+                    "vertices",
+                    format!("a quad needs 4 vertices, got {}", vertices.len()),
+                ));
             }
             let points = vertices
                 .iter()
@@ -527,7 +596,11 @@ fn convert_object(
                     _ => material,
                 };
                 objects.push(Object {
-                    name: if part_index == 0 { name.clone() } else { format!("{name} part {part_index}") },
+                    name: if part_index == 0 {
+                        name.clone()
+                    } else {
+                        format!("{name} part {part_index}")
+                    },
                     shape: Shape::Mesh(mesh),
                     material: part_material,
                     placement: Placement::World,
@@ -547,9 +620,14 @@ fn convert_object(
 /// Fan-triangulates a planar convex polygon, rejecting degenerate ones.
 fn polygon_mesh(points: Vec<Vec3>) -> Result<Shape, String> {
     if points.len() < 3 {
-        return Err(format!("a polygon needs at least 3 vertices, got {}", points.len()));
+        return Err(format!(
+            "a polygon needs at least 3 vertices, got {}",
+            points.len()
+        ));
     }
-    let triangles: Vec<[u32; 3]> = (1..points.len() as u32 - 1).map(|i| [0, i, i + 1]).collect();
+    let triangles: Vec<[u32; 3]> = (1..points.len() as u32 - 1)
+        .map(|i| [0, i, i + 1])
+        .collect();
     let mesh = TriangleMesh {
         positions: points,
         triangles,
@@ -601,22 +679,40 @@ mod tests {
 
     #[test]
     fn type_errors_name_line_and_field() {
-        let err = parse(&format!("{CAMERA}[[object]]\ntype = \"sphere\"\ncenter = [0, 0, 0]\nradius = \"big\"\n")).unwrap_err();
+        let err = parse(&format!(
+            "{CAMERA}[[object]]\ntype = \"sphere\"\ncenter = [0, 0, 0]\nradius = \"big\"\n"
+        ))
+        .unwrap_err();
         assert_eq!(err.line, Some(7), "{err}");
         assert_eq!(err.field.as_deref(), Some("object[0].radius"), "{err}");
         let err = parse("[camera]\nposition = [0, 1, 5\nfov = 60\n").unwrap_err();
         assert!(err.line.is_some(), "{err}");
-        let err = parse(&format!("{CAMERA}[[object]]\ntype = \"sphere\"\ncentre = [0, 0, 0]\n")).unwrap_err();
+        let err = parse(&format!(
+            "{CAMERA}[[object]]\ntype = \"sphere\"\ncentre = [0, 0, 0]\n"
+        ))
+        .unwrap_err();
         assert!(err.message.contains("centre"), "{err}");
     }
 
     #[test]
     fn bad_values_are_rejected() {
         for (body, field) in [
-            ("[[object]]\ntype = \"sphere\"\ncenter = [0, 0, 0]\nradius = -1\n", "object[0].radius"),
-            ("[[object]]\ntype = \"sphere\"\ncenter = [0, nan, 0]\nradius = 1\n", "object[0].center"),
-            ("[[object]]\ntype = \"sphere\"\ncenter = [0, inf, 0]\nradius = 1\n", "object[0].center"),
-            ("[[object]]\ntype = \"quad\"\nvertices = [[0,0,0],[1,0,0],[2,0,0],[3,0,0]]\n", "object[0].vertices"),
+            (
+                "[[object]]\ntype = \"sphere\"\ncenter = [0, 0, 0]\nradius = -1\n",
+                "object[0].radius",
+            ),
+            (
+                "[[object]]\ntype = \"sphere\"\ncenter = [0, nan, 0]\nradius = 1\n",
+                "object[0].center",
+            ),
+            (
+                "[[object]]\ntype = \"sphere\"\ncenter = [0, inf, 0]\nradius = 1\n",
+                "object[0].center",
+            ),
+            (
+                "[[object]]\ntype = \"quad\"\nvertices = [[0,0,0],[1,0,0],[2,0,0],[3,0,0]]\n",
+                "object[0].vertices",
+            ),
             ("[[light]]\nposition = [0, nan, 0]\n", "light[0].position"),
         ] {
             let err = parse(&format!("{CAMERA}{body}")).unwrap_err();

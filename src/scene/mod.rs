@@ -39,7 +39,20 @@ pub struct Material {
     pub reflectivity: f32,
 }
 
+/// Highlights dimmer than this are not computed (an sRGB byte changes only
+/// above about 3e-4 near black).
+pub const NEGLIGIBLE_HIGHLIGHT: f32 = 1e-5;
+
 impl Material {
+    /// The value of R.V below which the Phong highlight (R.V)^shininess is
+    /// negligible; above 1 when the material has no highlight at all.
+    pub fn highlight_cutoff(&self) -> f32 {
+        if self.specular == Vec3::ZERO {
+            return 2.0;
+        }
+        NEGLIGIBLE_HIGHLIGHT.powf(1.0 / self.shininess.max(1e-3))
+    }
+
     pub fn matte(name: &str, diffuse: Vec3) -> Material {
         Material {
             name: name.to_string(),

@@ -44,20 +44,32 @@ fn check_obj_text(path: &Path, text: &str) -> Result<(), SceneError> {
     let mut vertex_count: i64 = 0;
     for (number, line) in text.lines().enumerate() {
         let line_no = number + 1;
-        let fail = |field: &str, message: String| Err(SceneError::new(path, message).at_line(line_no).field(field));
+        let fail = |field: &str, message: String| {
+            Err(SceneError::new(path, message).at_line(line_no).field(field))
+        };
         let mut words = line.split_whitespace();
-        let Some(keyword) = words.next() else { continue };
+        let Some(keyword) = words.next() else {
+            continue;
+        };
         match keyword {
             "v" | "vn" | "vt" => {
                 let wanted = if keyword == "vt" { 1 } else { 3 };
                 let values: Vec<&str> = words.collect();
                 if values.len() < wanted {
-                    return fail(keyword, format!("expected {wanted} numbers, got {}", values.len()));
+                    return fail(
+                        keyword,
+                        format!("expected {wanted} numbers, got {}", values.len()),
+                    );
                 }
-                for word in values.iter().take(if keyword == "v" { 3 } else { values.len() }) {
+                for word in values
+                    .iter()
+                    .take(if keyword == "v" { 3 } else { values.len() })
+                {
                     match word.parse::<f32>() {
                         Ok(x) if x.is_finite() => {}
-                        Ok(_) => return fail(keyword, format!("coordinate '{word}' is not finite")),
+                        Ok(_) => {
+                            return fail(keyword, format!("coordinate '{word}' is not finite"))
+                        }
                         Err(_) => return fail(keyword, format!("'{word}' is not a number")),
                     }
                 }
@@ -68,14 +80,21 @@ fn check_obj_text(path: &Path, text: &str) -> Result<(), SceneError> {
             "f" => {
                 let refs: Vec<&str> = words.collect();
                 if refs.len() < 3 {
-                    return fail("f", format!("a face needs at least 3 vertices, got {}", refs.len()));
+                    return fail(
+                        "f",
+                        format!("a face needs at least 3 vertices, got {}", refs.len()),
+                    );
                 }
                 for r in refs {
                     let index = r.split('/').next().unwrap_or("");
                     let Ok(index) = index.parse::<i64>() else {
                         return fail("f", format!("'{r}' is not a vertex index"));
                     };
-                    let resolved = if index < 0 { vertex_count + index + 1 } else { index };
+                    let resolved = if index < 0 {
+                        vertex_count + index + 1
+                    } else {
+                        index
+                    };
                     if index == 0 || resolved < 1 || resolved > vertex_count {
                         return fail(
                             "f",
@@ -91,7 +110,8 @@ fn check_obj_text(path: &Path, text: &str) -> Result<(), SceneError> {
 }
 
 fn material_from_mtl(m: &tobj::Material) -> Material {
-    let rgb = |c: Option<[f32; 3]>, default: f32| c.map(Vec3::from_array).unwrap_or(Vec3::splat(default));
+    let rgb =
+        |c: Option<[f32; 3]>, default: f32| c.map(Vec3::from_array).unwrap_or(Vec3::splat(default));
     let specular = rgb(m.specular, 0.0);
     // illum 3, 5 and 7 are the MTL modes with ray-traced reflection.
     let reflective = matches!(m.illumination_model, Some(3 | 5 | 7));
@@ -101,7 +121,11 @@ fn material_from_mtl(m: &tobj::Material) -> Material {
         checker: None,
         specular: specular.clamp(Vec3::ZERO, Vec3::ONE),
         shininess: m.shininess.unwrap_or(32.0).clamp(0.0, 10_000.0),
-        reflectivity: if reflective { specular.max_element().clamp(0.0, 1.0) } else { 0.0 },
+        reflectivity: if reflective {
+            specular.max_element().clamp(0.0, 1.0)
+        } else {
+            0.0
+        },
     }
 }
 
@@ -117,8 +141,8 @@ pub fn load_obj_mesh(path: &Path) -> Result<ObjMesh, SceneError> {
         ignore_points: true,
         ignore_lines: true,
     };
-    let (models, materials) =
-        tobj::load_obj(path, &options).map_err(|err| SceneError::new(path, format!("cannot parse OBJ: {err}")))?;
+    let (models, materials) = tobj::load_obj(path, &options)
+        .map_err(|err| SceneError::new(path, format!("cannot parse OBJ: {err}")))?;
     // A missing or broken MTL is not fatal: the model renders with the
     // scene's material instead.
     let materials = materials.unwrap_or_default();
@@ -132,7 +156,11 @@ pub fn load_obj_mesh(path: &Path) -> Result<ObjMesh, SceneError> {
             .chunks_exact(3)
             .map(|c| Vec3::new(c[0], c[1], c[2]))
             .collect();
-        let mut normals: Vec<Vec3> = m.normals.chunks_exact(3).map(|c| Vec3::new(c[0], c[1], c[2])).collect();
+        let mut normals: Vec<Vec3> = m
+            .normals
+            .chunks_exact(3)
+            .map(|c| Vec3::new(c[0], c[1], c[2]))
+            .collect();
         if normals.len() != positions.len() {
             normals.clear();
         }
@@ -145,7 +173,10 @@ pub fn load_obj_mesh(path: &Path) -> Result<ObjMesh, SceneError> {
                 dropped_degenerate += 1;
             }
         }
-        let material = m.material_id.and_then(|id| materials.get(id)).map(material_from_mtl);
+        let material = m
+            .material_id
+            .and_then(|id| materials.get(id))
+            .map(material_from_mtl);
         let mesh = TriangleMesh {
             positions,
             triangles,
@@ -180,7 +211,10 @@ fn append_mesh(into: &mut TriangleMesh, mesh: TriangleMesh) {
 /// A scene for a bare model: the model (smooth-shaded where the file has no
 /// normals), a checkered ground plane under it, a key light, and a camera
 /// that frames its bounds.
-pub(super) fn scene_around_obj(path: &Path, overrides: &SceneOverrides) -> Result<Scene, SceneError> {
+pub(super) fn scene_around_obj(
+    path: &Path,
+    overrides: &SceneOverrides,
+) -> Result<Scene, SceneError> {
     let loaded = load_obj_mesh(path)?;
     let mut warnings = Vec::new();
     if loaded.dropped_degenerate > 0 {
@@ -192,7 +226,10 @@ pub(super) fn scene_around_obj(path: &Path, overrides: &SceneOverrides) -> Resul
     }
     let bounds = loaded.bounds();
     if loaded.triangle_count() == 0 || !bounds.is_finite() {
-        return Err(SceneError::new(path, "the model has no triangles to render"));
+        return Err(SceneError::new(
+            path,
+            "the model has no triangles to render",
+        ));
     }
     let center = bounds.center();
     let radius = (bounds.extent().length() * 0.5).max(f32::MIN_POSITIVE);
@@ -267,7 +304,9 @@ pub(super) fn scene_around_obj(path: &Path, overrides: &SceneOverrides) -> Resul
         width,
         height,
     };
-    camera.validate().map_err(|err| SceneError::new(path, err.to_string()).field("camera"))?;
+    camera
+        .validate()
+        .map_err(|err| SceneError::new(path, err.to_string()).field("camera"))?;
     let key = center + Vec3::new(-1.5, 3.0, 2.0) * radius;
     Ok(Scene {
         camera,

@@ -734,6 +734,22 @@ mod tests {
         assert!(scene.intersect1(&ray).is_none());
     }
 
+    /// The bindings come from the Embree 4 headers, so the library must be
+    /// the same 4.x minor release: struct layouts change between them (4.3
+    /// added `instPrimID` to hits), and a mismatch corrupts rays silently.
+    #[cfg(embree_version = "4")]
+    #[test]
+    fn embree4_library_matches_its_headers() {
+        let device = Device::new().unwrap();
+        assert_eq!(
+            device.version() / 100,
+            i64::from(sys::RTC_VERSION / 100),
+            "library {} vs headers {}",
+            device.version(),
+            sys::RTC_VERSION
+        );
+    }
+
     #[test]
     fn embree_errors_become_results() {
         let device = Device::new().unwrap();

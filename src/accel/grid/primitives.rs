@@ -75,12 +75,7 @@ impl WatertightRay {
     /// The hit with `v0 v1 v2`, if any, strictly inside (`tmin`, `tmax`).
     /// Degenerate triangles (zero area as seen along the ray) never hit.
     #[inline]
-    pub fn intersect_triangle(
-        &self,
-        v: &[Vec3; 3],
-        tmin: f32,
-        tmax: f32,
-    ) -> Option<TriangleHit> {
+    pub fn intersect_triangle(&self, v: &[Vec3; 3], tmin: f32, tmax: f32) -> Option<TriangleHit> {
         let (kx, ky, kz) = (self.kx, self.ky, self.kz);
         let o = self.origin;
         let rel = |p: &Vec3| [p.x - o[0], p.y - o[1], p.z - o[2]];
@@ -192,7 +187,11 @@ mod tests {
             Vec3::new(1.0, 0.0, 0.0),
             Vec3::new(0.0, 1.0, 0.0),
         ];
-        for dir in [-Vec3::Z, Vec3::new(0.1, -0.2, -1.0), Vec3::new(0.0, 0.0, 1.0)] {
+        for dir in [
+            -Vec3::Z,
+            Vec3::new(0.1, -0.2, -1.0),
+            Vec3::new(0.0, 0.0, 1.0),
+        ] {
             let p = Vec3::new(0.25, 0.5, 0.0);
             let o = p - dir * 2.0;
             let h = hit(o, dir, tri).unwrap();
@@ -277,9 +276,15 @@ mod tests {
         assert!((t - 2.0).abs() < 1e-6);
         let t = intersect_sphere(&s, s.center, Vec3::X, 0.0, f32::INFINITY).unwrap();
         assert!((t - 1.0).abs() < 1e-6);
-        assert_eq!(intersect_sphere(&s, Vec3::ZERO, Vec3::Z, 0.0, f32::INFINITY), None);
+        assert_eq!(
+            intersect_sphere(&s, Vec3::ZERO, Vec3::Z, 0.0, f32::INFINITY),
+            None
+        );
         assert_eq!(intersect_sphere(&s, Vec3::ZERO, -Vec3::Z, 0.0, 4.0), None);
-        assert_eq!(intersect_sphere(&s, Vec3::Y * 1.01, -Vec3::Z, 0.0, 10.0), None);
+        assert_eq!(
+            intersect_sphere(&s, Vec3::Y * 1.01, -Vec3::Z, 0.0, 10.0),
+            None
+        );
         // tmin past the near side: the far side.
         let t = intersect_sphere(&s, Vec3::ZERO, -Vec3::Z, 4.5, 10.0).unwrap();
         assert!((t - 6.0).abs() < 1e-6);

@@ -44,7 +44,9 @@ impl GridSpec {
         let per_unit = (cells.max(1.0) / volume).powf(1.0 / thick.len().max(1) as f64);
         let mut resolution = [1u32; 3];
         for &a in &thick {
-            resolution[a] = (extent[a] * per_unit).round().clamp(1.0, MAX_RESOLUTION as f64) as u32;
+            resolution[a] = (extent[a] * per_unit)
+                .round()
+                .clamp(1.0, MAX_RESOLUTION as f64) as u32;
         }
         GridSpec::new(bounds, resolution)
     }
@@ -173,25 +175,17 @@ pub struct VoxelWalk {
     g0: [f64; 3],
     d: [f64; 3],
     eps: f64,
-    x: AxisLoop,
-    y: AxisLoop,
-    z: AxisLoop,
-    /// The t-interval of the segment inside the grid, and of the part of it
-    /// inside the current x-slab.
-    clip: (f64, f64),
-    tx: (f64, f64),
-    /// The current x and y voxel index.
-    i: i64,
-    j: i64,
-    level: Level,
-}
-
-#[derive(Clone, Copy, Debug, PartialEq)]
-enum Level {
-    X,
-    Y,
-    Z,
-    Done,
+    /// The axis of each nesting level, outermost first: axes the segment
+    /// moves along come before axes it does not, so voxels met at the same
+    /// point come together and the walk stays in order.
+    axes: [usize; 3],
+    loops: [AxisLoop; 3],
+    /// `spans[n]`: the part of the segment (a t-interval) inside the grid
+    /// and inside the current slabs of the levels above `n`.
+    spans: [(f64, f64); 3],
+    voxel: [i64; 3],
+    depth: usize,
+    done: bool,
 }
 
 /// One axis of the nested loop: indices from `next` to `last` by `step`.
@@ -256,14 +250,12 @@ impl VoxelWalk {
             g0,
             d,
             eps: 0.0,
-            x: AxisLoop::default(),
-            y: AxisLoop::default(),
-            z: AxisLoop::default(),
-            clip: (0.0, 0.0),
-            tx: (0.0, 0.0),
-            i: 0,
-            j: 0,
-            level: Level::Done,
+            axes: [0, 1, 2],
+            loops: [AxisLoop::default(); 3],
+            spans: [(0.0, 0.0); 3],
+            voxel: [0; 3],
+            depth: 0,
+            done: true,
         };
         let valid = spec.is_valid()
             && origin.is_finite()
@@ -294,10 +286,11 @@ impl VoxelWalk {
                 None => return walk,
             }
         }
-        walk.clip = span;
-        if let Some(x) = walk.axis_loop(0, span) {
-            walk.x = x;
-            walk.level = Level::X;
+        walk.axes.sort_by_key(|&a| d[a] == 0.0);
+        walk.spans[0] = span;
+        if let Some(outer) = walk.axis_loop(walk.axes[0], span) {
+            walk.loops[0] = outer;
+            walk.done = false;
         }
         walk
     }
@@ -359,40 +352,413 @@ impl Iterator for VoxelWalk {
     type Item = [u32; 3];
 
     fn next(&mut self) -> Option<[u32; 3]> {
-        loop {
-            match self.level {
-                Level::Done => return None,
-                Level::Z => match self.z.take() {
-                    Some(k) => return Some([self.i as u32, self.j as u32, k as u32]),
-                    None => self.level = Level::Y,
-                },
-                Level::Y => match self.y.take() {
-                    Some(j) => {
-                        if let Some(txy) = self.voxel_span(1, j, self.tx) {
-                            if let Some(z) = self.axis_loop(2, txy) {
-                                self.j = j;
-                                self.z = z;
-                                self.level = Level::Z;
-                            }
-                        }
-                    }
-                    None => self.level = Level::X,
-                },
-                Level::X => match self.x.take() {
-                    Some(i) => {
-                        if let Some(tx) = self.voxel_span(0, i, self.clip) {
-                            if let Some(y) = self.axis_loop(1, tx) {
-                                self.i = i;
-                                self.tx = tx;
-                                self.y = y;
-                                self.level = Level::Y;
-                            }
-                        }
-                    }
-                    None => self.level = Level::Done,
-                },
+        while !self.done {
+            let depth = self.depth;
+            let Some(i) = self.loops[depth].take() else {
+                if depth == 0 {
+                    self.done = true;
+                } else {
+                    self.depth -= 1;
+                }
+                continue;
+            };
+            let axis = self.axes[depth];
+            if depth == 2 {
+                self.voxel[axis] = i;
+                return Some(self.voxel.map(|c| c as u32));
+            }
+            // The part of the segment in this slab, and the voxels it
+            // touches on the next axis in.
+            let Some(span) = self.voxel_span(axis, i, self.spans[depth]) else {
+                continue;
+            };
+            if let Some(inner) = self.axis_loop(self.axes[depth + 1], span) {
+                self.voxel[axis] = i;
+                self.spans[depth + 1] = span;
+                self.loops[depth + 1] = inner;
+                self.depth += 1;
             }
         }
+        None
     }
 }
 
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+    use std::collections::HashSet;
+
+    fn unit_grid(n: [u32; 3]) -> GridSpec {
+        // Voxels of size 1 from the origin: voxel planes are exact integers.
+        GridSpec::new(
+            Aabb {
+                min: Vec3::ZERO,
+                max: Vec3::from(n.map(|x| x as f32)),
+            },
+            n,
+        )
+    }
+
+    fn collect(spec: &GridSpec, o: Vec3, d: Vec3, t0: f32, t1: f32) -> Vec<[u32; 3]> {
+        spec.walk(o, d, t0, t1).collect()
+    }
+
+    fn set(v: &[[u32; 3]]) -> HashSet<[u32; 3]> {
+        v.iter().copied().collect()
+    }
+
+    /// Voxels whose closed box, grown by `grow` voxels, meets the segment:
+    /// brute force over every voxel, in f64 voxel units.
+    fn touched(
+        spec: &GridSpec,
+        o: Vec3,
+        d: Vec3,
+        t0: f32,
+        t1: f32,
+        grow: f64,
+    ) -> HashSet<[u32; 3]> {
+        let g = GridCoords::new(spec);
+        let g0: [f64; 3] = std::array::from_fn(|a| g.coord(a, f64::from(o[a])));
+        let gd: [f64; 3] = std::array::from_fn(|a| f64::from(d[a]) * g.scale[a]);
+        let mut out = HashSet::new();
+        let [nx, ny, nz] = spec.resolution;
+        for k in 0..nz {
+            for j in 0..ny {
+                for i in 0..nx {
+                    let v = [i, j, k];
+                    let (mut lo, mut hi) = (f64::from(t0), f64::from(t1));
+                    let mut hit = true;
+                    for a in 0..3 {
+                        let (s, e) = (v[a] as f64 - grow, v[a] as f64 + 1.0 + grow);
+                        if gd[a] == 0.0 {
+                            hit &= g0[a] >= s && g0[a] <= e;
+                        } else {
+                            let ta = (s - g0[a]) / gd[a];
+                            let tb = (e - g0[a]) / gd[a];
+                            lo = lo.max(ta.min(tb));
+                            hi = hi.min(ta.max(tb));
+                        }
+                    }
+                    if hit && lo <= hi {
+                        out.insert(v);
+                    }
+                }
+            }
+        }
+        out
+    }
+
+    /// Checks the whole contract for one segment.
+    fn check(spec: &GridSpec, o: Vec3, d: Vec3, t0: f32, t1: f32) -> Result<(), String> {
+        let walked = collect(spec, o, d, t0, t1);
+        let got = set(&walked);
+        if got.len() != walked.len() {
+            return Err(format!("a voxel repeats: {walked:?}"));
+        }
+        let must = touched(spec, o, d, t0, t1, 0.0);
+        if let Some(v) = must.difference(&got).next() {
+            return Err(format!("missed touched voxel {v:?}; walked {walked:?}"));
+        }
+        let may = touched(spec, o, d, t0, t1, 1e-5);
+        if let Some(v) = got.difference(&may).next() {
+            return Err(format!("walked untouched voxel {v:?}; walked {walked:?}"));
+        }
+        // In order along the segment: entry parameters never decrease (up to
+        // the slack, for voxels entered at one point).
+        let g = GridCoords::new(spec);
+        let entry = |v: &[u32; 3]| {
+            let mut lo = f64::from(t0);
+            for a in 0..3 {
+                let d = f64::from(d[a]) * g.scale[a];
+                if d != 0.0 {
+                    let g0 = g.coord(a, f64::from(o[a]));
+                    let ta = (v[a] as f64 - 1e-5 - g0) / d;
+                    let tb = (v[a] as f64 + 1.0 + 1e-5 - g0) / d;
+                    lo = lo.max(ta.min(tb));
+                }
+            }
+            lo
+        };
+        // The slack as a parameter range: 1e-5 voxel along the slowest axis.
+        let slack_t = (0..3)
+            .map(|a| f64::from(d[a]) * g.scale[a])
+            .filter(|&x| x != 0.0)
+            .map(|x| 1e-5 / x.abs())
+            .fold(0.0, f64::max);
+        for w in walked.windows(2) {
+            let (a, b) = (entry(&w[0]), entry(&w[1]));
+            if b < a - 2.0 * slack_t {
+                return Err(format!("out of order: {w:?} entered at {a} then {b}"));
+            }
+        }
+        Ok(())
+    }
+
+    #[test]
+    fn axis_parallel_rays_visit_their_row() {
+        let spec = unit_grid([4, 3, 2]);
+        let row = collect(
+            &spec,
+            Vec3::new(-1.0, 1.5, 0.5),
+            Vec3::X,
+            0.0,
+            f32::INFINITY,
+        );
+        assert_eq!(row, vec![[0, 1, 0], [1, 1, 0], [2, 1, 0], [3, 1, 0]]);
+        let back = collect(
+            &spec,
+            Vec3::new(9.0, 1.5, 0.5),
+            -Vec3::X,
+            0.0,
+            f32::INFINITY,
+        );
+        assert_eq!(back, vec![[3, 1, 0], [2, 1, 0], [1, 1, 0], [0, 1, 0]]);
+        // Stops at t1: from x = 0.5 to x = 2.0, which touches voxel 2's face.
+        let part = collect(&spec, Vec3::new(0.5, 1.5, 0.5), Vec3::X, 0.0, 1.5);
+        assert_eq!(part, vec![[0, 1, 0], [1, 1, 0], [2, 1, 0]]);
+    }
+
+    #[test]
+    fn ray_on_voxel_planes_visits_both_sides() {
+        let spec = unit_grid([4, 3, 2]);
+        // On the plane y = 1 (between rows 0 and 1), z inside voxel 0.
+        let on = set(&collect(
+            &spec,
+            Vec3::new(-1.0, 1.0, 0.5),
+            Vec3::X,
+            0.0,
+            100.0,
+        ));
+        let expected: HashSet<_> = (0..4).flat_map(|i| [[i, 0, 0], [i, 1, 0]]).collect();
+        assert_eq!(on, expected);
+        // On the edge y = 1, z = 1: four rows.
+        let edge = set(&collect(
+            &spec,
+            Vec3::new(-1.0, 1.0, 1.0),
+            Vec3::X,
+            0.0,
+            100.0,
+        ));
+        assert_eq!(edge.len(), 16);
+        // -0.0 components behave as +0.0.
+        let neg = set(&collect(
+            &spec,
+            Vec3::new(-1.0, 1.0, 1.0),
+            Vec3::new(1.0, -0.0, -0.0),
+            0.0,
+            100.0,
+        ));
+        assert_eq!(neg, edge);
+        // On the grid's outer face y = 0 and outside it.
+        let face = set(&collect(
+            &spec,
+            Vec3::new(-1.0, 0.0, 0.5),
+            Vec3::X,
+            0.0,
+            100.0,
+        ));
+        assert_eq!(face, (0..4).map(|i| [i, 0, 0]).collect());
+        assert!(collect(&spec, Vec3::new(-1.0, -0.001, 0.5), Vec3::X, 0.0, 100.0).is_empty());
+    }
+
+    #[test]
+    fn origin_on_a_voxel_plane_starts_on_both_sides() {
+        let spec = unit_grid([4, 4, 4]);
+        // Starting exactly on x = 2, moving +y.
+        let w = collect(&spec, Vec3::new(2.0, 0.5, 0.5), Vec3::Y, 0.0, 1.0);
+        assert_eq!(set(&w), set(&[[1, 0, 0], [2, 0, 0], [1, 1, 0], [2, 1, 0]]));
+        // Starting exactly on x = 2, moving +x: voxel 1 is touched at t = 0.
+        let w = collect(&spec, Vec3::new(2.0, 0.5, 0.5), Vec3::X, 0.0, 0.5);
+        assert_eq!(w, vec![[1, 0, 0], [2, 0, 0]]);
+        let w = collect(&spec, Vec3::new(2.0, 0.5, 0.5), -Vec3::X, 0.0, 0.5);
+        assert_eq!(w, vec![[2, 0, 0], [1, 0, 0]]);
+    }
+
+    #[test]
+    fn diagonals_through_corners_visit_every_touching_voxel() {
+        // 2D: through the corner (1, 1) of a 2x2 layer.
+        let spec = unit_grid([2, 2, 1]);
+        let w = collect(
+            &spec,
+            Vec3::new(0.0, 0.0, 0.5),
+            Vec3::new(1.0, 1.0, 0.0),
+            0.0,
+            2.0,
+        );
+        assert_eq!(w.len(), 4);
+        assert_eq!(w[0], [0, 0, 0]);
+        assert_eq!(w[3], [1, 1, 0]);
+        // 3D: through the centre corner of a 2x2x2 grid.
+        let spec = unit_grid([2, 2, 2]);
+        let w = collect(&spec, Vec3::splat(0.25), Vec3::ONE, 0.0, 2.0);
+        assert_eq!(set(&w).len(), 8);
+        assert_eq!((w[0], w[7]), ([0, 0, 0], [1, 1, 1]));
+        // Backwards along the other diagonal, from outside.
+        let w = collect(
+            &spec,
+            Vec3::new(3.0, -1.0, 3.0),
+            Vec3::new(-1.0, 1.0, -1.0),
+            0.0,
+            10.0,
+        );
+        assert_eq!(set(&w).len(), 8);
+        assert_eq!((w[0], w[7]), ([1, 0, 1], [0, 1, 0]));
+        check(
+            &spec,
+            Vec3::new(3.0, -1.0, 3.0),
+            Vec3::new(-1.0, 1.0, -1.0),
+            0.0,
+            10.0,
+        )
+        .unwrap();
+    }
+
+    #[test]
+    fn misses_and_empty_segments_yield_nothing() {
+        let spec = unit_grid([3, 3, 3]);
+        let far = Vec3::new(-5.0, 1.5, 1.5);
+        assert!(collect(&spec, far, -Vec3::X, 0.0, f32::INFINITY).is_empty());
+        assert!(collect(&spec, far, Vec3::Y, 0.0, f32::INFINITY).is_empty());
+        assert!(collect(&spec, far, Vec3::X, 0.0, 4.0).is_empty());
+        assert!(collect(&spec, far, Vec3::X, 2.0, 1.0).is_empty());
+        assert!(collect(&spec, far, Vec3::X, f32::NAN, 10.0).is_empty());
+        assert!(collect(&spec, Vec3::NAN, Vec3::X, 0.0, 10.0).is_empty());
+        // Just reaching the face x = 0 touches the first column.
+        assert_eq!(collect(&spec, far, Vec3::X, 0.0, 5.0), vec![[0, 1, 1]]);
+        // A point (zero direction) yields the voxels around it, with t1 = inf.
+        assert_eq!(
+            collect(&spec, Vec3::splat(1.5), Vec3::ZERO, 0.0, f32::INFINITY),
+            vec![[1, 1, 1]]
+        );
+        assert_eq!(
+            collect(&spec, Vec3::splat(1.0), Vec3::ZERO, 0.0, 0.0).len(),
+            8
+        );
+        // An invalid spec yields nothing instead of panicking.
+        let flat = GridSpec {
+            bounds: Aabb {
+                min: Vec3::ZERO,
+                max: Vec3::new(1.0, 0.0, 1.0),
+            },
+            resolution: [2, 2, 2],
+        };
+        assert!(collect(&flat, Vec3::splat(-1.0), Vec3::ONE, 0.0, 10.0).is_empty());
+    }
+
+    #[test]
+    fn walk_segment_matches_the_iterator_and_far_origins_work() {
+        let spec = GridSpec::new(
+            Aabb {
+                min: Vec3::new(-1.0e5, 2.0, -3.0),
+                max: Vec3::new(-0.99e5, 2.5, 1.0),
+            },
+            [7, 5, 3],
+        );
+        let o = Vec3::new(-1.2e5, 2.1, 0.3);
+        let d = Vec3::new(1.0, 1e-6, -2e-5);
+        let mut v = Vec::new();
+        walk_segment(&spec, o, d, 0.0, f32::INFINITY, |x| v.push(x));
+        assert_eq!(v, collect(&spec, o, d, 0.0, f32::INFINITY));
+        assert!(!v.is_empty());
+        check(&spec, o, d, 0.0, f32::INFINITY).unwrap();
+    }
+
+    #[test]
+    fn cell_budget_and_ranges() {
+        let b = Aabb {
+            min: Vec3::new(0.0, 0.0, 0.0),
+            max: Vec3::new(8.0, 4.0, 0.0),
+        };
+        let spec = GridSpec::with_cell_budget(b, 32.0);
+        assert_eq!(spec.resolution, [8, 4, 1]);
+        assert!(spec.bounds.min.cmple(b.min).all() && spec.bounds.max.cmpge(b.max).all());
+        let spec = unit_grid([4, 4, 4]);
+        let r = spec.voxel_range(&Aabb {
+            min: Vec3::new(1.0, 0.5, -3.0),
+            max: Vec3::new(2.5, 0.7, 0.0),
+        });
+        assert_eq!(r, Some([[0, 0, 0], [2, 0, 0]]));
+        assert_eq!(spec.voxel_range(&Aabb::EMPTY), None);
+        assert_eq!(spec.linear_index([1, 2, 3]), 1 + 4 * (2 + 4 * 3));
+        assert_eq!(spec.voxel_bounds([1, 2, 3]).min, Vec3::new(1.0, 2.0, 3.0));
+    }
+
+    /// A coordinate on a voxel plane (exactly, on dyadic grids) or anywhere.
+    fn coord(n: u32) -> impl Strategy<Value = f32> {
+        let n = n as f32;
+        prop_oneof![
+            (-1i32..=(n as i32 + 1)).prop_map(|k| k as f32),
+            (-1.0f32..n + 1.0),
+            Just(-0.0f32),
+        ]
+    }
+
+    fn point(n: [u32; 3]) -> impl Strategy<Value = Vec3> {
+        (coord(n[0]), coord(n[1]), coord(n[2])).prop_map(|(x, y, z)| Vec3::new(x, y, z))
+    }
+
+    fn dyadic_case() -> impl Strategy<Value = (GridSpec, Vec3, Vec3, f32, f32)> {
+        (1u32..6, 1u32..6, 1u32..6).prop_flat_map(|(nx, ny, nz)| {
+            let n = [nx, ny, nz];
+            (
+                Just(n),
+                point(n),
+                point(n),
+                prop_oneof![Just(1.0f32), Just(f32::INFINITY), 0.1f32..3.0],
+            )
+                .prop_map(|(n, a, b, t1)| (unit_grid(n), a, b - a, 0.0, t1))
+        })
+    }
+
+    fn general_case() -> impl Strategy<Value = (GridSpec, Vec3, Vec3, f32, f32)> {
+        let unit = |lo: f32, hi: f32| (lo..hi, lo..hi, lo..hi).prop_map(Vec3::from);
+        (
+            prop_oneof![
+                (unit(-10.0, 10.0), unit(0.01, 5.0)),
+                (unit(-10.0, 10.0), unit(1e-3, 1e-2)),
+                (unit(-1e5, 1e5), unit(1.0, 100.0)),
+            ],
+            (1u32..9, 1u32..9, 1u32..9),
+            unit(-0.3, 1.3),
+            unit(-0.3, 1.3),
+            0u8..32,
+            (-0.3f32..0.3, 0.0f32..3.0),
+        )
+            .prop_map(|((min, ext), n, a, b, zero, (t0, len))| {
+                let spec = GridSpec::new(
+                    Aabb {
+                        min,
+                        max: min + ext,
+                    },
+                    [n.0, n.1, n.2],
+                );
+                // From one point around the grid to another.
+                let o = min + ext * a;
+                let mut d = ext * (b - a);
+                // Zero some direction components when bit 4 is set (bits
+                // 0..2: axes), as -0.0 when bit 3 is set.
+                let zero_value = if zero & 8 != 0 { -0.0 } else { 0.0 };
+                for a in 0..3 {
+                    if zero & 16 != 0 && zero & (1 << a) != 0 && zero & 7 != 7 {
+                        d[a] = zero_value;
+                    }
+                }
+                (spec, o, d, t0, t0 + len)
+            })
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(3000))]
+
+        #[test]
+        fn supercover_on_dyadic_grids((spec, o, d, t0, t1) in dyadic_case()) {
+            check(&spec, o, d, t0, t1).map_err(TestCaseError::fail)?;
+        }
+
+        #[test]
+        fn supercover_on_general_grids((spec, o, d, t0, t1) in general_case()) {
+            check(&spec, o, d, t0, t1).map_err(TestCaseError::fail)?;
+        }
+    }
+}

@@ -1,0 +1,647 @@
+//! The pure-Rust backend: a uniform grid traversed by 3D-DDA (Amanatides &
+//! Woo), with watertight triangles and stable spheres. Slower than Embree,
+//! but small enough to read, and the reference Embree is checked against.
+//!
+//! Layout: one grid over the world bounds of every bounded object. A cell
+//! lists the primitives that overlap it (CSR: `cell_start` offsets into one
+//! flat `cell_items` array), built in parallel from sorted (cell, primitive)
+//! pairs. World-placed triangles and spheres are primitives of the world
+//! grid; an instanced object is one primitive there, covering the cells its
+//! transformed box overlaps, and carries its own grid in object space: a ray
+//! reaching it is mapped by the inverse transform (direction not
+//! normalized, so `t` keeps its meaning) and traced there.
+//!
+//! Promises:
+//! - Closest hits are exact per primitive (the nearest `t` of any primitive
+//!   the ray meets in `(tmin, tmax)`), not "first cell with a hit": traversal
+//!   stops only once the best `t` lies inside the cells already visited.
+//!   Primitives are put in every cell their slightly grown shape overlaps,
+//!   so rounding at cell boundaries loses no hit.
+//! - Planes are ignored ([`super::Accelerator`] handles them for every
+//!   backend); empty meshes, degenerate triangles and an empty scene are
+//!   fine; primitives with non-finite coordinates are left out.
+//! - No allocation per ray; `Sync + Send`.
+//!
+//! [`GridSpec`] and the supercover [`VoxelWalk`] are independent of the
+//! intersector: the OSTC bookkeeping walks its own grid with them.
+
+mod primitives;
+#[cfg(test)]
+mod tests;
+mod walk;
+
+use glam::{Affine3A, Vec3};
+use rayon::prelude::*;
+
+pub use primitives::{intersect_sphere, TriangleHit, WatertightRay};
+pub use walk::{walk_segment, GridSpec, VoxelWalk, MAX_RESOLUTION, WALK_SLACK_VOXELS};
+
+use super::Intersector;
+use crate::geometry::{Aabb, Object, Placement, Shape, Sphere};
+use crate::ray::{Hit, Ray};
+
+/// Cells per primitive when the resolution is chosen automatically (the
+/// lambda of Cleary & Wyvill / Wald et al.: 2..4 is the usual sweet spot).
+pub const CELLS_PER_PRIMITIVE: f64 = 3.0;
+
+/// Up to this many primitives an object's level is tested brute force,
+/// without a grid (a single sphere, a small polygon).
+const BRUTE_FORCE_MAX: usize = 4;
+
+/// How much a primitive grows, in cell sizes, before it is binned: covers
+/// the rounding of the DDA's plane crossings.
+const BIN_SLACK_CELLS: f32 = 1e-4;
+
+/// The grid backend. Build once per scene (or per frame when instances move:
+/// only the world level is rebuilt from the objects, which is cheap next to
+/// a frame).
+pub struct GridIntersector {
+    world: Level,
+}
+
+impl GridIntersector {
+    /// Builds the world grid over `objects` (planes skipped). `resolution`
+    /// overrides the world grid's cells per axis; `None` chooses about
+    /// [`CELLS_PER_PRIMITIVE`] cells per primitive, near-cubic.
+    pub fn build(objects: &[Object], resolution: Option<[u32; 3]>) -> GridIntersector {
+        let mut prims = Prims::default();
+        for (id, object) in objects.iter().enumerate() {
+            let id = id as u32;
+            match &object.placement {
+                Placement::World => prims.add_shape(id, &object.shape),
+                Placement::Instance(xf) => {
+                    if let Some(instance) = Instance::new(id, &object.shape, xf) {
+                        prims.instances.push(instance);
+                    }
+                }
+            }
+        }
+        GridIntersector {
+            world: Level::build(prims, resolution),
+        }
+    }
+
+    /// The world grid, or `None` when the scene is tested brute force (a
+    /// few primitives or none).
+    pub fn spec(&self) -> Option<&GridSpec> {
+        self.world.cells.as_ref().map(|c| &c.spec)
+    }
+
+    /// Total (cell, primitive) references in the world grid.
+    pub fn references(&self) -> usize {
+        self.world.cells.as_ref().map_or(0, |c| c.cell_items.len())
+    }
+}
+
+impl Intersector for GridIntersector {
+    fn intersect(&self, ray: &Ray) -> Option<Hit> {
+        self.world.closest(ray)
+    }
+
+    fn occluded(&self, ray: &Ray) -> bool {
+        self.world.any(ray)
+    }
+}
+
+/// The primitives of one level, by kind. Index `p` into a level runs over
+/// triangles, then spheres, then instances.
+#[derive(Default)]
+struct Prims {
+    triangles: Vec<[Vec3; 3]>,
+    /// (object, primitive index in the object) per triangle.
+    triangle_ids: Vec<[u32; 2]>,
+    spheres: Vec<(Sphere, u32)>,
+    instances: Vec<Instance>,
+}
+
+impl Prims {
+    fn add_shape(&mut self, object: u32, shape: &Shape) {
+        match shape {
+            Shape::Mesh(mesh) => {
+                for (prim, tri) in mesh.triangles.iter().enumerate() {
+                    let v = tri.map(|i| mesh.positions[i as usize]);
+                    if v.iter().all(|p| p.is_finite()) {
+                        self.triangles.push(v);
+                        self.triangle_ids.push([object, prim as u32]);
+                    }
+                }
+            }
+            Shape::Sphere(s) => {
+                if s.center.is_finite() && s.radius.is_finite() {
+                    self.spheres.push((*s, object));
+                }
+            }
+            Shape::Plane(_) => {}
+        }
+    }
+
+    fn len(&self) -> usize {
+        self.triangles.len() + self.spheres.len() + self.instances.len()
+    }
+
+    fn bounds(&self, p: usize) -> Aabb {
+        let nt = self.triangles.len();
+        let ns = self.spheres.len();
+        if p < nt {
+            Aabb::from_points(self.triangles[p])
+        } else if p < nt + ns {
+            Shape::Sphere(self.spheres[p - nt].0).bounds()
+        } else {
+            self.instances[p - nt - ns].bounds
+        }
+    }
+
+    /// Does primitive `p` (grown by `slack`) overlap the closed box `b`?
+    /// Exact for triangles (separating axes) and spheres; instances use
+    /// their box, which the caller already checked.
+    fn overlaps(&self, p: usize, b: &Aabb, slack: Vec3) -> bool {
+        let nt = self.triangles.len();
+        let ns = self.spheres.len();
+        if p < nt {
+            triangle_overlaps_box(&self.triangles[p], b, slack)
+        } else if p < nt + ns {
+            let s = &self.spheres[p - nt].0;
+            let nearest = s.center.clamp(b.min, b.max);
+            let r = s.radius + slack.max_element();
+            (nearest - s.center).length_squared() <= r * r
+        } else {
+            true
+        }
+    }
+}
+
+/// A grid (or a brute-force list) over one set of primitives.
+struct Level {
+    prims: Prims,
+    cells: Option<Cells>,
+}
+
+struct Cells {
+    spec: GridSpec,
+    res: [i32; 3],
+    min: Vec3,
+    cell_size: Vec3,
+    inv_cell_size: Vec3,
+    /// `cell_items[cell_start[c]..cell_start[c + 1]]` are cell `c`'s
+    /// primitives, in increasing order.
+    cell_start: Vec<u32>,
+    cell_items: Vec<u32>,
+}
+
+impl Cells {
+    #[inline]
+    fn items(&self, cell: usize) -> &[u32] {
+        let a = self.cell_start[cell] as usize;
+        let b = self.cell_start[cell + 1] as usize;
+        &self.cell_items[a..b]
+    }
+}
+
+/// An instanced object: its shape's own level in object space.
+struct Instance {
+    world_to_object: Affine3A,
+    /// World bounds (the object box, transformed).
+    bounds: Aabb,
+    level: Level,
+}
+
+impl Instance {
+    /// `None` for shapes with nothing to hit (planes, empty meshes) or a
+    /// transform that cannot be inverted.
+    fn new(object: u32, shape: &Shape, xf: &Affine3A) -> Option<Instance> {
+        let det = xf.matrix3.determinant();
+        if det == 0.0 || !det.is_finite() || !xf.translation.is_finite() {
+            return None;
+        }
+        let world_to_object = xf.inverse();
+        if !world_to_object.matrix3.is_finite() || !world_to_object.translation.is_finite() {
+            return None;
+        }
+        let mut prims = Prims::default();
+        prims.add_shape(object, shape);
+        if prims.len() == 0 {
+            return None;
+        }
+        let local_bounds = (0..prims.len()).fold(Aabb::EMPTY, |b, p| b.union(prims.bounds(p)));
+        Some(Instance {
+            world_to_object,
+            bounds: local_bounds.transformed(xf),
+            level: Level::build(prims, None),
+        })
+    }
+
+    #[inline]
+    fn local_ray(&self, ray: &Ray, tmax: f32) -> Ray {
+        Ray {
+            origin: self.world_to_object.transform_point3(ray.origin),
+            dir: self.world_to_object.transform_vector3(ray.dir),
+            tmin: ray.tmin,
+            tmax,
+        }
+    }
+}
+
+impl Level {
+    fn build(prims: Prims, resolution: Option<[u32; 3]>) -> Level {
+        let count = prims.len();
+        let bounds: Vec<Aabb> = (0..count)
+            .into_par_iter()
+            .map(|p| prims.bounds(p))
+            .collect();
+        let world = bounds
+            .iter()
+            .filter(|b| b.is_finite())
+            .fold(Aabb::EMPTY, |acc, b| acc.union(*b));
+        if world.is_empty() || (resolution.is_none() && count <= BRUTE_FORCE_MAX) {
+            return Level { prims, cells: None };
+        }
+        let spec = match resolution {
+            Some(r) => GridSpec::new(walk::padded(world), r.map(|n| n.max(1))),
+            None => GridSpec::with_cell_budget(world, CELLS_PER_PRIMITIVE * count as f64),
+        };
+        let cells = bin(&prims, &bounds, spec);
+        Level {
+            prims,
+            cells: Some(cells),
+        }
+    }
+
+    /// Closest hit in `(ray.tmin, ray.tmax)`.
+    fn closest(&self, ray: &Ray) -> Option<Hit> {
+        let wt = WatertightRay::new(ray.origin, ray.dir)?;
+        let mut best = Closest {
+            tmax: ray.tmax,
+            hit: None,
+        };
+        match &self.cells {
+            None => {
+                for p in 0..self.prims.len() as u32 {
+                    self.test_closest(p, ray, &wt, &mut best);
+                }
+            }
+            Some(cells) => {
+                let mut dda = Dda::new(cells, ray)?;
+                let mut mailbox = Mailbox::default();
+                loop {
+                    for &p in cells.items(dda.index) {
+                        if !mailbox.seen(p) {
+                            self.test_closest(p, ray, &wt, &mut best);
+                        }
+                    }
+                    // Every hit closer than the current cell's exit lies in a
+                    // cell already visited.
+                    if best.tmax <= dda.t_exit() || !dda.step(best.tmax) {
+                        break;
+                    }
+                }
+            }
+        }
+        best.hit
+    }
+
+    #[inline]
+    fn test_closest(&self, p: u32, ray: &Ray, wt: &WatertightRay, best: &mut Closest) {
+        let p = p as usize;
+        let nt = self.prims.triangles.len();
+        let ns = self.prims.spheres.len();
+        if p < nt {
+            if let Some(h) = wt.intersect_triangle(&self.prims.triangles[p], ray.tmin, best.tmax) {
+                let [object, prim] = self.prims.triangle_ids[p];
+                best.tmax = h.t;
+                best.hit = Some(Hit {
+                    t: h.t,
+                    object,
+                    prim,
+                    u: h.u,
+                    v: h.v,
+                });
+            }
+        } else if p < nt + ns {
+            let (sphere, object) = &self.prims.spheres[p - nt];
+            if let Some(t) = intersect_sphere(sphere, ray.origin, ray.dir, ray.tmin, best.tmax) {
+                best.tmax = t;
+                best.hit = Some(Hit {
+                    t,
+                    object: *object,
+                    prim: 0,
+                    u: 0.0,
+                    v: 0.0,
+                });
+            }
+        } else {
+            let instance = &self.prims.instances[p - nt - ns];
+            if let Some(h) = instance.level.closest(&instance.local_ray(ray, best.tmax)) {
+                best.tmax = h.t;
+                best.hit = Some(h);
+            }
+        }
+    }
+
+    /// Anything in `(ray.tmin, ray.tmax)`?
+    fn any(&self, ray: &Ray) -> bool {
+        let Some(wt) = WatertightRay::new(ray.origin, ray.dir) else {
+            return false;
+        };
+        match &self.cells {
+            None => (0..self.prims.len() as u32).any(|p| self.test_any(p, ray, &wt)),
+            Some(cells) => {
+                let Some(mut dda) = Dda::new(cells, ray) else {
+                    return false;
+                };
+                let mut mailbox = Mailbox::default();
+                loop {
+                    for &p in cells.items(dda.index) {
+                        if !mailbox.seen(p) && self.test_any(p, ray, &wt) {
+                            return true;
+                        }
+                    }
+                    if !dda.step(ray.tmax) {
+                        return false;
+                    }
+                }
+            }
+        }
+    }
+
+    #[inline]
+    fn test_any(&self, p: u32, ray: &Ray, wt: &WatertightRay) -> bool {
+        let p = p as usize;
+        let nt = self.prims.triangles.len();
+        let ns = self.prims.spheres.len();
+        if p < nt {
+            wt.intersect_triangle(&self.prims.triangles[p], ray.tmin, ray.tmax)
+                .is_some()
+        } else if p < nt + ns {
+            let (sphere, _) = &self.prims.spheres[p - nt];
+            intersect_sphere(sphere, ray.origin, ray.dir, ray.tmin, ray.tmax).is_some()
+        } else {
+            let instance = &self.prims.instances[p - nt - ns];
+            instance.level.any(&instance.local_ray(ray, ray.tmax))
+        }
+    }
+}
+
+struct Closest {
+    tmax: f32,
+    hit: Option<Hit>,
+}
+
+/// The last few primitives tested by a ray: a primitive spanning several
+/// consecutive cells is tested once (a miss stays a miss as `tmax` only
+/// shrinks; a hit is already the best or beaten).
+#[derive(Default)]
+struct Mailbox {
+    ids: [u32; 8],
+    filled: u32,
+}
+
+impl Mailbox {
+    #[inline]
+    fn seen(&mut self, p: u32) -> bool {
+        let n = (self.filled as usize).min(self.ids.len());
+        if self.ids[..n].contains(&p) {
+            return true;
+        }
+        self.ids[self.filled as usize % self.ids.len()] = p;
+        self.filled = self.filled.wrapping_add(1);
+        false
+    }
+}
+
+/// Amanatides & Woo's 3D-DDA over a level's cells, started where the ray
+/// enters the grid box.
+///
+/// Robust to zero and -0.0 direction components (those axes never step and
+/// never bound the ray), origins on cell planes (the start cell is clamped,
+/// and the plane crossings are recomputed from the origin at every step, not
+/// accumulated), and rays starting outside the grid or limited by
+/// `tmin`/`tmax`.
+struct Dda {
+    cell: [i32; 3],
+    step: [i32; 3],
+    /// `t` where the ray crosses the next plane on each axis (infinite for
+    /// axes it runs parallel to).
+    t_next: [f32; 3],
+    /// The ray leaves the grid box (or passes `tmax`) at `t_far`.
+    t_far: f32,
+    /// Linear index of `cell`, and how it moves per step on each axis.
+    index: usize,
+    stride: [isize; 3],
+    res: [i32; 3],
+    origin: Vec3,
+    inv_dir: Vec3,
+    min: Vec3,
+    cell_size: Vec3,
+}
+
+impl Dda {
+    fn new(cells: &Cells, ray: &Ray) -> Option<Dda> {
+        let (o, d) = (ray.origin, ray.dir);
+        if !o.is_finite() || !d.is_finite() || d == Vec3::ZERO {
+            return None;
+        }
+        let inv_dir = d.recip();
+        let (lo, hi) = (cells.spec.bounds.min, cells.spec.bounds.max);
+        let (mut t0, mut t1) = (ray.tmin, ray.tmax);
+        for a in 0..3 {
+            if d[a] == 0.0 {
+                // Parallel to this slab: inside it or never in the box.
+                if !(o[a] >= lo[a] && o[a] <= hi[a]) {
+                    return None;
+                }
+                continue;
+            }
+            let ta = (lo[a] - o[a]) * inv_dir[a];
+            let tb = (hi[a] - o[a]) * inv_dir[a];
+            t0 = t0.max(ta.min(tb));
+            t1 = t1.min(ta.max(tb));
+        }
+        // Widen by a few ULPs (the slab distances are rounded; Ize, "Robust
+        // BVH Ray Traversal"): a ray grazing the box is walked, not dropped.
+        let t0 = t0 - t0.abs() * 4.0 * f32::EPSILON;
+        let t1 = t1 + t1.abs() * 4.0 * f32::EPSILON;
+        if !(t0 <= t1) {
+            return None;
+        }
+        let t_start = t0.max(ray.tmin);
+        let mut dda = Dda {
+            cell: [0; 3],
+            step: [0; 3],
+            t_next: [f32::INFINITY; 3],
+            t_far: t1.min(ray.tmax),
+            index: 0,
+            stride: [
+                1,
+                cells.res[0] as isize,
+                cells.res[0] as isize * cells.res[1] as isize,
+            ],
+            res: cells.res,
+            origin: o,
+            inv_dir,
+            min: cells.min,
+            cell_size: cells.cell_size,
+        };
+        for a in 0..3 {
+            let p = if d[a] == 0.0 {
+                o[a]
+            } else {
+                o[a] + d[a] * t_start
+            };
+            let c = ((p - cells.min[a]) * cells.inv_cell_size[a]).floor();
+            // Clamp in float first: far-off starts must not overflow i32.
+            dda.cell[a] = c.clamp(0.0, (cells.res[a] - 1) as f32) as i32;
+            dda.step[a] = if d[a] > 0.0 {
+                1
+            } else if d[a] < 0.0 {
+                -1
+            } else {
+                0
+            };
+            dda.t_next[a] = dda.crossing(a);
+        }
+        dda.index = (dda.cell[0] as isize
+            + dda.cell[1] as isize * dda.stride[1]
+            + dda.cell[2] as isize * dda.stride[2]) as usize;
+        Some(dda)
+    }
+
+    /// `t` where the ray leaves the current cell through its far plane on
+    /// axis `a`.
+    #[inline]
+    fn crossing(&self, a: usize) -> f32 {
+        match self.step[a] {
+            0 => f32::INFINITY,
+            s => {
+                let plane = self.cell[a] + i32::from(s > 0);
+                let x = self.min[a] + plane as f32 * self.cell_size[a];
+                (x - self.origin[a]) * self.inv_dir[a]
+            }
+        }
+    }
+
+    /// Where the ray leaves the current cell.
+    #[inline]
+    fn t_exit(&self) -> f32 {
+        self.t_next[0].min(self.t_next[1]).min(self.t_next[2])
+    }
+
+    /// Moves to the next cell; false once the ray has left the grid or the
+    /// next cell starts beyond `tmax`.
+    #[inline]
+    fn step(&mut self, tmax: f32) -> bool {
+        let [x, y, z] = self.t_next;
+        let a = if x <= y && x <= z {
+            0
+        } else if y <= z {
+            1
+        } else {
+            2
+        };
+        if self.t_next[a] > self.t_far.min(tmax) {
+            return false;
+        }
+        let c = self.cell[a] + self.step[a];
+        if c < 0 || c >= self.res[a] {
+            return false;
+        }
+        self.cell[a] = c;
+        self.index = self
+            .index
+            .wrapping_add_signed(self.stride[a] * self.step[a] as isize);
+        self.t_next[a] = self.crossing(a);
+        true
+    }
+}
+
+/// Sorts every primitive into the cells it overlaps (grown by
+/// [`BIN_SLACK_CELLS`]): (cell, primitive) pairs in parallel, one sort, then
+/// offsets.
+fn bin(prims: &Prims, bounds: &[Aabb], spec: GridSpec) -> Cells {
+    let cell_size = spec.cell_size();
+    let magnitude = spec.bounds.min.abs().max(spec.bounds.max.abs());
+    let slack = cell_size * BIN_SLACK_CELLS + magnitude * (4.0 * f32::EPSILON);
+    let mut pairs: Vec<u64> = (0..bounds.len())
+        .into_par_iter()
+        .flat_map_iter(|p| {
+            let b = &bounds[p];
+            let grown = Aabb {
+                min: b.min - slack,
+                max: b.max + slack,
+            };
+            let range = if b.is_finite() {
+                spec.voxel_range(&grown)
+            } else {
+                None
+            };
+            let mut cells = Vec::new();
+            if let Some([first, last]) = range {
+                let single = first == last;
+                for k in first[2]..=last[2] {
+                    for j in first[1]..=last[1] {
+                        for i in first[0]..=last[0] {
+                            let voxel = [i, j, k];
+                            if single || prims.overlaps(p, &spec.voxel_bounds(voxel), slack) {
+                                cells.push(((spec.linear_index(voxel) as u64) << 32) | p as u64);
+                            }
+                        }
+                    }
+                }
+            }
+            cells
+        })
+        .collect();
+    pairs.par_sort_unstable();
+    let count = spec.voxel_count();
+    let mut cell_start = vec![0u32; count + 1];
+    for &pair in &pairs {
+        cell_start[(pair >> 32) as usize + 1] += 1;
+    }
+    for c in 0..count {
+        cell_start[c + 1] += cell_start[c];
+    }
+    let cell_items = pairs.iter().map(|&pair| pair as u32).collect();
+    Cells {
+        spec,
+        res: spec.resolution.map(|n| n as i32),
+        min: spec.bounds.min,
+        cell_size,
+        inv_cell_size: cell_size.recip(),
+        cell_start,
+        cell_items,
+    }
+}
+
+/// Separating-axis test of a triangle against a closed box grown by `slack`
+/// (Akenine-Möller, "Fast 3D Triangle-Box Overlap Testing"). Conservative:
+/// the slack covers the rounding of the test itself.
+fn triangle_overlaps_box(tri: &[Vec3; 3], b: &Aabb, slack: Vec3) -> bool {
+    let center = b.center();
+    let half = b.extent() * 0.5 + slack;
+    let v = tri.map(|p| p - center);
+    // Box normals.
+    let lo = v[0].min(v[1]).min(v[2]);
+    let hi = v[0].max(v[1]).max(v[2]);
+    if lo.cmpgt(half).any() || hi.cmplt(-half).any() {
+        return false;
+    }
+    let separated = |axis: Vec3| {
+        let p = [axis.dot(v[0]), axis.dot(v[1]), axis.dot(v[2])];
+        let r = half.dot(axis.abs());
+        let (pmin, pmax) = (p[0].min(p[1]).min(p[2]), p[0].max(p[1]).max(p[2]));
+        // Relative slack for the dot products' rounding.
+        let tol = (pmin.abs().max(pmax.abs()) + r) * (8.0 * f32::EPSILON);
+        pmin > r + tol || pmax < -r - tol
+    };
+    let edges = [v[1] - v[0], v[2] - v[1], v[0] - v[2]];
+    if separated(edges[0].cross(edges[1])) {
+        return false;
+    }
+    for e in edges {
+        for axis in [Vec3::X, Vec3::Y, Vec3::Z] {
+            if separated(axis.cross(e)) {
+                return false;
+            }
+        }
+    }
+    true
+}

@@ -1,0 +1,1019 @@
+//! Tests of the grid backend: DDA edge cases, watertightness, stable
+//! spheres, instances, agreement with brute force and with Embree.
+
+use std::collections::HashSet;
+use std::f32::consts::PI;
+
+use glam::{Affine3A, Quat, Vec3};
+use proptest::prelude::*;
+
+use super::*;
+use crate::accel::embree::EmbreeIntersector;
+use crate::accel::{Accelerator, BackendKind};
+use crate::geometry::{Plane, TriangleMesh};
+use crate::ray::{HitPacket, RayPacket, PACKET_WIDTH};
+
+/// SplitMix64: a small seeded generator, so failures reproduce.
+struct Rng(u64);
+
+impl Rng {
+    fn next_u64(&mut self) -> u64 {
+        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+        z ^ (z >> 31)
+    }
+
+    /// Uniform in [0, 1).
+    fn f32(&mut self) -> f32 {
+        (self.next_u64() >> 40) as f32 / (1u64 << 24) as f32
+    }
+
+    fn range(&mut self, lo: f32, hi: f32) -> f32 {
+        lo + (hi - lo) * self.f32()
+    }
+
+    fn vec_in(&mut self, lo: Vec3, hi: Vec3) -> Vec3 {
+        Vec3::new(
+            self.range(lo.x, hi.x),
+            self.range(lo.y, hi.y),
+            self.range(lo.z, hi.z),
+        )
+    }
+
+    fn unit_vector(&mut self) -> Vec3 {
+        loop {
+            let v = self.vec_in(Vec3::splat(-1.0), Vec3::ONE);
+            let l = v.length_squared();
+            if l > 1e-4 && l <= 1.0 {
+                return v / l.sqrt();
+            }
+        }
+    }
+}
+
+fn object(shape: Shape, placement: Placement) -> Object {
+    Object {
+        name: String::new(),
+        shape,
+        material: 0,
+        placement,
+    }
+}
+
+fn world(shape: Shape) -> Object {
+    object(shape, Placement::World)
+}
+
+fn sphere(center: Vec3, radius: f32) -> Shape {
+    Shape::Sphere(Sphere { center, radius })
+}
+
+/// A closed icosphere: subdivided icosahedron, vertices shared by index.
+fn icosphere(subdivisions: u32, center: Vec3, radius: f32) -> TriangleMesh {
+    let t = (1.0 + 5f32.sqrt()) / 2.0;
+    let mut positions: Vec<Vec3> = [
+        [-1.0, t, 0.0],
+        [1.0, t, 0.0],
+        [-1.0, -t, 0.0],
+        [1.0, -t, 0.0],
+        [0.0, -1.0, t],
+        [0.0, 1.0, t],
+        [0.0, -1.0, -t],
+        [0.0, 1.0, -t],
+        [t, 0.0, -1.0],
+        [t, 0.0, 1.0],
+        [-t, 0.0, -1.0],
+        [-t, 0.0, 1.0],
+    ]
+    .iter()
+    .map(|p| Vec3::from(*p).normalize())
+    .collect();
+    let mut triangles: Vec<[u32; 3]> = vec![
+        [0, 11, 5],
+        [0, 5, 1],
+        [0, 1, 7],
+        [0, 7, 10],
+        [0, 10, 11],
+        [1, 5, 9],
+        [5, 11, 4],
+        [11, 10, 2],
+        [10, 7, 6],
+        [7, 1, 8],
+        [3, 9, 4],
+        [3, 4, 2],
+        [3, 2, 6],
+        [3, 6, 8],
+        [3, 8, 9],
+        [4, 9, 5],
+        [2, 4, 11],
+        [6, 2, 10],
+        [8, 6, 7],
+        [9, 8, 1],
+    ];
+    for _ in 0..subdivisions {
+        let mut midpoints = std::collections::HashMap::new();
+        let mut mid = |a: u32, b: u32, positions: &mut Vec<Vec3>| {
+            *midpoints.entry((a.min(b), a.max(b))).or_insert_with(|| {
+                let p = ((positions[a as usize] + positions[b as usize]) * 0.5).normalize();
+                positions.push(p);
+                positions.len() as u32 - 1
+            })
+        };
+        let mut next = Vec::with_capacity(triangles.len() * 4);
+        for [a, b, c] in triangles {
+            let ab = mid(a, b, &mut positions);
+            let bc = mid(b, c, &mut positions);
+            let ca = mid(c, a, &mut positions);
+            next.extend([[a, ab, ca], [b, bc, ab], [c, ca, bc], [ab, bc, ca]]);
+        }
+        triangles = next;
+    }
+    TriangleMesh {
+        positions: positions.iter().map(|p| center + *p * radius).collect(),
+        triangles,
+        normals: Vec::new(),
+    }
+}
+
+/// A bumpy closed blob standing in for the bunny: an icosphere with every
+/// vertex pushed in or out by a smooth pseudo-random amount.
+fn blob(subdivisions: u32, seed: u64) -> TriangleMesh {
+    let mut mesh = icosphere(subdivisions, Vec3::ZERO, 1.0);
+    let mut rng = Rng(seed);
+    let waves: Vec<(Vec3, f32, f32)> = (0..6)
+        .map(|_| (rng.unit_vector(), rng.range(2.0, 7.0), rng.range(0.0, 6.0)))
+        .collect();
+    for p in &mut mesh.positions {
+        let bump: f32 = waves
+            .iter()
+            .map(|(k, f, phase)| (k.dot(*p) * f + phase).sin() * 0.06)
+            .sum();
+        *p *= 1.0 + bump;
+        *p = Vec3::new(p.x * 1.2, p.y, p.z * 0.9) + Vec3::new(0.1, 0.3, -0.2);
+    }
+    mesh
+}
+
+/// A closed cube of `n x n` quads per face, two triangles each.
+fn cube(n: u32, center: Vec3, half: f32) -> TriangleMesh {
+    let mut mesh = TriangleMesh::default();
+    // Grid coordinates on a face, exact for the shared edges: every face
+    // uses the same values for the same positions.
+    let coord = |i: u32| -half + 2.0 * half * i as f32 / n as f32;
+    for axis in 0..3 {
+        for side in [-half, half] {
+            let base = mesh.positions.len() as u32;
+            for j in 0..=n {
+                for i in 0..=n {
+                    let mut p = Vec3::ZERO;
+                    p[axis] = side;
+                    p[(axis + 1) % 3] = coord(i);
+                    p[(axis + 2) % 3] = coord(j);
+                    mesh.positions.push(center + p);
+                }
+            }
+            let at = |i: u32, j: u32| base + j * (n + 1) + i;
+            for j in 0..n {
+                for i in 0..n {
+                    mesh.triangles
+                        .push([at(i, j), at(i + 1, j), at(i + 1, j + 1)]);
+                    mesh.triangles
+                        .push([at(i, j), at(i + 1, j + 1), at(i, j + 1)]);
+                }
+            }
+        }
+    }
+    mesh
+}
+
+/// The closest hit over every primitive of every object, no acceleration.
+fn brute_force(objects: &[Object], ray: &Ray) -> Option<Hit> {
+    let mut best: Option<Hit> = None;
+    for (id, obj) in objects.iter().enumerate() {
+        let (o, d) = match &obj.placement {
+            Placement::World => (ray.origin, ray.dir),
+            Placement::Instance(xf) => {
+                let inv = xf.inverse();
+                (
+                    inv.transform_point3(ray.origin),
+                    inv.transform_vector3(ray.dir),
+                )
+            }
+        };
+        let tmax = best.map_or(ray.tmax, |h| h.t);
+        match &obj.shape {
+            Shape::Mesh(mesh) => {
+                let Some(wt) = WatertightRay::new(o, d) else {
+                    continue;
+                };
+                for prim in 0..mesh.triangles.len() as u32 {
+                    let tmax = best.map_or(ray.tmax, |h| h.t);
+                    if let Some(h) = wt.intersect_triangle(&mesh.vertices(prim), ray.tmin, tmax) {
+                        best = Some(Hit {
+                            t: h.t,
+                            object: id as u32,
+                            prim,
+                            u: h.u,
+                            v: h.v,
+                        });
+                    }
+                }
+            }
+            Shape::Sphere(s) => {
+                if let Some(t) = intersect_sphere(s, o, d, ray.tmin, tmax) {
+                    best = Some(Hit {
+                        t,
+                        object: id as u32,
+                        prim: 0,
+                        u: 0.0,
+                        v: 0.0,
+                    });
+                }
+            }
+            Shape::Plane(_) => {}
+        }
+    }
+    best
+}
+
+fn test_cells(spec: GridSpec) -> Cells {
+    bin(&Prims::default(), &[], spec)
+}
+
+/// The cells the DDA visits, until it stops on its own.
+fn dda_cells(cells: &Cells, ray: &Ray) -> Vec<[i32; 3]> {
+    let Some(mut dda) = Dda::new(cells, ray) else {
+        return Vec::new();
+    };
+    let mut out = vec![dda.cell];
+    while dda.step(ray.tmax) {
+        assert_eq!(
+            dda.index,
+            cells.spec.linear_index(dda.cell.map(|c| c as u32)),
+            "linear index out of step"
+        );
+        out.push(dda.cell);
+        assert!(out.len() < 10_000, "DDA does not end");
+    }
+    out
+}
+
+fn unit_spec(n: [u32; 3]) -> GridSpec {
+    GridSpec::new(
+        Aabb {
+            min: Vec3::ZERO,
+            max: Vec3::from(n.map(|x| x as f32)),
+        },
+        n,
+    )
+}
+
+#[test]
+fn dda_axis_parallel_and_negative_zero_directions() {
+    let cells = test_cells(unit_spec([4, 3, 2]));
+    let along_x = dda_cells(&cells, &Ray::new(Vec3::new(-1.0, 1.5, 0.5), Vec3::X));
+    assert_eq!(along_x, vec![[0, 1, 0], [1, 1, 0], [2, 1, 0], [3, 1, 0]]);
+    for dir in [
+        Vec3::new(1.0, -0.0, 0.0),
+        Vec3::new(1.0, 0.0, -0.0),
+        Vec3::new(1.0, -0.0, -0.0),
+    ] {
+        assert_eq!(
+            dda_cells(&cells, &Ray::new(Vec3::new(-1.0, 1.5, 0.5), dir)),
+            along_x
+        );
+    }
+    let back = dda_cells(&cells, &Ray::new(Vec3::new(9.0, 1.5, 0.5), -Vec3::X));
+    assert_eq!(back, vec![[3, 1, 0], [2, 1, 0], [1, 1, 0], [0, 1, 0]]);
+    let down = dda_cells(&cells, &Ray::new(Vec3::new(2.5, 5.0, 1.5), -Vec3::Y));
+    assert_eq!(down, vec![[2, 2, 1], [2, 1, 1], [2, 0, 1]]);
+}
+
+#[test]
+fn dda_origin_on_voxel_planes() {
+    let cells = test_cells(unit_spec([4, 4, 4]));
+    // On the plane x = 2, moving along it: stays in one column next to it.
+    let w = dda_cells(&cells, &Ray::new(Vec3::new(2.0, 0.5, 0.5), Vec3::Y));
+    assert_eq!(w.len(), 4);
+    assert!(w.iter().all(|c| c[0] == 1 || c[0] == 2) && w.iter().all(|c| c[0] == w[0][0]));
+    // On x = 2 moving +x or -x: every cell ahead is visited, in order.
+    let w = dda_cells(&cells, &Ray::new(Vec3::new(2.0, 0.5, 0.5), Vec3::X));
+    assert_eq!(w, vec![[2, 0, 0], [3, 0, 0]]);
+    let w = dda_cells(&cells, &Ray::new(Vec3::new(2.0, 0.5, 0.5), -Vec3::X));
+    assert_eq!(w.last(), Some(&[0, 0, 0]));
+    assert!(w.contains(&[1, 0, 0]));
+    // On a grid corner, diagonally: the diagonal cells.
+    let w = dda_cells(&cells, &Ray::new(Vec3::ZERO, Vec3::ONE));
+    assert_eq!(w.first(), Some(&[0, 0, 0]));
+    assert_eq!(w.last(), Some(&[3, 3, 3]));
+    for c in [[1, 1, 1], [2, 2, 2]] {
+        assert!(w.contains(&c));
+    }
+    // On the grid's max face, leaving: one cell at most, then done.
+    let w = dda_cells(&cells, &Ray::new(Vec3::new(4.0, 0.5, 0.5), Vec3::X));
+    assert!(w.len() <= 1);
+}
+
+#[test]
+fn dda_outside_origins_misses_and_t_ranges() {
+    let cells = test_cells(unit_spec([4, 4, 4]));
+    // From outside: starts at the entry cell.
+    let w = dda_cells(
+        &cells,
+        &Ray::new(Vec3::new(-3.0, 2.5, 10.0), Vec3::new(1.0, 0.0, -2.0)),
+    );
+    assert_eq!(w.first(), Some(&[0, 2, 3]));
+    // Misses: parallel outside, pointing away, passing beside.
+    assert!(dda_cells(&cells, &Ray::new(Vec3::new(-1.0, 5.0, 1.0), Vec3::X)).is_empty());
+    assert!(dda_cells(&cells, &Ray::new(Vec3::new(-1.0, 1.0, 1.0), -Vec3::X)).is_empty());
+    assert!(dda_cells(
+        &cells,
+        &Ray::new(Vec3::new(-1.0, 1.0, 1.0), Vec3::new(1.0, 10.0, 0.0))
+    )
+    .is_empty());
+    // tmin and tmax cut the walk.
+    let mut ray = Ray::new(Vec3::new(-1.0, 0.5, 0.5), Vec3::X);
+    ray.tmin = 2.5;
+    ray.tmax = 3.5;
+    assert_eq!(dda_cells(&cells, &ray), vec![[1, 0, 0], [2, 0, 0]]);
+    ray.tmax = 0.5;
+    ray.tmin = 0.0;
+    assert!(dda_cells(&cells, &ray).is_empty());
+    // NaN and zero directions: nothing.
+    assert!(dda_cells(&cells, &Ray::new(Vec3::splat(1.5), Vec3::NAN)).is_empty());
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(2000))]
+
+    /// The DDA's cells are a 6-connected path, within the supercover of the
+    /// ray, containing the cell of every point of the ray that is clearly
+    /// inside a cell.
+    #[test]
+    fn dda_follows_the_ray(
+        n in (1u32..9, 1u32..9, 1u32..9),
+        o in (-3.0f32..11.0, -3.0f32..11.0, -3.0f32..11.0),
+        d in (-1.0f32..1.0, -1.0f32..1.0, -1.0f32..1.0),
+        zero in 0u8..16,
+    ) {
+        let n = [n.0, n.1, n.2];
+        let spec = unit_spec(n);
+        let cells = test_cells(spec);
+        let mut d = Vec3::from(d);
+        if zero < 3 {
+            d[zero as usize] = if zero % 2 == 0 { 0.0 } else { -0.0 };
+        }
+        prop_assume!(d.length() > 1e-3);
+        let ray = Ray::new(Vec3::from(o), d);
+        let visited = dda_cells(&cells, &ray);
+        for w in visited.windows(2) {
+            let moved: i32 = (0..3).map(|a| (w[0][a] - w[1][a]).abs()).sum();
+            prop_assert_eq!(moved, 1, "not 6-connected: {:?}", w);
+        }
+        let visited: HashSet<[u32; 3]> = visited.iter().map(|c| c.map(|x| x as u32)).collect();
+        // Within the supercover, grown a little for the f32 rounding.
+        let cover: HashSet<[u32; 3]> = spec.walk(ray.origin, ray.dir, 0.0, f32::INFINITY).collect();
+        for c in &visited {
+            if !cover.contains(c) {
+                let b = spec.voxel_bounds(*c);
+                let grown = Aabb { min: b.min - 1e-4, max: b.max + 1e-4 };
+                let near = GridSpec::new(grown, [1, 1, 1]).walk(ray.origin, ray.dir, 0.0, f32::INFINITY).count();
+                prop_assert!(near > 0, "cell {:?} is not near the ray", c);
+            }
+        }
+        // Every point well inside a cell is in a visited cell.
+        for i in 0..400 {
+            let p = ray.at(i as f32 * 0.05);
+            let inside = (0..3).all(|a| {
+                let f = p[a] - p[a].floor();
+                p[a] > 0.0 && p[a] < n[a] as f32 && f > 1e-3 && f < 1.0 - 1e-3
+            });
+            if inside {
+                let c = p.to_array().map(|x| x.floor() as u32);
+                prop_assert!(visited.contains(&c), "cell {:?} at t = {} skipped", c, i as f32 * 0.05);
+            }
+        }
+    }
+}
+
+fn assert_all_hit(grid: &GridIntersector, rays: &[Ray], what: &str) {
+    for (i, ray) in rays.iter().enumerate() {
+        assert!(
+            grid.intersect(ray).is_some(),
+            "{what}: ray {i} {ray:?} slipped through"
+        );
+        assert!(grid.occluded(ray), "{what}: ray {i} {ray:?} not occluded");
+    }
+}
+
+#[test]
+fn random_rays_from_inside_closed_meshes_all_hit() {
+    let mut rng = Rng(7);
+    let meshes = [
+        ("icosphere", icosphere(4, Vec3::new(0.3, -0.2, 0.1), 1.0)),
+        ("cube", cube(5, Vec3::new(-0.25, 0.5, 0.0), 0.8)),
+        ("blob", blob(3, 11)),
+    ];
+    for (name, mesh) in meshes {
+        let bounds = mesh.bounds();
+        let center = bounds.center();
+        let objects = vec![world(Shape::Mesh(mesh))];
+        let rays: Vec<Ray> = (0..20_000)
+            .map(|_| {
+                let o = center + rng.unit_vector() * rng.range(0.0, 0.4);
+                Ray::new(o, rng.unit_vector())
+            })
+            .collect();
+        for resolution in [None, Some([1, 1, 1]), Some([7, 5, 6]), Some([40, 40, 40])] {
+            let grid = GridIntersector::build(&objects, resolution);
+            assert_all_hit(&grid, &rays, &format!("{name} {resolution:?}"));
+        }
+    }
+}
+
+#[test]
+fn rays_at_shared_edges_and_vertices_of_a_tessellated_quad_hit() {
+    // An 8 x 8 quad grid of 128 triangles (shared vertices), tilted.
+    let n = 8u32;
+    let xf = Affine3A::from_rotation_translation(
+        Quat::from_euler(glam::EulerRot::XYZ, 0.3, -0.7, 0.2),
+        Vec3::new(0.5, -0.25, 2.0),
+    );
+    let mut mesh = TriangleMesh::default();
+    for j in 0..=n {
+        for i in 0..=n {
+            let p = Vec3::new(
+                i as f32 / n as f32 * 2.0 - 1.0,
+                j as f32 / n as f32 * 2.0 - 1.0,
+                0.0,
+            );
+            mesh.positions.push(xf.transform_point3(p));
+        }
+    }
+    let at = |i: u32, j: u32| j * (n + 1) + i;
+    for j in 0..n {
+        for i in 0..n {
+            mesh.triangles
+                .push([at(i, j), at(i + 1, j), at(i + 1, j + 1)]);
+            mesh.triangles
+                .push([at(i, j), at(i + 1, j + 1), at(i, j + 1)]);
+        }
+    }
+    // Targets: every inner vertex and the midpoint of every inner edge.
+    let mut targets = Vec::new();
+    for j in 1..n {
+        for i in 1..n {
+            targets.push(mesh.positions[at(i, j) as usize]);
+        }
+    }
+    for [a, b, c] in &mesh.triangles {
+        for (x, y) in [(a, b), (b, c), (c, a)] {
+            let p = (mesh.positions[*x as usize] + mesh.positions[*y as usize]) * 0.5;
+            let q = xf.inverse().transform_point3(p);
+            if q.x.abs() < 0.99 && q.y.abs() < 0.99 {
+                targets.push(p);
+            }
+        }
+    }
+    let objects = vec![world(Shape::Mesh(mesh))];
+    let origins = [
+        Vec3::new(0.0, 0.0, -3.0),
+        Vec3::new(2.0, 1.0, 6.0),
+        Vec3::new(-4.0, 3.0, 2.0),
+    ];
+    let rays: Vec<Ray> = origins
+        .iter()
+        .flat_map(|o| targets.iter().map(move |t| Ray::new(*o, *t - *o)))
+        .collect();
+    for resolution in [None, Some([8, 8, 8]), Some([3, 16, 5])] {
+        let grid = GridIntersector::build(&objects, resolution);
+        assert_all_hit(&grid, &rays, &format!("quad {resolution:?}"));
+        for ray in &rays {
+            assert!((grid.intersect(ray).unwrap().t - 1.0).abs() < 1e-5);
+        }
+    }
+}
+
+#[test]
+fn spheres_tiny_far_away_and_huge_around_the_origin() {
+    let tiny = Sphere {
+        center: Vec3::new(600.0, 0.0, -800.0),
+        radius: 1e-4,
+    };
+    let objects = vec![
+        world(Shape::Sphere(tiny)),
+        world(sphere(Vec3::new(5.0, 5.0, 5.0), 1.0)),
+        world(Shape::Mesh(icosphere(1, Vec3::new(-3.0, 0.0, -2.0), 0.5))),
+    ];
+    let grid = GridIntersector::build(&objects, None);
+    for i in -3..=3 {
+        for j in -3..=3 {
+            let aim = tiny.center + Vec3::new(i as f32, j as f32, 0.0) * 0.25e-4;
+            let hit = grid
+                .intersect(&Ray::new(Vec3::ZERO, aim))
+                .expect("tiny sphere missed");
+            assert_eq!(hit.object, 0);
+            assert!((hit.t - 1.0).abs() < 2e-7, "t = {}", hit.t);
+        }
+    }
+    let beside = tiny.center + Vec3::new(0.0, 3e-4, 0.0);
+    assert!(grid.intersect(&Ray::new(Vec3::ZERO, beside)).is_none());
+
+    let objects = vec![
+        world(sphere(Vec3::new(1.0, -2.0, 0.5), 1e4)),
+        world(Shape::Mesh(cube(1, Vec3::ZERO, 0.5))),
+    ];
+    let grid = GridIntersector::build(&objects, None);
+    let mut rng = Rng(3);
+    for _ in 0..1000 {
+        let dir = rng.unit_vector();
+        let ray = Ray::new(Vec3::new(0.0, 0.0, 0.0), dir);
+        // The cube around the origin comes first; past it, the far side of
+        // the huge sphere.
+        assert_eq!(grid.intersect(&ray).unwrap().object, 1);
+        let mut past = ray;
+        past.tmin = 1.0;
+        let hit = grid
+            .intersect(&past)
+            .expect("huge sphere missed from inside");
+        assert_eq!(hit.object, 0);
+        let r = (ray.at(hit.t) - Vec3::new(1.0, -2.0, 0.5)).length();
+        assert!((r - 1e4).abs() < 3e-3, "|p - c| = {r}");
+    }
+}
+
+fn random_instances(rng: &mut Rng) -> Vec<(Shape, Affine3A)> {
+    let mesh = blob(2, 5);
+    (0..6)
+        .map(|i| {
+            let rotation = Quat::from_axis_angle(rng.unit_vector(), rng.range(0.0, 2.0 * PI));
+            let translation = rng.vec_in(Vec3::splat(-4.0), Vec3::splat(4.0));
+            if i % 2 == 0 {
+                let scale = rng.vec_in(Vec3::splat(0.3), Vec3::splat(1.5));
+                (
+                    Shape::Mesh(mesh.clone()),
+                    Affine3A::from_scale_rotation_translation(scale, rotation, translation),
+                )
+            } else {
+                // Spheres under a uniform scale, so a world sphere matches.
+                let scale = Vec3::splat(rng.range(0.3, 1.5));
+                (
+                    sphere(Vec3::new(0.2, -0.1, 0.3), 0.7),
+                    Affine3A::from_scale_rotation_translation(scale, rotation, translation),
+                )
+            }
+        })
+        .collect()
+}
+
+/// The same shape with the transform applied to its coordinates.
+fn baked(shape: &Shape, xf: &Affine3A) -> Shape {
+    match shape {
+        Shape::Mesh(mesh) => Shape::Mesh(TriangleMesh {
+            positions: mesh
+                .positions
+                .iter()
+                .map(|p| xf.transform_point3(*p))
+                .collect(),
+            triangles: mesh.triangles.clone(),
+            normals: Vec::new(),
+        }),
+        Shape::Sphere(s) => sphere(
+            xf.transform_point3(s.center),
+            s.radius * xf.matrix3.x_axis.length(),
+        ),
+        Shape::Plane(p) => Shape::Plane(*p),
+    }
+}
+
+#[test]
+fn instances_hit_like_their_world_space_copies() {
+    let mut rng = Rng(19);
+    let instances = random_instances(&mut rng);
+    let mut inst_objects = vec![world(sphere(Vec3::new(0.0, -30.0, 0.0), 20.0))];
+    let mut world_objects = inst_objects.clone();
+    for (shape, xf) in &instances {
+        inst_objects.push(object(shape.clone(), Placement::Instance(*xf)));
+        world_objects.push(world(baked(shape, xf)));
+    }
+    // A non-invertible instance and an empty one are ignored.
+    inst_objects.push(object(
+        sphere(Vec3::ZERO, 1.0),
+        Placement::Instance(Affine3A::from_scale(Vec3::new(1.0, 0.0, 1.0))),
+    ));
+    inst_objects.push(object(
+        Shape::Mesh(TriangleMesh::default()),
+        Placement::Instance(Affine3A::IDENTITY),
+    ));
+    let a = GridIntersector::build(&inst_objects, None);
+    let b = GridIntersector::build(&world_objects, None);
+    let (mut hits, mut checked) = (0, 0);
+    for _ in 0..20_000 {
+        let o = rng.vec_in(Vec3::splat(-9.0), Vec3::splat(9.0));
+        let target = rng.vec_in(Vec3::splat(-5.0), Vec3::splat(5.0));
+        let ray = Ray::new(o, (target - o) * rng.range(0.1, 3.0));
+        let (x, y) = (a.intersect(&ray), b.intersect(&ray));
+        assert_eq!(x, brute_force(&inst_objects, &ray));
+        match (x, y) {
+            (Some(x), Some(y)) => {
+                hits += 1;
+                assert!((x.t - y.t).abs() <= 1e-4 * y.t, "{x:?} vs {y:?}");
+                if x.object == y.object && x.prim == y.prim {
+                    checked += 1;
+                    assert!((x.u - y.u).abs() < 1e-3 && (x.v - y.v).abs() < 1e-3);
+                }
+            }
+            (None, None) => {}
+            (x, y) => {
+                // Only rays grazing an edge or a silhouette may differ.
+                let h = x.or(y).unwrap();
+                let graze = h.u.min(h.v).min(1.0 - h.u - h.v) < 1e-3;
+                assert!(graze, "instance {x:?} vs world {y:?} for {ray:?}");
+            }
+        }
+        assert_eq!(a.occluded(&ray), x.is_some());
+    }
+    assert!(
+        hits > 5_000 && checked > hits * 9 / 10,
+        "{hits} hits, {checked} checked"
+    );
+}
+
+#[test]
+fn agrees_with_brute_force_on_a_random_triangle_soup() {
+    let mut rng = Rng(42);
+    let mut mesh = TriangleMesh::default();
+    for i in 0..400 {
+        let c = rng.vec_in(Vec3::splat(-5.0), Vec3::splat(5.0));
+        let size = if i % 10 == 0 { 4.0 } else { 0.6 };
+        let base = mesh.positions.len() as u32;
+        for _ in 0..3 {
+            mesh.positions
+                .push(c + rng.vec_in(Vec3::splat(-size), Vec3::splat(size)));
+        }
+        if i % 50 == 0 {
+            // Degenerate: a repeated vertex.
+            mesh.positions[base as usize + 2] = mesh.positions[base as usize];
+        }
+        mesh.triangles.push([base, base + 1, base + 2]);
+    }
+    let mut objects = vec![world(Shape::Mesh(mesh))];
+    for _ in 0..10 {
+        objects.push(world(sphere(
+            rng.vec_in(Vec3::splat(-5.0), Vec3::splat(5.0)),
+            rng.range(0.05, 1.0),
+        )));
+    }
+    objects.push(world(Shape::Plane(Plane {
+        point: Vec3::ZERO,
+        normal: Vec3::Y,
+    })));
+    for resolution in [None, Some([1, 1, 1]), Some([17, 3, 9]), Some([64, 64, 64])] {
+        let grid = GridIntersector::build(&objects, resolution);
+        let mut hits = 0;
+        for i in 0..5_000 {
+            let o = rng.vec_in(Vec3::splat(-8.0), Vec3::splat(8.0));
+            let dir = if i % 2 == 0 {
+                rng.unit_vector()
+            } else {
+                // Aimed into the soup, where most triangles are.
+                (rng.vec_in(Vec3::splat(-4.0), Vec3::splat(4.0)) - o).normalize()
+            };
+            let mut ray = Ray::new(o, dir * rng.range(0.01, 10.0));
+            if i % 3 == 0 {
+                ray.tmin = rng.range(0.0, 1.0);
+                ray.tmax = ray.tmin + rng.range(0.0, 3.0);
+            }
+            let expected = brute_force(&objects, &ray);
+            let got = grid.intersect(&ray);
+            match (got, expected) {
+                (Some(g), Some(e)) => {
+                    hits += 1;
+                    // Same tests on the same inputs: the same t exactly; a
+                    // different primitive only on an exact tie.
+                    assert_eq!(g.t, e.t, "{resolution:?} {ray:?}");
+                    if (g.object, g.prim) != (e.object, e.prim) {
+                        assert_eq!(g.t, e.t);
+                    } else {
+                        assert_eq!(g, e);
+                    }
+                }
+                (g, e) => assert_eq!(g, e, "{resolution:?} {ray:?}"),
+            }
+            assert_eq!(
+                grid.occluded(&ray),
+                expected.is_some(),
+                "{resolution:?} {ray:?}"
+            );
+        }
+        assert!(hits > 1_500, "only {hits} hits");
+    }
+}
+
+#[test]
+fn empty_and_degenerate_scenes() {
+    let nothing = GridIntersector::build(&[], None);
+    let ray = Ray::new(Vec3::ZERO, Vec3::X);
+    assert!(nothing.intersect(&ray).is_none() && !nothing.occluded(&ray));
+    assert!(nothing.spec().is_none());
+
+    let degenerate = TriangleMesh {
+        positions: vec![
+            Vec3::ZERO,
+            Vec3::X,
+            Vec3::X * 2.0,
+            Vec3::new(f32::NAN, 0.0, 0.0),
+        ],
+        triangles: vec![[0, 1, 2], [0, 0, 0], [0, 1, 3]],
+        normals: Vec::new(),
+    };
+    let objects = vec![
+        world(Shape::Mesh(TriangleMesh::default())),
+        world(Shape::Plane(Plane {
+            point: Vec3::ZERO,
+            normal: Vec3::Y,
+        })),
+        world(Shape::Mesh(degenerate)),
+        object(
+            Shape::Mesh(TriangleMesh::default()),
+            Placement::Instance(Affine3A::IDENTITY),
+        ),
+    ];
+    for resolution in [None, Some([3, 3, 3])] {
+        let grid = GridIntersector::build(&objects, resolution);
+        for dir in [Vec3::X, -Vec3::Y, Vec3::new(0.0, -1.0, 0.1), Vec3::ZERO] {
+            let ray = Ray::new(Vec3::new(1.0, 1.0, 0.0), dir);
+            assert!(grid.intersect(&ray).is_none() && !grid.occluded(&ray));
+        }
+    }
+    // A flat scene (one quad in a plane) gets a grid one cell thick.
+    let quad = TriangleMesh {
+        positions: vec![Vec3::ZERO, Vec3::X, Vec3::new(1.0, 1.0, 0.0), Vec3::Y],
+        triangles: vec![
+            [0, 1, 2],
+            [0, 2, 3],
+            [0, 1, 2],
+            [0, 2, 3],
+            [0, 1, 2],
+            [0, 2, 3],
+        ],
+        normals: Vec::new(),
+    };
+    let grid = GridIntersector::build(&[world(Shape::Mesh(quad))], None);
+    assert_eq!(grid.spec().unwrap().resolution[2], 1);
+    let hit = grid
+        .intersect(&Ray::new(Vec3::new(0.5, 0.5, 1.0), -Vec3::Z))
+        .unwrap();
+    assert_eq!(hit.t, 1.0);
+    let along = Ray::new(Vec3::new(-1.0, 0.5, 0.0), Vec3::X);
+    assert!(grid.intersect(&along).is_none());
+}
+
+#[test]
+fn accelerator_builds_the_grid_backend_with_planes_and_packets() {
+    let objects = vec![
+        world(Shape::Plane(Plane {
+            point: Vec3::new(0.0, -1.0, 0.0),
+            normal: Vec3::Y,
+        })),
+        world(sphere(Vec3::new(0.0, 0.0, -5.0), 1.0)),
+        world(Shape::Mesh(cube(2, Vec3::new(3.0, 0.0, -5.0), 0.5))),
+    ];
+    let accel = Accelerator::build(BackendKind::Grid, &objects).unwrap();
+    assert_eq!(accel.kind(), BackendKind::Grid);
+    let hit = accel.intersect(&Ray::new(Vec3::ZERO, -Vec3::Z)).unwrap();
+    assert_eq!((hit.object, hit.prim), (1, 0));
+    assert!((hit.t - 4.0).abs() < 1e-6);
+    let hit = accel.intersect(&Ray::new(Vec3::ZERO, -Vec3::Y)).unwrap();
+    assert_eq!(hit.object, 0);
+    let hit = accel
+        .intersect(&Ray::new(Vec3::ZERO, Vec3::new(3.0, 0.0, -5.0)))
+        .unwrap();
+    assert_eq!(hit.object, 2);
+
+    let grid = GridIntersector::build(&objects, None);
+    let rays: RayPacket =
+        std::array::from_fn(|i| Ray::new(Vec3::ZERO, Vec3::new(i as f32 - 3.0, 0.1, -5.0)));
+    let mask = 0b1101_0111;
+    let mut hits: HitPacket = [None; PACKET_WIDTH];
+    grid.intersect8(&rays, mask, &mut hits);
+    let occluded = grid.occluded8(&rays, mask);
+    for lane in 0..PACKET_WIDTH {
+        if mask & (1 << lane) != 0 {
+            assert_eq!(hits[lane], grid.intersect(&rays[lane]));
+            assert_eq!(occluded & (1 << lane) != 0, grid.occluded(&rays[lane]));
+        } else {
+            assert_eq!(hits[lane], None);
+        }
+    }
+    fn assert_send_sync<T: Send + Sync>() {}
+    assert_send_sync::<GridIntersector>();
+}
+
+/// A test scene like the paper's plus a bumpy mesh: 19 spheres, 12
+/// polygons (quads as two triangles), one mesh, one instanced sphere and one
+/// instanced mesh.
+fn comparison_scene(mesh: TriangleMesh, mesh_scale: f32) -> Vec<Object> {
+    let mut rng = Rng(2024);
+    let mut objects = Vec::new();
+    let mesh_bounds = mesh.bounds();
+    let fit = Affine3A::from_scale(Vec3::splat(mesh_scale / mesh_bounds.extent().max_element()))
+        * Affine3A::from_translation(-mesh_bounds.center());
+    objects.push(world(baked(&Shape::Mesh(mesh.clone()), &fit)));
+    for _ in 0..19 {
+        let c = rng.vec_in(Vec3::new(-6.0, -1.0, -12.0), Vec3::new(6.0, 3.0, -3.0));
+        objects.push(world(sphere(c, rng.range(0.2, 1.0))));
+    }
+    for _ in 0..12 {
+        let c = rng.vec_in(Vec3::new(-8.0, -1.0, -14.0), Vec3::new(8.0, 4.0, -2.0));
+        let (u, v) = (
+            rng.unit_vector() * rng.range(0.5, 2.0),
+            rng.unit_vector() * rng.range(0.5, 2.0),
+        );
+        let quad = TriangleMesh {
+            positions: vec![c - u - v, c + u - v, c + u + v, c - u + v],
+            triangles: vec![[0, 1, 2], [0, 2, 3]],
+            normals: Vec::new(),
+        };
+        objects.push(world(Shape::Mesh(quad)));
+    }
+    objects.push(object(
+        sphere(Vec3::ZERO, 1.0),
+        Placement::Instance(
+            Affine3A::from_translation(Vec3::new(2.0, -0.5, -4.0))
+                * Affine3A::from_scale(Vec3::splat(0.5)),
+        ),
+    ));
+    objects.push(object(
+        Shape::Mesh(mesh),
+        Placement::Instance(
+            Affine3A::from_translation(Vec3::new(-3.0, 1.0, -7.0))
+                * Affine3A::from_rotation_y(0.8)
+                * Affine3A::from_scale(Vec3::splat(0.6))
+                * fit,
+        ),
+    ));
+    objects
+}
+
+#[test]
+fn agrees_with_embree_on_a_bumpy_mesh_and_spheres() {
+    let objects = comparison_scene(blob(4, 99), 3.0);
+    let embree = EmbreeIntersector::build(&objects).unwrap();
+    let grid = GridIntersector::build(&objects, None);
+    let mut rng = Rng(1234);
+    let rays = 20_000;
+    let (mut hits, mut disagreements) = (0, 0);
+    for i in 0..rays {
+        let o = if i % 2 == 0 {
+            Vec3::new(0.0, 1.0, 4.0) + rng.vec_in(Vec3::splat(-1.0), Vec3::ONE)
+        } else {
+            rng.vec_in(Vec3::new(-8.0, -2.0, -15.0), Vec3::new(8.0, 5.0, 0.0))
+        };
+        let target = rng.vec_in(Vec3::new(-6.0, -1.0, -12.0), Vec3::new(6.0, 3.0, -1.0));
+        let ray = Ray::new(o, target - o);
+        let (g, e) = (grid.intersect(&ray), embree.intersect(&ray));
+        assert_eq!(grid.occluded(&ray), g.is_some());
+        match (g, e) {
+            (Some(g), Some(e)) => {
+                hits += 1;
+                let close = (g.t - e.t).abs() <= 1e-4 * e.t.max(1e-3);
+                if !close || g.object != e.object {
+                    disagreements += 1;
+                    assert!(close, "t differs: grid {g:?} embree {e:?} for {ray:?}");
+                }
+            }
+            (None, None) => {}
+            (g, e) => {
+                // A hit one backend reports and the other does not must
+                // graze a triangle edge (or a sphere's silhouette, where
+                // Embree's f32 test and our f64 one may round apart).
+                disagreements += 1;
+                let h = g.or(e).unwrap();
+                let is_sphere = objects[h.object as usize]
+                    .shape
+                    .bounds()
+                    .extent()
+                    .min_element()
+                    > 0.0
+                    && matches!(objects[h.object as usize].shape, Shape::Sphere(_));
+                let edge = h.u.min(h.v).min(1.0 - h.u - h.v) < 1e-4;
+                assert!(edge || is_sphere, "grid {g:?} embree {e:?} for {ray:?}");
+            }
+        }
+    }
+    // The bound: at most 0.05% of the rays (10 of 20,000) may disagree, and
+    // only by grazing (checked above).
+    assert!(
+        disagreements <= rays / 2000,
+        "{disagreements} disagreements"
+    );
+    assert!(hits > rays / 3, "only {hits} hits");
+}
+
+/// Times the grid against Embree on 640x480 primary rays; run with
+/// `cargo test --release --lib accel::grid::tests::timing -- --ignored --nocapture`.
+#[test]
+#[ignore]
+fn timing_against_embree() {
+    let bunny = load_bunny().unwrap_or_else(|| blob(4, 99));
+    for (name, objects) in [
+        (
+            "paper-like (19 spheres, 12 quads, bumpy blob)",
+            comparison_scene(blob(3, 1), 3.0),
+        ),
+        (
+            "bunny (3674 triangles) + paper-like",
+            comparison_scene(bunny, 3.0),
+        ),
+    ] {
+        let triangles: usize = objects
+            .iter()
+            .map(|o| match &o.shape {
+                Shape::Mesh(m) => m.triangles.len(),
+                _ => 0,
+            })
+            .sum();
+        let start = std::time::Instant::now();
+        let grid = GridIntersector::build(&objects, None);
+        let build = start.elapsed();
+        let embree = EmbreeIntersector::build(&objects).unwrap();
+        let (w, h) = (640, 480);
+        let eye = Vec3::new(0.0, 1.0, 4.0);
+        let rays: Vec<Ray> = (0..w * h)
+            .map(|i| {
+                let (x, y) = ((i % w) as f32, (i / w) as f32);
+                let dir = Vec3::new(
+                    (x - w as f32 / 2.0) / 400.0,
+                    -(y - h as f32 / 2.0) / 400.0,
+                    -1.0,
+                );
+                Ray::new(eye, dir)
+            })
+            .collect();
+        let time = |f: &dyn Fn(&Ray) -> Option<Hit>| {
+            let mut best = f64::INFINITY;
+            let mut count = 0;
+            for _ in 0..5 {
+                let start = std::time::Instant::now();
+                count = rays.iter().filter(|r| f(r).is_some()).count();
+                best = best.min(start.elapsed().as_secs_f64());
+            }
+            (best, count)
+        };
+        let (tg, ng) = time(&|r| grid.intersect(r));
+        let (te, ne) = time(&|r| embree.intersect(r));
+        let packets: Vec<RayPacket> = rays
+            .chunks(8)
+            .map(|c| std::array::from_fn(|i| c[i]))
+            .collect();
+        let mut te8 = f64::INFINITY;
+        for _ in 0..5 {
+            let start = std::time::Instant::now();
+            let mut hits: HitPacket = [None; PACKET_WIDTH];
+            for p in &packets {
+                embree.intersect8(p, 0xff, &mut hits);
+                std::hint::black_box(&hits);
+            }
+            te8 = te8.min(start.elapsed().as_secs_f64());
+        }
+        println!(
+            "{name}: {triangles} triangles, grid {:?} ({} refs, built in {build:?})\n  grid {:.1} ms ({ng} hits), embree {:.1} ms ({ne} hits), embree x8 {:.1} ms: grid / embree = {:.2}",
+            grid.spec().map(|s| s.resolution),
+            grid.references(),
+            tg * 1e3,
+            te * 1e3,
+            te8 * 1e3,
+            tg / te
+        );
+    }
+}
+
+/// The Stanford bunny from the shared data folder, if it is there.
+fn load_bunny() -> Option<TriangleMesh> {
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data/bunny.obj");
+    let text = std::fs::read_to_string(path).ok()?;
+    let mut mesh = TriangleMesh::default();
+    for line in text.lines() {
+        let mut parts = line.split_whitespace();
+        match parts.next() {
+            Some("v") => {
+                let v: Vec<f32> = parts.take(3).filter_map(|x| x.parse().ok()).collect();
+                mesh.positions.push(Vec3::new(v[0], v[1], v[2]));
+            }
+            Some("f") => {
+                let idx: Vec<u32> = parts
+                    .filter_map(|x| x.split('/').next()?.parse::<u32>().ok())
+                    .map(|i| i - 1)
+                    .collect();
+                for k in 1..idx.len() - 1 {
+                    mesh.triangles.push([idx[0], idx[k], idx[k + 1]]);
+                }
+            }
+            _ => {}
+        }
+    }
+    Some(mesh)
+}

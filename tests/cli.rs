@@ -1,0 +1,274 @@
+//! The command line as a user meets it: good scenes render, bad input gets a
+//! clear message naming file, line and field, a non-zero exit, no panic and
+//! no output file.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn retrace(args: &[&str], dir: &Path) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_retrace"))
+        .args(args)
+        .current_dir(dir)
+        .output()
+        .expect("run retrace")
+}
+
+fn stderr(out: &Output) -> String {
+    String::from_utf8_lossy(&out.stderr).into_owned()
+}
+
+const CAMERA: &str = "[camera]\nposition = [0, 1, 6]\nlook_at = [0, 0.5, 0]\nfov = 50\n";
+const TRIANGLE_OBJ: &str = "v -1 0 0\nv 1 0 0\nv 0 2 0\nf 1 2 3\n";
+
+struct Case {
+    dir: tempfile::TempDir,
+}
+
+impl Case {
+    fn new(files: &[(&str, &str)]) -> Case {
+        let dir = tempfile::tempdir().unwrap();
+        for (name, text) in files {
+            std::fs::write(dir.path().join(name), text).unwrap();
+        }
+        Case { dir }
+    }
+
+    fn path(&self, name: &str) -> PathBuf {
+        self.dir.path().join(name)
+    }
+
+    /// Runs `render` on `scene` into out.png plus `extra` arguments.
+    fn render(&self, scene: &str, extra: &[&str]) -> Output {
+        let mut args = vec!["render", scene, "-o", "out.png"];
+        for (flag, default) in [("--width", "32"), ("--height", "24")] {
+            if !extra.contains(&flag) {
+                args.extend([flag, default]);
+            }
+        }
+        args.extend_from_slice(extra);
+        retrace(&args, self.dir.path())
+    }
+
+    /// Asserts a clean failure: exit 1, every `needle` in the message, no
+    /// panic, and no output image.
+    fn assert_fails(&self, out: &Output, needles: &[&str]) {
+        let err = stderr(out);
+        assert_eq!(out.status.code(), Some(1), "stderr: {err}");
+        assert!(!err.contains("panicked"), "panic: {err}");
+        for needle in needles {
+            assert!(err.contains(needle), "expected '{needle}' in: {err}");
+        }
+        assert!(!self.path("out.png").exists(), "an output file was written");
+        let leftovers: Vec<_> = std::fs::read_dir(self.dir.path())
+            .unwrap()
+            .filter_map(|e| e.ok())
+            .filter(|e| e.file_name().to_string_lossy().ends_with(".tmp"))
+            .collect();
+        assert!(leftovers.is_empty(), "temporary files left: {leftovers:?}");
+    }
+
+    fn assert_renders(&self, out: &Output) -> image::RgbImage {
+        assert!(out.status.success(), "stderr: {}", stderr(out));
+        let image = image::open(self.path("out.png")).unwrap().to_rgb8();
+        assert_eq!(image.dimensions(), (32, 24));
+        image
+    }
+}
+
+#[test]
+fn built_in_paper_scene_renders_without_arguments() {
+    let case = Case::new(&[]);
+    let out = retrace(
+        &["render", "--width", "64", "--height", "48", "-o", "out.png"],
+        case.dir.path(),
+    );
+    assert!(out.status.success(), "{}", stderr(&out));
+    let image = image::open(case.path("out.png")).unwrap().to_rgb8();
+    assert_eq!(image.dimensions(), (64, 48));
+    // Sky above, a checkerboard below: the image is not one flat colour.
+    let top = image.get_pixel(32, 2);
+    let distinct: std::collections::HashSet<_> = image.pixels().collect();
+    assert!(distinct.len() > 50, "only {} colours", distinct.len());
+    assert!(top[2] > top[0], "the sky should be blue: {top:?}");
+}
+
+#[test]
+fn scene_with_obj_mesh_and_tga_output() {
+    let case = Case::new(&[
+        ("tri.obj", TRIANGLE_OBJ),
+        (
+            "s.toml",
+            &format!("{CAMERA}[[light]]\nposition = [2, 5, 5]\n[[object]]\ntype = \"mesh\"\nfile = \"tri.obj\"\n"),
+        ),
+    ]);
+    let out = retrace(
+        &[
+            "render", "s.toml", "-o", "out.tga", "--width", "16", "--height", "12",
+        ],
+        case.dir.path(),
+    );
+    assert!(out.status.success(), "{}", stderr(&out));
+    let image = image::open(case.path("out.tga")).unwrap().to_rgb8();
+    assert_eq!(image.dimensions(), (16, 12));
+    // The triangle is lit grey in the middle; the background is black.
+    assert!(image.get_pixel(8, 6)[0] > 60);
+    assert_eq!(image.get_pixel(0, 0)[0], 0);
+}
+
+#[test]
+fn bare_obj_renders_with_framing_camera() {
+    let case = Case::new(&[("tri.obj", TRIANGLE_OBJ)]);
+    let image = case.assert_renders(&case.render("tri.obj", &[]));
+    let centre = image.get_pixel(16, 12);
+    let corner = image.get_pixel(0, 0);
+    assert_ne!(centre, corner, "the model should fill the centre");
+}
+
+#[test]
+fn missing_scene_file() {
+    let case = Case::new(&[]);
+    case.assert_fails(
+        &case.render("nope.toml", &[]),
+        &["nope.toml", "cannot read"],
+    );
+}
+
+#[test]
+fn malformed_toml_names_line_and_field() {
+    let case = Case::new(&[(
+        "s.toml",
+        &format!("{CAMERA}[[object]]\ntype = \"sphere\"\ncenter = [0, 0, 0]\nradius = \"big\"\n"),
+    )]);
+    case.assert_fails(
+        &case.render("s.toml", &[]),
+        &["s.toml:8", "object[0].radius"],
+    );
+    let case = Case::new(&[("s.toml", "[camera]\nposition = [0, 1\nfov = 50\n")]);
+    case.assert_fails(&case.render("s.toml", &[]), &["s.toml:"]);
+}
+
+#[test]
+fn unknown_material() {
+    let case = Case::new(&[(
+        "s.toml",
+        &format!("{CAMERA}[[object]]\ntype = \"sphere\"\ncenter = [0, 0, 0]\nradius = 1\nmaterial = \"chrome\"\n"),
+    )]);
+    case.assert_fails(
+        &case.render("s.toml", &[]),
+        &[
+            "s.toml:9",
+            "object[0].material",
+            "unknown material 'chrome'",
+        ],
+    );
+}
+
+#[test]
+fn obj_that_does_not_parse_names_file_and_line() {
+    let case = Case::new(&[("bad.obj", "v 0 0 0\nv 1 0 0\nv 0 1 zero\nf 1 2 3\n")]);
+    case.assert_fails(
+        &case.render("bad.obj", &[]),
+        &["bad.obj:3", "'zero' is not a number"],
+    );
+    let case = Case::new(&[("bad.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 7\n")]);
+    case.assert_fails(&case.render("bad.obj", &[]), &["bad.obj:4", "out of range"]);
+}
+
+#[test]
+fn nan_and_inf_coordinates() {
+    let case = Case::new(&[("bad.obj", "v 0 0 0\nv 1 nan 0\nv 0 1 0\nf 1 2 3\n")]);
+    case.assert_fails(&case.render("bad.obj", &[]), &["bad.obj:2", "not finite"]);
+    let case = Case::new(&[(
+        "s.toml",
+        &format!("{CAMERA}[[object]]\ntype = \"sphere\"\ncenter = [0, inf, 0]\nradius = 1\n"),
+    )]);
+    case.assert_fails(
+        &case.render("s.toml", &[]),
+        &["s.toml:5", "object[0].center", "finite"],
+    );
+}
+
+#[test]
+fn degenerate_triangles_are_skipped_with_a_warning() {
+    // Triangle 2 repeats a vertex, triangle 3 is collinear.
+    let obj = "v -1 0 0\nv 1 0 0\nv 0 2 0\nv 2 0 0\nf 1 2 3\nf 1 1 3\nf 1 2 4\n";
+    let case = Case::new(&[("m.obj", obj)]);
+    let out = case.render("m.obj", &[]);
+    case.assert_renders(&out);
+    assert!(
+        stderr(&out).contains("dropped 2 degenerate triangle"),
+        "{}",
+        stderr(&out)
+    );
+}
+
+#[test]
+fn empty_mesh() {
+    let case = Case::new(&[("empty.obj", "# nothing\nv 0 0 0\n")]);
+    case.assert_fails(
+        &case.render("empty.obj", &[]),
+        &["empty.obj", "no triangles"],
+    );
+    // Inside a scene an empty mesh is only a warning: the rest still renders.
+    let case = Case::new(&[
+        ("empty.obj", "# nothing\n"),
+        (
+            "s.toml",
+            &format!("{CAMERA}[[object]]\ntype = \"mesh\"\nfile = \"empty.obj\"\n[[object]]\ntype = \"sphere\"\ncenter = [0, 0.5, 0]\nradius = 1\n"),
+        ),
+    ]);
+    let out = case.render("s.toml", &[]);
+    case.assert_renders(&out);
+    assert!(stderr(&out).contains("no triangles"));
+}
+
+#[test]
+fn image_size_zero_or_absurd() {
+    let case = Case::new(&[("s.toml", CAMERA)]);
+    case.assert_fails(
+        &case.render("s.toml", &["--width", "0"]),
+        &["render.width/height", "at least 1"],
+    );
+    let out = case.render("s.toml", &["--width", "1000000", "--height", "1000000"]);
+    case.assert_fails(&out, &["too large"]);
+}
+
+#[test]
+fn field_of_view_out_of_range() {
+    let case = Case::new(&[("s.toml", CAMERA)]);
+    for fov in ["0", "-10", "180", "200"] {
+        let out = case.render("s.toml", &["--fov", fov]);
+        case.assert_fails(&out, &["camera.fov", "field of view"]);
+    }
+    // Wide is fine below 180 for perspective, and up to 360 for equal-angle.
+    case.assert_renders(&case.render("s.toml", &["--fov", "179"]));
+    std::fs::remove_file(case.path("out.png")).unwrap();
+    let out = case.render(
+        "s.toml",
+        &["--fov", "360", "--camera", "equal-angle", "--height", "12"],
+    );
+    assert!(out.status.success(), "{}", stderr(&out));
+}
+
+#[test]
+fn unsupported_output_format() {
+    let case = Case::new(&[("s.toml", CAMERA)]);
+    let out = retrace(&["render", "s.toml", "-o", "out.jpg"], case.dir.path());
+    assert_eq!(out.status.code(), Some(1));
+    assert!(stderr(&out).contains("unsupported image format"));
+    assert!(!case.path("out.jpg").exists());
+}
+
+#[test]
+fn help_is_available_everywhere() {
+    let dir = tempfile::tempdir().unwrap();
+    for args in [
+        vec!["--help"],
+        vec!["render", "--help"],
+        vec!["bench", "--help"],
+    ] {
+        let out = retrace(&args, dir.path());
+        assert!(out.status.success());
+        assert!(String::from_utf8_lossy(&out.stdout).contains("Usage"));
+    }
+}
