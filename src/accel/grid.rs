@@ -5,11 +5,14 @@
 //! Layout: one grid over the world bounds of every bounded object. A cell
 //! lists the primitives that overlap it (CSR: `cell_start` offsets into one
 //! flat `cell_items` array), built in parallel from sorted (cell, primitive)
-//! pairs. World-placed triangles and spheres are primitives of the world
-//! grid; an instanced object is one primitive there, covering the cells its
-//! transformed box overlaps, and carries its own grid in object space: a ray
-//! reaching it is mapped by the inverse transform (direction not
-//! normalized, so `t` keeps its meaning) and traced there.
+//! pairs. Spheres and the triangles of small world-placed meshes are
+//! primitives of the world grid. An instanced object, or a world mesh of
+//! [`NESTED_MESH_TRIANGLES`] triangles or more, is one primitive there,
+//! covering the cells its world box overlaps, and carries its own grid fitted
+//! to it (so a detailed mesh in a big, sparse scene keeps a fine grid: the
+//! "teapot in a stadium"). A ray reaching an instance is mapped into object
+//! space by the inverse transform (direction not normalized, so `t` keeps
+//! its meaning) and traced there.
 //!
 //! Promises:
 //! - Closest hits are exact per primitive (the nearest `t` of any primitive
@@ -48,6 +51,9 @@ pub const CELLS_PER_PRIMITIVE: f64 = 3.0;
 /// without a grid (a single sphere, a small polygon).
 const BRUTE_FORCE_MAX: usize = 4;
 
+/// World meshes with at least this many triangles get a grid of their own.
+pub const NESTED_MESH_TRIANGLES: usize = 64;
+
 /// How much a primitive grows, in cell sizes, before it is binned: covers
 /// the rounding of the DDA's plane crossings.
 const BIN_SLACK_CELLS: f32 = 1e-4;
@@ -68,11 +74,16 @@ impl GridIntersector {
         for (id, object) in objects.iter().enumerate() {
             let id = id as u32;
             match &object.placement {
-                Placement::World => prims.add_shape(id, &object.shape),
-                Placement::Instance(xf) => {
-                    if let Some(instance) = Instance::new(id, &object.shape, xf) {
-                        prims.instances.push(instance);
+                Placement::World => match &object.shape {
+                    Shape::Mesh(mesh) if mesh.triangles.len() >= NESTED_MESH_TRIANGLES => {
+                        prims.nested.extend(Nested::new(id, &object.shape, None));
                     }
+                    shape => prims.add_shape(id, shape),
+                },
+                Placement::Instance(xf) => {
+                    prims
+                        .nested
+                        .extend(Nested::new(id, &object.shape, Some(xf)));
                 }
             }
         }
@@ -104,14 +115,14 @@ impl Intersector for GridIntersector {
 }
 
 /// The primitives of one level, by kind. Index `p` into a level runs over
-/// triangles, then spheres, then instances.
+/// triangles, then spheres, then nested objects.
 #[derive(Default)]
 struct Prims {
     triangles: Vec<[Vec3; 3]>,
     /// (object, primitive index in the object) per triangle.
     triangle_ids: Vec<[u32; 2]>,
     spheres: Vec<(Sphere, u32)>,
-    instances: Vec<Instance>,
+    nested: Vec<Nested>,
 }
 
 impl Prims {
@@ -136,7 +147,7 @@ impl Prims {
     }
 
     fn len(&self) -> usize {
-        self.triangles.len() + self.spheres.len() + self.instances.len()
+        self.triangles.len() + self.spheres.len() + self.nested.len()
     }
 
     fn bounds(&self, p: usize) -> Aabb {
@@ -147,12 +158,12 @@ impl Prims {
         } else if p < nt + ns {
             Shape::Sphere(self.spheres[p - nt].0).bounds()
         } else {
-            self.instances[p - nt - ns].bounds
+            self.nested[p - nt - ns].bounds
         }
     }
 
     /// Does primitive `p` (grown by `slack`) overlap the closed box `b`?
-    /// Exact for triangles (separating axes) and spheres; instances use
+    /// Exact for triangles (separating axes) and spheres; nested objects use
     /// their box, which the caller already checked.
     fn overlaps(&self, p: usize, b: &Aabb, slack: Vec3) -> bool {
         let nt = self.triangles.len();
@@ -197,46 +208,68 @@ impl Cells {
     }
 }
 
-/// An instanced object: its shape's own level in object space.
-struct Instance {
-    world_to_object: Affine3A,
-    /// World bounds (the object box, transformed).
+/// An object with a level of its own: an instance (in object space, behind
+/// a transform) or a large world mesh (no transform).
+struct Nested {
+    world_to_object: Option<Affine3A>,
+    /// World bounds (for an instance, the object box transformed).
     bounds: Aabb,
     level: Level,
 }
 
-impl Instance {
+impl Nested {
     /// `None` for shapes with nothing to hit (planes, empty meshes) or a
     /// transform that cannot be inverted.
-    fn new(object: u32, shape: &Shape, xf: &Affine3A) -> Option<Instance> {
-        let det = xf.matrix3.determinant();
-        if det == 0.0 || !det.is_finite() || !xf.translation.is_finite() {
-            return None;
-        }
-        let world_to_object = xf.inverse();
-        if !world_to_object.matrix3.is_finite() || !world_to_object.translation.is_finite() {
-            return None;
-        }
+    fn new(object: u32, shape: &Shape, xf: Option<&Affine3A>) -> Option<Nested> {
+        let world_to_object = match xf {
+            None => None,
+            Some(xf) => {
+                let det = xf.matrix3.determinant();
+                if det == 0.0 || !det.is_finite() || !xf.translation.is_finite() {
+                    return None;
+                }
+                let inverse = xf.inverse();
+                if !inverse.matrix3.is_finite() || !inverse.translation.is_finite() {
+                    return None;
+                }
+                Some(inverse)
+            }
+        };
         let mut prims = Prims::default();
         prims.add_shape(object, shape);
         if prims.len() == 0 {
             return None;
         }
         let local_bounds = (0..prims.len()).fold(Aabb::EMPTY, |b, p| b.union(prims.bounds(p)));
-        Some(Instance {
+        Some(Nested {
             world_to_object,
-            bounds: local_bounds.transformed(xf),
+            bounds: xf.map_or(local_bounds, |xf| local_bounds.transformed(xf)),
             level: Level::build(prims, None),
         })
     }
 
     #[inline]
-    fn local_ray(&self, ray: &Ray, tmax: f32) -> Ray {
-        Ray {
-            origin: self.world_to_object.transform_point3(ray.origin),
-            dir: self.world_to_object.transform_vector3(ray.dir),
-            tmin: ray.tmin,
-            tmax,
+    fn closest(&self, ray: &Ray, tmax: f32) -> Option<Hit> {
+        match &self.world_to_object {
+            None => self.level.closest(&Ray { tmax, ..*ray }),
+            Some(m) => self.level.closest(&Ray {
+                origin: m.transform_point3(ray.origin),
+                dir: m.transform_vector3(ray.dir),
+                tmin: ray.tmin,
+                tmax,
+            }),
+        }
+    }
+
+    #[inline]
+    fn any(&self, ray: &Ray) -> bool {
+        match &self.world_to_object {
+            None => self.level.any(ray),
+            Some(m) => self.level.any(&Ray {
+                origin: m.transform_point3(ray.origin),
+                dir: m.transform_vector3(ray.dir),
+                ..*ray
+            }),
         }
     }
 }
@@ -257,7 +290,14 @@ impl Level {
         }
         let spec = match resolution {
             Some(r) => GridSpec::new(walk::padded(world), r.map(|n| n.max(1))),
-            None => GridSpec::with_cell_budget(world, CELLS_PER_PRIMITIVE * count as f64),
+            None => GridSpec::with_cell_budget(
+                world,
+                std::env::var("LAMBDA")
+                    .ok()
+                    .and_then(|x| x.parse().ok())
+                    .unwrap_or(CELLS_PER_PRIMITIVE)
+                    * count as f64,
+            ),
         };
         let cells = bin(&prims, &bounds, spec);
         Level {
@@ -329,8 +369,7 @@ impl Level {
                 });
             }
         } else {
-            let instance = &self.prims.instances[p - nt - ns];
-            if let Some(h) = instance.level.closest(&instance.local_ray(ray, best.tmax)) {
+            if let Some(h) = self.prims.nested[p - nt - ns].closest(ray, best.tmax) {
                 best.tmax = h.t;
                 best.hit = Some(h);
             }
@@ -375,8 +414,7 @@ impl Level {
             let (sphere, _) = &self.prims.spheres[p - nt];
             intersect_sphere(sphere, ray.origin, ray.dir, ray.tmin, ray.tmax).is_some()
         } else {
-            let instance = &self.prims.instances[p - nt - ns];
-            instance.level.any(&instance.local_ray(ray, ray.tmax))
+            self.prims.nested[p - nt - ns].any(ray)
         }
     }
 }
@@ -389,22 +427,40 @@ struct Closest {
 /// The last few primitives tested by a ray: a primitive spanning several
 /// consecutive cells is tested once (a miss stays a miss as `tmax` only
 /// shrinks; a hit is already the best or beaten).
-#[derive(Default)]
 struct Mailbox {
+    /// `u32::MAX` marks an empty slot (no level has that many primitives).
     ids: [u32; 8],
-    filled: u32,
+    next: usize,
+}
+
+impl Default for Mailbox {
+    fn default() -> Mailbox {
+        Mailbox {
+            ids: [u32::MAX; 8],
+            next: 0,
+        }
+    }
 }
 
 impl Mailbox {
     #[inline]
     fn seen(&mut self, p: u32) -> bool {
-        let n = (self.filled as usize).min(self.ids.len());
-        if self.ids[..n].contains(&p) {
+        if self.ids.contains(&p) {
             return true;
         }
-        self.ids[self.filled as usize % self.ids.len()] = p;
-        self.filled = self.filled.wrapping_add(1);
+        self.ids[self.next % self.ids.len()] = p;
+        self.next = self.next.wrapping_add(1);
         false
+    }
+}
+
+/// `a.min(b)` for values known not to be NaN, without the NaN handling.
+#[inline]
+fn fast_min(a: f32, b: f32) -> f32 {
+    if a < b {
+        a
+    } else {
+        b
     }
 }
 
@@ -435,6 +491,7 @@ struct Dda {
 }
 
 impl Dda {
+    #[inline]
     fn new(cells: &Cells, ray: &Ray) -> Option<Dda> {
         let (o, d) = (ray.origin, ray.dir);
         if !o.is_finite() || !d.is_finite() || d == Vec3::ZERO {
@@ -522,7 +579,7 @@ impl Dda {
     /// Where the ray leaves the current cell.
     #[inline]
     fn t_exit(&self) -> f32 {
-        self.t_next[0].min(self.t_next[1]).min(self.t_next[2])
+        fast_min(fast_min(self.t_next[0], self.t_next[1]), self.t_next[2])
     }
 
     /// Moves to the next cell; false once the ray has left the grid or the
@@ -537,7 +594,7 @@ impl Dda {
         } else {
             2
         };
-        if self.t_next[a] > self.t_far.min(tmax) {
+        if self.t_next[a] > fast_min(self.t_far, tmax) {
             return false;
         }
         let c = self.cell[a] + self.step[a];

@@ -19,16 +19,17 @@ use crate::geometry::Sphere;
 
 /// A ray prepared for watertight triangle tests: the axis permutation and
 /// shear that map the ray onto the +z axis, computed once per ray.
+///
+/// The permute-and-shear is stored as three rows (`x = row_x . p` and so on,
+/// each row holding a 1 or `1/d[kz]`, a `-d[k]/d[kz]` and a 0), which gives
+/// bit for bit the paper's `p[kx] - Sx * p[kz]` without indexing by
+/// run-time axis: the extra product is an exact zero.
 #[derive(Clone, Copy, Debug)]
 pub struct WatertightRay {
-    origin: [f32; 3],
-    /// Permuted axes: `kz` is the direction's largest component.
-    kx: usize,
-    ky: usize,
-    kz: usize,
-    sx: f32,
-    sy: f32,
-    sz: f32,
+    origin: Vec3,
+    row_x: Vec3,
+    row_y: Vec3,
+    row_z: Vec3,
 }
 
 /// A ray/triangle hit: distance along the ray (in units of its direction)
@@ -42,6 +43,7 @@ pub struct TriangleHit {
 
 impl WatertightRay {
     /// `None` for a zero or non-finite direction, which hits nothing.
+    #[inline]
     pub fn new(origin: Vec3, dir: Vec3) -> Option<WatertightRay> {
         if !dir.is_finite() || !origin.is_finite() || dir == Vec3::ZERO {
             return None;
@@ -61,14 +63,18 @@ impl WatertightRay {
         if dir[kz] < 0.0 {
             std::mem::swap(&mut kx, &mut ky);
         }
+        let (mut row_x, mut row_y, mut row_z) = (Vec3::ZERO, Vec3::ZERO, Vec3::ZERO);
+        row_x[kx] = 1.0;
+        let inv_z = 1.0 / dir[kz];
+        row_x[kz] = -(dir[kx] * inv_z);
+        row_y[ky] = 1.0;
+        row_y[kz] = -(dir[ky] * inv_z);
+        row_z[kz] = inv_z;
         Some(WatertightRay {
-            origin: origin.to_array(),
-            kx,
-            ky,
-            kz,
-            sx: dir[kx] / dir[kz],
-            sy: dir[ky] / dir[kz],
-            sz: 1.0 / dir[kz],
+            origin,
+            row_x,
+            row_y,
+            row_z,
         })
     }
 
@@ -76,17 +82,13 @@ impl WatertightRay {
     /// Degenerate triangles (zero area as seen along the ray) never hit.
     #[inline]
     pub fn intersect_triangle(&self, v: &[Vec3; 3], tmin: f32, tmax: f32) -> Option<TriangleHit> {
-        let (kx, ky, kz) = (self.kx, self.ky, self.kz);
-        let o = self.origin;
-        let rel = |p: &Vec3| [p.x - o[0], p.y - o[1], p.z - o[2]];
-        let (a, b, c) = (rel(&v[0]), rel(&v[1]), rel(&v[2]));
+        let a = v[0] - self.origin;
+        let b = v[1] - self.origin;
+        let c = v[2] - self.origin;
         // Shear and scale the vertices into ray space (ray along +z).
-        let ax = a[kx] - self.sx * a[kz];
-        let ay = a[ky] - self.sy * a[kz];
-        let bx = b[kx] - self.sx * b[kz];
-        let by = b[ky] - self.sy * b[kz];
-        let cx = c[kx] - self.sx * c[kz];
-        let cy = c[ky] - self.sy * c[kz];
+        let (ax, ay) = (self.row_x.dot(a), self.row_y.dot(a));
+        let (bx, by) = (self.row_x.dot(b), self.row_y.dot(b));
+        let (cx, cy) = (self.row_x.dot(c), self.row_y.dot(c));
         // Scaled barycentrics: edge functions of the edges opposite v0, v1, v2.
         let mut u = cx * by - cy * bx;
         let mut v_ = ax * cy - ay * cx;
@@ -109,9 +111,9 @@ impl WatertightRay {
         if det == 0.0 {
             return None;
         }
-        let az = self.sz * a[kz];
-        let bz = self.sz * b[kz];
-        let cz = self.sz * c[kz];
+        let az = self.row_z.dot(a);
+        let bz = self.row_z.dot(b);
+        let cz = self.row_z.dot(c);
         let t_scaled = u * az + v_ * bz + w * cz;
         let inv_det = 1.0 / det;
         let t = t_scaled * inv_det;
