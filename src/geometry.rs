@@ -172,6 +172,18 @@ impl Object {
     }
 }
 
+/// A surface normal carried through an affine transform (by the inverse
+/// transpose, so it stays perpendicular under non-uniform scaling); unit
+/// length, or zero for a zero normal.
+pub fn transform_normal(transform: &Affine3A, n: Vec3) -> Vec3 {
+    transform
+        .matrix3
+        .inverse()
+        .transpose()
+        .mul_vec3(n)
+        .normalize_or_zero()
+}
+
 /// Two unit vectors spanning the plane with unit normal `n` (a right-handed
 /// frame u, v, n), used for finite planes and plane checkers.
 pub fn plane_axes(n: Vec3) -> (Vec3, Vec3) {

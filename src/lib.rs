@@ -13,3 +13,4 @@ pub mod ray;
 pub mod render;
 pub mod scene;
 pub mod shade;
+pub mod validate;

@@ -33,6 +33,31 @@ enum Command {
     Render(RenderArgs),
     /// Measure rendering costs (release builds only make sense here).
     Bench(BenchArgs),
+    /// Check Embree against the pure-Rust grid: ray by ray (camera rays and
+    /// seeded random rays) and image by image. Exits with status 1 when
+    /// agreement falls below the limits: hit/miss agreement 99.95%, same
+    /// primitive on 99.9% of common hits, relative t difference 1e-3 on
+    /// those, at most 0.5% of pixels differing by more than 1/255, mean
+    /// colour difference 1e-3.
+    Validate(ValidateArgs),
+}
+
+#[derive(Args)]
+struct ValidateArgs {
+    #[command(flatten)]
+    scene: SceneArgs,
+    /// Random rays to compare besides the camera rays.
+    #[arg(long, default_value_t = 100_000)]
+    rays: usize,
+    /// Seed of the random rays.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// How many disagreeing rays to list.
+    #[arg(long, default_value_t = 10)]
+    show: usize,
+    /// Also write the report as JSON here.
+    #[arg(long)]
+    json: Option<PathBuf>,
 }
 
 #[derive(Args)]
@@ -51,7 +76,11 @@ struct SceneArgs {
     /// Horizontal field of view in degrees.
     #[arg(long, allow_negative_numbers = true)]
     fov: Option<f64>,
-    /// Intersection backend.
+}
+
+#[derive(Args)]
+struct BackendArg {
+    /// Intersection backend: embree, or grid (the pure-Rust reference).
     #[arg(long, default_value = "embree", value_parser = parse_backend)]
     backend: BackendKind,
 }
@@ -68,6 +97,8 @@ fn parse_backend(s: &str) -> Result<BackendKind, String> {
 struct RenderArgs {
     #[command(flatten)]
     scene: SceneArgs,
+    #[command(flatten)]
+    backend: BackendArg,
     /// Output image (.png or .tga).
     #[arg(short, long, default_value = "out/render.png")]
     output: PathBuf,
@@ -77,6 +108,8 @@ struct RenderArgs {
 struct BenchArgs {
     #[command(flatten)]
     scene: SceneArgs,
+    #[command(flatten)]
+    backend: BackendArg,
     /// Which measurement: `frame` (a full frame against bare Embree on the
     /// same ray packets).
     #[arg(long, default_value = "frame")]
@@ -126,7 +159,7 @@ fn render(args: RenderArgs) -> Result<()> {
     // Check the output name before any work: a typo should not cost a render.
     retrace::output::format_for(&args.output)?;
     let scene = load(&args.scene)?;
-    let accel = Accelerator::build(args.scene.backend, &scene.objects)?;
+    let accel = Accelerator::build(args.backend.backend, &scene.objects)?;
     let start = Instant::now();
     let (frame, rays) = render_frame(&scene, &accel);
     let elapsed = start.elapsed();
@@ -166,7 +199,7 @@ fn bench(args: BenchArgs) -> Result<()> {
         );
     }
     let scene = load(&args.scene)?;
-    let accel = Accelerator::build(args.scene.backend, &scene.objects)?;
+    let accel = Accelerator::build(args.backend.backend, &scene.objects)?;
     let bar = indicatif::ProgressBar::new(args.repeats.max(1) as u64)
         .with_style(
             indicatif::ProgressStyle::with_template("{msg} {bar:30} {pos}/{len}")
@@ -195,16 +228,83 @@ fn bench(args: BenchArgs) -> Result<()> {
     println!("bare Embree, same packets: {:8.2} ms", result.embree_ms);
     println!("ratio:                     {:8.3}x", result.ratio);
     if let Some(path) = &args.json {
-        ensure_parent(path)?;
-        let text = serde_json::to_string_pretty(&result)?;
-        retrace::output::write_atomically(path, |temp| {
-            std::fs::write(temp, &text).map_err(|source| retrace::output::OutputError::Write {
-                path: path.clone(),
-                source,
-            })
-        })?;
+        write_json(path, &result)?;
     }
     Ok(())
+}
+
+fn write_json(path: &Path, value: &impl serde::Serialize) -> Result<()> {
+    ensure_parent(path)?;
+    let text = serde_json::to_string_pretty(value)?;
+    retrace::output::write_atomically(path, |temp| {
+        std::fs::write(temp, &text).map_err(|source| retrace::output::OutputError::Write {
+            path: path.to_path_buf(),
+            source,
+        })
+    })?;
+    Ok(())
+}
+
+fn validate(args: ValidateArgs) -> Result<()> {
+    let scene = load(&args.scene)?;
+    let embree = Accelerator::build(BackendKind::Embree, &scene.objects)?;
+    let grid = Accelerator::build(BackendKind::Grid, &scene.objects)?;
+    let report =
+        retrace::validate::validate(&scene, &embree, &grid, args.rays, args.seed, args.show);
+    println!("{}: Embree vs grid", scene_name(&args.scene));
+    println!(
+        "{:<12} {:>9} {:>15} {:>14} {:>12} {:>12}",
+        "rays", "count", "hit/miss agree", "same primitive", "max rel. t", "mean rel. t"
+    );
+    for (name, a) in [
+        ("camera", &report.camera_rays),
+        ("random", &report.random_rays),
+    ] {
+        println!(
+            "{:<12} {:>9} {:>14.4}% {:>13.4}% {:>12.2e} {:>12.2e}",
+            name,
+            a.rays,
+            a.hit_agreement() * 100.0,
+            a.same_primitive_share() * 100.0,
+            a.max_relative_t,
+            a.mean_relative_t
+        );
+    }
+    let image = &report.image;
+    println!(
+        "image        {:>9} pixels: {:.4}% differ by more than 1/255, max difference {:.4}, mean {:.2e}",
+        image.pixels,
+        image.differing_pixels * 100.0,
+        image.max_difference,
+        image.mean_difference
+    );
+    if !report.disagreements.is_empty() {
+        println!("disagreeing rays (first {}):", report.disagreements.len());
+        for d in &report.disagreements {
+            let show = |h: &Option<retrace::validate::HitSummary>| {
+                h.map_or("miss".to_string(), |h| {
+                    format!("object {} prim {} t {}", h.object, h.prim, h.t)
+                })
+            };
+            println!(
+                "  {} origin {:?} dir {:?}: embree {}, grid {}",
+                d.source,
+                d.origin,
+                d.direction,
+                show(&d.embree),
+                show(&d.grid)
+            );
+        }
+    }
+    if let Some(path) = &args.json {
+        write_json(path, &report)?;
+    }
+    if report.passed() {
+        println!("PASS");
+        Ok(())
+    } else {
+        anyhow::bail!("validation failed: {}", report.failures.join("; "))
+    }
 }
 
 fn main() -> ExitCode {
@@ -221,6 +321,7 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Render(args) => render(args),
         Command::Bench(args) => bench(args),
+        Command::Validate(args) => validate(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -9,7 +9,7 @@
 use glam::Vec3;
 
 use crate::accel::Intersector;
-use crate::geometry::{plane_axes, Placement, Shape};
+use crate::geometry::{plane_axes, transform_normal, Placement, Shape};
 use crate::ray::{lanes, offset_origin, Hit, LaneMask, Ray, RayPacket, PACKET_WIDTH};
 use crate::scene::{Material, Scene};
 
@@ -85,7 +85,7 @@ impl Surface {
                         + mesh.normals[j as usize] * u
                         + mesh.normals[k as usize] * v;
                     let n = match transform {
-                        Some(xf) => xf.matrix3.inverse().transpose().mul_vec3(n.into()).into(),
+                        Some(xf) => transform_normal(&xf, n),
                         None => n,
                     };
                     let n = n.normalize_or_zero();
@@ -115,13 +115,7 @@ impl Surface {
                 let (origin, normal) = match transform {
                     Some(xf) => (
                         xf.transform_point3(plane.point),
-                        Vec3::from(
-                            xf.matrix3
-                                .inverse()
-                                .transpose()
-                                .mul_vec3(plane.normal.into()),
-                        )
-                        .normalize(),
+                        transform_normal(&xf, plane.normal),
                     ),
                     None => (plane.point, plane.normal),
                 };

@@ -468,13 +468,20 @@ fn fast_min(a: f32, b: f32) -> f32 {
 /// enters the grid box.
 ///
 /// Robust to zero and -0.0 direction components (those axes never step and
-/// never bound the ray), origins on cell planes (the start cell is clamped,
-/// and the plane crossings are recomputed from the origin at every step, not
-/// accumulated), and rays starting outside the grid or limited by
-/// `tmin`/`tmax`.
+/// never bound the ray), origins on cell planes (the start cell is clamped
+/// into the grid), and rays starting outside the grid or limited by
+/// `tmin`/`tmax`. Plane crossings are not accumulated step by step: the
+/// crossing of plane `k` is `k * t_per_plane + t_plane0` (one rounding of
+/// each term), so no error builds up along long walks.
 struct Dda {
     cell: [i32; 3],
-    step: [i32; 3],
+    /// Index (as f32, exact) of the plane the ray crosses next on each axis,
+    /// and how it moves per step (+1, -1, or 0 for axes the ray runs
+    /// parallel to).
+    plane: [f32; 3],
+    plane_step: [f32; 3],
+    t_per_plane: [f32; 3],
+    t_plane0: [f32; 3],
     /// `t` where the ray crosses the next plane on each axis (infinite for
     /// axes it runs parallel to).
     t_next: [f32; 3],
@@ -482,16 +489,13 @@ struct Dda {
     t_far: f32,
     /// Linear index of `cell`, and how it moves per step on each axis.
     index: usize,
-    stride: [isize; 3],
-    res: [i32; 3],
-    origin: Vec3,
-    inv_dir: Vec3,
-    min: Vec3,
-    cell_size: Vec3,
+    index_step: [isize; 3],
+    cell_step: [i32; 3],
+    res: [u32; 3],
 }
 
 impl Dda {
-    #[inline]
+    #[inline(always)]
     fn new(cells: &Cells, ray: &Ray) -> Option<Dda> {
         let (o, d) = (ray.origin, ray.dir);
         if !o.is_finite() || !d.is_finite() || d == Vec3::ZERO {
@@ -521,23 +525,25 @@ impl Dda {
             return None;
         }
         let t_start = t0.max(ray.tmin);
+        let strides = [
+            1,
+            cells.res[0] as isize,
+            cells.res[0] as isize * cells.res[1] as isize,
+        ];
         let mut dda = Dda {
             cell: [0; 3],
-            step: [0; 3],
+            plane: [0.0; 3],
+            plane_step: [0.0; 3],
+            t_per_plane: [0.0; 3],
+            t_plane0: [0.0; 3],
             t_next: [f32::INFINITY; 3],
             t_far: t1.min(ray.tmax),
             index: 0,
-            stride: [
-                1,
-                cells.res[0] as isize,
-                cells.res[0] as isize * cells.res[1] as isize,
-            ],
-            res: cells.res,
-            origin: o,
-            inv_dir,
-            min: cells.min,
-            cell_size: cells.cell_size,
+            index_step: [0; 3],
+            cell_step: [0; 3],
+            res: cells.res.map(|n| n as u32),
         };
+        let mut index = 0;
         for a in 0..3 {
             let p = if d[a] == 0.0 {
                 o[a]
@@ -546,34 +552,23 @@ impl Dda {
             };
             let c = ((p - cells.min[a]) * cells.inv_cell_size[a]).floor();
             // Clamp in float first: far-off starts must not overflow i32.
-            dda.cell[a] = c.clamp(0.0, (cells.res[a] - 1) as f32) as i32;
-            dda.step[a] = if d[a] > 0.0 {
-                1
-            } else if d[a] < 0.0 {
-                -1
-            } else {
-                0
-            };
-            dda.t_next[a] = dda.crossing(a);
-        }
-        dda.index = (dda.cell[0] as isize
-            + dda.cell[1] as isize * dda.stride[1]
-            + dda.cell[2] as isize * dda.stride[2]) as usize;
-        Some(dda)
-    }
-
-    /// `t` where the ray leaves the current cell through its far plane on
-    /// axis `a`.
-    #[inline]
-    fn crossing(&self, a: usize) -> f32 {
-        match self.step[a] {
-            0 => f32::INFINITY,
-            s => {
-                let plane = self.cell[a] + i32::from(s > 0);
-                let x = self.min[a] + plane as f32 * self.cell_size[a];
-                (x - self.origin[a]) * self.inv_dir[a]
+            let c = c.clamp(0.0, (cells.res[a] - 1) as f32) as i32;
+            dda.cell[a] = c;
+            index += c as isize * strides[a];
+            if d[a] == 0.0 {
+                continue;
             }
+            let step = if d[a] > 0.0 { 1 } else { -1 };
+            dda.cell_step[a] = step;
+            dda.index_step[a] = strides[a] * step as isize;
+            dda.plane_step[a] = step as f32;
+            dda.plane[a] = (c + i32::from(step > 0)) as f32;
+            dda.t_per_plane[a] = cells.cell_size[a] * inv_dir[a];
+            dda.t_plane0[a] = (cells.min[a] - o[a]) * inv_dir[a];
+            dda.t_next[a] = dda.plane[a] * dda.t_per_plane[a] + dda.t_plane0[a];
         }
+        dda.index = index as usize;
+        Some(dda)
     }
 
     /// Where the ray leaves the current cell.
@@ -587,25 +582,22 @@ impl Dda {
     #[inline]
     fn step(&mut self, tmax: f32) -> bool {
         let [x, y, z] = self.t_next;
-        let a = if x <= y && x <= z {
-            0
-        } else if y <= z {
-            1
-        } else {
-            2
-        };
+        // The axis of the nearest crossing, without branches:
+        // (x <= y, x <= z, y <= z) as bits -> axis.
+        const AXIS: [usize; 8] = [2, 1, 2, 1, 2, 2, 0, 0];
+        let a = AXIS[(usize::from(x <= y) << 2) | (usize::from(x <= z) << 1) | usize::from(y <= z)];
         if self.t_next[a] > fast_min(self.t_far, tmax) {
             return false;
         }
-        let c = self.cell[a] + self.step[a];
-        if c < 0 || c >= self.res[a] {
+        let c = self.cell[a] + self.cell_step[a];
+        // Also catches c == -1 (as a huge u32).
+        if c as u32 >= self.res[a] {
             return false;
         }
         self.cell[a] = c;
-        self.index = self
-            .index
-            .wrapping_add_signed(self.stride[a] * self.step[a] as isize);
-        self.t_next[a] = self.crossing(a);
+        self.index = self.index.wrapping_add_signed(self.index_step[a]);
+        self.plane[a] += self.plane_step[a];
+        self.t_next[a] = self.plane[a] * self.t_per_plane[a] + self.t_plane0[a];
         true
     }
 }

@@ -10,7 +10,7 @@ pub mod grid;
 use std::fmt;
 use std::str::FromStr;
 
-use crate::geometry::{intersect_plane, Object, Placement, Plane, Shape};
+use crate::geometry::{intersect_plane, transform_normal, Object, Placement, Plane, Shape};
 use crate::ray::{lanes, Hit, HitPacket, LaneMask, Ray, RayPacket, PACKET_WIDTH};
 
 /// Closest-hit and any-hit queries, one ray or an 8-wide packet at a time.
@@ -97,13 +97,7 @@ impl Accelerator {
                     id as u32,
                     Plane {
                         point: xf.transform_point3(plane.point),
-                        normal: xf
-                            .matrix3
-                            .inverse()
-                            .transpose()
-                            .mul_vec3(plane.normal.into())
-                            .normalize()
-                            .into(),
+                        normal: transform_normal(xf, plane.normal),
                     },
                 )),
                 _ => None,

@@ -574,7 +574,6 @@ fn convert_object(
                 warnings.push(format!("{}: mesh has no triangles", obj_path.display()));
             }
             let name = o.name.clone().unwrap_or_else(|| format!("object[{index}]"));
-            let normal_xf = transform.matrix3.inverse().transpose();
             let mut objects = Vec::new();
             for (part_index, part) in loaded.parts.into_iter().enumerate() {
                 let mut mesh = part.mesh;
@@ -582,7 +581,7 @@ fn convert_object(
                     *p = transform.transform_point3(*p);
                 }
                 for n in &mut mesh.normals {
-                    *n = Vec3::from(normal_xf * glam::Vec3A::from(*n)).normalize_or_zero();
+                    *n = crate::geometry::transform_normal(&transform, *n);
                 }
                 if o.smooth && mesh.normals.is_empty() {
                     mesh.compute_smooth_normals();

@@ -362,6 +362,9 @@ impl Drop for CommittedScene {
 }
 
 #[cfg(embree_version = "3")]
+// Which optional fields exist depends on how Embree was configured
+// (instStackSize, minWidthDistanceFactor), hence the catch-all update.
+#[allow(clippy::needless_update)]
 fn intersect_context() -> sys::RTCIntersectContext {
     // Re-creation of the header's inline rtcInitIntersectContext.
     sys::RTCIntersectContext {

@@ -43,7 +43,7 @@ pub struct TriangleHit {
 
 impl WatertightRay {
     /// `None` for a zero or non-finite direction, which hits nothing.
-    #[inline]
+    #[inline(always)]
     pub fn new(origin: Vec3, dir: Vec3) -> Option<WatertightRay> {
         if !dir.is_finite() || !origin.is_finite() || dir == Vec3::ZERO {
             return None;
