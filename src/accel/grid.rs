@@ -323,8 +323,11 @@ impl Level {
                 let mut dda = Dda::new(cells, ray)?;
                 let mut mailbox = Mailbox::default();
                 loop {
+                    CELLS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
                     for &p in cells.items(dda.index) {
+                        REFS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
                         if !mailbox.seen(p) {
+                            TESTS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
                             self.test_closest(p, ray, &wt, &mut best);
                         }
                     }
@@ -579,25 +582,34 @@ impl Dda {
 
     /// Moves to the next cell; false once the ray has left the grid or the
     /// next cell starts beyond `tmax`.
-    #[inline]
+    #[inline(always)]
     fn step(&mut self, tmax: f32) -> bool {
         let [x, y, z] = self.t_next;
-        // The axis of the nearest crossing, without branches:
-        // (x <= y, x <= z, y <= z) as bits -> axis.
-        const AXIS: [usize; 8] = [2, 1, 2, 1, 2, 2, 0, 0];
-        let a = AXIS[(usize::from(x <= y) << 2) | (usize::from(x <= z) << 1) | usize::from(y <= z)];
-        if self.t_next[a] > fast_min(self.t_far, tmax) {
+        // One code path per axis, so every index is a constant and the
+        // state can live in registers.
+        if x <= y && x <= z {
+            self.advance::<0>(tmax)
+        } else if y <= z {
+            self.advance::<1>(tmax)
+        } else {
+            self.advance::<2>(tmax)
+        }
+    }
+
+    #[inline(always)]
+    fn advance<const A: usize>(&mut self, tmax: f32) -> bool {
+        if self.t_next[A] > fast_min(self.t_far, tmax) {
             return false;
         }
-        let c = self.cell[a] + self.cell_step[a];
+        let c = self.cell[A] + self.cell_step[A];
         // Also catches c == -1 (as a huge u32).
-        if c as u32 >= self.res[a] {
+        if c as u32 >= self.res[A] {
             return false;
         }
-        self.cell[a] = c;
-        self.index = self.index.wrapping_add_signed(self.index_step[a]);
-        self.plane[a] += self.plane_step[a];
-        self.t_next[a] = self.plane[a] * self.t_per_plane[a] + self.t_plane0[a];
+        self.cell[A] = c;
+        self.index = self.index.wrapping_add_signed(self.index_step[A]);
+        self.plane[A] += self.plane_step[A];
+        self.t_next[A] = self.plane[A] * self.t_per_plane[A] + self.t_plane0[A];
         true
     }
 }
@@ -694,3 +706,7 @@ fn triangle_overlaps_box(tri: &[Vec3; 3], b: &Aabb, slack: Vec3) -> bool {
     }
     true
 }
+
+pub static CELLS: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+pub static REFS: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+pub static TESTS: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);

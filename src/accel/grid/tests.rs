@@ -964,6 +964,9 @@ fn timing_against_embree() {
             (best, count)
         };
         let (tg, ng) = time(&|r| grid.intersect(r));
+        for c in [&CELLS, &REFS, &TESTS] {
+            println!("per ray {}", c.swap(0, std::sync::atomic::Ordering::Relaxed) as f64 / 5.0 / rays.len() as f64);
+        }
         let (te, ne) = time(&|r| embree.intersect(r));
         let packets: Vec<RayPacket> = rays
             .chunks(8)
