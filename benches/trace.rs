@@ -23,7 +23,9 @@ fn frames(c: &mut Criterion) {
     group.sample_size(20);
     for backend in [BackendKind::Embree, BackendKind::Grid] {
         let accel = Accelerator::build(backend, &scene.objects).expect("backend builds");
-        group.bench_function(backend.to_string(), |b| b.iter(|| render_frame(&scene, &accel)));
+        group.bench_function(backend.to_string(), |b| {
+            b.iter(|| render_frame(&scene, &accel))
+        });
     }
     group.finish();
 }
@@ -34,8 +36,11 @@ fn primary_packets(c: &mut Criterion) {
     let packets: Vec<[Ray; PACKET_WIDTH]> = image_groups(320, 240)
         .into_iter()
         .map(|g| {
-            g.lane_samples()
-                .map(|(x, y)| table.primary_ray(x as u32, y as u32).expect("inside the image"))
+            g.lane_samples().map(|(x, y)| {
+                table
+                    .primary_ray(x as u32, y as u32)
+                    .expect("inside the image")
+            })
         })
         .collect();
     let mut group = c.benchmark_group("paper 320x240 primary packets");

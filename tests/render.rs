@@ -10,19 +10,7 @@ use retrace::render::{render_frame, trace_groups, Frame, SampleGroup};
 use retrace::scene::{paper_scene, parse_scene_str, Scene, SceneOverrides};
 use retrace::shade::Shader;
 
-/// Runs each test body once per backend, as `embree::name` and `grid::name`.
-macro_rules! on_every_backend {
-    ($($name:ident($backend:ident) $body:block)*) => {
-        mod embree {
-            use super::*;
-            $(#[test] fn $name() { let $backend = BackendKind::Embree; $body })*
-        }
-        mod grid {
-            use super::*;
-            $(#[test] fn $name() { let $backend = BackendKind::Grid; $body })*
-        }
-    };
-}
+mod common;
 
 fn small(width: u32, height: u32) -> SceneOverrides {
     SceneOverrides {

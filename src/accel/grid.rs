@@ -45,7 +45,7 @@ use crate::ray::{Hit, Ray};
 
 /// Cells per primitive when the resolution is chosen automatically (the
 /// lambda of Cleary & Wyvill / Wald et al.: 2..4 is the usual sweet spot).
-pub const CELLS_PER_PRIMITIVE: f64 = 3.0;
+pub const CELLS_PER_PRIMITIVE: f64 = 4.0;
 
 /// Up to this many primitives an object's level is tested brute force,
 /// without a grid (a single sphere, a small polygon).
@@ -249,9 +249,9 @@ impl Nested {
     }
 
     #[inline]
-    fn closest(&self, ray: &Ray, tmax: f32) -> Option<Hit> {
+    fn closest(&self, ray: &Ray, prepared: &Prepared, tmax: f32) -> Option<Hit> {
         match &self.world_to_object {
-            None => self.level.closest(&Ray { tmax, ..*ray }),
+            None => self.level.closest_prepared(&Ray { tmax, ..*ray }, prepared),
             Some(m) => self.level.closest(&Ray {
                 origin: m.transform_point3(ray.origin),
                 dir: m.transform_vector3(ray.dir),
@@ -262,9 +262,9 @@ impl Nested {
     }
 
     #[inline]
-    fn any(&self, ray: &Ray) -> bool {
+    fn any(&self, ray: &Ray, prepared: &Prepared) -> bool {
         match &self.world_to_object {
-            None => self.level.any(ray),
+            None => self.level.any_prepared(ray, prepared),
             Some(m) => self.level.any(&Ray {
                 origin: m.transform_point3(ray.origin),
                 dir: m.transform_vector3(ray.dir),
@@ -290,14 +290,7 @@ impl Level {
         }
         let spec = match resolution {
             Some(r) => GridSpec::new(walk::padded(world), r.map(|n| n.max(1))),
-            None => GridSpec::with_cell_budget(
-                world,
-                std::env::var("LAMBDA")
-                    .ok()
-                    .and_then(|x| x.parse().ok())
-                    .unwrap_or(CELLS_PER_PRIMITIVE)
-                    * count as f64,
-            ),
+            None => GridSpec::with_cell_budget(world, CELLS_PER_PRIMITIVE * count as f64),
         };
         let cells = bin(&prims, &bounds, spec);
         Level {
@@ -308,7 +301,11 @@ impl Level {
 
     /// Closest hit in `(ray.tmin, ray.tmax)`.
     fn closest(&self, ray: &Ray) -> Option<Hit> {
-        let wt = WatertightRay::new(ray.origin, ray.dir)?;
+        self.closest_prepared(ray, &Prepared::new(ray)?)
+    }
+
+    #[inline(always)]
+    fn closest_prepared(&self, ray: &Ray, prepared: &Prepared) -> Option<Hit> {
         let mut best = Closest {
             tmax: ray.tmax,
             hit: None,
@@ -316,19 +313,16 @@ impl Level {
         match &self.cells {
             None => {
                 for p in 0..self.prims.len() as u32 {
-                    self.test_closest(p, ray, &wt, &mut best);
+                    self.test_closest(p, ray, prepared, &mut best);
                 }
             }
             Some(cells) => {
-                let mut dda = Dda::new(cells, ray)?;
+                let mut dda = Dda::new(cells, ray, prepared.inv_dir)?;
                 let mut mailbox = Mailbox::default();
                 loop {
-                    CELLS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
                     for &p in cells.items(dda.index) {
-                        REFS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
                         if !mailbox.seen(p) {
-                            TESTS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-                            self.test_closest(p, ray, &wt, &mut best);
+                            self.test_closest(p, ray, prepared, &mut best);
                         }
                     }
                     // Every hit closer than the current cell's exit lies in a
@@ -343,12 +337,16 @@ impl Level {
     }
 
     #[inline]
-    fn test_closest(&self, p: u32, ray: &Ray, wt: &WatertightRay, best: &mut Closest) {
+    fn test_closest(&self, p: u32, ray: &Ray, prepared: &Prepared, best: &mut Closest) {
         let p = p as usize;
         let nt = self.prims.triangles.len();
         let ns = self.prims.spheres.len();
         if p < nt {
-            if let Some(h) = wt.intersect_triangle(&self.prims.triangles[p], ray.tmin, best.tmax) {
+            if let Some(h) =
+                prepared
+                    .wt
+                    .intersect_triangle(&self.prims.triangles[p], ray.tmin, best.tmax)
+            {
                 let [object, prim] = self.prims.triangle_ids[p];
                 best.tmax = h.t;
                 best.hit = Some(Hit {
@@ -372,7 +370,7 @@ impl Level {
                 });
             }
         } else {
-            if let Some(h) = self.prims.nested[p - nt - ns].closest(ray, best.tmax) {
+            if let Some(h) = self.prims.nested[p - nt - ns].closest(ray, prepared, best.tmax) {
                 best.tmax = h.t;
                 best.hit = Some(h);
             }
@@ -381,19 +379,21 @@ impl Level {
 
     /// Anything in `(ray.tmin, ray.tmax)`?
     fn any(&self, ray: &Ray) -> bool {
-        let Some(wt) = WatertightRay::new(ray.origin, ray.dir) else {
-            return false;
-        };
+        Prepared::new(ray).is_some_and(|prepared| self.any_prepared(ray, &prepared))
+    }
+
+    #[inline(always)]
+    fn any_prepared(&self, ray: &Ray, prepared: &Prepared) -> bool {
         match &self.cells {
-            None => (0..self.prims.len() as u32).any(|p| self.test_any(p, ray, &wt)),
+            None => (0..self.prims.len() as u32).any(|p| self.test_any(p, ray, prepared)),
             Some(cells) => {
-                let Some(mut dda) = Dda::new(cells, ray) else {
+                let Some(mut dda) = Dda::new(cells, ray, prepared.inv_dir) else {
                     return false;
                 };
                 let mut mailbox = Mailbox::default();
                 loop {
                     for &p in cells.items(dda.index) {
-                        if !mailbox.seen(p) && self.test_any(p, ray, &wt) {
+                        if !mailbox.seen(p) && self.test_any(p, ray, prepared) {
                             return true;
                         }
                     }
@@ -406,19 +406,39 @@ impl Level {
     }
 
     #[inline]
-    fn test_any(&self, p: u32, ray: &Ray, wt: &WatertightRay) -> bool {
+    fn test_any(&self, p: u32, ray: &Ray, prepared: &Prepared) -> bool {
         let p = p as usize;
         let nt = self.prims.triangles.len();
         let ns = self.prims.spheres.len();
         if p < nt {
-            wt.intersect_triangle(&self.prims.triangles[p], ray.tmin, ray.tmax)
+            prepared
+                .wt
+                .intersect_triangle(&self.prims.triangles[p], ray.tmin, ray.tmax)
                 .is_some()
         } else if p < nt + ns {
             let (sphere, _) = &self.prims.spheres[p - nt];
             intersect_sphere(sphere, ray.origin, ray.dir, ray.tmin, ray.tmax).is_some()
         } else {
-            self.prims.nested[p - nt - ns].any(ray)
+            self.prims.nested[p - nt - ns].any(ray, prepared)
         }
+    }
+}
+
+/// What every level's traversal needs from a ray, computed once per ray
+/// (and shared with nested levels that have no transform).
+struct Prepared {
+    wt: WatertightRay,
+    inv_dir: Vec3,
+}
+
+impl Prepared {
+    /// `None` for rays that hit nothing: non-finite, or a zero direction.
+    #[inline(always)]
+    fn new(ray: &Ray) -> Option<Prepared> {
+        Some(Prepared {
+            wt: WatertightRay::new(ray.origin, ray.dir)?,
+            inv_dir: ray.dir.recip(),
+        })
     }
 }
 
@@ -499,12 +519,8 @@ struct Dda {
 
 impl Dda {
     #[inline(always)]
-    fn new(cells: &Cells, ray: &Ray) -> Option<Dda> {
+    fn new(cells: &Cells, ray: &Ray, inv_dir: Vec3) -> Option<Dda> {
         let (o, d) = (ray.origin, ray.dir);
-        if !o.is_finite() || !d.is_finite() || d == Vec3::ZERO {
-            return None;
-        }
-        let inv_dir = d.recip();
         let (lo, hi) = (cells.spec.bounds.min, cells.spec.bounds.max);
         let (mut t0, mut t1) = (ray.tmin, ray.tmax);
         for a in 0..3 {
@@ -706,7 +722,3 @@ fn triangle_overlaps_box(tri: &[Vec3; 3], b: &Aabb, slack: Vec3) -> bool {
     }
     true
 }
-
-pub static CELLS: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
-pub static REFS: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
-pub static TESTS: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);

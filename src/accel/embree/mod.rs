@@ -178,7 +178,13 @@ impl SceneBuilder {
             });
         }
         // SAFETY: `raw` is a live scene.
-        unsafe { sys::rtcSetSceneBuildQuality(raw, sys::RTCBuildQuality::RTC_BUILD_QUALITY_HIGH) };
+        unsafe {
+            sys::rtcSetSceneBuildQuality(raw, sys::RTCBuildQuality::RTC_BUILD_QUALITY_HIGH);
+            // Robust mode: without it Embree's triangle test loses rays
+            // through shared edges and vertices of closed meshes (measured:
+            // 44 of 3072 edge-exact rays on Debian's 3.13.5).
+            sys::rtcSetSceneFlags(raw, sys::RTCSceneFlags::RTC_SCENE_FLAG_ROBUST);
+        }
         Ok(SceneBuilder {
             raw,
             device: device.clone(),

@@ -244,7 +244,7 @@ fn test_cells(spec: GridSpec) -> Cells {
 
 /// The cells the DDA visits, until it stops on its own.
 fn dda_cells(cells: &Cells, ray: &Ray) -> Vec<[i32; 3]> {
-    let Some(mut dda) = Dda::new(cells, ray) else {
+    let Some(mut dda) = Prepared::new(ray).and_then(|p| Dda::new(cells, ray, p.inv_dir)) else {
         return Vec::new();
     };
     let mut out = vec![dda.cell];
@@ -355,13 +355,14 @@ proptest! {
     fn dda_follows_the_ray(
         n in (1u32..9, 1u32..9, 1u32..9),
         o in (-3.0f32..11.0, -3.0f32..11.0, -3.0f32..11.0),
-        d in (-1.0f32..1.0, -1.0f32..1.0, -1.0f32..1.0),
+        target in (0.0f32..1.0, 0.0f32..1.0, 0.0f32..1.0),
         zero in 0u8..16,
     ) {
         let n = [n.0, n.1, n.2];
         let spec = unit_spec(n);
         let cells = test_cells(spec);
-        let mut d = Vec3::from(d);
+        // Aimed at a point of the grid (most rays enter it).
+        let mut d = Vec3::from(target) * spec.bounds.max - Vec3::from(o);
         if zero < 3 {
             d[zero as usize] = if zero % 2 == 0 { 0.0 } else { -0.0 };
         }
@@ -410,7 +411,7 @@ fn assert_all_hit(grid: &GridIntersector, rays: &[Ray], what: &str) {
 
 #[test]
 fn random_rays_from_inside_closed_meshes_all_hit() {
-    let mut rng = Rng(7);
+    let mut rng = Rng(std::env::var("SEED").map_or(7, |s| s.parse().unwrap()));
     let meshes = [
         ("icosphere", icosphere(4, Vec3::new(0.3, -0.2, 0.1), 1.0)),
         ("cube", cube(5, Vec3::new(-0.25, 0.5, 0.0), 0.8)),
@@ -590,7 +591,7 @@ fn baked(shape: &Shape, xf: &Affine3A) -> Shape {
 
 #[test]
 fn instances_hit_like_their_world_space_copies() {
-    let mut rng = Rng(19);
+    let mut rng = Rng(std::env::var("SEED").map_or(19, |s| s.parse().unwrap()));
     let instances = random_instances(&mut rng);
     let mut inst_objects = vec![world(sphere(Vec3::new(0.0, -30.0, 0.0), 20.0))];
     let mut world_objects = inst_objects.clone();
@@ -643,7 +644,7 @@ fn instances_hit_like_their_world_space_copies() {
 
 #[test]
 fn agrees_with_brute_force_on_a_random_triangle_soup() {
-    let mut rng = Rng(42);
+    let mut rng = Rng(std::env::var("SEED").map_or(42, |s| s.parse().unwrap()));
     let mut mesh = TriangleMesh::default();
     for i in 0..400 {
         let c = rng.vec_in(Vec3::splat(-5.0), Vec3::splat(5.0));
@@ -863,7 +864,7 @@ fn agrees_with_embree_on_a_bumpy_mesh_and_spheres() {
     let objects = comparison_scene(blob(4, 99), 3.0);
     let embree = EmbreeIntersector::build(&objects).unwrap();
     let grid = GridIntersector::build(&objects, None);
-    let mut rng = Rng(1234);
+    let mut rng = Rng(std::env::var("SEED").map_or(1234, |s| s.parse().unwrap()));
     let rays = 20_000;
     let (mut hits, mut disagreements) = (0, 0);
     for i in 0..rays {
@@ -906,6 +907,7 @@ fn agrees_with_embree_on_a_bumpy_mesh_and_spheres() {
     }
     // The bound: at most 0.05% of the rays (10 of 20,000) may disagree, and
     // only by grazing (checked above).
+    eprintln!("DIS {disagreements} hits {hits}");
     assert!(
         disagreements <= rays / 2000,
         "{disagreements} disagreements"
@@ -964,9 +966,6 @@ fn timing_against_embree() {
             (best, count)
         };
         let (tg, ng) = time(&|r| grid.intersect(r));
-        for c in [&CELLS, &REFS, &TESTS] {
-            println!("per ray {}", c.swap(0, std::sync::atomic::Ordering::Relaxed) as f64 / 5.0 / rays.len() as f64);
-        }
         let (te, ne) = time(&|r| embree.intersect(r));
         let packets: Vec<RayPacket> = rays
             .chunks(8)
