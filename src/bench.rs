@@ -6,6 +6,9 @@
 //! renders and replays of exactly those packets through bare Embree (no ray
 //! generation, no shading, no plane tests) alternate, and the medians are
 //! compared. Both sides run on the same rayon pool.
+//!
+//! `backends`: the grid against Embree on the packet calls of one frame
+//! (planes included on both sides, as the renderer traces them).
 
 use std::sync::Mutex;
 use std::time::Instant;
@@ -13,7 +16,7 @@ use std::time::Instant;
 use rayon::prelude::*;
 
 use crate::accel::embree::{EmbreeError, EmbreeIntersector};
-use crate::accel::{Accelerator, Intersector};
+use crate::accel::{AccelError, Accelerator, BackendKind, Intersector};
 use crate::ray::{Hit, HitPacket, LaneMask, Ray, RayPacket, PACKET_WIDTH};
 use crate::render::render_frame;
 use crate::scene::Scene;
@@ -92,6 +95,35 @@ pub struct FrameBench {
     pub threads: usize,
 }
 
+/// The packet calls a full frame of `scene` makes, recorded once.
+fn record_frame(scene: &Scene, accel: &Accelerator) -> (Vec<Recorded>, RayCounts) {
+    let recorder = Recorder {
+        inner: accel,
+        log: Mutex::new(Vec::new()),
+    };
+    let (_, rays) = render_frame(scene, &recorder);
+    (
+        recorder.log.into_inner().unwrap_or_else(|e| e.into_inner()),
+        rays,
+    )
+}
+
+/// Replays recorded packet calls through `intersector`, in parallel.
+fn replay(log: &[Recorded], intersector: &dyn Intersector) {
+    log.par_iter()
+        .with_min_len(16)
+        .for_each(|packet| match packet.call {
+            Call::Intersect => {
+                let mut hits = [None; PACKET_WIDTH];
+                intersector.intersect8(&packet.rays, packet.mask, &mut hits);
+                std::hint::black_box(&hits);
+            }
+            Call::Occluded => {
+                std::hint::black_box(intersector.occluded8(&packet.rays, packet.mask));
+            }
+        })
+}
+
 fn median(mut values: Vec<f64>) -> f64 {
     values.sort_by(f64::total_cmp);
     values[values.len() / 2]
@@ -152,6 +184,59 @@ pub fn bench_frame(
         full_ms,
         embree_ms,
         ratio: full_ms / embree_ms,
+        threads: rayon::current_num_threads(),
+    })
+}
+
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct BackendBench {
+    pub width: u32,
+    pub height: u32,
+    pub repeats: usize,
+    pub packets: usize,
+    pub rays: RayCounts,
+    /// Median time of Embree on the recorded packets (planes included).
+    pub embree_ms: f64,
+    /// Median time of the grid on the same packets.
+    pub grid_ms: f64,
+    /// grid / embree.
+    pub ratio: f64,
+    pub threads: usize,
+}
+
+/// Times both backends on the packet calls of one full frame (recorded
+/// through Embree), alternating, medians compared.
+pub fn bench_backends(
+    scene: &Scene,
+    repeats: usize,
+    mut progress: impl FnMut(),
+) -> Result<BackendBench, AccelError> {
+    let embree = Accelerator::build(BackendKind::Embree, &scene.objects)?;
+    let grid = Accelerator::build(BackendKind::Grid, &scene.objects)?;
+    let (log, rays) = record_frame(scene, &embree);
+    replay(&log, &embree);
+    replay(&log, &grid);
+    let repeats = repeats.max(1);
+    let (mut embree_times, mut grid_times) = (Vec::new(), Vec::new());
+    for _ in 0..repeats {
+        let start = Instant::now();
+        replay(&log, &embree);
+        embree_times.push(start.elapsed().as_secs_f64() * 1e3);
+        let start = Instant::now();
+        replay(&log, &grid);
+        grid_times.push(start.elapsed().as_secs_f64() * 1e3);
+        progress();
+    }
+    let (embree_ms, grid_ms) = (median(embree_times), median(grid_times));
+    Ok(BackendBench {
+        width: scene.camera.width,
+        height: scene.camera.height,
+        repeats,
+        packets: log.len(),
+        rays,
+        embree_ms,
+        grid_ms,
+        ratio: grid_ms / embree_ms,
         threads: rayon::current_num_threads(),
     })
 }

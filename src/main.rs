@@ -12,6 +12,7 @@ use retrace::camera::Projection;
 use retrace::output::save_image;
 use retrace::render::render_frame;
 use retrace::scene::{load_scene, paper_scene, Scene, SceneOverrides};
+use retrace::shade::RayCounts;
 
 #[derive(Parser)]
 #[command(
@@ -111,7 +112,8 @@ struct BenchArgs {
     #[command(flatten)]
     backend: BackendArg,
     /// Which measurement: `frame` (a full frame against bare Embree on the
-    /// same ray packets).
+    /// same ray packets) or `backends` (the grid against Embree on the same
+    /// ray packets).
     #[arg(long, default_value = "frame")]
     only: String,
     /// Timed repetitions (the median is reported).
@@ -187,38 +189,55 @@ fn render(args: RenderArgs) -> Result<()> {
 }
 
 fn bench(args: BenchArgs) -> Result<()> {
-    if args.only != "frame" {
-        anyhow::bail!(
-            "unknown measurement '{}' for --only (available: frame)",
-            args.only
-        );
-    }
     if cfg!(debug_assertions) {
         eprintln!(
             "warning: this is a debug build; timings mean little (use `cargo run --release`)"
         );
     }
     let scene = load(&args.scene)?;
-    let accel = Accelerator::build(args.backend.backend, &scene.objects)?;
-    let bar = indicatif::ProgressBar::new(args.repeats.max(1) as u64)
-        .with_style(
-            indicatif::ProgressStyle::with_template("{msg} {bar:30} {pos}/{len}")
-                .expect("static template"),
-        )
-        .with_message("frame vs bare Embree");
-    let result = retrace::bench::bench_frame(&scene, &accel, args.repeats, || bar.inc(1))?;
-    bar.finish_and_clear();
+    let bar = indicatif::ProgressBar::new(args.repeats.max(1) as u64).with_style(
+        indicatif::ProgressStyle::with_template("{msg} {bar:30} {pos}/{len}")
+            .expect("static template"),
+    );
+    match args.only.as_str() {
+        "frame" => bench_frame(&args, &scene, bar),
+        "backends" => bench_backends(&args, &scene, bar),
+        other => {
+            anyhow::bail!("unknown measurement '{other}' for --only (available: frame, backends)")
+        }
+    }
+}
+
+fn print_packets(
+    args: &BenchArgs,
+    width: u32,
+    height: u32,
+    packets: usize,
+    rays: RayCounts,
+    repeats: usize,
+) {
     println!(
-        "{}: {}x{}, {} packets ({} primary, {} shadow, {} reflection rays), {} threads, median of {}",
+        "{}: {width}x{height}, {packets} packets ({} primary, {} shadow, {} reflection rays), {} threads, median of {repeats}",
         scene_name(&args.scene),
+        rays.primary,
+        rays.shadow,
+        rays.reflection,
+        rayon::current_num_threads(),
+    );
+}
+
+fn bench_frame(args: &BenchArgs, scene: &Scene, bar: indicatif::ProgressBar) -> Result<()> {
+    let accel = Accelerator::build(args.backend.backend, &scene.objects)?;
+    bar.set_message("frame vs bare Embree");
+    let result = retrace::bench::bench_frame(scene, &accel, args.repeats, || bar.inc(1))?;
+    bar.finish_and_clear();
+    print_packets(
+        args,
         result.width,
         result.height,
         result.packets,
-        result.rays.primary,
-        result.rays.shadow,
-        result.rays.reflection,
-        result.threads,
-        result.repeats
+        result.rays,
+        result.repeats,
     );
     println!(
         "full frame ({}):      {:8.2} ms",
@@ -227,6 +246,27 @@ fn bench(args: BenchArgs) -> Result<()> {
     );
     println!("bare Embree, same packets: {:8.2} ms", result.embree_ms);
     println!("ratio:                     {:8.3}x", result.ratio);
+    if let Some(path) = &args.json {
+        write_json(path, &result)?;
+    }
+    Ok(())
+}
+
+fn bench_backends(args: &BenchArgs, scene: &Scene, bar: indicatif::ProgressBar) -> Result<()> {
+    bar.set_message("grid vs Embree");
+    let result = retrace::bench::bench_backends(scene, args.repeats, || bar.inc(1))?;
+    bar.finish_and_clear();
+    print_packets(
+        args,
+        result.width,
+        result.height,
+        result.packets,
+        result.rays,
+        result.repeats,
+    );
+    println!("Embree, recorded packets: {:8.2} ms", result.embree_ms);
+    println!("grid, same packets:       {:8.2} ms", result.grid_ms);
+    println!("ratio grid / Embree:      {:8.3}x", result.ratio);
     if let Some(path) = &args.json {
         write_json(path, &result)?;
     }

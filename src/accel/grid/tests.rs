@@ -620,7 +620,11 @@ fn instances_hit_like_their_world_space_copies() {
         match (x, y) {
             (Some(x), Some(y)) => {
                 hits += 1;
-                assert!((x.t - y.t).abs() <= 1e-4 * y.t, "{x:?} vs {y:?}");
+                // Relative to the distance, plus the rounding of the
+                // origin's coordinates (the two rays are computed apart).
+                let len = ray.dir.length();
+                let tol = 1e-4 * y.t * len + 1e-5 * (ray.origin.length() + 1.0);
+                assert!((x.t - y.t).abs() * len <= tol, "{x:?} vs {y:?}");
                 if x.object == y.object && x.prim == y.prim {
                     checked += 1;
                     assert!((x.u - y.u).abs() < 1e-3 && (x.v - y.v).abs() < 1e-3);
@@ -637,7 +641,7 @@ fn instances_hit_like_their_world_space_copies() {
         assert_eq!(a.occluded(&ray), x.is_some());
     }
     assert!(
-        hits > 5_000 && checked > hits * 9 / 10,
+        hits > 3_000 && checked > hits * 9 / 10,
         "{hits} hits, {checked} checked"
     );
 }
@@ -866,7 +870,7 @@ fn agrees_with_embree_on_a_bumpy_mesh_and_spheres() {
     let grid = GridIntersector::build(&objects, None);
     let mut rng = Rng(std::env::var("SEED").map_or(1234, |s| s.parse().unwrap()));
     let rays = 20_000;
-    let (mut hits, mut disagreements) = (0, 0);
+    let (mut hits, mut disagreements, mut same_triangle) = (0, 0, 0);
     for i in 0..rays {
         let o = if i % 2 == 0 {
             Vec3::new(0.0, 1.0, 4.0) + rng.vec_in(Vec3::splat(-1.0), Vec3::ONE)
@@ -884,6 +888,15 @@ fn agrees_with_embree_on_a_bumpy_mesh_and_spheres() {
                 if !close || g.object != e.object {
                     disagreements += 1;
                     assert!(close, "t differs: grid {g:?} embree {e:?} for {ray:?}");
+                }
+                let mesh = matches!(objects[e.object as usize].shape, Shape::Mesh(_));
+                if mesh && (g.object, g.prim) == (e.object, e.prim) {
+                    // Same barycentric convention as Embree.
+                    assert!(
+                        (g.u - e.u).abs() < 1e-3 && (g.v - e.v).abs() < 1e-3,
+                        "barycentrics differ: grid {g:?} embree {e:?}"
+                    );
+                    same_triangle += 1;
                 }
             }
             (None, None) => {}
@@ -907,12 +920,16 @@ fn agrees_with_embree_on_a_bumpy_mesh_and_spheres() {
     }
     // The bound: at most 0.05% of the rays (10 of 20,000) may disagree, and
     // only by grazing (checked above).
-    eprintln!("DIS {disagreements} hits {hits}");
+    eprintln!("DIS {disagreements} hits {hits} tri {same_triangle}");
     assert!(
         disagreements <= rays / 2000,
         "{disagreements} disagreements"
     );
     assert!(hits > rays / 3, "only {hits} hits");
+    assert!(
+        same_triangle > hits / 3,
+        "only {same_triangle} triangle hits"
+    );
 }
 
 /// Times the grid against Embree on 640x480 primary rays; run with
