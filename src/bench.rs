@@ -240,3 +240,160 @@ pub fn bench_backends(
         threads: rayon::current_num_threads(),
     })
 }
+
+/// One experiment's sequence, rendered in full and with reuse in one run.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct SequenceBench {
+    pub frames: u32,
+    pub pixels_per_frame: u64,
+    /// Median over rounds of the whole full sequence (frames converted to
+    /// 8 bits, not written).
+    pub full_ms: f64,
+    /// The same for the accelerated sequence (frame 0, buffers and copies included).
+    pub accelerated_ms: f64,
+    pub speedup: f64,
+    pub samples_traced: u64,
+    /// Frames x pixels over the samples no reuse could avoid tracing (the
+    /// lattice samples the windows expose, each once).
+    pub oracle_speedup: f64,
+    /// speedup / oracle_speedup.
+    pub efficiency: f64,
+    /// Every accelerated frame equal, bit for bit, to its full render.
+    pub exact: bool,
+    pub max_yaw_error_deg: f64,
+    pub rounds: usize,
+    pub threads: usize,
+}
+
+/// FNV-1a over a frame's bits: full and accelerated frames compare without
+/// keeping a hundred frames in memory.
+fn frame_hash(frame: &crate::render::Frame) -> u64 {
+    frame
+        .pixels
+        .iter()
+        .flat_map(|p| p.to_array())
+        .fold(0xcbf2_9ce4_8422_2325u64, |h, x| {
+            (h ^ u64::from(x.to_bits())).wrapping_mul(0x0100_0000_01b3)
+        })
+}
+
+/// Samples that no reuse could avoid tracing for a static scene: every
+/// lattice sample some frame shows, once (for equal-angle cameras; other
+/// cameras trace every pixel of every frame).
+fn oracle_samples(animator: &crate::anim::Animator, frames: std::ops::Range<u32>) -> u64 {
+    use crate::reuse::pan::EqualAngleLattice;
+    let mut seen: std::collections::HashMap<(i64, i64), ()> = std::collections::HashMap::new();
+    let mut other = 0u64;
+    for frame in frames {
+        let camera = animator.camera_at(frame);
+        if camera.projection != crate::camera::Projection::EqualAngle {
+            other += u64::from(camera.width) * u64::from(camera.height);
+            continue;
+        }
+        let lattice = EqualAngleLattice::for_camera(&camera);
+        let window = lattice.window(&camera);
+        for y in 0..i64::from(window.height) {
+            for x in 0..i64::from(window.width) {
+                seen.insert((lattice.wrap_column(window.col + x), window.row + y), ());
+            }
+        }
+    }
+    seen.len() as u64 + other
+}
+
+/// Renders `frames` in full and with `techniques`, alternating `rounds`
+/// times; compares the medians of the sequence totals.
+pub fn bench_sequence(
+    scene: &Scene,
+    accel: &Accelerator,
+    techniques: crate::anim::Techniques,
+    frames: std::ops::Range<u32>,
+    rounds: usize,
+    mut progress: impl FnMut(),
+) -> SequenceBench {
+    use crate::anim::{Animator, Techniques};
+    let rounds = rounds.max(1);
+    let (mut full_times, mut fast_times) = (Vec::new(), Vec::new());
+    let mut exact = true;
+    let mut samples_traced = 0;
+    let mut max_yaw_error: f64 = 0.0;
+    let mut pixels_per_frame = 0;
+    for _ in 0..rounds {
+        let full = Animator::new(scene, accel, Techniques::FULL, frames.clone());
+        let mut hashes = Vec::new();
+        let mut elapsed = 0.0;
+        for frame in frames.clone() {
+            let start = Instant::now();
+            let (image, _) = full.render_full(frame);
+            std::hint::black_box(image.to_rgb8());
+            elapsed += start.elapsed().as_secs_f64() * 1e3;
+            hashes.push(frame_hash(&image));
+            progress();
+        }
+        full_times.push(elapsed);
+
+        let mut fast = Animator::new(scene, accel, techniques, frames.clone());
+        fast.set_linear_output(false);
+        samples_traced = 0;
+        let mut elapsed = 0.0;
+        for frame in frames.clone() {
+            let start = Instant::now();
+            let (_, rgb, stats) = fast.render(frame);
+            std::hint::black_box(rgb);
+            elapsed += start.elapsed().as_secs_f64() * 1e3;
+            samples_traced += stats.samples_traced;
+            max_yaw_error = max_yaw_error.max(stats.yaw_error_deg.abs());
+            pixels_per_frame = stats.pixels;
+            progress();
+        }
+        fast_times.push(elapsed);
+        // Exactness on a separate, untimed pass that keeps linear colour.
+        let mut check = Animator::new(scene, accel, techniques, frames.clone());
+        let fast_hashes: Vec<u64> = frames
+            .clone()
+            .map(|frame| frame_hash(&check.render(frame).0.expect("linear output is on")))
+            .collect();
+        exact &= hashes == fast_hashes;
+    }
+    let animator = Animator::new(scene, accel, techniques, frames.clone());
+    let oracle = oracle_samples(&animator, frames.clone());
+    let frame_count = frames.end - frames.start;
+    let (full_ms, accelerated_ms) = (median(full_times), median(fast_times));
+    let speedup = full_ms / accelerated_ms;
+    let oracle_speedup = (u64::from(frame_count) * pixels_per_frame) as f64 / oracle.max(1) as f64;
+    SequenceBench {
+        frames: frame_count,
+        pixels_per_frame,
+        full_ms,
+        accelerated_ms,
+        speedup,
+        samples_traced,
+        oracle_speedup,
+        efficiency: speedup / oracle_speedup,
+        exact,
+        max_yaw_error_deg: max_yaw_error,
+        rounds,
+        threads: rayon::current_num_threads(),
+    }
+}
+
+/// Experiment E1 of the paper: the paper scene (as given), yawing 3.6
+/// degrees per frame for 100 frames, a whole turn.
+pub fn e1_scene(mut scene: Scene) -> Scene {
+    use crate::anim::{Animation, CameraKey, Ease};
+    let camera = &scene.camera;
+    let key = |frame: u32, yaw_deg: f64| CameraKey {
+        frame,
+        yaw: camera.yaw + yaw_deg.to_radians(),
+        pitch: camera.pitch,
+        fov: camera.fov,
+        position: camera.position,
+        ease: Ease::Linear,
+    };
+    scene.animation = Some(Animation {
+        frames: 100,
+        fps: 25.0,
+        camera_keys: vec![key(0, 0.0), key(100, 360.0)],
+    });
+    scene
+}

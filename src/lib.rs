@@ -5,12 +5,14 @@
 //! Jevans (OSTC).
 
 pub mod accel;
+pub mod anim;
 pub mod bench;
 pub mod camera;
 pub mod geometry;
 pub mod output;
 pub mod ray;
 pub mod render;
+pub mod reuse;
 pub mod scene;
 pub mod shade;
 pub mod validate;

@@ -8,6 +8,7 @@ use anyhow::{Context, Result};
 use clap::{Args, Parser, Subcommand};
 
 use retrace::accel::{Accelerator, BackendKind};
+use retrace::anim::{Animator, Techniques};
 use retrace::camera::Projection;
 use retrace::output::save_image;
 use retrace::render::render_frame;
@@ -32,6 +33,8 @@ struct Cli {
 enum Command {
     /// Render one image of a scene file (.toml) or a bare model (.obj).
     Render(RenderArgs),
+    /// Render an animation's frames, re-tracing only what changed.
+    Animate(AnimateArgs),
     /// Measure rendering costs (release builds only make sense here).
     Bench(BenchArgs),
     /// Check Embree against the pure-Rust grid: ray by ray (camera rays and
@@ -103,6 +106,36 @@ struct RenderArgs {
     /// Output image (.png or .tga).
     #[arg(short, long, default_value = "out/render.png")]
     output: PathBuf,
+}
+
+#[derive(Args)]
+struct AnimateArgs {
+    #[command(flatten)]
+    scene: SceneArgs,
+    #[command(flatten)]
+    backend: BackendArg,
+    /// Frames to render: A-B (inclusive) or A; default: the whole animation.
+    #[arg(long)]
+    frames: Option<String>,
+    /// Frame files (.png or .tga); a run of # becomes the zero-padded frame number.
+    #[arg(short, long, default_value = "out/frame_####.png")]
+    output: String,
+    /// Also write the frames as an animated GIF here.
+    #[arg(long)]
+    gif: Option<PathBuf>,
+    /// Per-frame statistics: .csv or .json.
+    #[arg(long)]
+    stats: Option<PathBuf>,
+    /// full (no reuse), auto (every technique the timeline allows), or a
+    /// comma list of techniques: pan.
+    #[arg(long, default_value = "auto", value_parser = Techniques::parse)]
+    mode: Techniques,
+    /// Also render every frame in full and fail on any difference.
+    #[arg(long)]
+    verify: bool,
+    /// Leave frames whose file already exists (to resume a run).
+    #[arg(long)]
+    skip_existing: bool,
 }
 
 #[derive(Args)]
@@ -202,8 +235,11 @@ fn bench(args: BenchArgs) -> Result<()> {
     match args.only.as_str() {
         "frame" => bench_frame(&args, &scene, bar),
         "backends" => bench_backends(&args, &scene, bar),
+        "E1" | "e1" => bench_e1(&args, scene, bar),
         other => {
-            anyhow::bail!("unknown measurement '{other}' for --only (available: frame, backends)")
+            anyhow::bail!(
+                "unknown measurement '{other}' for --only (available: frame, backends, E1)"
+            )
         }
     }
 }
@@ -252,6 +288,56 @@ fn bench_frame(args: &BenchArgs, scene: &Scene, bar: indicatif::ProgressBar) -> 
     Ok(())
 }
 
+fn bench_e1(args: &BenchArgs, scene: Scene, bar: indicatif::ProgressBar) -> Result<()> {
+    let scene = retrace::bench::e1_scene(scene);
+    let accel = Accelerator::build(args.backend.backend, &scene.objects)?;
+    let rounds = args.repeats.clamp(1, 5);
+    bar.set_length((rounds * 200) as u64);
+    bar.set_message("E1: 100 full frames vs Panimation");
+    let result =
+        retrace::bench::bench_sequence(&scene, &accel, Techniques::AUTO, 0..100, rounds, || {
+            bar.inc(1)
+        });
+    bar.finish_and_clear();
+    println!(
+        "E1 (pan 3.6 deg/frame, 100 frames, {}x{}), {} threads, median of {} rounds",
+        scene.camera.width, scene.camera.height, result.threads, result.rounds
+    );
+    println!(
+        "full renders:      {:9.1} ms ({:.2} ms/frame)",
+        result.full_ms,
+        result.full_ms / 100.0
+    );
+    println!(
+        "Panimation:        {:9.1} ms ({:.2} ms/frame)",
+        result.accelerated_ms,
+        result.accelerated_ms / 100.0
+    );
+    println!("speedup:           {:9.2}x (paper: ~10x)", result.speedup);
+    println!(
+        "oracle speedup:    {:9.2}x, efficiency {:.0}%",
+        result.oracle_speedup,
+        result.efficiency * 100.0
+    );
+    println!("samples traced:    {:9}", result.samples_traced);
+    println!(
+        "exact:             {} (snapped pan; max yaw error {:.4} deg)",
+        if result.exact {
+            "every frame bit-identical to its full render"
+        } else {
+            "FRAMES DIFFER"
+        },
+        result.max_yaw_error_deg
+    );
+    if let Some(path) = &args.json {
+        write_json(path, &result)?;
+    }
+    if !result.exact {
+        anyhow::bail!("E1: accelerated frames differ from full renders");
+    }
+    Ok(())
+}
+
 fn bench_backends(args: &BenchArgs, scene: &Scene, bar: indicatif::ProgressBar) -> Result<()> {
     bar.set_message("grid vs Embree");
     let result = retrace::bench::bench_backends(scene, args.repeats, || bar.inc(1))?;
@@ -269,6 +355,280 @@ fn bench_backends(args: &BenchArgs, scene: &Scene, bar: indicatif::ProgressBar) 
     println!("ratio grid / Embree:      {:8.3}x", result.ratio);
     if let Some(path) = &args.json {
         write_json(path, &result)?;
+    }
+    Ok(())
+}
+
+/// `A-B` or `A`, within `0..count`.
+fn parse_frame_range(text: Option<&str>, count: u32) -> Result<std::ops::RangeInclusive<u32>> {
+    let Some(text) = text else {
+        return Ok(0..=count - 1);
+    };
+    let parse = |s: &str| -> Result<u32> {
+        s.trim()
+            .parse()
+            .with_context(|| format!("--frames {text}: '{s}' is not a frame number"))
+    };
+    let (first, last) = match text.split_once('-') {
+        Some((a, b)) => (parse(a)?, parse(b)?),
+        None => {
+            let frame = parse(text)?;
+            (frame, frame)
+        }
+    };
+    if first > last {
+        anyhow::bail!("--frames {text}: the first frame comes after the last");
+    }
+    if last >= count {
+        anyhow::bail!("--frames {text}: the animation has frames 0-{}", count - 1);
+    }
+    Ok(first..=last)
+}
+
+/// Splits a frame pattern around its run of `#`.
+fn frame_pattern(pattern: &str) -> Result<(String, usize, String)> {
+    let start = pattern.find('#').with_context(|| {
+        format!(
+            "output pattern '{pattern}' has no # for the frame number (e.g. out/frame_####.png)"
+        )
+    })?;
+    let width = pattern[start..].chars().take_while(|&c| c == '#').count();
+    let (prefix, suffix) = (&pattern[..start], &pattern[start + width..]);
+    if suffix.contains('#') {
+        anyhow::bail!("output pattern '{pattern}' has more than one run of #");
+    }
+    Ok((prefix.to_string(), width, suffix.to_string()))
+}
+
+/// Fails early, before any rendering, if `dir` cannot take new files.
+fn check_writable(dir: &Path) -> Result<()> {
+    std::fs::create_dir_all(dir)
+        .with_context(|| format!("cannot create output folder {}", dir.display()))?;
+    let probe = dir.join(format!(".retrace-probe-{}", std::process::id()));
+    std::fs::write(&probe, b"")
+        .with_context(|| format!("cannot write into output folder {}", dir.display()))?;
+    let _ = std::fs::remove_file(probe);
+    Ok(())
+}
+
+struct GifWriter {
+    /// None once finished.
+    encoder: Option<image::codecs::gif::GifEncoder<std::io::BufWriter<std::fs::File>>>,
+    temp: PathBuf,
+    path: PathBuf,
+    delay: image::Delay,
+}
+
+impl GifWriter {
+    fn create(path: &Path, fps: f64) -> Result<GifWriter> {
+        ensure_parent(path)?;
+        let temp = path.with_file_name(format!(
+            ".{}.{}.tmp",
+            path.file_name()
+                .map(|n| n.to_string_lossy())
+                .unwrap_or_default(),
+            std::process::id()
+        ));
+        let file = std::fs::File::create(&temp)
+            .with_context(|| format!("cannot write {}", path.display()))?;
+        // Speed 20 of 30: quantization good enough for previews, several times faster than the default.
+        let mut encoder =
+            image::codecs::gif::GifEncoder::new_with_speed(std::io::BufWriter::new(file), 20);
+        encoder.set_repeat(image::codecs::gif::Repeat::Infinite)?;
+        Ok(GifWriter {
+            encoder: Some(encoder),
+            temp,
+            path: path.to_path_buf(),
+            delay: image::Delay::from_numer_denom_ms(1000, fps.round().max(1.0) as u32),
+        })
+    }
+
+    fn add(&mut self, image: &image::RgbImage) -> Result<()> {
+        let rgba = image::DynamicImage::ImageRgb8(image.clone()).to_rgba8();
+        self.encoder
+            .as_mut()
+            .expect("frames are added before finish")
+            .encode_frame(image::Frame::from_parts(rgba, 0, 0, self.delay))
+            .with_context(|| format!("cannot encode {}", self.path.display()))
+    }
+
+    fn finish(mut self) -> Result<()> {
+        // Dropping the encoder writes the trailer and flushes the file.
+        drop(self.encoder.take());
+        std::fs::rename(&self.temp, &self.path)
+            .with_context(|| format!("cannot write {}", self.path.display()))
+    }
+}
+
+impl Drop for GifWriter {
+    fn drop(&mut self) {
+        // An unfinished GIF (an error stopped the run) leaves no file behind.
+        if self.encoder.is_some() {
+            drop(self.encoder.take());
+            let _ = std::fs::remove_file(&self.temp);
+        }
+    }
+}
+
+fn write_stats(path: &Path, stats: &[retrace::anim::FrameStats]) -> Result<()> {
+    let is_json = path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("json"));
+    let text = if is_json {
+        serde_json::to_string_pretty(stats)?
+    } else {
+        let mut csv = String::from(
+            "frame,mode,reason,pixels,pixels_reused,samples_traced,primary_rays,shadow_rays,reflection_rays,\
+             trace_ms,copy_ms,total_ms,yaw_error_deg,pitch_error_deg,full_ms,speedup,differing_pixels\n",
+        );
+        let opt = |v: Option<f64>| v.map_or(String::new(), |v| format!("{v:.4}"));
+        for s in stats {
+            csv.push_str(&format!(
+                "{},{},\"{}\",{},{},{},{},{},{},{:.4},{:.4},{:.4},{:.6},{:.6},{},{},{}\n",
+                s.frame,
+                s.mode,
+                s.reason.replace('"', "'"),
+                s.pixels,
+                s.pixels_reused,
+                s.samples_traced,
+                s.primary_rays,
+                s.shadow_rays,
+                s.reflection_rays,
+                s.trace_ms,
+                s.copy_ms,
+                s.total_ms,
+                s.yaw_error_deg,
+                s.pitch_error_deg,
+                opt(s.full_ms),
+                opt(s.speedup),
+                s.differing_pixels.map_or(String::new(), |d| d.to_string()),
+            ));
+        }
+        csv
+    };
+    ensure_parent(path)?;
+    retrace::output::write_atomically(path, |temp| {
+        std::fs::write(temp, &text).map_err(|source| retrace::output::OutputError::Write {
+            path: path.to_path_buf(),
+            source,
+        })
+    })?;
+    Ok(())
+}
+
+fn animate(args: AnimateArgs) -> Result<()> {
+    let (prefix, digits, suffix) = frame_pattern(&args.output)?;
+    let frame_path = |frame: u32| PathBuf::from(format!("{prefix}{frame:0digits$}{suffix}"));
+    retrace::output::format_for(&frame_path(0))?;
+    if let Some(path) = &args.stats {
+        let ext = path.extension().map(|e| e.to_string_lossy().to_lowercase());
+        if !matches!(ext.as_deref(), Some("csv" | "json")) {
+            anyhow::bail!("--stats {}: use a .csv or .json file", path.display());
+        }
+    }
+    let scene = load(&args.scene)?;
+    let (count, fps) = scene
+        .animation
+        .as_ref()
+        .map_or((1, 25.0), |a| (a.frames, a.fps));
+    let range = parse_frame_range(args.frames.as_deref(), count)?;
+    let out_dir = frame_path(*range.start())
+        .parent()
+        .filter(|d| !d.as_os_str().is_empty())
+        .map_or(PathBuf::from("."), Path::to_path_buf);
+    check_writable(&out_dir)?;
+    let mut gif = match &args.gif {
+        Some(path) => Some(GifWriter::create(path, fps)?),
+        None => None,
+    };
+    let accel = Accelerator::build(args.backend.backend, &scene.objects)?;
+    let mut animator = Animator::new(&scene, &accel, args.mode, *range.start()..*range.end() + 1);
+    animator.set_linear_output(args.verify);
+
+    let bar = indicatif::ProgressBar::new(u64::from(range.end() - range.start() + 1)).with_style(
+        indicatif::ProgressStyle::with_template(
+            "{bar:30} {pos}/{len} frames {msg} [{elapsed} < {eta}]",
+        )
+        .expect("static template"),
+    );
+    let mut all_stats = Vec::new();
+    let mut failed_frames = Vec::new();
+    let mut write_ms = 0.0;
+    for frame in range.clone() {
+        let path = frame_path(frame);
+        if args.skip_existing && path.exists() {
+            bar.inc(1);
+            continue;
+        }
+        let (image, rgb, mut stats) = animator.render(frame);
+        if args.verify {
+            let start = Instant::now();
+            let (reference, _) = animator.render_full(frame);
+            let full_ms = start.elapsed().as_secs_f64() * 1e3;
+            let image = image.expect("verification keeps linear colour");
+            let differing = retrace::anim::count_differences(&image, &reference);
+            stats.full_ms = Some(full_ms);
+            stats.speedup = Some(full_ms / stats.total_ms);
+            stats.differing_pixels = Some(differing);
+            if differing > 0 {
+                failed_frames.push((frame, differing));
+            }
+        }
+        let write_start = Instant::now();
+        save_image(&path, &rgb)?;
+        if let Some(gif) = &mut gif {
+            gif.add(&rgb)?;
+        }
+        write_ms += write_start.elapsed().as_secs_f64() * 1e3;
+        bar.set_message(format!("{} {:.0} ms", stats.mode, stats.total_ms));
+        all_stats.push(stats);
+        bar.inc(1);
+    }
+    bar.finish_and_clear();
+    if let Some(gif) = gif {
+        gif.finish()?;
+    }
+    if let Some(path) = &args.stats {
+        write_stats(path, &all_stats)?;
+    }
+    // Reuse that was asked for but could not apply is worth a word.
+    let mut refusals: Vec<&str> = all_stats
+        .iter()
+        .filter(|s| s.mode == "full" && !s.reason.is_empty())
+        .map(|s| s.reason.as_str())
+        .collect();
+    refusals.dedup();
+    for reason in refusals {
+        eprintln!("warning: rendered in full: {reason}");
+    }
+    let rendered = all_stats.len();
+    let total: f64 = all_stats.iter().map(|s| s.total_ms).sum();
+    let traced: u64 = all_stats.iter().map(|s| s.samples_traced).sum();
+    let pixels: u64 = all_stats.iter().map(|s| s.pixels).sum();
+    println!(
+        "{}: {rendered} frames in {:.1} ms rendering ({:.1} ms writing); traced {traced} samples for {pixels} pixels ({:.1}%)",
+        scene_name(&args.scene),
+        total,
+        write_ms,
+        100.0 * traced as f64 / pixels.max(1) as f64
+    );
+    if args.verify {
+        let full: f64 = all_stats.iter().filter_map(|s| s.full_ms).sum();
+        println!(
+            "verify: full renders {full:.1} ms, speedup {:.2}x",
+            full / total.max(1e-9)
+        );
+        if !failed_frames.is_empty() {
+            let list: Vec<String> = failed_frames
+                .iter()
+                .map(|(f, d)| format!("frame {f}: {d} pixels"))
+                .collect();
+            anyhow::bail!(
+                "verification failed, frames differ from full renders: {}",
+                list.join(", ")
+            );
+        }
+        println!("verify: every frame equals its full render bit for bit");
     }
     Ok(())
 }
@@ -360,6 +720,7 @@ fn main() -> ExitCode {
     }
     let result = match cli.command {
         Command::Render(args) => render(args),
+        Command::Animate(args) => animate(args),
         Command::Bench(args) => bench(args),
         Command::Validate(args) => validate(args),
     };

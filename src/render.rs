@@ -147,12 +147,75 @@ impl Frame {
 
     /// 8-bit sRGB, clamped.
     pub fn to_rgb8(&self) -> image::RgbImage {
+        let table = srgb_table();
         let mut out = image::RgbImage::new(self.width, self.height);
         for (dst, src) in out.pixels_mut().zip(&self.pixels) {
-            *dst = image::Rgb(src.to_array().map(encode_srgb));
+            *dst = image::Rgb(src.to_array().map(|c| table.encode(c)));
         }
         out
     }
+}
+
+/// sRGB encoding without a powf per channel: for each byte, the least
+/// linear value that encodes to it, found from [`encode_srgb`] itself, so
+/// the table gives exactly the same bytes.
+pub struct SrgbTable {
+    /// `thresholds[b]`: least f32 (as bits; positive floats order like
+    /// their bits) that encodes to byte b or more.
+    thresholds: [u32; 256],
+    /// For each bucket of the f32 bit pattern, the byte at its low end.
+    buckets: Vec<u8>,
+}
+
+/// Bits of the f32 pattern that select a bucket; at the steepest part of
+/// the curve a bucket then spans far less than one byte step.
+const SRGB_BUCKET_SHIFT: u32 = 13;
+
+impl SrgbTable {
+    fn new() -> SrgbTable {
+        let mut thresholds = [0u32; 256];
+        for (byte, threshold) in thresholds.iter_mut().enumerate().skip(1) {
+            // Bisect on the bit pattern of [0, 1].
+            let (mut lo, mut hi) = (0u32, 1.0f32.to_bits());
+            while lo < hi {
+                let mid = lo + (hi - lo) / 2;
+                if usize::from(encode_srgb(f32::from_bits(mid))) >= byte {
+                    hi = mid;
+                } else {
+                    lo = mid + 1;
+                }
+            }
+            *threshold = lo;
+        }
+        let count = (1.0f32.to_bits() >> SRGB_BUCKET_SHIFT) as usize + 1;
+        let buckets = (0..count)
+            .map(|bucket| {
+                let low = (bucket as u32) << SRGB_BUCKET_SHIFT;
+                (thresholds.partition_point(|&t| t <= low) - 1) as u8
+            })
+            .collect();
+        SrgbTable {
+            thresholds,
+            buckets,
+        }
+    }
+
+    pub fn encode(&self, linear: f32) -> u8 {
+        // NaN and negatives to 0, above 1 to 255.
+        let c = if linear > 0.0 { linear.min(1.0) } else { 0.0 };
+        let bits = c.to_bits();
+        let mut byte = self.buckets[(bits >> SRGB_BUCKET_SHIFT) as usize];
+        while byte < 255 && bits >= self.thresholds[usize::from(byte) + 1] {
+            byte += 1;
+        }
+        byte
+    }
+}
+
+/// The shared table, built on first use.
+pub fn srgb_table() -> &'static SrgbTable {
+    static TABLE: std::sync::OnceLock<SrgbTable> = std::sync::OnceLock::new();
+    TABLE.get_or_init(SrgbTable::new)
 }
 
 /// Linear [0, 1] to an sRGB byte.
@@ -220,6 +283,27 @@ mod tests {
         }
         assert_eq!(groups.len(), 3 * 2);
         assert_eq!(image_groups(640, 480).len(), 160 * 240);
+    }
+
+    #[test]
+    fn srgb_table_matches_the_formula_everywhere() {
+        let table = srgb_table();
+        // Every 97th bit pattern in [0, 1] plus values around each threshold.
+        let mut values: Vec<f32> = (0..=1.0f32.to_bits())
+            .step_by(97)
+            .map(f32::from_bits)
+            .collect();
+        for &t in &table.thresholds {
+            values.extend([
+                f32::from_bits(t.saturating_sub(1)),
+                f32::from_bits(t),
+                f32::from_bits(t + 1),
+            ]);
+        }
+        values.extend([-1.0, 2.0, f32::NAN, f32::INFINITY, -0.0]);
+        for v in values {
+            assert_eq!(table.encode(v), encode_srgb(v), "{v}");
+        }
     }
 
     #[test]

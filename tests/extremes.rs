@@ -300,6 +300,7 @@ on_every_backend! {
                 ambient: Vec3::ZERO,
                 max_depth: 0,
                 warnings: Vec::new(),
+                animation: None,
             };
             let accel = build(backend, &scene.objects);
             let table = RayTable::new(&scene.camera);

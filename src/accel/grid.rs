@@ -18,8 +18,14 @@
 //! - Closest hits are exact per primitive (the nearest `t` of any primitive
 //!   the ray meets in `(tmin, tmax)`), not "first cell with a hit": traversal
 //!   stops only once the best `t` lies inside the cells already visited.
-//!   Primitives are put in every cell their slightly grown shape overlaps,
-//!   so rounding at cell boundaries loses no hit.
+//!   Primitives are put in every cell their shape overlaps once grown by
+//!   1e-4 of a cell plus a few ULPs of the coordinates, which covers the
+//!   rounding of the DDA's plane crossings (for ray origins up to ~1e3 cells
+//!   from the grid; farther, an f32 position is coarser than that anyway).
+//!   A small per-ray mailbox keeps a primitive spanning several cells from
+//!   being tested again in each.
+//! - Nesting is one level deep: the world grid, then an object's own grid.
+//!   A moved instance only re-bins the world grid.
 //! - Planes are ignored ([`super::Accelerator`] handles them for every
 //!   backend); empty meshes, degenerate triangles and an empty scene are
 //!   fine; primitives with non-finite coordinates are left out.
@@ -58,11 +64,12 @@ pub const NESTED_MESH_TRIANGLES: usize = 64;
 /// the rounding of the DDA's plane crossings.
 const BIN_SLACK_CELLS: f32 = 1e-4;
 
-/// The grid backend. Build once per scene (or per frame when instances move:
-/// only the world level is rebuilt from the objects, which is cheap next to
-/// a frame).
+/// The grid backend. Build once per scene; when instanced objects move,
+/// [`GridIntersector::set_instance_transform`] re-bins only the world grid
+/// (the objects' own grids stay as they are).
 pub struct GridIntersector {
     world: Level,
+    resolution: Option<[u32; 3]>,
 }
 
 impl GridIntersector {
@@ -89,7 +96,31 @@ impl GridIntersector {
         }
         GridIntersector {
             world: Level::build(prims, resolution),
+            resolution,
         }
+    }
+
+    /// Moves instanced object `object` (its index in the objects the grid
+    /// was built from) to `transform`, and re-bins the world grid. Returns
+    /// false, changing nothing, if `object` was not built as an instance
+    /// (or had nothing to hit) or `transform` cannot be inverted.
+    pub fn set_instance_transform(&mut self, object: u32, transform: &Affine3A) -> bool {
+        let Some(inverse) = invert(transform) else {
+            return false;
+        };
+        let Some(nested) = self
+            .world
+            .prims
+            .nested
+            .iter_mut()
+            .find(|n| n.object == object && n.world_to_object.is_some())
+        else {
+            return false;
+        };
+        nested.world_to_object = Some(inverse);
+        nested.bounds = nested.local_bounds.transformed(transform);
+        self.world.rebin(self.resolution);
+        true
     }
 
     /// The world grid, or `None` when the scene is tested brute force (a
@@ -211,10 +242,23 @@ impl Cells {
 /// An object with a level of its own: an instance (in object space, behind
 /// a transform) or a large world mesh (no transform).
 struct Nested {
+    object: u32,
     world_to_object: Option<Affine3A>,
-    /// World bounds (for an instance, the object box transformed).
+    /// Bounds in object space, and in the world (for an instance, the
+    /// object box transformed).
+    local_bounds: Aabb,
     bounds: Aabb,
     level: Level,
+}
+
+/// The inverse of an affine transform, if it has one with finite entries.
+fn invert(xf: &Affine3A) -> Option<Affine3A> {
+    let det = xf.matrix3.determinant();
+    if det == 0.0 || !det.is_finite() || !xf.translation.is_finite() {
+        return None;
+    }
+    let inverse = xf.inverse();
+    (inverse.matrix3.is_finite() && inverse.translation.is_finite()).then_some(inverse)
 }
 
 impl Nested {
@@ -223,17 +267,7 @@ impl Nested {
     fn new(object: u32, shape: &Shape, xf: Option<&Affine3A>) -> Option<Nested> {
         let world_to_object = match xf {
             None => None,
-            Some(xf) => {
-                let det = xf.matrix3.determinant();
-                if det == 0.0 || !det.is_finite() || !xf.translation.is_finite() {
-                    return None;
-                }
-                let inverse = xf.inverse();
-                if !inverse.matrix3.is_finite() || !inverse.translation.is_finite() {
-                    return None;
-                }
-                Some(inverse)
-            }
+            Some(xf) => Some(invert(xf)?),
         };
         let mut prims = Prims::default();
         prims.add_shape(object, shape);
@@ -242,7 +276,9 @@ impl Nested {
         }
         let local_bounds = (0..prims.len()).fold(Aabb::EMPTY, |b, p| b.union(prims.bounds(p)));
         Some(Nested {
+            object,
             world_to_object,
+            local_bounds,
             bounds: xf.map_or(local_bounds, |xf| local_bounds.transformed(xf)),
             level: Level::build(prims, None),
         })
@@ -276,6 +312,14 @@ impl Nested {
 
 impl Level {
     fn build(prims: Prims, resolution: Option<[u32; 3]>) -> Level {
+        let mut level = Level { prims, cells: None };
+        level.rebin(resolution);
+        level
+    }
+
+    /// (Re)builds the cells from the primitives' current bounds.
+    fn rebin(&mut self, resolution: Option<[u32; 3]>) {
+        let prims = &self.prims;
         let count = prims.len();
         let bounds: Vec<Aabb> = (0..count)
             .into_par_iter()
@@ -286,17 +330,14 @@ impl Level {
             .filter(|b| b.is_finite())
             .fold(Aabb::EMPTY, |acc, b| acc.union(*b));
         if world.is_empty() || (resolution.is_none() && count <= BRUTE_FORCE_MAX) {
-            return Level { prims, cells: None };
+            self.cells = None;
+            return;
         }
         let spec = match resolution {
             Some(r) => GridSpec::new(walk::padded(world), r.map(|n| n.max(1))),
             None => GridSpec::with_cell_budget(world, CELLS_PER_PRIMITIVE * count as f64),
         };
-        let cells = bin(&prims, &bounds, spec);
-        Level {
-            prims,
-            cells: Some(cells),
-        }
+        self.cells = Some(bin(prims, &bounds, spec));
     }
 
     /// Closest hit in `(ray.tmin, ray.tmax)`.
@@ -369,11 +410,9 @@ impl Level {
                     v: 0.0,
                 });
             }
-        } else {
-            if let Some(h) = self.prims.nested[p - nt - ns].closest(ray, prepared, best.tmax) {
-                best.tmax = h.t;
-                best.hit = Some(h);
-            }
+        } else if let Some(h) = self.prims.nested[p - nt - ns].closest(ray, prepared, best.tmax) {
+            best.tmax = h.t;
+            best.hit = Some(h);
         }
     }
 
@@ -540,7 +579,7 @@ impl Dda {
         // BVH Ray Traversal"): a ray grazing the box is walked, not dropped.
         let t0 = t0 - t0.abs() * 4.0 * f32::EPSILON;
         let t1 = t1 + t1.abs() * 4.0 * f32::EPSILON;
-        if !(t0 <= t1) {
+        if t0.is_nan() || t1.is_nan() || t0 > t1 {
             return None;
         }
         let t_start = t0.max(ray.tmin);

@@ -12,6 +12,7 @@ use serde::Deserialize;
 use toml::Spanned;
 
 use super::{Checker, Light, Material, Scene, SceneError};
+use crate::anim::{Animation, CameraKey, Ease};
 use crate::camera::{yaw_pitch_toward, Camera, Projection};
 use crate::geometry::{Object, Placement, Plane, Shape, Sphere, TriangleMesh};
 
@@ -37,6 +38,36 @@ struct SceneFile {
     material: BTreeMap<String, Spanned<MaterialDef>>,
     #[serde(default)]
     object: Vec<Spanned<ObjectDef>>,
+    animation: Option<AnimationDef>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct AnimationDef {
+    frames: u32,
+    #[serde(default = "default_fps")]
+    fps: f64,
+    #[serde(default)]
+    camera: Vec<Spanned<CameraKeyDef>>,
+}
+
+fn default_fps() -> f64 {
+    25.0
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct CameraKeyDef {
+    frame: u32,
+    /// Degrees.
+    yaw: Option<f64>,
+    /// Degrees.
+    pitch: Option<f64>,
+    /// Degrees.
+    fov: Option<f64>,
+    position: Option<[f64; 3]>,
+    #[serde(default)]
+    ease: Ease,
 }
 
 #[derive(Deserialize)]
@@ -194,9 +225,99 @@ fn line_of(text: &str, offset: usize) -> usize {
         + 1
 }
 
+/// How deep `include` may nest (a cycle hits this).
+const MAX_INCLUDE_DEPTH: usize = 8;
+
+/// A scene's text with its includes spliced in before it, and where each
+/// line came from, so errors name the file and line the user wrote.
+struct Source {
+    text: String,
+    /// (file, first line in `text`, number of lines), in order.
+    pieces: Vec<(std::path::PathBuf, usize, usize)>,
+}
+
+impl Source {
+    /// The file and line within it of a line of the spliced text.
+    fn locate(&self, line: usize) -> (&Path, usize) {
+        for (file, first, count) in &self.pieces {
+            if line >= *first && line < first + count {
+                return (file, line - first + 1);
+            }
+        }
+        let (file, first, _) = self.pieces.last().expect("a source has a piece");
+        (file, line.saturating_sub(*first) + 1)
+    }
+
+    /// The file the scene was loaded from (the last, including piece).
+    fn main_file(&self) -> &Path {
+        &self.pieces.last().expect("a source has a piece").0
+    }
+}
+
+/// Splices `include = "other.toml"` lines (top-level, before any table):
+/// the included scene comes first and this file adds its tables after it.
+fn assemble(text: &str, path: &Path, depth: usize) -> Result<Source, SceneError> {
+    let mut included = Source {
+        text: String::new(),
+        pieces: Vec::new(),
+    };
+    let mut own = String::with_capacity(text.len());
+    let mut in_tables = false;
+    for (number, line) in text.lines().enumerate() {
+        let trimmed = line.trim_start();
+        in_tables |= trimmed.starts_with('[');
+        let include = (!in_tables)
+            .then(|| trimmed.strip_prefix("include"))
+            .flatten()
+            .and_then(|rest| rest.trim_start().strip_prefix('='))
+            .map(str::trim);
+        let Some(value) = include else {
+            own.push_str(line);
+            own.push('\n');
+            continue;
+        };
+        let located = |message: String| {
+            SceneError::new(path, message)
+                .at_line(number + 1)
+                .field("include")
+        };
+        let name: String = toml::from_str::<toml::Value>(&format!("v = {value}"))
+            .ok()
+            .and_then(|v| v.get("v").and_then(|v| v.as_str()).map(str::to_string))
+            .ok_or_else(|| located(format!("expected a quoted file name, got {value}")))?;
+        if depth >= MAX_INCLUDE_DEPTH {
+            return Err(located(format!(
+                "includes nest deeper than {MAX_INCLUDE_DEPTH} (a cycle?)"
+            )));
+        }
+        let other = path.parent().unwrap_or(Path::new(".")).join(&name);
+        let other_text = std::fs::read_to_string(&other).map_err(|err| {
+            located(format!(
+                "cannot read included file {}: {err}",
+                other.display()
+            ))
+        })?;
+        let nested = assemble(&other_text, &other, depth + 1)?;
+        let offset = line_of(&included.text, included.text.len()) - 1;
+        included.text.push_str(&nested.text);
+        included.pieces.extend(
+            nested
+                .pieces
+                .into_iter()
+                .map(|(file, first, count)| (file, first + offset, count)),
+        );
+        // Keeps this file's line numbers.
+        own.push_str("# (include)\n");
+    }
+    let first = line_of(&included.text, included.text.len());
+    let count = own.lines().count();
+    included.text.push_str(&own);
+    included.pieces.push((path.to_path_buf(), first, count));
+    Ok(included)
+}
+
 struct Ctx<'a> {
-    path: &'a Path,
-    text: &'a str,
+    source: &'a Source,
 }
 
 impl Ctx<'_> {
@@ -206,9 +327,13 @@ impl Ctx<'_> {
         field: impl Into<String>,
         message: impl Into<String>,
     ) -> SceneError {
-        SceneError::new(self.path, message)
-            .at_line(line_of(self.text, span.start))
-            .field(field)
+        let (file, line) = self.source.locate(line_of(&self.source.text, span.start));
+        SceneError::new(file, message).at_line(line).field(field)
+    }
+
+    /// The file a span was written in (relative paths in it start there).
+    fn file_of(&self, span: std::ops::Range<usize>) -> &Path {
+        self.source.locate(line_of(&self.source.text, span.start)).0
     }
 }
 
@@ -236,6 +361,8 @@ pub fn parse_scene_str(
     path: &Path,
     overrides: &SceneOverrides,
 ) -> Result<Scene, SceneError> {
+    let source = assemble(text, path, 0)?;
+    let text = source.text.as_str();
     let deserializer = toml::Deserializer::new(text);
     let file: SceneFile = serde_path_to_error::deserialize(deserializer).map_err(|err| {
         // Spanned<T> shows up in the path as a private key; users never wrote it.
@@ -246,14 +373,15 @@ pub fn parse_scene_str(
         let inner = err.into_inner();
         let mut e = SceneError::new(path, inner.message().to_string());
         if let Some(span) = inner.span() {
-            e = e.at_line(line_of(text, span.start));
+            let (file, line) = source.locate(line_of(text, span.start));
+            e = SceneError::new(file, inner.message().to_string()).at_line(line);
         }
         if field != "." && !field.is_empty() {
             e = e.field(field);
         }
         e
     })?;
-    let ctx = Ctx { path, text };
+    let ctx = Ctx { source: &source };
 
     let render = &file.render;
     let to_err = |field: &str| {
@@ -338,6 +466,11 @@ pub fn parse_scene_str(
         )?);
     }
 
+    let animation = match &file.animation {
+        None => None,
+        Some(def) => Some(convert_animation(&ctx, def, &camera)?),
+    };
+
     Ok(Scene {
         camera,
         objects,
@@ -347,6 +480,86 @@ pub fn parse_scene_str(
         ambient,
         max_depth: render.max_depth,
         warnings,
+        animation,
+    })
+}
+
+fn convert_animation(
+    ctx: &Ctx,
+    def: &AnimationDef,
+    base: &Camera,
+) -> Result<Animation, SceneError> {
+    let no_span = || SceneError::new(ctx.source.main_file(), "");
+    if def.frames == 0 {
+        return Err(SceneError {
+            message: "must be at least 1".into(),
+            ..no_span()
+        }
+        .field("animation.frames"));
+    }
+    if !(def.fps.is_finite() && def.fps > 0.0) {
+        return Err(SceneError {
+            message: format!("must be above 0, got {}", def.fps),
+            ..no_span()
+        }
+        .field("animation.fps"));
+    }
+    let mut keys: Vec<CameraKey> = Vec::with_capacity(def.camera.len());
+    for (i, key) in def.camera.iter().enumerate() {
+        let k = key.get_ref();
+        let field = |f: &str| format!("animation.camera[{i}].{f}");
+        if let Some(previous) = keys.last() {
+            if k.frame <= previous.frame {
+                return Err(ctx.error(
+                    key.span(),
+                    field("frame"),
+                    format!(
+                        "keyframes must be in increasing frame order: frame {} follows frame {}",
+                        k.frame, previous.frame
+                    ),
+                ));
+            }
+        }
+        // Unset values carry over from the previous key (or the camera).
+        let previous = keys.last().copied().unwrap_or(CameraKey {
+            frame: 0,
+            yaw: base.yaw,
+            pitch: base.pitch,
+            fov: base.fov,
+            position: base.position,
+            ease: Ease::Linear,
+        });
+        let mut resolved = CameraKey {
+            frame: k.frame,
+            yaw: k.yaw.map_or(previous.yaw, f64::to_radians),
+            pitch: k.pitch.map_or(previous.pitch, f64::to_radians),
+            fov: k.fov.map_or(previous.fov, f64::to_radians),
+            position: k.position.map_or(previous.position, DVec3::from_array),
+            ease: k.ease,
+        };
+        for (name, value) in [
+            ("yaw", resolved.yaw),
+            ("pitch", resolved.pitch),
+            ("fov", resolved.fov),
+        ] {
+            if !value.is_finite() {
+                return Err(ctx.error(key.span(), field(name), "must be finite"));
+            }
+        }
+        if !resolved.position.is_finite() {
+            return Err(ctx.error(key.span(), field("position"), "must be finite"));
+        }
+        let posed = resolved.apply(base);
+        posed
+            .validate()
+            .map_err(|err| ctx.error(key.span(), field("fov"), err.to_string()))?;
+        resolved.frame = k.frame;
+        keys.push(resolved);
+    }
+    Ok(Animation {
+        frames: def.frames,
+        fps: def.fps,
+        camera_keys: keys,
     })
 }
 
@@ -561,7 +774,11 @@ fn convert_object(
                 .file
                 .as_ref()
                 .ok_or_else(|| err("file", "required for type = \"mesh\"".into()))?;
-            let obj_path = ctx.path.parent().unwrap_or(Path::new(".")).join(file);
+            let obj_path = ctx
+                .file_of(def.span())
+                .parent()
+                .unwrap_or(Path::new("."))
+                .join(file);
             let loaded = super::load_obj_mesh(&obj_path)?;
             if loaded.dropped_degenerate > 0 {
                 warnings.push(format!(

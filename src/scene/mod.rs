@@ -85,6 +85,8 @@ pub struct Scene {
     /// Things the user should know that did not stop loading (e.g. dropped
     /// degenerate triangles).
     pub warnings: Vec<String>,
+    /// The timeline, for scenes that animate.
+    pub animation: Option<crate::anim::Animation>,
 }
 
 impl Scene {

@@ -320,6 +320,7 @@ pub(super) fn scene_around_obj(
         ambient: Vec3::splat(0.12),
         max_depth: 3,
         warnings,
+        animation: None,
     })
 }
 

@@ -1,0 +1,379 @@
+//! Panimation: with an equal-angle camera a pan is an image shift.
+//!
+//! Samples live on a world-fixed lattice around the eye: column `c` looks at
+//! azimuth `(c + 0.5) * step` and row `r` at elevation `90deg - (r + 0.5) *
+//! step`, with a whole number of columns per turn (a multiple of the packet
+//! group width), so columns wrap and a pan that comes back, or a full turn,
+//! traces nothing twice. A camera's view is a window on that lattice, its
+//! corner snapped to whole samples (the snap error is reported, at most half
+//! a sample each way).
+//!
+//! [`PanBuffer`] keeps every sample traced so far; a frame traces only the
+//! groups of its window not traced before, then copies the window out.
+//! Full renders and the buffer compute each ray from the integer lattice
+//! position and trace the same aligned groups, so a shifted frame equals a
+//! full render bit for bit.
+
+use std::f64::consts::{FRAC_PI_2, TAU};
+
+use glam::{DVec3, Vec3};
+
+use crate::camera::{Camera, Projection};
+use crate::ray::Ray;
+use crate::render::{
+    srgb_table, trace_groups, Frame, PrimaryRays, SampleGroup, GROUP_HEIGHT, GROUP_WIDTH,
+};
+use crate::shade::{RayCounts, Shader};
+
+/// The world-fixed equal-angle sample lattice around one eye position.
+#[derive(Clone, Debug)]
+pub struct EqualAngleLattice {
+    pub position: DVec3,
+    /// Columns in a whole turn (a multiple of the group width).
+    pub columns_per_turn: i64,
+    /// Rows from pole to pole.
+    pub rows: i64,
+    /// Angle per sample, radians: a whole turn over `columns_per_turn`.
+    pub step: f64,
+    /// (sin, cos) of each column's azimuth.
+    columns: Vec<(f64, f64)>,
+    /// (sin, cos) of each row's elevation.
+    row_angles: Vec<(f64, f64)>,
+}
+
+/// Where a camera's view sits on the lattice.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Window {
+    /// Lattice column of the image's left edge (any integer; wraps).
+    pub col: i64,
+    /// Lattice row of the image's top edge.
+    pub row: i64,
+    pub width: u32,
+    pub height: u32,
+    /// Snapped minus requested yaw and pitch, radians (at most half a step).
+    pub yaw_error: f64,
+    pub pitch_error: f64,
+}
+
+impl EqualAngleLattice {
+    /// The lattice for an equal-angle camera: the camera's angle per pixel,
+    /// nudged so a whole turn holds a whole number of groups of columns
+    /// (640 px over 100 degrees: exactly 2304 columns).
+    pub fn for_camera(camera: &Camera) -> EqualAngleLattice {
+        let columns_per_turn = Self::columns_per_turn_for(camera);
+        let step = TAU / columns_per_turn as f64;
+        // Rows from pole to pole, rounded up to whole groups.
+        let rows = ((FRAC_PI_2 * 2.0 / step / f64::from(GROUP_HEIGHT)).ceil()
+            * f64::from(GROUP_HEIGHT)) as i64;
+        EqualAngleLattice {
+            position: camera.position,
+            columns_per_turn,
+            rows,
+            step,
+            columns: (0..columns_per_turn)
+                .map(|c| ((c as f64 + 0.5) * step).sin_cos())
+                .collect(),
+            row_angles: (0..rows)
+                .map(|r| (FRAC_PI_2 - (r as f64 + 0.5) * step).sin_cos())
+                .collect(),
+        }
+    }
+
+    /// Columns per turn for a camera's angle per pixel, rounded to whole
+    /// groups.
+    fn columns_per_turn_for(camera: &Camera) -> i64 {
+        let group = f64::from(GROUP_WIDTH);
+        ((TAU / camera.angle_step() / group).round().max(1.0) * group) as i64
+    }
+
+    /// Whether `camera` views this lattice: same eye, equal-angle, same
+    /// angle per pixel after snapping to a whole turn.
+    pub fn fits(&self, camera: &Camera) -> bool {
+        camera.projection == Projection::EqualAngle
+            && camera.position == self.position
+            && Self::columns_per_turn_for(camera) == self.columns_per_turn
+    }
+
+    pub fn wrap_column(&self, col: i64) -> i64 {
+        col.rem_euclid(self.columns_per_turn)
+    }
+
+    /// The window a camera sees, its corner snapped to the nearest sample.
+    pub fn window(&self, camera: &Camera) -> Window {
+        let (w, h) = (f64::from(camera.width), f64::from(camera.height));
+        let exact_col = camera.yaw / self.step - 0.5 * w;
+        let exact_row = (FRAC_PI_2 - camera.pitch) / self.step - 0.5 * h;
+        let col = exact_col.round();
+        let row = exact_row.round();
+        Window {
+            col: col as i64,
+            row: row as i64,
+            width: camera.width,
+            height: camera.height,
+            yaw_error: (col - exact_col) * self.step,
+            pitch_error: -(row - exact_row) * self.step,
+        }
+    }
+
+    /// Unit direction of lattice sample (col, row); None beyond the poles.
+    pub fn direction(&self, col: i64, row: i64) -> Option<DVec3> {
+        if !(0..self.rows).contains(&row) {
+            return None;
+        }
+        let (sin_az, cos_az) = self.columns[self.wrap_column(col) as usize];
+        let (sin_el, cos_el) = self.row_angles[row as usize];
+        Some(DVec3::new(cos_el * sin_az, sin_el, -cos_el * cos_az))
+    }
+}
+
+impl PrimaryRays for EqualAngleLattice {
+    fn primary(&self, col: i64, row: i64) -> Option<Ray> {
+        self.direction(col, row)
+            .map(|d| Ray::new(self.position.as_vec3(), d.as_vec3()))
+    }
+}
+
+/// The groups covering a window, with their columns wrapped into one turn.
+pub fn window_groups(lattice: &EqualAngleLattice, window: &Window) -> Vec<SampleGroup> {
+    let cols = window.col..window.col + i64::from(window.width);
+    let rows = window.row..window.row + i64::from(window.height);
+    let mut groups: Vec<SampleGroup> = SampleGroup::covering(cols, rows)
+        .into_iter()
+        .map(|g| SampleGroup {
+            col: lattice.wrap_column(g.col),
+            row: g.row,
+        })
+        .collect();
+    // A window wider than a turn would list a group twice.
+    groups.sort_unstable();
+    groups.dedup();
+    groups
+}
+
+/// Renders the window fresh (nothing kept): the reference a shifted frame
+/// must equal.
+pub fn render_window(
+    shader: &Shader,
+    lattice: &EqualAngleLattice,
+    window: &Window,
+) -> (Frame, RayCounts) {
+    let groups = window_groups(lattice, window);
+    let (colors, counts) = trace_groups(shader, lattice, &groups);
+    let mut frame = Frame::new(window.width, window.height);
+    for (group, colors) in groups.iter().zip(&colors) {
+        for (lane, (col, row)) in group.lane_samples().into_iter().enumerate() {
+            for (x, y) in window_positions(lattice, window, col, row) {
+                frame.pixels[y * window.width as usize + x] = colors[lane];
+            }
+        }
+    }
+    (frame, counts)
+}
+
+/// Image positions of lattice sample (col, row) in the window (none, one,
+/// or several when the window spans more than a turn).
+fn window_positions(
+    lattice: &EqualAngleLattice,
+    window: &Window,
+    col: i64,
+    row: i64,
+) -> impl Iterator<Item = (usize, usize)> {
+    let y = row - window.row;
+    let turn = lattice.columns_per_turn;
+    let first = (col - window.col).rem_euclid(turn);
+    let (width, height) = (i64::from(window.width), i64::from(window.height));
+    let row_inside = (0..height).contains(&y);
+    (0..)
+        .map(move |k| first + k * turn)
+        .take_while(move |&x| x < width)
+        .filter(move |_| row_inside)
+        .map(move |x| (x as usize, y as usize))
+}
+
+/// Every sample traced so far on one lattice, in a band of rows.
+pub struct PanBuffer {
+    lattice: EqualAngleLattice,
+    /// First stored row (even) and number of stored rows (even).
+    first_row: i64,
+    row_count: i64,
+    colors: Vec<Vec3>,
+    /// The same samples as 8-bit sRGB, converted once when traced, so a
+    /// frame's output image is a byte copy.
+    bytes: Vec<[u8; 3]>,
+    /// One flag per 4x2 group: traced yet?
+    traced: Vec<bool>,
+}
+
+/// What one frame of a pan cost.
+#[derive(Clone, Copy, Debug, Default, serde::Serialize)]
+pub struct PanFrameStats {
+    pub samples_traced: u64,
+    pub pixels_reused: u64,
+    pub rays: RayCounts,
+}
+
+impl PanBuffer {
+    /// A buffer for windows within rows `rows` of the lattice.
+    pub fn new(lattice: EqualAngleLattice, rows: std::ops::Range<i64>) -> PanBuffer {
+        let gh = i64::from(GROUP_HEIGHT);
+        let first_row = rows.start.max(0).div_euclid(gh) * gh;
+        let end = rows.end.min(lattice.rows);
+        let row_count = ((end - first_row + gh - 1).div_euclid(gh) * gh).max(0);
+        let samples = (lattice.columns_per_turn * row_count) as usize;
+        let groups = samples / (GROUP_WIDTH * GROUP_HEIGHT) as usize;
+        PanBuffer {
+            lattice,
+            first_row,
+            row_count,
+            colors: vec![Vec3::ZERO; samples],
+            bytes: vec![[0; 3]; samples],
+            traced: vec![false; groups],
+        }
+    }
+
+    pub fn lattice(&self) -> &EqualAngleLattice {
+        &self.lattice
+    }
+
+    pub fn covers(&self, window: &Window) -> bool {
+        window.row >= self.first_row
+            && window.row + i64::from(window.height) <= self.first_row + self.row_count
+    }
+
+    fn group_index(&self, group: SampleGroup) -> usize {
+        let per_row = self.lattice.columns_per_turn / i64::from(GROUP_WIDTH);
+        let group_row = (group.row - self.first_row) / i64::from(GROUP_HEIGHT);
+        (group_row * per_row + group.col / i64::from(GROUP_WIDTH)) as usize
+    }
+
+    fn sample_index(&self, col: i64, row: i64) -> usize {
+        ((row - self.first_row) * self.lattice.columns_per_turn + self.lattice.wrap_column(col))
+            as usize
+    }
+
+    /// Traces the window's groups not traced before, then copies the window
+    /// out as 8-bit sRGB and, when `linear` is set, in linear colour too
+    /// (for bit-exact checks). The window must lie within the buffer's rows.
+    pub fn frame(
+        &mut self,
+        shader: &Shader,
+        window: &Window,
+        linear: bool,
+    ) -> (Option<Frame>, image::RgbImage, PanFrameStats) {
+        assert!(self.covers(window), "window rows outside the pan buffer");
+        let missing: Vec<SampleGroup> = window_groups(&self.lattice, window)
+            .into_iter()
+            .filter(|&g| !self.traced[self.group_index(g)])
+            .collect();
+        let (colors, rays) = trace_groups(shader, &self.lattice, &missing);
+        let srgb = srgb_table();
+        let mut fresh_pixels = 0u64;
+        for (group, colors) in missing.iter().zip(&colors) {
+            let index = self.group_index(*group);
+            self.traced[index] = true;
+            for (lane, (col, row)) in group.lane_samples().into_iter().enumerate() {
+                let sample = self.sample_index(col, row);
+                self.colors[sample] = colors[lane];
+                self.bytes[sample] = colors[lane].to_array().map(|c| srgb.encode(c));
+                fresh_pixels += window_positions(&self.lattice, window, col, row).count() as u64;
+            }
+        }
+        let (width, height) = (window.width as usize, window.height as usize);
+        let mut pixels = Vec::with_capacity(if linear { width * height } else { 0 });
+        let mut bytes: Vec<u8> = Vec::with_capacity(width * height * 3);
+        let turn = self.lattice.columns_per_turn as usize;
+        for y in 0..height {
+            let row_start = (window.row + y as i64 - self.first_row) as usize * turn;
+            // Copy whole runs up to each wrap of the turn.
+            let mut x = 0usize;
+            while x < width {
+                let col = self.lattice.wrap_column(window.col + x as i64) as usize;
+                let run = (turn - col).min(width - x);
+                let samples = row_start + col..row_start + col + run;
+                if linear {
+                    pixels.extend_from_slice(&self.colors[samples.clone()]);
+                }
+                bytes.extend(self.bytes[samples].iter().flatten());
+                x += run;
+            }
+        }
+        let frame = linear.then_some(Frame {
+            width: window.width,
+            height: window.height,
+            pixels,
+        });
+        let image = image::RgbImage::from_raw(window.width, window.height, bytes)
+            .expect("three bytes per pixel");
+        let pixels = u64::from(window.width) * u64::from(window.height);
+        (
+            frame,
+            image,
+            PanFrameStats {
+                samples_traced: rays.primary,
+                pixels_reused: pixels - fresh_pixels.min(pixels),
+                rays,
+            },
+        )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn camera(yaw_deg: f64, pitch_deg: f64) -> Camera {
+        Camera {
+            projection: Projection::EqualAngle,
+            position: DVec3::new(0.0, 1.0, 0.0),
+            yaw: yaw_deg.to_radians(),
+            pitch: pitch_deg.to_radians(),
+            fov: 100f64.to_radians(),
+            width: 640,
+            height: 480,
+        }
+    }
+
+    #[test]
+    fn paper_camera_gets_2304_columns_per_turn() {
+        let lattice = EqualAngleLattice::for_camera(&camera(0.0, 0.0));
+        assert_eq!(lattice.columns_per_turn, 2304);
+        assert_eq!(lattice.rows, 1152);
+    }
+
+    #[test]
+    fn window_matches_the_camera_where_no_snap_is_needed() {
+        // Yaw 0, pitch 0 puts the window corner on whole samples: the lattice
+        // directions are the camera's own pixel directions.
+        let cam = camera(0.0, 0.0);
+        let lattice = EqualAngleLattice::for_camera(&cam);
+        let window = lattice.window(&cam);
+        assert_eq!(window.yaw_error.abs() + window.pitch_error.abs(), 0.0);
+        for (x, y) in [(0u32, 0u32), (639, 479), (320, 240), (17, 401)] {
+            let d = lattice
+                .direction(window.col + i64::from(x), window.row + i64::from(y))
+                .unwrap();
+            let e = cam
+                .direction(glam::DVec2::new(f64::from(x) + 0.5, f64::from(y) + 0.5))
+                .unwrap();
+            assert!((d - e).length() < 1e-12, "({x}, {y})");
+        }
+    }
+
+    #[test]
+    fn snapping_is_within_half_a_sample_and_never_drifts() {
+        let lattice = EqualAngleLattice::for_camera(&camera(0.0, 0.0));
+        for frame in [1u32, 7, 99, 10_000, 123_457] {
+            let yaw = f64::from(frame) * 3.6;
+            let window = lattice.window(&camera(yaw, -9.0));
+            assert!(window.yaw_error.abs() <= lattice.step * 0.5 + 1e-12);
+            assert!(window.pitch_error.abs() <= lattice.step * 0.5 + 1e-12);
+            // 3.6 degrees is 23.04 columns: frame f sits at round(23.04 f) - 320.
+            assert_eq!(window.col, (f64::from(frame) * 23.04).round() as i64 - 320);
+        }
+        // Directions repeat exactly after a whole turn.
+        assert_eq!(lattice.direction(5, 100), lattice.direction(5 + 2304, 100));
+        assert_eq!(lattice.direction(-1, 100), lattice.direction(2303, 100));
+        assert_eq!(lattice.direction(0, -1), None);
+        assert_eq!(lattice.direction(0, 1152), None);
+    }
+}

@@ -1,0 +1,281 @@
+//! Animation and Panimation: accelerated frames equal full renders bit for
+//! bit, on every backend, and the CLI's animate command.
+
+use std::path::Path;
+use std::process::Command;
+
+use retrace::accel::Accelerator;
+use retrace::anim::{count_differences, Animator, Techniques};
+use retrace::scene::{paper_scene, parse_scene_str, Scene, SceneOverrides};
+
+mod common;
+
+/// The paper scene, small, with the given camera keyframes appended.
+fn paper_with_keys(keys: &str, frames: u32) -> Scene {
+    let paper =
+        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/paper.toml")).unwrap();
+    let text = format!("{paper}\n[animation]\nframes = {frames}\n{keys}");
+    let overrides = SceneOverrides {
+        width: Some(64),
+        height: Some(48),
+        ..SceneOverrides::default()
+    };
+    parse_scene_str(&text, Path::new("scenes/paper.toml"), &overrides).unwrap()
+}
+
+fn key(frame: u32, fields: &str) -> String {
+    format!("[[animation.camera]]\nframe = {frame}\n{fields}\n")
+}
+
+/// Renders every frame with `techniques`, checks each against a full render
+/// bit for bit, and returns the samples traced.
+fn run_exact(
+    scene: &Scene,
+    backend: retrace::accel::BackendKind,
+    techniques: Techniques,
+) -> (u64, Vec<String>) {
+    let accel = Accelerator::build(backend, &scene.objects).unwrap();
+    let frames = scene.animation.as_ref().unwrap().frames;
+    let mut animator = Animator::new(scene, &accel, techniques, 0..frames);
+    let mut traced = 0;
+    let mut modes = Vec::new();
+    for frame in 0..frames {
+        let (image, rgb, stats) = animator.render(frame);
+        let image = image.unwrap();
+        let (reference, _) = animator.render_full(frame);
+        assert_eq!(
+            count_differences(&image, &reference),
+            0,
+            "frame {frame} differs from its full render"
+        );
+        assert_eq!(
+            rgb,
+            reference.to_rgb8(),
+            "frame {frame}: 8-bit output differs"
+        );
+        traced += stats.samples_traced;
+        modes.push(stats.mode.to_string());
+    }
+    (traced, modes)
+}
+
+on_every_backend! {
+    whole_pixel_pans_are_bit_exact_and_trace_only_new_samples(backend) {
+        // 100 degrees over 64 px: 230.4 columns a turn, rounded to 232.
+        // Yaw right by 20 degrees a frame (snapped), then pitch.
+        let scene = paper_with_keys(
+            &(key(0, "yaw = 0.0\npitch = -9.0") + &key(6, "yaw = 120.0\npitch = -9.0") + &key(9, "yaw = 120.0\npitch = 6.0")),
+            10,
+        );
+        let (traced, modes) = run_exact(&scene, backend, Techniques::AUTO);
+        assert!(modes.iter().all(|m| m == "pan"), "{modes:?}");
+        let full_samples = 10 * 64 * 48;
+        assert!(traced < full_samples / 2, "traced {traced} of {full_samples}");
+    }
+
+    a_pan_that_comes_back_traces_nothing(backend) {
+        let scene = paper_with_keys(&(key(0, "yaw = 0.0") + &key(4, "yaw = 40.0") + &key(8, "yaw = 0.0")), 9);
+        let accel = Accelerator::build(backend, &scene.objects).unwrap();
+        let mut animator = Animator::new(&scene, &accel, Techniques::AUTO, 0..9);
+        let traced: Vec<u64> = (0..9).map(|f| animator.render(f).2.samples_traced).collect();
+        assert!(traced[1..=4].iter().all(|&t| t > 0), "{traced:?}");
+        assert!(traced[5..].iter().all(|&t| t == 0), "coming back traced again: {traced:?}");
+    }
+
+    full_turns_wrap_exactly(backend) {
+        let scene = paper_with_keys(&(key(0, "yaw = 0.0") + &key(8, "yaw = 720.0")), 9);
+        let (traced, _) = run_exact(&scene, backend, Techniques::AUTO);
+        // One turn of columns (232) over the rows seen, whatever the turns.
+        assert!(traced <= 232 * 48, "traced {traced}");
+    }
+}
+
+#[test]
+fn non_equal_angle_cameras_fall_back_with_a_reason() {
+    let mut scene = paper_with_keys(&(key(0, "yaw = 0.0") + &key(2, "yaw = 10.0")), 3);
+    scene.camera.projection = retrace::camera::Projection::Perspective;
+    let accel = Accelerator::build(retrace::accel::BackendKind::Embree, &scene.objects).unwrap();
+    let mut animator = Animator::new(&scene, &accel, Techniques::AUTO, 0..3);
+    let (_, _, stats) = animator.render(1);
+    assert_eq!(stats.mode, "full");
+    assert!(stats.reason.contains("equal-angle"), "{}", stats.reason);
+}
+
+#[test]
+fn built_in_paper_scene_is_still_single_frame() {
+    assert!(paper_scene(&SceneOverrides::default())
+        .unwrap()
+        .animation
+        .is_none());
+}
+
+fn retrace(args: &[&str], dir: &Path) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_retrace"))
+        .args(args)
+        .current_dir(dir)
+        .output()
+        .unwrap()
+}
+
+fn stderr(out: &std::process::Output) -> String {
+    String::from_utf8_lossy(&out.stderr).into_owned()
+}
+
+/// A small animated scene in a temp dir that includes the real paper scene.
+fn pan_case(extra: &str) -> tempfile::TempDir {
+    let dir = tempfile::tempdir().unwrap();
+    let paper = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/paper.toml");
+    std::fs::copy(paper, dir.path().join("paper.toml")).unwrap();
+    let text = format!(
+        "include = \"paper.toml\"\n\n[animation]\nframes = 6\n\n{}{}{extra}",
+        key(0, "yaw = 0.0"),
+        key(5, "yaw = 50.0")
+    );
+    std::fs::write(dir.path().join("pan.toml"), text).unwrap();
+    dir
+}
+
+#[test]
+fn animate_writes_frames_gif_and_stats_and_verifies() {
+    let dir = pan_case("");
+    let out = retrace(
+        &[
+            "animate",
+            "pan.toml",
+            "--width",
+            "48",
+            "--height",
+            "32",
+            "-o",
+            "out/f_###.png",
+            "--gif",
+            "out/a.gif",
+            "--stats",
+            "out/s.csv",
+            "--verify",
+        ],
+        dir.path(),
+    );
+    assert!(out.status.success(), "{}", stderr(&out));
+    for frame in 0..6 {
+        let image = image::open(dir.path().join(format!("out/f_{frame:03}.png"))).unwrap();
+        assert_eq!((image.width(), image.height()), (48, 32));
+    }
+    let gif = std::fs::read(dir.path().join("out/a.gif")).unwrap();
+    assert!(gif.starts_with(b"GIF89a"));
+    let csv = std::fs::read_to_string(dir.path().join("out/s.csv")).unwrap();
+    assert_eq!(csv.lines().count(), 7);
+    assert!(csv.lines().nth(2).unwrap().contains(",pan,"));
+    assert!(String::from_utf8_lossy(&out.stdout).contains("bit for bit"));
+
+    // --skip-existing leaves finished frames alone; JSON stats work too.
+    let out = retrace(
+        &[
+            "animate",
+            "pan.toml",
+            "--width",
+            "48",
+            "--height",
+            "32",
+            "-o",
+            "out/f_###.png",
+            "--skip-existing",
+            "--frames",
+            "4-5",
+            "--stats",
+            "out/s.json",
+        ],
+        dir.path(),
+    );
+    assert!(out.status.success(), "{}", stderr(&out));
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.path().join("out/s.json")).unwrap())
+            .unwrap();
+    assert_eq!(json.as_array().unwrap().len(), 0, "both frames existed");
+}
+
+#[test]
+fn animate_rejects_bad_input_cleanly() {
+    let dir = pan_case("");
+    let cases: [(&[&str], &str); 4] = [
+        (
+            &["animate", "pan.toml", "-o", "out/frame.png"],
+            "no # for the frame number",
+        ),
+        (
+            &[
+                "animate",
+                "pan.toml",
+                "-o",
+                "out/f_#.png",
+                "--frames",
+                "3-9",
+            ],
+            "frames 0-5",
+        ),
+        (
+            &[
+                "animate",
+                "pan.toml",
+                "-o",
+                "out/f_#.png",
+                "--frames",
+                "4-2",
+            ],
+            "comes after",
+        ),
+        (
+            &["animate", "pan.toml", "-o", "/proc/forbidden/f_#.png"],
+            "output folder",
+        ),
+    ];
+    for (args, needle) in cases {
+        let out = retrace(args, dir.path());
+        assert_eq!(out.status.code(), Some(1), "{args:?}: {}", stderr(&out));
+        assert!(stderr(&out).contains(needle), "{args:?}: {}", stderr(&out));
+        assert!(!stderr(&out).contains("panicked"));
+        assert!(
+            !dir.path().join("out").exists()
+                || std::fs::read_dir(dir.path().join("out")).unwrap().count() == 0
+        );
+    }
+    // Keyframes out of order: the file and line of the offending key.
+    let dir = pan_case(&key(3, "yaw = 10.0"));
+    let out = retrace(&["animate", "pan.toml", "-o", "out/f_#.png"], dir.path());
+    assert_eq!(out.status.code(), Some(1));
+    let err = stderr(&out);
+    assert!(
+        err.contains("pan.toml:12")
+            && err.contains("animation.camera[2].frame")
+            && err.contains("increasing"),
+        "{err}"
+    );
+}
+
+#[test]
+fn pan_on_a_perspective_camera_warns_and_renders() {
+    let dir = pan_case("");
+    let out = retrace(
+        &[
+            "animate",
+            "pan.toml",
+            "--camera",
+            "perspective",
+            "--width",
+            "32",
+            "--height",
+            "24",
+            "-o",
+            "out/f_#.png",
+            "--mode",
+            "pan",
+        ],
+        dir.path(),
+    );
+    assert!(out.status.success(), "{}", stderr(&out));
+    assert!(
+        stderr(&out).contains("warning: rendered in full: pan needs an equal-angle camera"),
+        "{}",
+        stderr(&out)
+    );
+}
