@@ -13,6 +13,7 @@ pub mod output;
 pub mod ray;
 pub mod render;
 pub mod reuse;
+pub mod rng;
 pub mod scene;
 pub mod shade;
 pub mod validate;

@@ -507,12 +507,7 @@ fn write_stats(path: &Path, stats: &[retrace::anim::FrameStats]) -> Result<()> {
         csv
     };
     ensure_parent(path)?;
-    retrace::output::write_atomically(path, |temp| {
-        std::fs::write(temp, &text).map_err(|source| retrace::output::OutputError::Write {
-            path: path.to_path_buf(),
-            source,
-        })
-    })?;
+    retrace::output::save_text(path, &text)?;
     Ok(())
 }
 

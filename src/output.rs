@@ -61,6 +61,16 @@ pub fn write_atomically(
     result
 }
 
+/// Writes `text` to `path` atomically.
+pub fn save_text(path: &Path, text: &str) -> Result<(), OutputError> {
+    write_atomically(path, |temp| {
+        std::fs::write(temp, text).map_err(|source| OutputError::Write {
+            path: path.to_path_buf(),
+            source,
+        })
+    })
+}
+
 pub fn save_image(path: &Path, image: &image::RgbImage) -> Result<(), OutputError> {
     let format = format_for(path)?;
     write_atomically(path, |temp| {

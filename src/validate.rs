@@ -18,6 +18,7 @@ use crate::camera::RayTable;
 use crate::geometry::Aabb;
 use crate::ray::{Hit, Ray};
 use crate::render::render_frame;
+use crate::rng::SplitMix64;
 use crate::scene::Scene;
 
 /// Pass/fail limits, documented in `retrace validate --help`.
@@ -118,24 +119,6 @@ impl ValidationReport {
     }
 }
 
-/// SplitMix64: a tiny, seeded generator so reports are reproducible.
-struct SplitMix(u64);
-
-impl SplitMix {
-    fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-        z ^ (z >> 31)
-    }
-
-    /// Uniform in [0, 1).
-    fn unit(&mut self) -> f32 {
-        (self.next_u64() >> 40) as f32 / (1u64 << 24) as f32
-    }
-}
-
 /// Random rays from points in the bounded part of the scene toward other
 /// points in it, so most rays go somewhere interesting.
 pub fn random_rays(scene: &Scene, count: usize, seed: u64) -> Vec<Ray> {
@@ -153,8 +136,8 @@ pub fn random_rays(scene: &Scene, count: usize, seed: u64) -> Vec<Ray> {
     } else {
         bounds
     };
-    let mut rng = SplitMix(seed);
-    let point = |rng: &mut SplitMix| {
+    let mut rng = SplitMix64(seed);
+    let point = |rng: &mut SplitMix64| {
         let pad = bounds.extent() * 0.1;
         let lo = bounds.min - pad;
         let size = bounds.extent() + pad * 2.0;

@@ -63,25 +63,8 @@ fn closed_sphere_mesh(levels: u32) -> TriangleMesh {
     }
 }
 
-/// SplitMix64, seeded: reproducible random numbers without a dependency.
-struct Rng(u64);
-impl Rng {
-    fn unit(&mut self) -> f32 {
-        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-        ((z ^ (z >> 31)) >> 40) as f32 / (1u64 << 24) as f32
-    }
-    fn direction(&mut self) -> Vec3 {
-        loop {
-            let v = Vec3::new(self.unit(), self.unit(), self.unit()) * 2.0 - Vec3::ONE;
-            if v.length_squared() > 1e-4 && v.length_squared() <= 1.0 {
-                return v.normalize();
-            }
-        }
-    }
-}
+/// Seeded random numbers, reproducible from the seed.
+use retrace::rng::SplitMix64 as Rng;
 
 fn paper_with(projection: Projection, fov: f64, width: u32, height: u32) -> retrace::scene::Scene {
     paper_scene(&SceneOverrides {

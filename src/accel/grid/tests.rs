@@ -13,25 +13,16 @@ use crate::accel::{Accelerator, BackendKind};
 use crate::geometry::{Plane, TriangleMesh};
 use crate::ray::{HitPacket, RayPacket, PACKET_WIDTH};
 
-/// SplitMix64: a small seeded generator, so failures reproduce.
-struct Rng(u64);
+/// The crate's seeded generator, with the shapes these tests draw.
+struct Rng(crate::rng::SplitMix64);
 
 impl Rng {
-    fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-        z ^ (z >> 31)
-    }
-
-    /// Uniform in [0, 1).
-    fn f32(&mut self) -> f32 {
-        (self.next_u64() >> 40) as f32 / (1u64 << 24) as f32
+    fn new(seed: u64) -> Rng {
+        Rng(crate::rng::SplitMix64(seed))
     }
 
     fn range(&mut self, lo: f32, hi: f32) -> f32 {
-        lo + (hi - lo) * self.f32()
+        self.0.range(lo, hi)
     }
 
     fn vec_in(&mut self, lo: Vec3, hi: Vec3) -> Vec3 {
@@ -141,7 +132,7 @@ fn icosphere(subdivisions: u32, center: Vec3, radius: f32) -> TriangleMesh {
 /// vertex pushed in or out by a smooth pseudo-random amount.
 fn blob(subdivisions: u32, seed: u64) -> TriangleMesh {
     let mut mesh = icosphere(subdivisions, Vec3::ZERO, 1.0);
-    let mut rng = Rng(seed);
+    let mut rng = Rng::new(seed);
     let waves: Vec<(Vec3, f32, f32)> = (0..6)
         .map(|_| (rng.unit_vector(), rng.range(2.0, 7.0), rng.range(0.0, 6.0)))
         .collect();
@@ -411,7 +402,7 @@ fn assert_all_hit(grid: &GridIntersector, rays: &[Ray], what: &str) {
 
 #[test]
 fn random_rays_from_inside_closed_meshes_all_hit() {
-    let mut rng = Rng(7);
+    let mut rng = Rng::new(7);
     let meshes = [
         ("icosphere", icosphere(4, Vec3::new(0.3, -0.2, 0.1), 1.0)),
         ("cube", cube(5, Vec3::new(-0.25, 0.5, 0.0), 0.8)),
@@ -534,7 +525,7 @@ fn spheres_tiny_far_away_and_huge_around_the_origin() {
         world(Shape::Mesh(cube(1, Vec3::ZERO, 0.5))),
     ];
     let grid = GridIntersector::build(&objects, None);
-    let mut rng = Rng(3);
+    let mut rng = Rng::new(3);
     for _ in 0..1000 {
         let dir = rng.unit_vector();
         let ray = Ray::new(Vec3::new(0.0, 0.0, 0.0), dir);
@@ -605,7 +596,7 @@ fn baked(shape: &Shape, xf: &Affine3A) -> Shape {
 
 #[test]
 fn instances_hit_like_their_world_space_copies() {
-    let mut rng = Rng(19);
+    let mut rng = Rng::new(19);
     let instances = random_instances(&mut rng);
     let mut inst_objects = vec![world(sphere(Vec3::new(0.0, -30.0, 0.0), 20.0))];
     let mut world_objects = inst_objects.clone();
@@ -658,7 +649,7 @@ fn instances_hit_like_their_world_space_copies() {
 
 #[test]
 fn moving_instances_match_a_fresh_build() {
-    let mut rng = Rng(23);
+    let mut rng = Rng::new(23);
     let mut objects = vec![world(sphere(Vec3::new(0.0, -30.0, 0.0), 20.0))];
     for (shape, xf) in random_instances(&mut rng) {
         objects.push(object(shape, Placement::Instance(xf)));
@@ -702,7 +693,7 @@ fn moving_instances_match_a_fresh_build() {
 
 #[test]
 fn agrees_with_brute_force_on_a_random_triangle_soup() {
-    let mut rng = Rng(42);
+    let mut rng = Rng::new(42);
     let mut mesh = TriangleMesh::default();
     for i in 0..400 {
         let c = rng.vec_in(Vec3::splat(-5.0), Vec3::splat(5.0));
@@ -875,7 +866,7 @@ fn accelerator_builds_the_grid_backend_with_planes_and_packets() {
 /// polygons (quads as two triangles), one mesh, one instanced sphere and one
 /// instanced mesh.
 fn comparison_scene(mesh: TriangleMesh, mesh_scale: f32) -> Vec<Object> {
-    let mut rng = Rng(2024);
+    let mut rng = Rng::new(2024);
     let mut objects = Vec::new();
     let mesh_bounds = mesh.bounds();
     let fit = Affine3A::from_scale(Vec3::splat(mesh_scale / mesh_bounds.extent().max_element()))
@@ -922,7 +913,7 @@ fn agrees_with_embree_on_a_bumpy_mesh_and_spheres() {
     let objects = comparison_scene(blob(4, 99), 3.0);
     let embree = EmbreeIntersector::build(&objects).unwrap();
     let grid = GridIntersector::build(&objects, None);
-    let mut rng = Rng(1234);
+    let mut rng = Rng::new(1234);
     let rays = 20_000;
     let (mut hits, mut disagreements, mut same_triangle) = (0, 0, 0);
     for i in 0..rays {
