@@ -133,21 +133,44 @@ impl PrimaryRays for EqualAngleLattice {
     }
 }
 
-/// The groups covering a window, with their columns wrapped into one turn.
-pub fn window_groups(lattice: &EqualAngleLattice, window: &Window) -> Vec<SampleGroup> {
+/// The groups covering a window, with their columns wrapped into one turn,
+/// each once, that `keep` accepts.
+pub fn window_groups_where(
+    lattice: &EqualAngleLattice,
+    window: &Window,
+    mut keep: impl FnMut(SampleGroup) -> bool,
+) -> Vec<SampleGroup> {
     let cols = window.col..window.col + i64::from(window.width);
     let rows = window.row..window.row + i64::from(window.height);
-    let mut groups: Vec<SampleGroup> = SampleGroup::covering(cols, rows)
-        .into_iter()
-        .map(|g| SampleGroup {
-            col: lattice.wrap_column(g.col),
-            row: g.row,
-        })
-        .collect();
-    // A window wider than a turn would list a group twice.
-    groups.sort_unstable();
-    groups.dedup();
+    let (Some(first), Some(last)) = (
+        (!cols.is_empty() && !rows.is_empty())
+            .then(|| SampleGroup::containing(cols.start, rows.start)),
+        (!cols.is_empty() && !rows.is_empty())
+            .then(|| SampleGroup::containing(cols.end - 1, rows.end - 1)),
+    ) else {
+        return Vec::new();
+    };
+    let (gw, gh) = (i64::from(GROUP_WIDTH), i64::from(GROUP_HEIGHT));
+    // A window wider than a turn would meet some groups twice.
+    let group_cols = ((last.col - first.col) / gw + 1).min(lattice.columns_per_turn / gw);
+    let mut groups = Vec::new();
+    for row in (first.row..=last.row).step_by(gh as usize) {
+        for k in 0..group_cols {
+            let group = SampleGroup {
+                col: lattice.wrap_column(first.col + k * gw),
+                row,
+            };
+            if keep(group) {
+                groups.push(group);
+            }
+        }
+    }
     groups
+}
+
+/// The groups covering a window, with their columns wrapped into one turn.
+pub fn window_groups(lattice: &EqualAngleLattice, window: &Window) -> Vec<SampleGroup> {
+    window_groups_where(lattice, window, |_| true)
 }
 
 /// Renders the window fresh (nothing kept): the reference a shifted frame
@@ -261,10 +284,8 @@ impl PanBuffer {
         linear: bool,
     ) -> (Option<Frame>, image::RgbImage, PanFrameStats) {
         assert!(self.covers(window), "window rows outside the pan buffer");
-        let missing: Vec<SampleGroup> = window_groups(&self.lattice, window)
-            .into_iter()
-            .filter(|&g| !self.traced[self.group_index(g)])
-            .collect();
+        let missing =
+            window_groups_where(&self.lattice, window, |g| !self.traced[self.group_index(g)]);
         let (colors, rays) = trace_groups(shader, &self.lattice, &missing);
         let srgb = srgb_table();
         let mut fresh_pixels = 0u64;
