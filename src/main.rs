@@ -87,6 +87,38 @@ struct BackendArg {
     /// Intersection backend: embree, or grid (the pure-Rust reference).
     #[arg(long, default_value = "embree", value_parser = parse_backend)]
     backend: BackendKind,
+    /// Grid backend: cells per axis of the world grid, N or XxYxZ (default:
+    /// chosen from the primitive count).
+    #[arg(long, value_parser = parse_resolution)]
+    grid_resolution: Option<[u32; 3]>,
+}
+
+impl BackendArg {
+    fn build(&self, scene: &Scene) -> Result<Accelerator> {
+        Ok(Accelerator::build_with(
+            self.backend,
+            &scene.objects,
+            self.grid_resolution,
+        )?)
+    }
+}
+
+fn parse_resolution(s: &str) -> Result<[u32; 3], String> {
+    let parts: Vec<&str> = s.split('x').collect();
+    let numbers: Vec<u32> = parts
+        .iter()
+        .map(|p| p.trim().parse::<u32>())
+        .collect::<Result<_, _>>()
+        .map_err(|_| format!("'{s}' is not N or XxYxZ"))?;
+    let resolution = match numbers[..] {
+        [n] => [n; 3],
+        [x, y, z] => [x, y, z],
+        _ => return Err(format!("'{s}' is not N or XxYxZ")),
+    };
+    if resolution.iter().any(|&n| n == 0 || n > 1024) {
+        return Err(format!("'{s}': each axis needs 1 to 1024 cells"));
+    }
+    Ok(resolution)
 }
 
 fn parse_projection(s: &str) -> Result<Projection, String> {
@@ -194,7 +226,7 @@ fn render(args: RenderArgs) -> Result<()> {
     // Check the output name before any work: a typo should not cost a render.
     retrace::output::format_for(&args.output)?;
     let scene = load(&args.scene)?;
-    let accel = Accelerator::build(args.backend.backend, &scene.objects)?;
+    let accel = args.backend.build(&scene)?;
     let start = Instant::now();
     let (frame, rays) = render_frame(&scene, &accel);
     let elapsed = start.elapsed();
@@ -263,7 +295,7 @@ fn print_packets(
 }
 
 fn bench_frame(args: &BenchArgs, scene: &Scene, bar: indicatif::ProgressBar) -> Result<()> {
-    let accel = Accelerator::build(args.backend.backend, &scene.objects)?;
+    let accel = args.backend.build(&scene)?;
     bar.set_message("frame vs bare Embree");
     let result = retrace::bench::bench_frame(scene, &accel, args.repeats, || bar.inc(1))?;
     bar.finish_and_clear();
@@ -290,7 +322,7 @@ fn bench_frame(args: &BenchArgs, scene: &Scene, bar: indicatif::ProgressBar) -> 
 
 fn bench_e1(args: &BenchArgs, scene: Scene, bar: indicatif::ProgressBar) -> Result<()> {
     let scene = retrace::bench::e1_scene(scene);
-    let accel = Accelerator::build(args.backend.backend, &scene.objects)?;
+    let accel = args.backend.build(&scene)?;
     let rounds = args.repeats.clamp(1, 5);
     bar.set_length((rounds * 200) as u64);
     bar.set_message("E1: 100 full frames vs Panimation");
@@ -536,7 +568,7 @@ fn animate(args: AnimateArgs) -> Result<()> {
         Some(path) => Some(GifWriter::create(path, fps)?),
         None => None,
     };
-    let accel = Accelerator::build(args.backend.backend, &scene.objects)?;
+    let accel = args.backend.build(&scene)?;
     let mut animator = Animator::new(&scene, &accel, args.mode, *range.start()..*range.end() + 1);
     animator.set_linear_output(args.verify);
 
@@ -643,7 +675,7 @@ fn write_json(path: &Path, value: &impl serde::Serialize) -> Result<()> {
 fn validate(args: ValidateArgs) -> Result<()> {
     let scene = load(&args.scene)?;
     let embree = Accelerator::build(BackendKind::Embree, &scene.objects)?;
-    let grid = Accelerator::build(BackendKind::Grid, &scene.objects)?;
+    let grid = Accelerator::build_with(BackendKind::Grid, &scene.objects, args.grid_resolution)?;
     let report =
         retrace::validate::validate(&scene, &embree, &grid, args.rays, args.seed, args.show);
     println!("{}: Embree vs grid", scene_name(&args.scene));

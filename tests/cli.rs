@@ -260,6 +260,43 @@ fn unsupported_output_format() {
 }
 
 #[test]
+fn grid_backend_answers_the_same_at_any_resolution() {
+    let case = Case::new(&[]);
+    let mut images = Vec::new();
+    for resolution in ["1", "3x7x2", "40"] {
+        let out = retrace(
+            &[
+                "render",
+                "--backend",
+                "grid",
+                "--grid-resolution",
+                resolution,
+                "--width",
+                "48",
+                "--height",
+                "36",
+                "-o",
+                "out.png",
+            ],
+            case.dir.path(),
+        );
+        assert!(out.status.success(), "{}", stderr(&out));
+        images.push(image::open(case.path("out.png")).unwrap().to_rgb8());
+    }
+    assert!(images.windows(2).all(|w| w[0] == w[1]));
+    let out = retrace(
+        &["render", "--backend", "grid", "--grid-resolution", "0"],
+        case.dir.path(),
+    );
+    assert_eq!(
+        out.status.code(),
+        Some(2),
+        "clap rejects it as a usage error"
+    );
+    assert!(stderr(&out).contains("1 to 1024"));
+}
+
+#[test]
 fn help_is_available_everywhere() {
     let dir = tempfile::tempdir().unwrap();
     for args in [

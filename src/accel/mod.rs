@@ -84,9 +84,19 @@ pub struct Accelerator {
 
 impl Accelerator {
     pub fn build(kind: BackendKind, objects: &[Object]) -> Result<Accelerator, AccelError> {
+        Self::build_with(kind, objects, None)
+    }
+
+    /// As [`Accelerator::build`], with the grid backend's world resolution
+    /// set instead of chosen from the primitive count (ignored by Embree).
+    pub fn build_with(
+        kind: BackendKind,
+        objects: &[Object],
+        grid_resolution: Option<[u32; 3]>,
+    ) -> Result<Accelerator, AccelError> {
         let bounded: Box<dyn Intersector + Send> = match kind {
             BackendKind::Embree => Box::new(embree::EmbreeIntersector::build(objects)?),
-            BackendKind::Grid => Box::new(grid::GridIntersector::build(objects, None)),
+            BackendKind::Grid => Box::new(grid::GridIntersector::build(objects, grid_resolution)),
         };
         let planes = objects
             .iter()
