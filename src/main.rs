@@ -62,6 +62,9 @@ struct ValidateArgs {
     /// Also write the report as JSON here.
     #[arg(long)]
     json: Option<PathBuf>,
+    /// Cells per axis of the grid's world grid, N or XxYxZ.
+    #[arg(long, value_parser = parse_resolution)]
+    grid_resolution: Option<[u32; 3]>,
 }
 
 #[derive(Args)]
