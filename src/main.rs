@@ -298,7 +298,7 @@ fn print_packets(
 }
 
 fn bench_frame(args: &BenchArgs, scene: &Scene, bar: indicatif::ProgressBar) -> Result<()> {
-    let accel = args.backend.build(&scene)?;
+    let accel = args.backend.build(scene)?;
     bar.set_message("frame vs bare Embree");
     let result = retrace::bench::bench_frame(scene, &accel, args.repeats, || bar.inc(1))?;
     bar.finish_and_clear();
