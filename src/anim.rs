@@ -99,6 +99,32 @@ impl Animation {
     }
 }
 
+/// How a pan by a fraction of a sample is shown.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum FractionalPan {
+    /// Move the view to the nearest whole sample (exact: equals a full
+    /// render of the snapped view; the angle is off by at most half a
+    /// sample).
+    #[default]
+    Snap,
+    /// Resample the exact view bilinearly from the buffer (the true angle;
+    /// slightly blurred, error measured against the camera's own rays).
+    Resample,
+}
+
+impl std::str::FromStr for FractionalPan {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "snap" => Ok(FractionalPan::Snap),
+            "resample" => Ok(FractionalPan::Resample),
+            other => Err(format!(
+                "unknown fractional pan '{other}' (expected snap or resample)"
+            )),
+        }
+    }
+}
+
 /// Which reuse techniques a run may use (`--mode`).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Techniques {
@@ -162,6 +188,9 @@ pub struct FrameStats {
     pub speedup: Option<f64>,
     /// With verification: pixels differing from the full render.
     pub differing_pixels: Option<u64>,
+    /// With verification: the frame's error against the camera's own,
+    /// unsnapped rays (what snapping or resampling costs).
+    pub error: Option<ImageError>,
 }
 
 impl FrameStats {
@@ -182,6 +211,7 @@ pub struct Animator<'a> {
     frame_range: std::ops::Range<u32>,
     /// Whether reused frames are also assembled in linear colour.
     linear_output: bool,
+    fractional: FractionalPan,
 }
 
 impl<'a> Animator<'a> {
@@ -198,6 +228,26 @@ impl<'a> Animator<'a> {
             pan: None,
             frame_range: frames,
             linear_output: true,
+            fractional: FractionalPan::Snap,
+        }
+    }
+
+    pub fn set_fractional_pan(&mut self, fractional: FractionalPan) {
+        self.fractional = fractional;
+    }
+
+    /// Whether frames are exact (snapped) renders, comparable bit for bit
+    /// with [`Animator::render_reference`].
+    pub fn is_exact(&self) -> bool {
+        self.fractional == FractionalPan::Snap
+    }
+
+    /// What an accelerated frame is measured against: the full render of
+    /// the snapped view (snap), or of the camera's own rays (resample).
+    pub fn render_reference(&self, frame: u32) -> (Frame, RayCounts) {
+        match self.fractional {
+            FractionalPan::Snap => self.render_full(frame),
+            FractionalPan::Resample => self.render_camera(&self.camera_at(frame)),
         }
     }
 
@@ -226,8 +276,20 @@ impl<'a> Animator<'a> {
             let window = lattice.window(&camera);
             return render_window(&shader, &lattice, &window);
         }
+        self.render_camera(&camera)
+    }
+
+    /// The camera's own rays at `frame`, unsnapped: the exact picture any
+    /// pan approximation is measured against.
+    pub fn render_true_view(&self, frame: u32) -> (Frame, RayCounts) {
+        self.render_camera(&self.camera_at(frame))
+    }
+
+    /// The camera's own rays, traced in full.
+    fn render_camera(&self, camera: &Camera) -> (Frame, RayCounts) {
+        let shader = Shader::new(self.scene, self.accel);
         let groups = image_groups(camera.width, camera.height);
-        let table = RayTable::new(&camera);
+        let table = RayTable::new(camera);
         let (colors, rays) = trace_groups(&shader, &table, &groups);
         let mut image = Frame::new(camera.width, camera.height);
         for (group, colors) in groups.iter().zip(&colors) {
@@ -271,7 +333,8 @@ impl<'a> Animator<'a> {
         let window = lattice.window(camera);
         low = low.min(window.row);
         high = high.max(window.row + i64::from(window.height));
-        PanBuffer::new(lattice, low..high)
+        // A resampled view reads up to one row more on either side.
+        PanBuffer::new(lattice, low - 1..high + 1)
     }
 
     /// Renders one frame with whatever reuse applies: the frame in linear
@@ -304,7 +367,7 @@ impl<'a> Animator<'a> {
                     Some(buffer) if !buffer.lattice().fits(&camera) => {
                         Some("eye or field of view changed: pan buffer restarted".to_string())
                     }
-                    Some(buffer) if !buffer.covers(&buffer.lattice().window(&camera)) => {
+                    Some(buffer) if !buffer.covers(&buffer.resample_window(&camera).0) => {
                         Some("view left the pan buffer's rows: restarted".to_string())
                     }
                     Some(_) => None,
@@ -317,14 +380,21 @@ impl<'a> Animator<'a> {
                 let window = buffer.lattice().window(&camera);
                 let shader = Shader::new(self.scene, self.accel);
                 let trace_start = Instant::now();
-                let (image, rgb, pan) = buffer.frame(&shader, &window, self.linear_output);
+                let (image, rgb, pan) = match self.fractional {
+                    FractionalPan::Snap => buffer.frame(&shader, &window, self.linear_output),
+                    FractionalPan::Resample => {
+                        buffer.frame_resampled(&shader, &camera, self.linear_output)
+                    }
+                };
                 let elapsed = trace_start.elapsed().as_secs_f64() * 1e3;
                 stats.mode = "pan";
                 stats.trace_ms = elapsed;
                 stats.pixels_reused = pan.pixels_reused;
                 stats.samples_traced = pan.samples_traced;
-                stats.yaw_error_deg = window.yaw_error.to_degrees();
-                stats.pitch_error_deg = window.pitch_error.to_degrees();
+                if self.fractional == FractionalPan::Snap {
+                    stats.yaw_error_deg = window.yaw_error.to_degrees();
+                    stats.pitch_error_deg = window.pitch_error.to_degrees();
+                }
                 stats.count_rays(pan.rays);
                 (image, rgb)
             }
@@ -332,6 +402,47 @@ impl<'a> Animator<'a> {
         stats.total_ms = start.elapsed().as_secs_f64() * 1e3;
         stats.copy_ms = (stats.total_ms - stats.trace_ms).max(0.0);
         (image, rgb, stats)
+    }
+}
+
+/// How far an approximate frame is from its reference, on colours clamped
+/// to [0, 1].
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
+pub struct ImageError {
+    pub max_abs: f32,
+    pub mean_abs: f64,
+    /// Peak signal-to-noise ratio in dB (infinite for identical frames).
+    pub psnr_db: f64,
+    /// Share of pixels whose 8-bit sRGB value differs.
+    pub differing_share: f64,
+}
+
+pub fn image_error(frame: &Frame, reference: &Frame) -> ImageError {
+    let srgb = crate::render::srgb_table();
+    let (mut max_abs, mut sum_abs, mut sum_sq, mut differing) = (0.0f32, 0.0f64, 0.0f64, 0u64);
+    for (a, b) in frame.pixels.iter().zip(&reference.pixels) {
+        let (a, b) = (
+            a.clamp(glam::Vec3::ZERO, glam::Vec3::ONE),
+            b.clamp(glam::Vec3::ZERO, glam::Vec3::ONE),
+        );
+        let d = (a - b).abs();
+        max_abs = max_abs.max(d.max_element());
+        sum_abs += f64::from(d.element_sum()) / 3.0;
+        sum_sq += f64::from(d.dot(d)) / 3.0;
+        differing +=
+            u64::from(a.to_array().map(|c| srgb.encode(c)) != b.to_array().map(|c| srgb.encode(c)));
+    }
+    let n = frame.pixels.len().max(1) as f64;
+    let mse = sum_sq / n;
+    ImageError {
+        max_abs,
+        mean_abs: sum_abs / n,
+        psnr_db: if mse == 0.0 {
+            f64::INFINITY
+        } else {
+            -10.0 * mse.log10()
+        },
+        differing_share: differing as f64 / n,
     }
 }
 

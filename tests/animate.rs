@@ -279,3 +279,41 @@ fn pan_on_a_perspective_camera_warns_and_renders() {
         stderr(&out)
     );
 }
+
+#[test]
+fn resampled_pans_match_snapped_ones_on_whole_samples_and_measure_their_error() {
+    use retrace::anim::{image_error, FractionalPan};
+    // 90 degrees over 64 px: exactly 256 columns a turn; yaw steps of 4.21875
+    // degrees are three whole samples, so resampling weighs one sample only.
+    let mut scene = paper_with_keys(
+        &(key(0, "yaw = 0.0\npitch = 0.0\nfov = 90.0") + &key(4, "yaw = 16.875\npitch = 0.0")),
+        5,
+    );
+    scene.camera.fov = 90f64.to_radians();
+    let accel = Accelerator::build(retrace::accel::BackendKind::Embree, &scene.objects).unwrap();
+    let mut snapped = Animator::new(&scene, &accel, Techniques::AUTO, 0..5);
+    let mut resampled = Animator::new(&scene, &accel, Techniques::AUTO, 0..5);
+    resampled.set_fractional_pan(FractionalPan::Resample);
+    assert!(!resampled.is_exact());
+    for frame in 0..5 {
+        let a = snapped.render(frame).0.unwrap();
+        let b = resampled.render(frame).0.unwrap();
+        let error = image_error(&b, &a);
+        assert!(error.max_abs < 1e-4, "frame {frame}: {error:?}");
+    }
+    // Off whole samples the resampled frame is an approximation of the true
+    // view: close, not exact, and measured.
+    let mut scene = paper_with_keys(&(key(0, "yaw = 0.0") + &key(3, "yaw = 10.0")), 4);
+    scene.camera.fov = 100f64.to_radians();
+    let mut resampled = Animator::new(&scene, &accel, Techniques::AUTO, 0..4);
+    resampled.set_fractional_pan(FractionalPan::Resample);
+    let (frame, _, stats) = resampled.render(2);
+    assert_eq!(stats.mode, "pan");
+    let (truth, _) = resampled.render_true_view(2);
+    let error = image_error(&frame.unwrap(), &truth);
+    assert!(
+        error.psnr_db > 12.0 && error.psnr_db.is_finite(),
+        "{error:?}"
+    );
+    assert!(error.mean_abs < 0.1, "{error:?}");
+}

@@ -98,11 +98,20 @@ impl EqualAngleLattice {
         col.rem_euclid(self.columns_per_turn)
     }
 
+    /// The lattice position of a camera's image corner, unsnapped: pixel
+    /// (x, y) of the camera looks exactly where lattice coordinates
+    /// (col + x, row + y) do, sample (c, r) sitting at (c, r).
+    pub fn exact_corner(&self, camera: &Camera) -> (f64, f64) {
+        let (w, h) = (f64::from(camera.width), f64::from(camera.height));
+        (
+            camera.yaw / self.step - 0.5 * w,
+            (FRAC_PI_2 - camera.pitch) / self.step - 0.5 * h,
+        )
+    }
+
     /// The window a camera sees, its corner snapped to the nearest sample.
     pub fn window(&self, camera: &Camera) -> Window {
-        let (w, h) = (f64::from(camera.width), f64::from(camera.height));
-        let exact_col = camera.yaw / self.step - 0.5 * w;
-        let exact_row = (FRAC_PI_2 - camera.pitch) / self.step - 0.5 * h;
+        let (exact_col, exact_row) = self.exact_corner(camera);
         let col = exact_col.round();
         let row = exact_row.round();
         Window {
@@ -274,15 +283,9 @@ impl PanBuffer {
             as usize
     }
 
-    /// Traces the window's groups not traced before, then copies the window
-    /// out as 8-bit sRGB and, when `linear` is set, in linear colour too
-    /// (for bit-exact checks). The window must lie within the buffer's rows.
-    pub fn frame(
-        &mut self,
-        shader: &Shader,
-        window: &Window,
-        linear: bool,
-    ) -> (Option<Frame>, image::RgbImage, PanFrameStats) {
+    /// Traces the window's groups not traced before; returns how many of the
+    /// window's pixels got fresh samples, and the rays.
+    fn trace_missing(&mut self, shader: &Shader, window: &Window) -> (u64, RayCounts) {
         assert!(self.covers(window), "window rows outside the pan buffer");
         let missing =
             window_groups_where(&self.lattice, window, |g| !self.traced[self.group_index(g)]);
@@ -299,6 +302,90 @@ impl PanBuffer {
                 fresh_pixels += window_positions(&self.lattice, window, col, row).count() as u64;
             }
         }
+        (fresh_pixels, rays)
+    }
+
+    /// The window a resampled view of `camera` reads: its unsnapped corner
+    /// rounded down, one sample wider and taller (bilinear neighbours).
+    pub fn resample_window(&self, camera: &Camera) -> (Window, f64, f64) {
+        let (col, row) = self.lattice.exact_corner(camera);
+        let (c0, r0) = (col.floor(), row.floor());
+        let window = Window {
+            col: c0 as i64,
+            row: r0 as i64,
+            width: camera.width + 1,
+            height: camera.height + 1,
+            yaw_error: 0.0,
+            pitch_error: 0.0,
+        };
+        (window, col - c0, row - r0)
+    }
+
+    /// The unsnapped view of `camera`, resampled bilinearly from the buffer
+    /// (tracing what it lacks first). Approximate: the error against the
+    /// camera's own rays is measured by `--verify`, never assumed.
+    pub fn frame_resampled(
+        &mut self,
+        shader: &Shader,
+        camera: &Camera,
+        linear: bool,
+    ) -> (Option<Frame>, image::RgbImage, PanFrameStats) {
+        let (window, fx, fy) = self.resample_window(camera);
+        let (_, rays) = self.trace_missing(shader, &window);
+        let (fx, fy) = (fx as f32, fy as f32);
+        let weights = [
+            (1.0 - fx) * (1.0 - fy),
+            fx * (1.0 - fy),
+            (1.0 - fx) * fy,
+            fx * fy,
+        ];
+        let (width, height) = (camera.width as usize, camera.height as usize);
+        let srgb = srgb_table();
+        let mut pixels = Vec::with_capacity(if linear { width * height } else { 0 });
+        let mut bytes: Vec<u8> = Vec::with_capacity(width * height * 3);
+        for y in 0..height as i64 {
+            let row = window.row + y;
+            for x in 0..width as i64 {
+                let col = window.col + x;
+                let c = self.colors[self.sample_index(col, row)] * weights[0]
+                    + self.colors[self.sample_index(col + 1, row)] * weights[1]
+                    + self.colors[self.sample_index(col, row + 1)] * weights[2]
+                    + self.colors[self.sample_index(col + 1, row + 1)] * weights[3];
+                bytes.extend(c.to_array().map(|v| srgb.encode(v)));
+                if linear {
+                    pixels.push(c);
+                }
+            }
+        }
+        let frame = linear.then_some(Frame {
+            width: camera.width,
+            height: camera.height,
+            pixels,
+        });
+        let image = image::RgbImage::from_raw(camera.width, camera.height, bytes)
+            .expect("three bytes per pixel");
+        let total = (width * height) as u64;
+        (
+            frame,
+            image,
+            PanFrameStats {
+                samples_traced: rays.primary,
+                pixels_reused: total.saturating_sub(rays.primary),
+                rays,
+            },
+        )
+    }
+
+    /// Traces the window's groups not traced before, then copies the window
+    /// out as 8-bit sRGB and, when `linear` is set, in linear colour too
+    /// (for bit-exact checks). The window must lie within the buffer's rows.
+    pub fn frame(
+        &mut self,
+        shader: &Shader,
+        window: &Window,
+        linear: bool,
+    ) -> (Option<Frame>, image::RgbImage, PanFrameStats) {
+        let (fresh_pixels, rays) = self.trace_missing(shader, window);
         let (width, height) = (window.width as usize, window.height as usize);
         let mut pixels = Vec::with_capacity(if linear { width * height } else { 0 });
         let mut bytes: Vec<u8> = Vec::with_capacity(width * height * 3);
