@@ -222,6 +222,23 @@ fn window_positions(
         .map(move |x| (x as usize, y as usize))
 }
 
+/// A frame's output from its assembled pixels: the linear frame when its
+/// pixels were kept, and the 8-bit image.
+fn assembled(
+    width: u32,
+    height: u32,
+    pixels: Option<Vec<Vec3>>,
+    bytes: Vec<u8>,
+) -> (Option<Frame>, image::RgbImage) {
+    let frame = pixels.map(|pixels| Frame {
+        width,
+        height,
+        pixels,
+    });
+    let image = image::RgbImage::from_raw(width, height, bytes).expect("three bytes per pixel");
+    (frame, image)
+}
+
 /// Every sample traced so far on one lattice, in a band of rows.
 pub struct PanBuffer {
     lattice: EqualAngleLattice,
@@ -357,13 +374,8 @@ impl PanBuffer {
                 }
             }
         }
-        let frame = linear.then_some(Frame {
-            width: camera.width,
-            height: camera.height,
-            pixels,
-        });
-        let image = image::RgbImage::from_raw(camera.width, camera.height, bytes)
-            .expect("three bytes per pixel");
+        let (frame, image) =
+            assembled(camera.width, camera.height, linear.then_some(pixels), bytes);
         let total = (width * height) as u64;
         (
             frame,
@@ -405,13 +417,8 @@ impl PanBuffer {
                 x += run;
             }
         }
-        let frame = linear.then_some(Frame {
-            width: window.width,
-            height: window.height,
-            pixels,
-        });
-        let image = image::RgbImage::from_raw(window.width, window.height, bytes)
-            .expect("three bytes per pixel");
+        let (frame, image) =
+            assembled(window.width, window.height, linear.then_some(pixels), bytes);
         let pixels = u64::from(window.width) * u64::from(window.height);
         (
             frame,
