@@ -10,8 +10,8 @@ use std::time::Instant;
 use glam::DVec3;
 
 use crate::accel::Accelerator;
-use crate::camera::{Camera, Projection, RayTable};
-use crate::render::{image_groups, trace_groups, Frame};
+use crate::camera::{Camera, Projection};
+use crate::render::{render_view, Frame};
 use crate::reuse::pan::{render_window, EqualAngleLattice, PanBuffer};
 use crate::scene::Scene;
 use crate::shade::{RayCounts, Shader};
@@ -287,20 +287,7 @@ impl<'a> Animator<'a> {
 
     /// The camera's own rays, traced in full.
     fn render_camera(&self, camera: &Camera) -> (Frame, RayCounts) {
-        let shader = Shader::new(self.scene, self.accel);
-        let groups = image_groups(camera.width, camera.height);
-        let table = RayTable::new(camera);
-        let (colors, rays) = trace_groups(&shader, &table, &groups);
-        let mut image = Frame::new(camera.width, camera.height);
-        for (group, colors) in groups.iter().zip(&colors) {
-            for (lane, (col, row)) in group.lane_samples().into_iter().enumerate() {
-                if col < i64::from(camera.width) && row < i64::from(camera.height) {
-                    image.pixels[row as usize * camera.width as usize + col as usize] =
-                        colors[lane];
-                }
-            }
-        }
-        (image, rays)
+        render_view(self.scene, camera, self.accel)
     }
 
     /// Why `camera` cannot be panned to, if it cannot.

@@ -79,20 +79,41 @@ impl Intersector for Recorder<'_> {
     }
 }
 
+/// What a packet-replay measurement ran on.
 #[derive(Clone, Debug, serde::Serialize)]
-pub struct FrameBench {
+pub struct PacketRun {
     pub width: u32,
     pub height: u32,
     pub repeats: usize,
+    /// Packet calls in one frame.
     pub packets: usize,
     pub rays: RayCounts,
+    pub threads: usize,
+}
+
+impl PacketRun {
+    fn new(scene: &Scene, repeats: usize, packets: usize, rays: RayCounts) -> PacketRun {
+        PacketRun {
+            width: scene.camera.width,
+            height: scene.camera.height,
+            repeats,
+            packets,
+            rays,
+            threads: rayon::current_num_threads(),
+        }
+    }
+}
+
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct FrameBench {
+    #[serde(flatten)]
+    pub run: PacketRun,
     /// Median of the full renders (ray generation, Embree, planes, shading).
     pub full_ms: f64,
     /// Median of the bare Embree replays of the same packets.
     pub embree_ms: f64,
     /// full / embree.
     pub ratio: f64,
-    pub threads: usize,
 }
 
 /// The packet calls a full frame of `scene` makes, recorded once.
@@ -176,32 +197,23 @@ pub fn bench_frame(
     }
     let (full_ms, embree_ms) = (median(full), median(embree));
     Ok(FrameBench {
-        width: scene.camera.width,
-        height: scene.camera.height,
-        repeats,
-        packets: log.len(),
-        rays,
+        run: PacketRun::new(scene, repeats, log.len(), rays),
         full_ms,
         embree_ms,
         ratio: full_ms / embree_ms,
-        threads: rayon::current_num_threads(),
     })
 }
 
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct BackendBench {
-    pub width: u32,
-    pub height: u32,
-    pub repeats: usize,
-    pub packets: usize,
-    pub rays: RayCounts,
+    #[serde(flatten)]
+    pub run: PacketRun,
     /// Median time of Embree on the recorded packets (planes included).
     pub embree_ms: f64,
     /// Median time of the grid on the same packets.
     pub grid_ms: f64,
     /// grid / embree.
     pub ratio: f64,
-    pub threads: usize,
 }
 
 /// Times both backends on the packet calls of one full frame (recorded
@@ -229,15 +241,10 @@ pub fn bench_backends(
     }
     let (embree_ms, grid_ms) = (median(embree_times), median(grid_times));
     Ok(BackendBench {
-        width: scene.camera.width,
-        height: scene.camera.height,
-        repeats,
-        packets: log.len(),
-        rays,
+        run: PacketRun::new(scene, repeats, log.len(), rays),
         embree_ms,
         grid_ms,
         ratio: grid_ms / embree_ms,
-        threads: rayon::current_num_threads(),
     })
 }
 

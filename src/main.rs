@@ -13,7 +13,6 @@ use retrace::camera::Projection;
 use retrace::output::save_image;
 use retrace::render::render_frame;
 use retrace::scene::{load_scene, paper_scene, Scene, SceneOverrides};
-use retrace::shade::RayCounts;
 
 #[derive(Parser)]
 #[command(
@@ -285,21 +284,18 @@ fn bench(args: BenchArgs) -> Result<()> {
     }
 }
 
-fn print_packets(
-    args: &BenchArgs,
-    width: u32,
-    height: u32,
-    packets: usize,
-    rays: RayCounts,
-    repeats: usize,
-) {
+fn print_packets(args: &BenchArgs, run: &retrace::bench::PacketRun) {
     println!(
-        "{}: {width}x{height}, {packets} packets ({} primary, {} shadow, {} reflection rays), {} threads, median of {repeats}",
+        "{}: {}x{}, {} packets ({} primary, {} shadow, {} reflection rays), {} threads, median of {}",
         scene_name(&args.scene),
-        rays.primary,
-        rays.shadow,
-        rays.reflection,
-        rayon::current_num_threads(),
+        run.width,
+        run.height,
+        run.packets,
+        run.rays.primary,
+        run.rays.shadow,
+        run.rays.reflection,
+        run.threads,
+        run.repeats,
     );
 }
 
@@ -308,14 +304,7 @@ fn bench_frame(args: &BenchArgs, scene: &Scene, bar: indicatif::ProgressBar) -> 
     bar.set_message("frame vs bare Embree");
     let result = retrace::bench::bench_frame(scene, &accel, args.repeats, || bar.inc(1))?;
     bar.finish_and_clear();
-    print_packets(
-        args,
-        result.width,
-        result.height,
-        result.packets,
-        result.rays,
-        result.repeats,
-    );
+    print_packets(args, &result.run);
     println!(
         "full frame ({}):      {:8.2} ms",
         accel.kind(),
@@ -383,14 +372,7 @@ fn bench_backends(args: &BenchArgs, scene: &Scene, bar: indicatif::ProgressBar) 
     bar.set_message("grid vs Embree");
     let result = retrace::bench::bench_backends(scene, args.repeats, || bar.inc(1))?;
     bar.finish_and_clear();
-    print_packets(
-        args,
-        result.width,
-        result.height,
-        result.packets,
-        result.rays,
-        result.repeats,
-    );
+    print_packets(args, &result.run);
     println!("Embree, recorded packets: {:8.2} ms", result.embree_ms);
     println!("grid, same packets:       {:8.2} ms", result.grid_ms);
     println!("ratio grid / Embree:      {:8.3}x", result.ratio);

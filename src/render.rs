@@ -11,7 +11,7 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 use crate::accel::Intersector;
-use crate::camera::RayTable;
+use crate::camera::{Camera, RayTable};
 use crate::ray::{LaneMask, Ray, PACKET_WIDTH};
 use crate::scene::Scene;
 use crate::shade::{RayCounts, Shader};
@@ -240,7 +240,16 @@ pub fn image_groups(width: u32, height: u32) -> Vec<SampleGroup> {
 
 /// Renders the scene's camera view in full.
 pub fn render_frame(scene: &Scene, intersector: &dyn Intersector) -> (Frame, RayCounts) {
-    let camera = &scene.camera;
+    render_view(scene, &scene.camera, intersector)
+}
+
+/// Renders the scene through `camera` (which may differ from the scene's
+/// own, e.g. posed by a timeline) in full.
+pub fn render_view(
+    scene: &Scene,
+    camera: &Camera,
+    intersector: &dyn Intersector,
+) -> (Frame, RayCounts) {
     let shader = Shader::new(scene, intersector);
     let groups = image_groups(camera.width, camera.height);
     let (colors, counts) = trace_groups(&shader, &RayTable::new(camera), &groups);
