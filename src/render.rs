@@ -14,7 +14,7 @@ use crate::accel::Intersector;
 use crate::camera::{Camera, RayTable};
 use crate::ray::{LaneMask, Ray, PACKET_WIDTH};
 use crate::scene::Scene;
-use crate::shade::{RayCounts, Shader};
+use crate::shade::{RayCounts, RayObserver, Shader};
 
 pub const GROUP_WIDTH: u32 = 4;
 pub const GROUP_HEIGHT: u32 = 2;
@@ -91,6 +91,7 @@ pub fn trace_group(
     source: &dyn PrimaryRays,
     group: SampleGroup,
     counts: &mut RayCounts,
+    observer: Option<&mut dyn RayObserver>,
 ) -> [Vec3; PACKET_WIDTH] {
     let mut rays = [Ray::INACTIVE; PACKET_WIDTH];
     let mut mask: LaneMask = 0;
@@ -100,7 +101,7 @@ pub fn trace_group(
             mask |= 1 << lane;
         }
     }
-    shader.shade(&rays, mask, 0, counts)
+    shader.shade(&rays, mask, 0, counts, observer)
 }
 
 /// Traces `groups` in parallel; colours come back in the order given.
@@ -109,12 +110,39 @@ pub fn trace_groups(
     source: &dyn PrimaryRays,
     groups: &[SampleGroup],
 ) -> (Vec<[Vec3; PACKET_WIDTH]>, RayCounts) {
+    trace_groups_observed(shader, source, groups, |_| None::<NoObserver>)
+}
+
+/// Never used as an observer: lets [`trace_groups`] share the observed path.
+pub enum NoObserver {}
+
+impl RayObserver for NoObserver {
+    fn traced(&mut self, _: &crate::ray::RayPacket, _: LaneMask, _: &[f32; PACKET_WIDTH]) {
+        match *self {}
+    }
+}
+
+/// As [`trace_groups`], showing each group's rays to the observer
+/// `observer_for(group)` makes (None: not observed).
+pub fn trace_groups_observed<O: RayObserver>(
+    shader: &Shader,
+    source: &dyn PrimaryRays,
+    groups: &[SampleGroup],
+    observer_for: impl Fn(SampleGroup) -> Option<O> + Sync,
+) -> (Vec<[Vec3; PACKET_WIDTH]>, RayCounts) {
     let (colors, counts): (Vec<_>, Vec<_>) = groups
         .par_iter()
         .with_min_len(16)
         .map(|&group| {
             let mut counts = RayCounts::default();
-            let colors = trace_group(shader, source, group, &mut counts);
+            let mut observer = observer_for(group);
+            let colors = trace_group(
+                shader,
+                source,
+                group,
+                &mut counts,
+                observer.as_mut().map(|o| o as &mut dyn RayObserver),
+            );
             (colors, counts)
         })
         .unzip();

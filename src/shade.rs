@@ -43,6 +43,16 @@ impl std::ops::Add for RayCounts {
     }
 }
 
+/// Sees every ray shading traces, with where it stopped: OSTC records the
+/// voxels each ray crossed (primary, reflection and shadow rays alike).
+pub trait RayObserver {
+    /// `ends[lane]` is the `t` at which lane's ray stopped: its hit, or its
+    /// `tmax` on a miss. Shadow rays always report their `tmax` (the light):
+    /// an occlusion query finds *a* blocker, not the nearest, so the whole
+    /// segment must count.
+    fn traced(&mut self, rays: &RayPacket, mask: LaneMask, ends: &[f32; PACKET_WIDTH]);
+}
+
 /// Where a ray met a surface, refined for shading and for spawning rays.
 #[derive(Clone, Copy, Debug)]
 pub struct Surface {
@@ -214,6 +224,7 @@ impl<'a> Shader<'a> {
         mask: LaneMask,
         depth: u32,
         counts: &mut RayCounts,
+        mut observer: Option<&mut dyn RayObserver>,
     ) -> [Vec3; PACKET_WIDTH] {
         let scene = self.scene;
         let mut colors = [Vec3::ZERO; PACKET_WIDTH];
@@ -228,6 +239,10 @@ impl<'a> Shader<'a> {
         }
         let mut hits = [None; PACKET_WIDTH];
         self.intersector.intersect8(rays, mask, &mut hits);
+        if let Some(observer) = observer.as_deref_mut() {
+            let ends = std::array::from_fn(|lane| hits[lane].map_or(rays[lane].tmax, |h| h.t));
+            observer.traced(rays, mask, &ends);
+        }
 
         let mut surfaces: [Option<Surface>; PACKET_WIDTH] = [None; PACKET_WIDTH];
         let mut hit_mask: LaneMask = 0;
@@ -267,6 +282,10 @@ impl<'a> Shader<'a> {
             }
             counts.shadow += u64::from(lit_mask.count_ones());
             let blocked = self.intersector.occluded8(&shadow_rays, lit_mask);
+            if let Some(observer) = observer.as_deref_mut() {
+                let ends = std::array::from_fn(|lane| shadow_rays[lane].tmax);
+                observer.traced(&shadow_rays, lit_mask, &ends);
+            }
             for lane in lanes(lit_mask & !blocked) {
                 let surface = surfaces[lane].as_ref().expect("lit lanes have surfaces");
                 let material = &scene.materials[surface.material];
@@ -308,7 +327,7 @@ impl<'a> Shader<'a> {
                 mirror_mask |= 1 << lane;
             }
             if mirror_mask != 0 {
-                let mirrored = self.shade(&reflected, mirror_mask, depth + 1, counts);
+                let mirrored = self.shade(&reflected, mirror_mask, depth + 1, counts, observer);
                 for lane in lanes(mirror_mask) {
                     let surface = surfaces[lane].as_ref().expect("mirror lanes have surfaces");
                     let k = scene.materials[surface.material].reflectivity;
