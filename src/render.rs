@@ -117,7 +117,13 @@ pub fn trace_groups(
 pub enum NoObserver {}
 
 impl RayObserver for NoObserver {
-    fn traced(&mut self, _: &crate::ray::RayPacket, _: LaneMask, _: &[f32; PACKET_WIDTH]) {
+    fn traced(
+        &mut self,
+        _: crate::shade::RayKind,
+        _: &crate::ray::RayPacket,
+        _: LaneMask,
+        _: &[f32; PACKET_WIDTH],
+    ) {
         match *self {}
     }
 }
