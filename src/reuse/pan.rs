@@ -21,8 +21,10 @@ use glam::{DVec3, Vec3};
 use crate::camera::{Camera, Projection};
 use crate::ray::Ray;
 use crate::render::{
-    srgb_table, trace_groups, Frame, PrimaryRays, SampleGroup, GROUP_HEIGHT, GROUP_WIDTH,
+    srgb_table, trace_groups, trace_groups_observed, Frame, PrimaryRays, SampleGroup, GROUP_HEIGHT,
+    GROUP_WIDTH,
 };
+use crate::reuse::ostc::{Ostc, RegionLayout, RegionSet};
 use crate::shade::{RayCounts, Shader};
 
 /// The world-fixed equal-angle sample lattice around one eye position.
@@ -300,13 +302,46 @@ impl PanBuffer {
             as usize
     }
 
-    /// Traces the window's groups not traced before; returns how many of the
-    /// window's pixels got fresh samples, and the rays.
-    fn trace_missing(&mut self, shader: &Shader, window: &Window) -> (u64, RayCounts) {
+    /// Regions of `size` samples tiling the whole buffer (a whole turn by
+    /// the buffer's rows), for OSTC.
+    pub fn regions(&self, size: (i64, i64)) -> RegionLayout {
+        RegionLayout::new(
+            size,
+            self.lattice.columns_per_turn,
+            self.first_row,
+            self.row_count,
+        )
+    }
+
+    /// Nulls every sample of `regions` (of `layout`, from
+    /// [`PanBuffer::regions`]); returns how many samples had been traced.
+    pub fn erase(&mut self, layout: &RegionLayout, regions: &RegionSet) -> u64 {
+        let mut nulled = 0;
+        for region in regions.iter() {
+            for group in layout.groups(region) {
+                let index = self.group_index(group);
+                nulled += u64::from(std::mem::replace(&mut self.traced[index], false))
+                    * u64::from(GROUP_WIDTH * GROUP_HEIGHT);
+            }
+        }
+        nulled
+    }
+
+    /// Traces the window's groups not traced before (their rays recorded
+    /// into `ostc` when given); returns how many of the window's pixels got
+    /// fresh samples, and the rays.
+    fn trace_missing(
+        &mut self,
+        shader: &Shader,
+        window: &Window,
+        ostc: Option<&Ostc>,
+    ) -> (u64, RayCounts) {
         assert!(self.covers(window), "window rows outside the pan buffer");
         let missing =
             window_groups_where(&self.lattice, window, |g| !self.traced[self.group_index(g)]);
-        let (colors, rays) = trace_groups(shader, &self.lattice, &missing);
+        let (colors, rays) = trace_groups_observed(shader, &self.lattice, &missing, |g| {
+            ostc.map(|o| o.marker(g))
+        });
         let srgb = srgb_table();
         let mut fresh_pixels = 0u64;
         for (group, colors) in missing.iter().zip(&colors) {
@@ -346,9 +381,10 @@ impl PanBuffer {
         shader: &Shader,
         camera: &Camera,
         linear: bool,
+        ostc: Option<&Ostc>,
     ) -> (Option<Frame>, image::RgbImage, PanFrameStats) {
         let (window, fx, fy) = self.resample_window(camera);
-        let (_, rays) = self.trace_missing(shader, &window);
+        let (_, rays) = self.trace_missing(shader, &window, ostc);
         let (fx, fy) = (fx as f32, fy as f32);
         let weights = [
             (1.0 - fx) * (1.0 - fy),
@@ -396,8 +432,9 @@ impl PanBuffer {
         shader: &Shader,
         window: &Window,
         linear: bool,
+        ostc: Option<&Ostc>,
     ) -> (Option<Frame>, image::RgbImage, PanFrameStats) {
-        let (fresh_pixels, rays) = self.trace_missing(shader, window);
+        let (fresh_pixels, rays) = self.trace_missing(shader, window, ostc);
         let (width, height) = (window.width as usize, window.height as usize);
         let mut pixels = Vec::with_capacity(if linear { width * height } else { 0 });
         let mut bytes: Vec<u8> = Vec::with_capacity(width * height * 3);
