@@ -468,6 +468,9 @@ pub struct Animator<'a> {
     linear_output: bool,
     fractional: FractionalPan,
     ostc_settings: OstcSettings,
+    /// Whether to keep, per frame, the image with re-traced samples black.
+    keep_traced_image: bool,
+    traced_image: Option<image::RgbImage>,
 }
 
 impl<'a> Animator<'a> {
@@ -488,7 +491,21 @@ impl<'a> Animator<'a> {
             linear_output: true,
             fractional: FractionalPan::Snap,
             ostc_settings: OstcSettings::default(),
+            keep_traced_image: false,
+            traced_image: None,
         }
+    }
+
+    /// Keep, for each frame, its image with every re-traced sample black
+    /// (see [`Animator::take_traced_image`]).
+    pub fn set_traced_image(&mut self, keep: bool) {
+        self.keep_traced_image = keep;
+    }
+
+    /// The last frame's image with the samples it traced painted black (a
+    /// full render is all black), when asked for.
+    pub fn take_traced_image(&mut self) -> Option<image::RgbImage> {
+        self.traced_image.take()
     }
 
     pub fn set_fractional_pan(&mut self, fractional: FractionalPan) {
@@ -661,6 +678,9 @@ impl<'a> Animator<'a> {
                 stats.samples_traced = rays.primary;
                 stats.count_rays(rays);
                 let rgb = image.to_rgb8();
+                if self.keep_traced_image {
+                    self.traced_image = Some(image::RgbImage::new(rgb.width(), rgb.height()));
+                }
                 (Some(image), rgb)
             }
             None => self.render_buffered(&camera, &mut stats),
@@ -765,6 +785,17 @@ impl<'a> Animator<'a> {
         };
         stats.pixels_reused = pan.pixels_reused;
         stats.samples_traced = pan.samples_traced;
+        if self.keep_traced_image {
+            let mut traced = rgb.clone();
+            let painted = match self.fractional {
+                FractionalPan::Snap => window,
+                FractionalPan::Resample => buffered.pan.resample_window(camera).0,
+            };
+            buffered
+                .pan
+                .paint_groups(&painted, &pan.traced, &mut traced);
+            self.traced_image = Some(traced);
+        }
         if self.fractional == FractionalPan::Snap {
             stats.yaw_error_deg = window.yaw_error.to_degrees();
             stats.pitch_error_deg = window.pitch_error.to_degrees();

@@ -160,6 +160,10 @@ struct AnimateArgs {
     /// Per-frame statistics: .csv or .json.
     #[arg(long)]
     stats: Option<PathBuf>,
+    /// Also write each frame with the samples it re-traced painted black
+    /// (like the paper's figure 4), e.g. out/dirty_####.png.
+    #[arg(long)]
+    dirty_image: Option<String>,
     /// full (no reuse), auto (every technique the timeline allows), or a
     /// comma list of techniques: pan (camera pans shift the image), ostc
     /// (moving objects and lights re-trace only their regions).
@@ -503,6 +507,15 @@ fn parse_frame_range(text: Option<&str>, count: u32) -> Result<std::ops::RangeIn
     Ok(first..=last)
 }
 
+/// The file name of each frame under `pattern` (a run of # becomes the
+/// zero-padded frame number), checked for a known image format.
+fn frame_namer(pattern: &str) -> Result<impl Fn(u32) -> PathBuf> {
+    let (prefix, digits, suffix) = frame_pattern(pattern)?;
+    let name = move |frame: u32| PathBuf::from(format!("{prefix}{frame:0digits$}{suffix}"));
+    retrace::output::format_for(&name(0))?;
+    Ok(name)
+}
+
 /// Splits a frame pattern around its run of `#`.
 fn frame_pattern(pattern: &str) -> Result<(String, usize, String)> {
     let start = pattern.find('#').with_context(|| {
@@ -661,9 +674,8 @@ fn stats_csv(stats: &[retrace::anim::FrameStats]) -> Result<String> {
 }
 
 fn animate(args: AnimateArgs) -> Result<()> {
-    let (prefix, digits, suffix) = frame_pattern(&args.output)?;
-    let frame_path = |frame: u32| PathBuf::from(format!("{prefix}{frame:0digits$}{suffix}"));
-    retrace::output::format_for(&frame_path(0))?;
+    let frame_path = frame_namer(&args.output)?;
+    let dirty_path = args.dirty_image.as_deref().map(frame_namer).transpose()?;
     if let Some(path) = &args.stats {
         let ext = path.extension().map(|e| e.to_string_lossy().to_lowercase());
         if !matches!(ext.as_deref(), Some("csv" | "json")) {
@@ -681,6 +693,15 @@ fn animate(args: AnimateArgs) -> Result<()> {
         .filter(|d| !d.as_os_str().is_empty())
         .map_or(PathBuf::from("."), Path::to_path_buf);
     check_writable(&out_dir)?;
+    if let Some(dirty_path) = &dirty_path {
+        if let Some(dir) = dirty_path(*range.start()).parent() {
+            check_writable(&if dir.as_os_str().is_empty() {
+                PathBuf::from(".")
+            } else {
+                dir.to_path_buf()
+            })?;
+        }
+    }
     let mut gif = match &args.gif {
         Some(path) => Some(GifWriter::create(path, fps)?),
         None => None,
@@ -695,6 +716,7 @@ fn animate(args: AnimateArgs) -> Result<()> {
     animator.set_linear_output(args.verify);
     animator.set_fractional_pan(args.fractional_pan);
     animator.set_ostc(args.ostc.settings());
+    animator.set_traced_image(dirty_path.is_some());
 
     let bar = indicatif::ProgressBar::new(u64::from(range.end() - range.start() + 1)).with_style(
         indicatif::ProgressStyle::with_template(
@@ -748,6 +770,9 @@ fn animate(args: AnimateArgs) -> Result<()> {
         }
         let write_start = Instant::now();
         save_image(&path, &rgb)?;
+        if let (Some(dirty_path), Some(dirty)) = (&dirty_path, animator.take_traced_image()) {
+            save_image(&dirty_path(frame), &dirty)?;
+        }
         if let Some(gif) = &mut gif {
             gif.add(&rgb)?;
         }

@@ -153,6 +153,7 @@ impl RegionSet {
     }
 
     fn union_atomic(&mut self, words: &[AtomicU64]) {
+        debug_assert_eq!(words.len(), self.words.len());
         for (mine, theirs) in self.words.iter_mut().zip(words) {
             *mine |= theirs.load(Ordering::Relaxed);
         }
@@ -168,8 +169,10 @@ impl RegionSet {
 /// The voxel grid and its per-voxel region bits.
 struct VoxelBits {
     spec: GridSpec,
-    /// `words` u64s per voxel, voxel-major.
+    /// `words` planes of one u64 per voxel, plane-major: a walk marks one
+    /// plane (its region's), whose voxels lie side by side in memory.
     bits: Vec<AtomicU64>,
+    voxel_count: usize,
 }
 
 impl VoxelBits {
@@ -209,7 +212,6 @@ const WALK_END_SLACK: f32 = 1e-4;
 /// The OSTC bookkeeping of one sample buffer.
 pub struct Ostc {
     layout: RegionLayout,
-    words: usize,
     voxels: Option<VoxelBits>,
     /// Regions with a sample whose primary ray hit something; kept only
     /// when a light moves.
@@ -236,12 +238,12 @@ impl Ostc {
                     bits: (0..spec.voxel_count() * words)
                         .map(|_| AtomicU64::new(0))
                         .collect(),
+                    voxel_count: spec.voxel_count(),
                     spec,
                 }
             });
         Ostc {
             layout,
-            words,
             voxels,
             lit: lights_move.then(|| (0..words).map(|_| AtomicU64::new(0)).collect()),
             voxels_walked: AtomicU64::new(0),
@@ -264,6 +266,7 @@ impl Ostc {
             region: self.layout.region_of(group.col, group.row),
             walked: 0,
             nanos: 0,
+            recent: [0; RECENT_SLOTS],
         }
     }
 
@@ -285,8 +288,11 @@ impl Ostc {
                         if !volume.may_touch(&voxels.spec.voxel_bounds([i, j, k])) {
                             continue;
                         }
-                        let start = voxels.spec.linear_index([i, j, k]) * self.words;
-                        dirty.union_atomic(&voxels.bits[start..start + self.words]);
+                        let voxel = voxels.spec.linear_index([i, j, k]);
+                        for (word, bits) in dirty.words.iter_mut().enumerate() {
+                            *bits |= voxels.bits[word * voxels.voxel_count + voxel]
+                                .load(Ordering::Relaxed);
+                        }
                     }
                 }
             }
@@ -311,10 +317,10 @@ impl Ostc {
             return;
         }
         let keep: Vec<u64> = regions.words.iter().map(|w| !w).collect();
-        let words = self.words;
         if let Some(voxels) = &mut self.voxels {
-            for voxel in voxels.bits.chunks_mut(words) {
-                for (bits, keep) in voxel.iter_mut().zip(&keep) {
+            let planes = voxels.bits.chunks_mut(voxels.voxel_count);
+            for (plane, keep) in planes.zip(&keep).filter(|(_, &keep)| keep != u64::MAX) {
+                for bits in plane {
                     *bits.get_mut() &= keep;
                 }
             }
@@ -387,7 +393,13 @@ pub struct RegionMarker<'a> {
     region: usize,
     walked: u64,
     nanos: u64,
+    /// Voxels (index + 1) this group marked lately, direct-mapped: the
+    /// rays of one group cross mostly the same voxels, and a hit here
+    /// skips the shared bit array.
+    recent: [u32; RECENT_SLOTS],
 }
+
+const RECENT_SLOTS: usize = 64;
 
 impl RayObserver for RegionMarker<'_> {
     fn traced(
@@ -397,7 +409,6 @@ impl RayObserver for RegionMarker<'_> {
         mask: LaneMask,
         ends: &[f32; PACKET_WIDTH],
     ) {
-        let start = Instant::now();
         let word = self.region / 64;
         let bit = 1u64 << (self.region % 64);
         if let (RayKind::Primary, Some(lit)) = (kind, &self.ostc.lit) {
@@ -405,23 +416,38 @@ impl RayObserver for RegionMarker<'_> {
                 lit[word].fetch_or(bit, Ordering::Relaxed);
             }
         }
-        if let Some(voxels) = &self.ostc.voxels {
-            let words = self.ostc.words;
-            for lane in lanes(mask) {
+        let Some(voxels) = &self.ostc.voxels else {
+            return;
+        };
+        // The box test alone decides most rays (those nowhere near the
+        // moving objects): it is not timed, the walks and marks are.
+        let ends: [f32; PACKET_WIDTH] =
+            std::array::from_fn(|lane| ends[lane] + ends[lane].abs() * WALK_END_SLACK);
+        let crossing = lanes(mask)
+            .filter(|&lane| {
                 let ray = &rays[lane];
-                let end = ends[lane];
-                let end = end + end.abs() * WALK_END_SLACK;
-                if !voxels.may_cross(ray.origin, ray.dir, ray.tmin, end) {
+                voxels.may_cross(ray.origin, ray.dir, ray.tmin, ends[lane])
+            })
+            .fold(0 as LaneMask, |m, lane| m | (1 << lane));
+        if crossing == 0 {
+            return;
+        }
+        let start = Instant::now();
+        let plane = &voxels.bits[word * voxels.voxel_count..(word + 1) * voxels.voxel_count];
+        for lane in lanes(crossing) {
+            let ray = &rays[lane];
+            for voxel in voxels.spec.walk(ray.origin, ray.dir, ray.tmin, ends[lane]) {
+                self.walked += 1;
+                let index = voxels.spec.linear_index(voxel);
+                let slot = index % RECENT_SLOTS;
+                if self.recent[slot] == index as u32 + 1 {
                     continue;
                 }
-                for voxel in voxels.spec.walk(ray.origin, ray.dir, ray.tmin, end) {
-                    let slot = &voxels.bits[voxels.spec.linear_index(voxel) * words + word];
-                    // Most voxels are marked already: a load is cheaper than
-                    // a read-modify-write on a shared cache line.
-                    if slot.load(Ordering::Relaxed) & bit == 0 {
-                        slot.fetch_or(bit, Ordering::Relaxed);
-                    }
-                    self.walked += 1;
+                self.recent[slot] = index as u32 + 1;
+                // Most voxels are marked already: a load is cheaper than a
+                // read-modify-write on a shared cache line.
+                if plane[index].load(Ordering::Relaxed) & bit == 0 {
+                    plane[index].fetch_or(bit, Ordering::Relaxed);
                 }
             }
         }

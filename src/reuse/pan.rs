@@ -256,11 +256,14 @@ pub struct PanBuffer {
 }
 
 /// What one frame of a pan cost.
-#[derive(Clone, Copy, Debug, Default, serde::Serialize)]
+#[derive(Clone, Debug, Default, serde::Serialize)]
 pub struct PanFrameStats {
     pub samples_traced: u64,
     pub pixels_reused: u64,
     pub rays: RayCounts,
+    /// The groups traced for the frame (wrapped lattice coordinates).
+    #[serde(skip)]
+    pub traced: Vec<SampleGroup>,
 }
 
 impl PanBuffer {
@@ -335,7 +338,7 @@ impl PanBuffer {
         shader: &Shader,
         window: &Window,
         ostc: Option<&Ostc>,
-    ) -> (u64, RayCounts) {
+    ) -> (u64, RayCounts, Vec<SampleGroup>) {
         assert!(self.covers(window), "window rows outside the pan buffer");
         let missing =
             window_groups_where(&self.lattice, window, |g| !self.traced[self.group_index(g)]);
@@ -354,7 +357,26 @@ impl PanBuffer {
                 fresh_pixels += window_positions(&self.lattice, window, col, row).count() as u64;
             }
         }
-        (fresh_pixels, rays)
+        (fresh_pixels, rays, missing)
+    }
+
+    /// Paints black, in `image` (a view of `window`), every sample of
+    /// `groups`: what a frame re-traced, like the paper's figure 4.
+    pub fn paint_groups(
+        &self,
+        window: &Window,
+        groups: &[SampleGroup],
+        image: &mut image::RgbImage,
+    ) {
+        for group in groups {
+            for (col, row) in group.lane_samples() {
+                for (x, y) in window_positions(&self.lattice, window, col, row) {
+                    if x < image.width() as usize && y < image.height() as usize {
+                        image.put_pixel(x as u32, y as u32, image::Rgb([0, 0, 0]));
+                    }
+                }
+            }
+        }
     }
 
     /// The window a resampled view of `camera` reads: its unsnapped corner
@@ -384,7 +406,7 @@ impl PanBuffer {
         ostc: Option<&Ostc>,
     ) -> (Option<Frame>, image::RgbImage, PanFrameStats) {
         let (window, fx, fy) = self.resample_window(camera);
-        let (_, rays) = self.trace_missing(shader, &window, ostc);
+        let (_, rays, traced) = self.trace_missing(shader, &window, ostc);
         let (fx, fy) = (fx as f32, fy as f32);
         let weights = [
             (1.0 - fx) * (1.0 - fy),
@@ -420,6 +442,7 @@ impl PanBuffer {
                 samples_traced: rays.primary,
                 pixels_reused: total.saturating_sub(rays.primary),
                 rays,
+                traced,
             },
         )
     }
@@ -434,7 +457,7 @@ impl PanBuffer {
         linear: bool,
         ostc: Option<&Ostc>,
     ) -> (Option<Frame>, image::RgbImage, PanFrameStats) {
-        let (fresh_pixels, rays) = self.trace_missing(shader, window, ostc);
+        let (fresh_pixels, rays, traced) = self.trace_missing(shader, window, ostc);
         let (width, height) = (window.width as usize, window.height as usize);
         let mut pixels = Vec::with_capacity(if linear { width * height } else { 0 });
         let mut bytes: Vec<u8> = Vec::with_capacity(width * height * 3);
@@ -464,6 +487,7 @@ impl PanBuffer {
                 samples_traced: rays.primary,
                 pixels_reused: pixels - fresh_pixels.min(pixels),
                 rays,
+                traced,
             },
         )
     }
