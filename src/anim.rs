@@ -606,8 +606,13 @@ impl<'a> Animator<'a> {
             return Some(String::new());
         }
         if camera.projection != Projection::EqualAngle {
+            let asked = match (self.techniques.pan, self.techniques.ostc) {
+                (true, true) => "pan and ostc need",
+                (true, false) => "pan needs",
+                _ => "ostc needs",
+            };
             return Some(format!(
-                "pan and ostc need an equal-angle camera (the sample buffer is the pan lattice), not {}",
+                "{asked} an equal-angle camera (the sample buffer is the pan lattice), not {}",
                 camera.projection
             ));
         }

@@ -631,10 +631,14 @@ fn stats_csv(stats: &[retrace::anim::FrameStats]) -> Result<String> {
                 }
             }
             serde_json::Value::Null => out.push((prefix.to_string(), String::new())),
-            serde_json::Value::String(text) => out.push((
-                prefix.to_string(),
-                format!("\"{}\"", text.replace('"', "'")),
-            )),
+            serde_json::Value::String(text) => {
+                let cell = if text.contains([',', '"', '\n']) {
+                    format!("\"{}\"", text.replace('"', "\"\""))
+                } else {
+                    text.clone()
+                };
+                out.push((prefix.to_string(), cell))
+            }
             serde_json::Value::Number(n) => out.push((
                 prefix.to_string(),
                 match n.as_f64() {

@@ -539,12 +539,17 @@ mod tests {
             max: Vec3::new(-0.4, 0.2, 0.7),
         });
         assert!(ostc.dirty_for(&[aside]).is_empty());
-        // A ball whose bounding box corner reaches the ray, but not the ball.
+        // A ball whose bounding box reaches the voxels the ray marked (y and
+        // z within 1 +- 0.125 and 0 +- 0.125: 16 voxels a side), but not the
+        // ball itself.
         let ball = |center: Vec3| Footprint::Ball {
             center,
             radius: 0.3,
         };
-        let corner = Vec3::new(-0.5, 1.0 + 0.3 * 0.95, 0.3 * 0.95);
+        let corner = Vec3::new(-0.5, 1.125 + 0.23, 0.125 + 0.23);
+        assert!(!ostc
+            .dirty_for(&[Footprint::Box(ball(corner).bounds())])
+            .is_empty());
         assert!(ostc.dirty_for(&[ball(corner)]).is_empty());
         assert!(ostc
             .dirty_for(&[ball(Vec3::new(-0.5, 1.2, 0.0))])
