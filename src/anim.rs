@@ -10,11 +10,14 @@ use std::time::Instant;
 use glam::{Affine3A, DVec3, EulerRot, Quat, Vec3};
 
 use crate::accel::Accelerator;
+use crate::camera::RayTable;
 use crate::camera::{Camera, Projection};
 use crate::geometry::Placement;
 use crate::render::{render_view, Frame};
 use crate::reuse::ostc::{Footprint, Ostc, RegionGrid, DEFAULT_VOXELS};
-use crate::reuse::pan::{render_window, EqualAngleLattice, PanBuffer, Window};
+use crate::reuse::pan::{
+    image_window, render_window, EqualAngleLattice, Lattice, PanBuffer, Window,
+};
 use crate::scene::{Light, Scene};
 use crate::shade::{RayCounts, Shader};
 
@@ -441,9 +444,45 @@ impl Default for OstcSettings {
     }
 }
 
-/// The pan buffer and what goes with its samples.
+/// Where a buffered run keeps its samples.
+enum Store {
+    /// Equal-angle cameras: the world-fixed lattice (a pan is a shift).
+    Lattice(PanBuffer),
+    /// Any other camera, held still: its own image (for OSTC).
+    Image(PanBuffer<RayTable>),
+}
+
+impl Store {
+    fn regions(&self, size: (i64, i64)) -> crate::reuse::ostc::RegionLayout {
+        match self {
+            Store::Lattice(pan) => pan.regions(size),
+            Store::Image(image) => image.regions(size),
+        }
+    }
+
+    fn erase(
+        &mut self,
+        layout: &crate::reuse::ostc::RegionLayout,
+        regions: &crate::reuse::ostc::RegionSet,
+    ) -> u64 {
+        match self {
+            Store::Lattice(pan) => pan.erase(layout, regions),
+            Store::Image(image) => image.erase(layout, regions),
+        }
+    }
+
+    /// Where `camera` looks in the store.
+    fn window(&self, camera: &Camera) -> Window {
+        match self {
+            Store::Lattice(pan) => pan.lattice().window(camera),
+            Store::Image(image) => image_window(image.lattice()),
+        }
+    }
+}
+
+/// The sample buffer and what goes with its samples.
 struct Buffered {
-    pan: PanBuffer,
+    store: Store,
     /// Bookkeeping, when OSTC is on and something in the scene moves.
     ostc: Option<Ostc>,
     /// The scene as it was when the buffer's samples were traced.
@@ -601,27 +640,40 @@ impl<'a> Animator<'a> {
     }
 
     /// Why `camera` cannot use a sample buffer, if it cannot.
-    fn buffer_refusal(&self, camera: &Camera) -> Option<String> {
+    fn buffer_refusal(&self, camera: &Camera, frame: u32) -> Option<String> {
         if !self.techniques.buffered() {
             return Some(String::new());
         }
-        if camera.projection != Projection::EqualAngle {
-            let asked = match (self.techniques.pan, self.techniques.ostc) {
-                (true, true) => "pan and ostc need",
-                (true, false) => "pan needs",
-                _ => "ostc needs",
-            };
+        if camera.projection == Projection::EqualAngle {
+            return None;
+        }
+        if !self.techniques.ostc {
             return Some(format!(
-                "{asked} an equal-angle camera (the sample buffer is the pan lattice), not {}",
+                "pan needs an equal-angle camera, not {}",
                 camera.projection
             ));
         }
-        None
+        // Other cameras keep their own image, which holds only while they
+        // stand still.
+        let moves = |other: u32| self.camera_at(other) != *camera;
+        let still = (frame == 0 || !moves(frame - 1)) && !moves(frame + 1);
+        (!still).then(|| {
+            format!(
+                "the {} camera moves: only equal-angle views pan",
+                camera.projection
+            )
+        })
     }
 
-    /// A pan buffer sized for every window of this run that shares the
-    /// lattice of `camera`.
-    fn new_pan_buffer(&self, camera: &Camera) -> PanBuffer {
+    /// A sample buffer for `camera`: the pan lattice, sized for every
+    /// window of this run that shares it, for equal-angle cameras; the
+    /// camera's own image otherwise.
+    fn new_store(&self, camera: &Camera) -> Store {
+        if camera.projection != Projection::EqualAngle {
+            let table = RayTable::new(camera);
+            let rows = table.rows();
+            return Store::Image(PanBuffer::new(table, 0..rows));
+        }
         let lattice = EqualAngleLattice::for_camera(camera);
         let (mut low, mut high) = (i64::MAX, i64::MIN);
         for frame in self.frame_range.clone() {
@@ -636,13 +688,13 @@ impl<'a> Animator<'a> {
         low = low.min(window.row);
         high = high.max(window.row + i64::from(window.height));
         // A resampled view reads up to one row more on either side.
-        PanBuffer::new(lattice, low - 1..high + 1)
+        Store::Lattice(PanBuffer::new(lattice, low - 1..high + 1))
     }
 
-    /// OSTC bookkeeping for `pan`, when it is on and the timeline moves
+    /// OSTC bookkeeping for `store`, when it is on and the timeline moves
     /// something (no grid when no object moves, no light bookkeeping when
     /// no light moves).
-    fn new_ostc(&self, pan: &PanBuffer, camera: &Camera) -> Option<Ostc> {
+    fn new_ostc(&self, store: &Store, camera: &Camera) -> Option<Ostc> {
         let animation = self.animation()?;
         if !self.techniques.ostc || !animation.moves_scene() {
             return None;
@@ -653,7 +705,7 @@ impl<'a> Animator<'a> {
             .regions
             .region_size(camera.width, camera.height);
         Some(Ostc::new(
-            pan.regions(size),
+            store.regions(size),
             swept,
             self.ostc_settings.voxels,
             !animation.lights.is_empty(),
@@ -672,7 +724,7 @@ impl<'a> Animator<'a> {
             pixels: u64::from(camera.width) * u64::from(camera.height),
             ..FrameStats::default()
         };
-        let (image, rgb) = match self.buffer_refusal(&camera) {
+        let (image, rgb) = match self.buffer_refusal(&camera, frame) {
             Some(reason) => {
                 self.buffer = None;
                 stats.mode = "full";
@@ -701,22 +753,57 @@ impl<'a> Animator<'a> {
         let Some(buffered) = &self.buffer else {
             return Some("first frame".to_string());
         };
-        let pan = &buffered.pan;
-        if !pan.lattice().fits(camera) {
-            return Some("eye or field of view changed: buffer restarted".to_string());
-        }
-        if !pan.covers(&pan.resample_window(camera).0) {
-            return Some("view left the pan buffer's rows: restarted".to_string());
-        }
-        let window = pan.lattice().window(camera);
-        let moved_view = (window.col, window.row) != (buffered.window.col, buffered.window.row);
-        if moved_view && !self.techniques.pan {
-            return Some("the camera moved and pan is off: buffer restarted".to_string());
+        match &buffered.store {
+            Store::Lattice(pan) => {
+                if !pan.lattice().fits(camera) {
+                    return Some("eye or field of view changed: buffer restarted".to_string());
+                }
+                if !pan.covers(&pan.resample_window(camera).0) {
+                    return Some("view left the pan buffer's rows: restarted".to_string());
+                }
+                let window = pan.lattice().window(camera);
+                let moved_view =
+                    (window.col, window.row) != (buffered.window.col, buffered.window.row);
+                if moved_view && !self.techniques.pan {
+                    return Some("the camera moved and pan is off: buffer restarted".to_string());
+                }
+            }
+            Store::Image(image) => {
+                if image.lattice().camera() != camera {
+                    return Some(format!(
+                        "the {} camera moved (only equal-angle views pan): buffer restarted",
+                        image.lattice().camera().projection
+                    ));
+                }
+            }
         }
         if buffered.pose != *pose && buffered.ostc.is_none() {
             return Some("objects or lights moved and ostc is off: buffer restarted".to_string());
         }
         None
+    }
+
+    /// Erases, in the buffer, what changed since its samples were traced.
+    fn erase_dirty(buffered: &mut Buffered, pose: ScenePose, stats: &mut FrameStats) {
+        let ostc = buffered
+            .ostc
+            .as_mut()
+            .expect("buffers restart on changes unless ostc is on");
+        let book_start = Instant::now();
+        let mut dirty = crate::reuse::ostc::RegionSet::empty(ostc.layout().count());
+        for (old, new) in buffered.pose.places.iter().zip(&pose.places) {
+            if old != new {
+                dirty.union_with(&ostc.dirty_for(&[*old, *new]));
+            }
+        }
+        if buffered.pose.lights != pose.lights {
+            dirty.union_with(&ostc.dirty_for_lights());
+        }
+        stats.dirty_regions = dirty.len() as u64;
+        stats.samples_nulled = buffered.store.erase(ostc.layout(), &dirty);
+        ostc.forget(&dirty);
+        buffered.pose = pose;
+        stats.bookkeeping_ms += book_start.elapsed().as_secs_f64() * 1e3;
     }
 
     fn render_buffered(
@@ -726,11 +813,11 @@ impl<'a> Animator<'a> {
     ) -> (Option<Frame>, image::RgbImage) {
         let pose = ScenePose::of(&self.scene, self.animation());
         if let Some(reason) = self.restart_reason(camera, &pose) {
-            let pan = self.new_pan_buffer(camera);
-            let ostc = self.new_ostc(&pan, camera);
-            let window = pan.lattice().window(camera);
+            let store = self.new_store(camera);
+            let ostc = self.new_ostc(&store, camera);
+            let window = store.window(camera);
             self.buffer = Some(Buffered {
-                pan,
+                store,
                 ostc,
                 pose: pose.clone(),
                 window,
@@ -739,37 +826,21 @@ impl<'a> Animator<'a> {
         }
         let buffered = self.buffer.as_mut().expect("buffer just ensured");
         if buffered.pose != pose {
-            let ostc = buffered.ostc.as_mut().expect("restarted unless ostc is on");
-            let book_start = Instant::now();
-            let mut dirty = crate::reuse::ostc::RegionSet::empty(ostc.layout().count());
-            for (old, new) in buffered.pose.places.iter().zip(&pose.places) {
-                if old != new {
-                    dirty.union_with(&ostc.dirty_for(&[*old, *new]));
-                }
-            }
-            if buffered.pose.lights != pose.lights {
-                dirty.union_with(&ostc.dirty_for_lights());
-            }
-            stats.dirty_regions = dirty.len() as u64;
-            stats.samples_nulled = buffered.pan.erase(ostc.layout(), &dirty);
-            ostc.forget(&dirty);
-            buffered.pose = pose;
-            stats.bookkeeping_ms += book_start.elapsed().as_secs_f64() * 1e3;
+            Self::erase_dirty(buffered, pose, stats);
         }
-        let window = buffered.pan.lattice().window(camera);
+        let window = buffered.store.window(camera);
         buffered.window = window;
         let shader = Shader::new(&self.scene, self.accel);
         let ostc = buffered.ostc.as_ref();
+        let linear = self.linear_output;
         let trace_start = Instant::now();
-        let (image, rgb, pan) = match self.fractional {
-            FractionalPan::Snap => buffered
-                .pan
-                .frame(&shader, &window, self.linear_output, ostc),
-            FractionalPan::Resample => {
-                buffered
-                    .pan
-                    .frame_resampled(&shader, camera, self.linear_output, ostc)
+        let (image, rgb, pan) = match (&mut buffered.store, self.fractional) {
+            (Store::Lattice(pan), FractionalPan::Snap) => pan.frame(&shader, &window, linear, ostc),
+            (Store::Lattice(pan), FractionalPan::Resample) => {
+                pan.frame_resampled(&shader, camera, linear, ostc)
             }
+            // A still camera's own pixels need no resampling.
+            (Store::Image(image), _) => image.frame(&shader, &window, linear, ostc),
         };
         let elapsed = trace_start.elapsed().as_secs_f64() * 1e3;
         if let Some(ostc) = ostc {
@@ -783,22 +854,28 @@ impl<'a> Animator<'a> {
         } else {
             stats.trace_ms = elapsed;
         }
-        stats.mode = match (self.techniques.pan, ostc.is_some()) {
+        let panning = self.techniques.pan && matches!(buffered.store, Store::Lattice(_));
+        stats.mode = match (panning, ostc.is_some()) {
             (true, true) => "pan+ostc",
             (false, true) => "ostc",
-            _ => "pan",
+            (true, false) => "pan",
+            (false, false) => "still",
         };
         stats.pixels_reused = pan.pixels_reused;
         stats.samples_traced = pan.samples_traced;
         if self.keep_traced_image {
             let mut traced = rgb.clone();
-            let painted = match self.fractional {
-                FractionalPan::Snap => window,
-                FractionalPan::Resample => buffered.pan.resample_window(camera).0,
-            };
-            buffered
-                .pan
-                .paint_groups(&painted, &pan.traced, &mut traced);
+            match (&buffered.store, self.fractional) {
+                (Store::Lattice(lattice), FractionalPan::Resample) => lattice.paint_groups(
+                    &lattice.resample_window(camera).0,
+                    &pan.traced,
+                    &mut traced,
+                ),
+                (Store::Lattice(lattice), FractionalPan::Snap) => {
+                    lattice.paint_groups(&window, &pan.traced, &mut traced)
+                }
+                (Store::Image(image), _) => image.paint_groups(&window, &pan.traced, &mut traced),
+            }
             self.traced_image = Some(traced);
         }
         if self.fractional == FractionalPan::Snap {

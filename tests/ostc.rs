@@ -7,6 +7,7 @@ use std::path::Path;
 use proptest::prelude::*;
 use retrace::accel::{Accelerator, BackendKind};
 use retrace::anim::{count_differences, Animator, FrameStats, Techniques};
+use retrace::camera::Projection;
 use retrace::scene::{parse_scene_str, Scene, SceneOverrides};
 
 mod common;
@@ -105,6 +106,21 @@ on_every_backend! {
         let stats = run_exact(&scene, backend, Techniques::AUTO);
         assert!(stats.iter().all(|s| s.mode == "pan+ostc"));
         assert!(traced(&stats) < 6 * 64 * 48);
+    }
+
+    still_cameras_of_any_projection_use_ostc(backend) {
+        for projection in [Projection::Perspective, Projection::Fisheye] {
+            let mut scene = paper_with(
+                &format!("{BALL}\n[animation]\nframes = 5\n[[animation.bounce]]\nobject = \"ball\"\nheight = 2.0\nperiod = 6\n"),
+                64,
+                48,
+            );
+            scene.camera.projection = projection;
+            scene.camera.fov = 70f64.to_radians();
+            let stats = run_exact(&scene, backend, Techniques::AUTO);
+            assert!(stats.iter().all(|s| s.mode == "ostc"), "{projection}: {:?}", stats.iter().map(|s| (s.mode, s.reason.clone())).collect::<Vec<_>>());
+            assert!(traced(&stats[1..]) < 4 * 64 * 48 / 2, "{projection}: traced {}", traced(&stats[1..]));
+        }
     }
 
     ostc_off_rerenders_moving_scenes_in_full(backend) {

@@ -137,6 +137,55 @@ impl EqualAngleLattice {
     }
 }
 
+/// A sample lattice a [`PanBuffer`] can hold: rays by integer position,
+/// repeating every `period()` columns, `rows()` rows from row 0.
+pub trait Lattice: PrimaryRays {
+    /// Columns after which the lattice repeats (a multiple of the group
+    /// width).
+    fn period(&self) -> i64;
+    fn rows(&self) -> i64;
+    fn wrap(&self, col: i64) -> i64 {
+        col.rem_euclid(self.period())
+    }
+}
+
+impl Lattice for EqualAngleLattice {
+    fn period(&self) -> i64 {
+        self.columns_per_turn
+    }
+    fn rows(&self) -> i64 {
+        self.rows
+    }
+}
+
+/// A fixed camera's own pixels as a lattice (its image, padded to whole
+/// groups, repeating past its width): a still camera of any projection
+/// keeps its samples in a [`PanBuffer`] of these, traced in exactly the
+/// groups a full render uses.
+impl Lattice for crate::camera::RayTable {
+    fn period(&self) -> i64 {
+        let gw = i64::from(GROUP_WIDTH);
+        (i64::from(self.size().0) + gw - 1) / gw * gw
+    }
+    fn rows(&self) -> i64 {
+        let gh = i64::from(GROUP_HEIGHT);
+        (i64::from(self.size().1) + gh - 1) / gh * gh
+    }
+}
+
+/// The window of a fixed camera's lattice: its whole image.
+pub fn image_window(table: &crate::camera::RayTable) -> Window {
+    let (width, height) = table.size();
+    Window {
+        col: 0,
+        row: 0,
+        width,
+        height,
+        yaw_error: 0.0,
+        pitch_error: 0.0,
+    }
+}
+
 impl PrimaryRays for EqualAngleLattice {
     fn primary(&self, col: i64, row: i64) -> Option<Ray> {
         self.direction(col, row)
@@ -146,8 +195,8 @@ impl PrimaryRays for EqualAngleLattice {
 
 /// The groups covering a window, with their columns wrapped into one turn,
 /// each once, that `keep` accepts.
-pub fn window_groups_where(
-    lattice: &EqualAngleLattice,
+pub fn window_groups_where<L: Lattice>(
+    lattice: &L,
     window: &Window,
     mut keep: impl FnMut(SampleGroup) -> bool,
 ) -> Vec<SampleGroup> {
@@ -163,12 +212,12 @@ pub fn window_groups_where(
     };
     let (gw, gh) = (i64::from(GROUP_WIDTH), i64::from(GROUP_HEIGHT));
     // A window wider than a turn would meet some groups twice.
-    let group_cols = ((last.col - first.col) / gw + 1).min(lattice.columns_per_turn / gw);
+    let group_cols = ((last.col - first.col) / gw + 1).min(lattice.period() / gw);
     let mut groups = Vec::new();
     for row in (first.row..=last.row).step_by(gh as usize) {
         for k in 0..group_cols {
             let group = SampleGroup {
-                col: lattice.wrap_column(first.col + k * gw),
+                col: lattice.wrap(first.col + k * gw),
                 row,
             };
             if keep(group) {
@@ -180,15 +229,15 @@ pub fn window_groups_where(
 }
 
 /// The groups covering a window, with their columns wrapped into one turn.
-pub fn window_groups(lattice: &EqualAngleLattice, window: &Window) -> Vec<SampleGroup> {
+pub fn window_groups<L: Lattice>(lattice: &L, window: &Window) -> Vec<SampleGroup> {
     window_groups_where(lattice, window, |_| true)
 }
 
 /// Renders the window fresh (nothing kept): the reference a shifted frame
 /// must equal.
-pub fn render_window(
+pub fn render_window<L: Lattice>(
     shader: &Shader,
-    lattice: &EqualAngleLattice,
+    lattice: &L,
     window: &Window,
 ) -> (Frame, RayCounts) {
     let groups = window_groups(lattice, window);
@@ -206,14 +255,14 @@ pub fn render_window(
 
 /// Image positions of lattice sample (col, row) in the window (none, one,
 /// or several when the window spans more than a turn).
-fn window_positions(
-    lattice: &EqualAngleLattice,
+fn window_positions<L: Lattice>(
+    lattice: &L,
     window: &Window,
     col: i64,
     row: i64,
 ) -> impl Iterator<Item = (usize, usize)> {
     let y = row - window.row;
-    let turn = lattice.columns_per_turn;
+    let turn = lattice.period();
     let first = (col - window.col).rem_euclid(turn);
     let (width, height) = (i64::from(window.width), i64::from(window.height));
     let row_inside = (0..height).contains(&y);
@@ -242,8 +291,8 @@ fn assembled(
 }
 
 /// Every sample traced so far on one lattice, in a band of rows.
-pub struct PanBuffer {
-    lattice: EqualAngleLattice,
+pub struct PanBuffer<L: Lattice = EqualAngleLattice> {
+    lattice: L,
     /// First stored row (even) and number of stored rows (even).
     first_row: i64,
     row_count: i64,
@@ -266,14 +315,14 @@ pub struct PanFrameStats {
     pub traced: Vec<SampleGroup>,
 }
 
-impl PanBuffer {
+impl<L: Lattice> PanBuffer<L> {
     /// A buffer for windows within rows `rows` of the lattice.
-    pub fn new(lattice: EqualAngleLattice, rows: std::ops::Range<i64>) -> PanBuffer {
+    pub fn new(lattice: L, rows: std::ops::Range<i64>) -> PanBuffer<L> {
         let gh = i64::from(GROUP_HEIGHT);
         let first_row = rows.start.max(0).div_euclid(gh) * gh;
-        let end = rows.end.min(lattice.rows);
+        let end = rows.end.min(lattice.rows());
         let row_count = ((end - first_row + gh - 1).div_euclid(gh) * gh).max(0);
-        let samples = (lattice.columns_per_turn * row_count) as usize;
+        let samples = (lattice.period() * row_count) as usize;
         let groups = samples / (GROUP_WIDTH * GROUP_HEIGHT) as usize;
         PanBuffer {
             lattice,
@@ -285,7 +334,7 @@ impl PanBuffer {
         }
     }
 
-    pub fn lattice(&self) -> &EqualAngleLattice {
+    pub fn lattice(&self) -> &L {
         &self.lattice
     }
 
@@ -295,25 +344,19 @@ impl PanBuffer {
     }
 
     fn group_index(&self, group: SampleGroup) -> usize {
-        let per_row = self.lattice.columns_per_turn / i64::from(GROUP_WIDTH);
+        let per_row = self.lattice.period() / i64::from(GROUP_WIDTH);
         let group_row = (group.row - self.first_row) / i64::from(GROUP_HEIGHT);
         (group_row * per_row + group.col / i64::from(GROUP_WIDTH)) as usize
     }
 
     fn sample_index(&self, col: i64, row: i64) -> usize {
-        ((row - self.first_row) * self.lattice.columns_per_turn + self.lattice.wrap_column(col))
-            as usize
+        ((row - self.first_row) * self.lattice.period() + self.lattice.wrap(col)) as usize
     }
 
     /// Regions of `size` samples tiling the whole buffer (a whole turn by
     /// the buffer's rows), for OSTC.
     pub fn regions(&self, size: (i64, i64)) -> RegionLayout {
-        RegionLayout::new(
-            size,
-            self.lattice.columns_per_turn,
-            self.first_row,
-            self.row_count,
-        )
+        RegionLayout::new(size, self.lattice.period(), self.first_row, self.row_count)
     }
 
     /// Nulls every sample of `regions` (of `layout`, from
@@ -379,6 +422,54 @@ impl PanBuffer {
         }
     }
 
+    /// Traces the window's groups not traced before, then copies the window
+    /// out as 8-bit sRGB and, when `linear` is set, in linear colour too
+    /// (for bit-exact checks). The window must lie within the buffer's rows.
+    pub fn frame(
+        &mut self,
+        shader: &Shader,
+        window: &Window,
+        linear: bool,
+        ostc: Option<&Ostc>,
+    ) -> (Option<Frame>, image::RgbImage, PanFrameStats) {
+        let (fresh_pixels, rays, traced) = self.trace_missing(shader, window, ostc);
+        let (width, height) = (window.width as usize, window.height as usize);
+        let mut pixels = Vec::with_capacity(if linear { width * height } else { 0 });
+        let mut bytes: Vec<u8> = Vec::with_capacity(width * height * 3);
+        let turn = self.lattice.period() as usize;
+        for y in 0..height {
+            let row_start = (window.row + y as i64 - self.first_row) as usize * turn;
+            // Copy whole runs up to each wrap of the turn.
+            let mut x = 0usize;
+            while x < width {
+                let col = self.lattice.wrap(window.col + x as i64) as usize;
+                let run = (turn - col).min(width - x);
+                let samples = row_start + col..row_start + col + run;
+                if linear {
+                    pixels.extend_from_slice(&self.colors[samples.clone()]);
+                }
+                bytes.extend(self.bytes[samples].iter().flatten());
+                x += run;
+            }
+        }
+        let (frame, image) =
+            assembled(window.width, window.height, linear.then_some(pixels), bytes);
+        let pixels = u64::from(window.width) * u64::from(window.height);
+        (
+            frame,
+            image,
+            PanFrameStats {
+                samples_traced: rays.primary,
+                pixels_reused: pixels - fresh_pixels.min(pixels),
+                rays,
+                traced,
+            },
+        )
+    }
+}
+
+/// Resampling needs the lattice's angles: equal-angle buffers only.
+impl PanBuffer<EqualAngleLattice> {
     /// The window a resampled view of `camera` reads: its unsnapped corner
     /// rounded down, one sample wider and taller (bilinear neighbours).
     pub fn resample_window(&self, camera: &Camera) -> (Window, f64, f64) {
@@ -441,51 +532,6 @@ impl PanBuffer {
             PanFrameStats {
                 samples_traced: rays.primary,
                 pixels_reused: total.saturating_sub(rays.primary),
-                rays,
-                traced,
-            },
-        )
-    }
-
-    /// Traces the window's groups not traced before, then copies the window
-    /// out as 8-bit sRGB and, when `linear` is set, in linear colour too
-    /// (for bit-exact checks). The window must lie within the buffer's rows.
-    pub fn frame(
-        &mut self,
-        shader: &Shader,
-        window: &Window,
-        linear: bool,
-        ostc: Option<&Ostc>,
-    ) -> (Option<Frame>, image::RgbImage, PanFrameStats) {
-        let (fresh_pixels, rays, traced) = self.trace_missing(shader, window, ostc);
-        let (width, height) = (window.width as usize, window.height as usize);
-        let mut pixels = Vec::with_capacity(if linear { width * height } else { 0 });
-        let mut bytes: Vec<u8> = Vec::with_capacity(width * height * 3);
-        let turn = self.lattice.columns_per_turn as usize;
-        for y in 0..height {
-            let row_start = (window.row + y as i64 - self.first_row) as usize * turn;
-            // Copy whole runs up to each wrap of the turn.
-            let mut x = 0usize;
-            while x < width {
-                let col = self.lattice.wrap_column(window.col + x as i64) as usize;
-                let run = (turn - col).min(width - x);
-                let samples = row_start + col..row_start + col + run;
-                if linear {
-                    pixels.extend_from_slice(&self.colors[samples.clone()]);
-                }
-                bytes.extend(self.bytes[samples].iter().flatten());
-                x += run;
-            }
-        }
-        let (frame, image) =
-            assembled(window.width, window.height, linear.then_some(pixels), bytes);
-        let pixels = u64::from(window.width) * u64::from(window.height);
-        (
-            frame,
-            image,
-            PanFrameStats {
-                samples_traced: rays.primary,
-                pixels_reused: pixels - fresh_pixels.min(pixels),
                 rays,
                 traced,
             },
