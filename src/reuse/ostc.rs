@@ -220,8 +220,10 @@ pub struct Ostc {
     record_nanos: AtomicU64,
 }
 
-/// Default voxel count of the OSTC grid.
-pub const DEFAULT_VOXELS: u32 = 32_768;
+/// Default voxel count of the OSTC grid. Finer grids hardly tighten the
+/// dirty regions (measured on E3: 32k voxels re-trace 1.5% fewer samples
+/// than 4k, 262k voxels 2%) but walk many more voxels per ray.
+pub const DEFAULT_VOXELS: u32 = 4096;
 
 impl Ostc {
     /// Bookkeeping for a buffer tiled by `layout`: a grid of about `voxels`
