@@ -5,8 +5,8 @@
 use std::path::Path;
 
 use proptest::prelude::*;
-use retrace::accel::{Accelerator, BackendKind};
-use retrace::anim::{count_differences, Animator, FrameStats, Techniques};
+use retrace::accel::BackendKind;
+use retrace::anim::{FrameStats, Techniques};
 use retrace::camera::Projection;
 use retrace::scene::{parse_scene_str, Scene, SceneOverrides};
 
@@ -40,28 +40,7 @@ radius = 0.5
 material = "bouncer"
 "#;
 
-/// Renders every frame with `techniques`, checks each against a full
-/// render bit for bit (linear colour and 8-bit output), returns the stats.
-fn run_exact(scene: &Scene, backend: BackendKind, techniques: Techniques) -> Vec<FrameStats> {
-    let mut accel = Accelerator::build(backend, &scene.objects).unwrap();
-    let frames = scene.animation.as_ref().unwrap().frames;
-    let mut animator = Animator::new(scene, &mut accel, techniques, 0..frames);
-    let mut all = Vec::new();
-    for frame in 0..frames {
-        let (image, rgb, stats) = animator.render(frame);
-        let image = image.unwrap();
-        let (reference, _) = animator.render_full(frame);
-        assert_eq!(
-            count_differences(&image, &reference),
-            0,
-            "frame {frame} ({}) differs from its full render",
-            stats.mode
-        );
-        assert_eq!(rgb, reference.to_rgb8(), "frame {frame}: 8-bit output");
-        all.push(stats);
-    }
-    all
-}
+use common::run_exact;
 
 fn traced(stats: &[FrameStats]) -> u64 {
     stats.iter().map(|s| s.samples_traced).sum()
