@@ -5,7 +5,7 @@ use std::path::Path;
 use std::process::Command;
 
 use retrace::accel::Accelerator;
-use retrace::anim::{count_differences, Animator, Techniques};
+use retrace::anim::{Animator, Techniques};
 use retrace::scene::{paper_scene, parse_scene_str, Scene, SceneOverrides};
 
 mod common;
