@@ -176,32 +176,30 @@ struct VoxelBits {
 }
 
 impl VoxelBits {
-    /// False only if the segment surely misses the grid: a slab test in
-    /// f64 against the grid's box grown by far more than f64's rounding,
-    /// so most rays that never come near the moving objects cost this
-    /// alone.
+    /// False only if the segment surely misses the grid's box: a slab
+    /// test in f32 that rejects only when the gap between entry and exit
+    /// is far beyond the few ulps of rounding each `t` carries. Most rays
+    /// never come near the moving objects and cost this alone.
     fn may_cross(&self, origin: Vec3, dir: Vec3, t0: f32, t1: f32) -> bool {
-        let (o, d) = (origin.as_dvec3(), dir.as_dvec3());
-        let b = &self.spec.bounds;
-        let (lo, hi) = (b.min.as_dvec3(), b.max.as_dvec3());
-        let magnitude = lo.abs().max(hi.abs()).max(o.abs()).max_element();
-        let pad = 1e-9 * (magnitude + (hi - lo).max_element()) + 1e-30;
-        let (lo, hi) = (lo - pad, hi + pad);
-        let (mut enter, mut exit) = (f64::from(t0), f64::from(t1));
+        let (lo, hi) = (self.spec.bounds.min, self.spec.bounds.max);
+        let (mut enter, mut exit) = (t0, t1);
         for axis in 0..3 {
-            if d[axis] == 0.0 {
-                if o[axis] < lo[axis] || o[axis] > hi[axis] {
+            let (o, d) = (origin[axis], dir[axis]);
+            let inv = 1.0 / d;
+            if !inv.is_finite() {
+                // Parallel to the slabs (a zero or subnormal component).
+                if o < lo[axis] || o > hi[axis] {
                     return false;
                 }
                 continue;
             }
-            let inv = 1.0 / d[axis];
-            let (a, z) = ((lo[axis] - o[axis]) * inv, (hi[axis] - o[axis]) * inv);
+            let (a, z) = ((lo[axis] - o) * inv, (hi[axis] - o) * inv);
             enter = enter.max(a.min(z));
             exit = exit.min(a.max(z));
         }
-        // NaN (from a NaN ray) is unordered: walk it and let the walk decide.
-        enter.partial_cmp(&exit) != Some(std::cmp::Ordering::Greater)
+        let margin = (enter.abs() + exit.abs()) * 1e-5 + f32::MIN_POSITIVE;
+        // NaN is unordered: walk it and let the walk decide.
+        enter.partial_cmp(&(exit + margin)) != Some(std::cmp::Ordering::Greater)
     }
 }
 
@@ -472,6 +470,7 @@ impl Drop for RegionMarker<'_> {
 mod tests {
     use super::*;
     use crate::ray::Ray;
+    use proptest::prelude::{prop_oneof, Just};
 
     fn layout() -> RegionLayout {
         RegionLayout::new(RegionGrid(16).region_size(640, 480), 2304, 10, 482)
@@ -561,6 +560,29 @@ mod tests {
         dirty.insert(region);
         ostc.forget(&dirty);
         assert!(ostc.dirty_for(&[near(-0.5)]).is_empty());
+    }
+
+    proptest::proptest! {
+        /// The cheap box test never rejects a segment the walk would mark
+        /// a voxel for.
+        #[test]
+        fn box_test_rejects_only_segments_that_miss(
+            origin in proptest::array::uniform3(-6.0f32..6.0),
+            target in proptest::array::uniform3(-3.0f32..3.0),
+            axis_zero in 0usize..4,
+            t1 in prop_oneof![0.1f32..3.0, Just(f32::INFINITY)],
+        ) {
+            let bounds = Aabb { min: Vec3::new(-1.0, 0.0, -1.0), max: Vec3::new(1.0, 2.0, 1.0) };
+            let ostc = Ostc::new(layout(), Some(bounds), 512, false);
+            let voxels = ostc.voxels.as_ref().unwrap();
+            let origin = Vec3::from(origin);
+            let mut dir = Vec3::from(target) - origin;
+            if axis_zero < 3 {
+                dir[axis_zero] = 0.0;
+            }
+            let walked = voxels.spec.walk(origin, dir, 0.0, t1).next().is_some();
+            proptest::prop_assert!(!walked || voxels.may_cross(origin, dir, 0.0, t1));
+        }
     }
 
     #[test]
