@@ -62,7 +62,11 @@ pub trait RayObserver {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum RayKind {
     Primary,
-    Shadow,
+    /// Toward light number `light`; `blocked` lanes found an occluder.
+    Shadow {
+        light: usize,
+        blocked: LaneMask,
+    },
     Reflection,
 }
 
@@ -280,7 +284,7 @@ impl<'a> Shader<'a> {
             return colors;
         }
 
-        for light in &scene.lights {
+        for (light_index, light) in scene.lights.iter().enumerate() {
             let mut shadow_rays = [Ray::INACTIVE; PACKET_WIDTH];
             let mut lit_mask: LaneMask = 0;
             for lane in lanes(hit_mask) {
@@ -302,7 +306,11 @@ impl<'a> Shader<'a> {
             let blocked = self.intersector.occluded8(&shadow_rays, lit_mask);
             if let Some(observer) = observer.as_deref_mut() {
                 let ends = std::array::from_fn(|lane| shadow_rays[lane].tmax);
-                observer.traced(RayKind::Shadow, &shadow_rays, lit_mask, &ends);
+                let kind = RayKind::Shadow {
+                    light: light_index,
+                    blocked,
+                };
+                observer.traced(kind, &shadow_rays, lit_mask, &ends);
             }
             for lane in lanes(lit_mask & !blocked) {
                 let surface = surfaces[lane].as_ref().expect("lit lanes have surfaces");

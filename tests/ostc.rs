@@ -76,6 +76,21 @@ on_every_backend! {
         assert!(stats[1..].iter().all(|s| s.dirty_regions > 0));
     }
 
+    a_recoloured_light_retraces_only_what_it_lit(backend) {
+        // Light 1 below the ground plane: every shadow ray toward it is
+        // blocked, so it lights nothing in view.
+        let light = |change: &str| paper_with(
+            &format!("[animation]\nframes = 3\n[[animation.light]]\nlight = 1\nframe = 0\nposition = [2.0, -5.0, 3.0]\n[[animation.light]]\nlight = 1\nframe = 2\n{change}\n"),
+            64,
+            48,
+        );
+        let recoloured = run_exact(&light("color = [1.0, 0.2, 0.2]"), backend, Techniques::AUTO);
+        assert_eq!(traced(&recoloured[1..]), 0, "a light that lit nothing re-traced samples");
+        let moved = run_exact(&light("position = [3.0, -4.0, 2.0]"), backend, Techniques::AUTO);
+        // A moved light may now light anything it could face.
+        assert!(moved[1..].iter().all(|s| s.dirty_regions > 0));
+    }
+
     pan_and_motion_together_stay_exact(backend) {
         let scene = paper_with(
             &format!("{BALL}\n[animation]\nframes = 6\n[[animation.camera]]\nframe = 0\nyaw = -20.0\n[[animation.camera]]\nframe = 5\nyaw = 20.0\n[[animation.object]]\nobject = \"ball\"\nframe = 0\n[[animation.object]]\nobject = \"ball\"\nframe = 5\ntranslate = [3.0, 0.5, -1.0]\nrotate = [0.0, 90.0, 0.0]\n"),
