@@ -293,6 +293,9 @@ pub struct RayTable<'a> {
     camera: &'a Camera,
     columns: Vec<(f64, f64)>,
     rows: Vec<(f64, f64)>,
+    /// The camera's basis, which costs trigonometry: once per frame, not per ray.
+    basis: (DVec3, DVec3, DVec3),
+    origin: Vec3,
 }
 
 impl<'a> RayTable<'a> {
@@ -328,6 +331,8 @@ impl<'a> RayTable<'a> {
             camera,
             columns,
             rows,
+            basis: camera.basis(),
+            origin: camera.origin(),
         }
     }
 
@@ -337,6 +342,7 @@ impl<'a> RayTable<'a> {
 
     /// The primary ray through the centre of pixel (x, y), which must lie
     /// inside the image.
+    #[inline]
     pub fn primary_ray(&self, x: u32, y: u32) -> Option<Ray> {
         let cam = self.camera;
         let d = match cam.projection {
@@ -346,14 +352,14 @@ impl<'a> RayTable<'a> {
                 DVec3::new(cos_el * sin_az, sin_el, -cos_el * cos_az)
             }
             Projection::Perspective => {
-                let (right, up, forward) = cam.basis();
+                let (right, up, forward) = self.basis;
                 let lx = self.columns[x as usize].0;
                 let ly = self.rows[y as usize].0;
                 (right * lx + up * ly + forward).normalize()
             }
             Projection::Fisheye => return cam.primary_ray(x, y),
         };
-        Some(Ray::new(cam.origin(), d.as_vec3()))
+        Some(Ray::new(self.origin, d.as_vec3()))
     }
 }
 

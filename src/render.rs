@@ -279,16 +279,33 @@ pub fn render_view(
     intersector: &dyn Intersector,
 ) -> (Frame, RayCounts) {
     let shader = Shader::new(scene, intersector);
-    let groups = image_groups(camera.width, camera.height);
-    let (colors, counts) = trace_groups(&shader, &RayTable::new(camera), &groups);
+    let table = RayTable::new(camera);
+    let width = camera.width as usize;
     let mut frame = Frame::new(camera.width, camera.height);
-    for (group, colors) in groups.iter().zip(&colors) {
-        for (lane, (col, row)) in group.lane_samples().into_iter().enumerate() {
-            if col < i64::from(camera.width) && row < i64::from(camera.height) {
-                frame.pixels[row as usize * camera.width as usize + col as usize] = colors[lane];
+    // Each band of GROUP_HEIGHT rows is written in place by the worker that
+    // traces it: no per-frame list of groups or of their colours (at 640x480
+    // those were megabytes, fresh pages to fault in on every frame).
+    let band = width * GROUP_HEIGHT as usize;
+    let counts = frame
+        .pixels
+        .par_chunks_mut(band)
+        .enumerate()
+        .map(|(index, pixels)| {
+            let row = (index * GROUP_HEIGHT as usize) as i64;
+            let mut counts = RayCounts::default();
+            for col in (0..width as i64).step_by(GROUP_WIDTH as usize) {
+                let group = SampleGroup { col, row };
+                let colors = trace_group(&shader, &table, group, &mut counts, None);
+                for (lane, (x, y)) in group.lane_samples().into_iter().enumerate() {
+                    let (x, y) = (x as usize, (y - row) as usize);
+                    if x < width && y * width + x < pixels.len() {
+                        pixels[y * width + x] = colors[lane];
+                    }
+                }
             }
-        }
-    }
+            counts
+        })
+        .reduce(RayCounts::default, |a, b| a + b);
     (frame, counts)
 }
 
