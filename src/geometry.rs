@@ -4,7 +4,7 @@
 //! only non-degenerate triangles: the loader drops zero-area ones and counts
 //! them, so backends never see a triangle without a normal.
 
-use glam::{Affine3A, Vec3};
+use glam::{Affine3A, Mat3A, Vec3};
 
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Aabb {
@@ -176,12 +176,13 @@ impl Object {
 /// transpose, so it stays perpendicular under non-uniform scaling); unit
 /// length, or zero for a zero normal.
 pub fn transform_normal(transform: &Affine3A, n: Vec3) -> Vec3 {
-    transform
-        .matrix3
-        .inverse()
-        .transpose()
-        .mul_vec3(n)
-        .normalize_or_zero()
+    normal_matrix(transform).mul_vec3(n).normalize_or_zero()
+}
+
+/// The matrix [`transform_normal`] multiplies by: worth keeping where many
+/// normals go through one transform.
+pub fn normal_matrix(transform: &Affine3A) -> Mat3A {
+    transform.matrix3.inverse().transpose()
 }
 
 /// Two unit vectors spanning the plane with unit normal `n` (a right-handed

@@ -6,10 +6,12 @@
 //! only on the packet it was traced in, so callers that need bit-exact
 //! repeats (the reuse algorithms) always trace the same groups of samples.
 
-use glam::Vec3;
+use glam::{Affine3A, Mat3A, Vec3};
 
 use crate::accel::Intersector;
-use crate::geometry::{plane_axes, transform_normal, Placement, Shape};
+use crate::geometry::{
+    normal_matrix, plane_axes, transform_normal, Object, Placement, Shape, TriangleMesh,
+};
 use crate::ray::{lanes, offset_origin, Hit, LaneMask, Ray, RayPacket, PACKET_WIDTH};
 use crate::scene::{Material, Scene};
 
@@ -74,16 +76,110 @@ pub struct Surface {
 }
 
 impl Surface {
+    /// The surface `ray` met at `hit`. Shading itself goes through a
+    /// [`Shader`], which prepares every object's world-space data once.
     pub fn from_hit(scene: &Scene, ray: &Ray, hit: &Hit) -> Surface {
         let object = &scene.objects[hit.object as usize];
+        WorldShape::new(object).surface(ray, hit, object.material)
+    }
+
+    /// A filler for lanes without a hit; never shaded.
+    const NONE: Surface = Surface {
+        point: Vec3::ZERO,
+        geometric_normal: Vec3::Y,
+        shading_normal: Vec3::Y,
+        spawn_point: Vec3::ZERO,
+        material: 0,
+        plane_uv: None,
+    };
+}
+
+/// An object's shape as shading sees it: in world space, with everything
+/// that does not depend on the hit (instance transforms and their inverse
+/// transpose, sphere centres and radii, plane axes) worked out once.
+///
+/// The arithmetic per hit is the same, operation for operation, as working
+/// from the object's own description each time, so a surface comes out bit
+/// for bit the same either way.
+enum WorldShape<'a> {
+    Mesh {
+        mesh: &'a TriangleMesh,
+        transform: Option<Affine3A>,
+        /// Inverse transpose of the transform's linear part (for normals).
+        normal_matrix: Mat3A,
+    },
+    Sphere {
+        center: Vec3,
+        radius: f32,
+        /// Magnitude the hit point is computed from (for `offset_origin`).
+        scale: f32,
+    },
+    Plane {
+        origin: Vec3,
+        normal: Vec3,
+        u_axis: Vec3,
+        v_axis: Vec3,
+        /// `origin.abs().max_element()`.
+        origin_scale: f32,
+    },
+}
+
+impl<'a> WorldShape<'a> {
+    fn new(object: &'a Object) -> WorldShape<'a> {
         let transform = match object.placement {
             Placement::World => None,
             Placement::Instance(xf) => Some(xf),
         };
         let to_world = |p: Vec3| transform.map_or(p, |xf| xf.transform_point3(p));
-        let (point, normal, shading, scale, plane_uv) = match &object.shape {
-            Shape::Mesh(mesh) => {
-                let [a, b, c] = mesh.vertices(hit.prim).map(to_world);
+        match &object.shape {
+            Shape::Mesh(mesh) => WorldShape::Mesh {
+                mesh,
+                transform,
+                normal_matrix: transform.map_or(Mat3A::IDENTITY, |xf| normal_matrix(&xf)),
+            },
+            Shape::Sphere(sphere) => {
+                let center = to_world(sphere.center);
+                let radius = match transform {
+                    Some(xf) => sphere.radius * xf.matrix3.x_axis.length(),
+                    None => sphere.radius,
+                };
+                WorldShape::Sphere {
+                    center,
+                    radius,
+                    scale: center.abs().max_element() + radius,
+                }
+            }
+            Shape::Plane(plane) => {
+                let (origin, normal) = match transform {
+                    Some(xf) => (
+                        xf.transform_point3(plane.point),
+                        transform_normal(&xf, plane.normal),
+                    ),
+                    None => (plane.point, plane.normal),
+                };
+                let (u_axis, v_axis) = plane_axes(normal);
+                WorldShape::Plane {
+                    origin,
+                    normal,
+                    u_axis,
+                    v_axis,
+                    origin_scale: origin.abs().max_element(),
+                }
+            }
+        }
+    }
+
+    #[inline]
+    fn surface(&self, ray: &Ray, hit: &Hit, material: usize) -> Surface {
+        let (point, normal, shading, scale, plane_uv) = match self {
+            WorldShape::Mesh {
+                mesh,
+                transform,
+                normal_matrix,
+            } => {
+                let [a, b, c] = mesh
+                    .vertices(hit.prim)
+                    .map(|p| transform.map_or(p, |xf| xf.transform_point3(p)));
                 let (u, v) = (hit.u, hit.v);
                 let point = a * (1.0 - u - v) + b * u + c * v;
                 let normal = (b - a).cross(c - a).normalize();
@@ -95,7 +191,7 @@ impl Surface {
                         + mesh.normals[j as usize] * u
                         + mesh.normals[k as usize] * v;
                     let n = match transform {
-                        Some(xf) => transform_normal(&xf, n),
+                        Some(_) => normal_matrix.mul_vec3(n).normalize_or_zero(),
                         None => n,
                     };
                     let n = n.normalize_or_zero();
@@ -110,33 +206,26 @@ impl Surface {
                 let scale = a.abs().max(b.abs()).max(c.abs()).max_element();
                 (point, normal, shading, scale, None)
             }
-            Shape::Sphere(sphere) => {
-                let center = to_world(sphere.center);
-                let radius = match transform {
-                    Some(xf) => sphere.radius * xf.matrix3.x_axis.length(),
-                    None => sphere.radius,
-                };
+            &WorldShape::Sphere {
+                center,
+                radius,
+                scale,
+            } => {
                 let outward = (ray.at(hit.t) - center).normalize();
                 let point = center + outward * radius;
-                let scale = center.abs().max_element() + radius;
                 (point, outward, outward, scale, None)
             }
-            Shape::Plane(plane) => {
-                let (origin, normal) = match transform {
-                    Some(xf) => (
-                        xf.transform_point3(plane.point),
-                        transform_normal(&xf, plane.normal),
-                    ),
-                    None => (plane.point, plane.normal),
-                };
+            &WorldShape::Plane {
+                origin,
+                normal,
+                u_axis,
+                v_axis,
+                origin_scale,
+            } => {
                 let rough = ray.at(hit.t);
                 let point = rough - normal * normal.dot(rough - origin);
-                let (u_axis, v_axis) = plane_axes(normal);
                 let local = point - origin;
-                let scale = origin
-                    .abs()
-                    .max_element()
-                    .max(ray.origin.abs().max_element());
+                let scale = origin_scale.max(ray.origin.abs().max_element());
                 (
                     point,
                     normal,
@@ -153,12 +242,13 @@ impl Surface {
             geometric_normal,
             shading_normal: shading * facing,
             spawn_point: offset_origin(point, geometric_normal, scale),
-            material: object.material,
+            material,
             plane_uv,
         }
     }
 }
 
+#[inline]
 fn albedo(material: &Material, surface: &Surface) -> Vec3 {
     let Some(checker) = &material.checker else {
         return material.diffuse;
@@ -173,6 +263,7 @@ fn albedo(material: &Material, surface: &Surface) -> Vec3 {
     checker.colors[(parity & 1) as usize]
 }
 
+#[inline]
 fn reflect(d: Vec3, n: Vec3) -> Vec3 {
     d - n * (2.0 * d.dot(n))
 }
@@ -181,16 +272,37 @@ fn reflect(d: Vec3, n: Vec3) -> Vec3 {
 pub struct Shader<'a> {
     scene: &'a Scene,
     intersector: &'a dyn Intersector,
+    /// Per object: its world-space shape for surface reconstruction.
+    shapes: Vec<WorldShape<'a>>,
     /// Per material: R.V below which its highlight is negligible.
     highlight_cutoffs: Vec<f32>,
     /// Per material: the Phong exponent when it is a whole number, so the
-    /// highlight is a few multiplications (powi) instead of a powf.
-    whole_exponents: Vec<Option<i32>>,
+    /// highlight is a few multiplications instead of a powf.
+    whole_exponents: Vec<Option<u32>>,
 }
 
-fn phong(r_dot_v: f32, shininess: f32, whole: Option<i32>) -> f32 {
+/// `x` to the power `n` by repeated squaring, the same multiplications in
+/// the same order as `f32::powi` (compiler-rt's `__powisf2`), so results
+/// are bit for bit those of `powi`; inlined here, where `powi` with an
+/// exponent only known at run time is an out-of-line call per highlight.
+#[inline]
+fn powi(mut x: f32, mut n: u32) -> f32 {
+    let mut result = if n & 1 != 0 { x } else { 1.0 };
+    n >>= 1;
+    while n != 0 {
+        x *= x;
+        if n & 1 != 0 {
+            result *= x;
+        }
+        n >>= 1;
+    }
+    result
+}
+
+#[inline]
+fn phong(r_dot_v: f32, shininess: f32, whole: Option<u32>) -> f32 {
     match whole {
-        Some(n) => r_dot_v.powi(n),
+        Some(n) => powi(r_dot_v, n),
         None => r_dot_v.powf(shininess),
     }
 }
@@ -200,6 +312,7 @@ impl<'a> Shader<'a> {
         Shader {
             scene,
             intersector,
+            shapes: scene.objects.iter().map(WorldShape::new).collect(),
             highlight_cutoffs: scene
                 .materials
                 .iter()
@@ -209,8 +322,8 @@ impl<'a> Shader<'a> {
                 .materials
                 .iter()
                 .map(|m| {
-                    (m.shininess.fract() == 0.0 && m.shininess <= 65_536.0)
-                        .then_some(m.shininess as i32)
+                    (m.shininess.fract() == 0.0 && (0.0..=65_536.0).contains(&m.shininess))
+                        .then_some(m.shininess as u32)
                 })
                 .collect(),
         }
@@ -244,16 +357,27 @@ impl<'a> Shader<'a> {
             observer.traced(rays, mask, &ends);
         }
 
-        let mut surfaces: [Option<Surface>; PACKET_WIDTH] = [None; PACKET_WIDTH];
+        let mut surfaces = [Surface::NONE; PACKET_WIDTH];
+        let mut albedos = [Vec3::ZERO; PACKET_WIDTH];
+        // Unit ray directions: the view vector of highlights and the input
+        // of mirror reflection, normalized once per hit.
+        let mut directions = [Vec3::ZERO; PACKET_WIDTH];
         let mut hit_mask: LaneMask = 0;
         for lane in lanes(mask) {
             match &hits[lane] {
                 None => colors[lane] = scene.background,
                 Some(hit) => {
-                    let surface = Surface::from_hit(scene, &rays[lane], hit);
-                    let material = &scene.materials[surface.material];
-                    colors[lane] = scene.ambient * albedo(material, &surface);
-                    surfaces[lane] = Some(surface);
+                    let object = hit.object as usize;
+                    let surface = self.shapes[object].surface(
+                        &rays[lane],
+                        hit,
+                        scene.objects[object].material,
+                    );
+                    let albedo = albedo(&scene.materials[surface.material], &surface);
+                    colors[lane] = scene.ambient * albedo;
+                    albedos[lane] = albedo;
+                    surfaces[lane] = surface;
+                    directions[lane] = rays[lane].dir.normalize();
                     hit_mask |= 1 << lane;
                 }
             }
@@ -266,7 +390,7 @@ impl<'a> Shader<'a> {
             let mut shadow_rays = [Ray::INACTIVE; PACKET_WIDTH];
             let mut lit_mask: LaneMask = 0;
             for lane in lanes(hit_mask) {
-                let surface = surfaces[lane].as_ref().expect("hit lanes have surfaces");
+                let surface = &surfaces[lane];
                 let to_light = light.position - surface.point;
                 // A light behind the surface cannot light it: no ray needed.
                 if to_light.dot(surface.geometric_normal) <= 0.0 {
@@ -287,12 +411,12 @@ impl<'a> Shader<'a> {
                 observer.traced(&shadow_rays, lit_mask, &ends);
             }
             for lane in lanes(lit_mask & !blocked) {
-                let surface = surfaces[lane].as_ref().expect("lit lanes have surfaces");
+                let surface = &surfaces[lane];
                 let material = &scene.materials[surface.material];
                 let n = surface.shading_normal;
                 let l = shadow_rays[lane].dir.normalize();
                 let n_dot_l = n.dot(l).max(0.0);
-                let view = -rays[lane].dir.normalize();
+                let view = -directions[lane];
                 let r_dot_v = reflect(-l, n).dot(view);
                 // Below the cutoff the highlight is under 1e-5: skip the powf.
                 let specular = if r_dot_v > self.highlight_cutoffs[surface.material] {
@@ -305,7 +429,7 @@ impl<'a> Shader<'a> {
                 } else {
                     Vec3::ZERO
                 };
-                colors[lane] += light.power * (albedo(material, surface) * n_dot_l + specular);
+                colors[lane] += light.power * (albedos[lane] * n_dot_l + specular);
             }
         }
 
@@ -313,11 +437,11 @@ impl<'a> Shader<'a> {
             let mut reflected = [Ray::INACTIVE; PACKET_WIDTH];
             let mut mirror_mask: LaneMask = 0;
             for lane in lanes(hit_mask) {
-                let surface = surfaces[lane].as_ref().expect("hit lanes have surfaces");
+                let surface = &surfaces[lane];
                 if scene.materials[surface.material].reflectivity <= 0.0 {
                     continue;
                 }
-                let d = rays[lane].dir.normalize();
+                let d = directions[lane];
                 let mut r = reflect(d, surface.shading_normal);
                 // Interpolated normals can bend a reflection into the surface.
                 if r.dot(surface.geometric_normal) <= 0.0 {
@@ -329,8 +453,7 @@ impl<'a> Shader<'a> {
             if mirror_mask != 0 {
                 let mirrored = self.shade(&reflected, mirror_mask, depth + 1, counts, observer);
                 for lane in lanes(mirror_mask) {
-                    let surface = surfaces[lane].as_ref().expect("mirror lanes have surfaces");
-                    let k = scene.materials[surface.material].reflectivity;
+                    let k = scene.materials[surfaces[lane].material].reflectivity;
                     colors[lane] = colors[lane] * (1.0 - k) + mirrored[lane] * k;
                 }
             }
