@@ -141,20 +141,24 @@ impl Accelerator {
         best
     }
 
-    /// For each plane, its hit distance in every lane (infinity where it
-    /// misses), computed lane-parallel so the compiler can vectorize it.
-    /// Same arithmetic as [`intersect_plane`], so single rays and packets
-    /// agree bit for bit.
+    /// For one plane, its hit distance in every lane (infinity where it
+    /// misses), computed lane-parallel on the packet's columns so the
+    /// compiler vectorizes it. Same operations in the same order as
+    /// [`intersect_plane`], so single rays and packets agree bit for bit.
+    #[inline]
     fn plane_distances(
         plane: &Plane,
-        rays: &RayPacket,
+        rays: &PacketColumns,
         tmax: &[f32; PACKET_WIDTH],
     ) -> [f32; PACKET_WIDTH] {
+        let (n, p) = (plane.normal, plane.point);
         std::array::from_fn(|lane| {
-            let ray = &rays[lane];
-            let denom = plane.normal.dot(ray.dir);
-            let t = plane.normal.dot(plane.point - ray.origin) / denom;
-            let valid = denom != 0.0 && denom.is_finite() && t > ray.tmin && t < tmax[lane];
+            let denom = n.x * rays.dir[0][lane] + n.y * rays.dir[1][lane] + n.z * rays.dir[2][lane];
+            let t = (n.x * (p.x - rays.origin[0][lane])
+                + n.y * (p.y - rays.origin[1][lane])
+                + n.z * (p.z - rays.origin[2][lane]))
+                / denom;
+            let valid = denom != 0.0 && denom.is_finite() && t > rays.tmin[lane] && t < tmax[lane];
             if valid {
                 t
             } else {
@@ -162,6 +166,41 @@ impl Accelerator {
             }
         })
     }
+}
+
+/// A packet's origins, directions and `tmin` by coordinate (one array of
+/// eight lanes each), the layout lane-parallel arithmetic wants.
+struct PacketColumns {
+    origin: [[f32; PACKET_WIDTH]; 3],
+    dir: [[f32; PACKET_WIDTH]; 3],
+    tmin: [f32; PACKET_WIDTH],
+}
+
+impl PacketColumns {
+    #[inline]
+    fn new(rays: &RayPacket) -> PacketColumns {
+        PacketColumns {
+            origin: [
+                rays.map(|r| r.origin.x),
+                rays.map(|r| r.origin.y),
+                rays.map(|r| r.origin.z),
+            ],
+            dir: [
+                rays.map(|r| r.dir.x),
+                rays.map(|r| r.dir.y),
+                rays.map(|r| r.dir.z),
+            ],
+            tmin: rays.map(|r| r.tmin),
+        }
+    }
+}
+
+/// Lanes whose distance is finite, as a mask.
+#[inline]
+fn finite_lanes(distances: &[f32; PACKET_WIDTH]) -> LaneMask {
+    distances.iter().enumerate().fold(0, |acc, (lane, t)| {
+        acc | (u8::from(*t < f32::INFINITY) << lane)
+    })
 }
 
 impl Intersector for Accelerator {
@@ -180,31 +219,34 @@ impl Intersector for Accelerator {
 
     fn intersect8(&self, rays: &RayPacket, mask: LaneMask, hits: &mut HitPacket) {
         self.bounded.intersect8(rays, mask, hits);
+        if self.planes.is_empty() {
+            return;
+        }
+        let columns = PacketColumns::new(rays);
+        let mut limits: [f32; PACKET_WIDTH] =
+            std::array::from_fn(|lane| hits[lane].map_or(rays[lane].tmax, |h| h.t));
         for &(object, ref plane) in &self.planes {
-            let limits: [f32; PACKET_WIDTH] =
-                std::array::from_fn(|lane| hits[lane].map_or(rays[lane].tmax, |h| h.t));
-            let distances = Self::plane_distances(plane, rays, &limits);
-            for lane in lanes(mask) {
-                if distances[lane] < f32::INFINITY {
-                    hits[lane] = Some(Hit {
-                        t: distances[lane],
-                        object,
-                        prim: 0,
-                        u: 0.0,
-                        v: 0.0,
-                    });
-                }
+            let distances = Self::plane_distances(plane, &columns, &limits);
+            for lane in lanes(mask & finite_lanes(&distances)) {
+                limits[lane] = distances[lane];
+                hits[lane] = Some(Hit {
+                    t: distances[lane],
+                    object,
+                    prim: 0,
+                    u: 0.0,
+                    v: 0.0,
+                });
             }
         }
     }
 
     fn occluded8(&self, rays: &RayPacket, mask: LaneMask) -> LaneMask {
-        let tmax: [f32; PACKET_WIDTH] = std::array::from_fn(|lane| rays[lane].tmax);
         let mut by_planes: LaneMask = 0;
-        for (_, plane) in &self.planes {
-            let distances = Self::plane_distances(plane, rays, &tmax);
-            for (lane, t) in distances.iter().enumerate() {
-                by_planes |= u8::from(*t < f32::INFINITY) << lane;
+        if !self.planes.is_empty() {
+            let columns = PacketColumns::new(rays);
+            let tmax: [f32; PACKET_WIDTH] = rays.map(|r| r.tmax);
+            for (_, plane) in &self.planes {
+                by_planes |= finite_lanes(&Self::plane_distances(plane, &columns, &tmax));
             }
         }
         let by_planes = by_planes & mask;
