@@ -82,16 +82,6 @@ impl Surface {
         let object = &scene.objects[hit.object as usize];
         WorldShape::new(object).surface(ray, hit, object.material)
     }
-
-    /// A filler for lanes without a hit; never shaded.
-    const NONE: Surface = Surface {
-        point: Vec3::ZERO,
-        geometric_normal: Vec3::Y,
-        shading_normal: Vec3::Y,
-        spawn_point: Vec3::ZERO,
-        material: 0,
-        plane_uv: None,
-    };
 }
 
 /// An object's shape as shading sees it: in world space, with everything
@@ -263,11 +253,6 @@ fn albedo(material: &Material, surface: &Surface) -> Vec3 {
     checker.colors[(parity & 1) as usize]
 }
 
-#[inline]
-fn reflect(d: Vec3, n: Vec3) -> Vec3 {
-    d - n * (2.0 * d.dot(n))
-}
-
 /// Traces and shades packets for one scene through one intersector.
 pub struct Shader<'a> {
     scene: &'a Scene,
@@ -331,6 +316,12 @@ impl<'a> Shader<'a> {
 
     /// Colours of the rays in `mask`; other lanes come back black. `depth`
     /// is the number of reflections so far (0 for primary rays).
+    ///
+    /// Surfaces are reconstructed lane by lane (each lane may hit a
+    /// different kind of object); lighting and reflection directions then
+    /// run on all eight lanes at once, by coordinate ([`Vec3Lanes`]), with
+    /// the lane masks choosing which results are kept. Per lane that is the
+    /// same arithmetic, in the same order, as shading one ray at a time.
     pub fn shade(
         &self,
         rays: &RayPacket,
@@ -340,9 +331,8 @@ impl<'a> Shader<'a> {
         mut observer: Option<&mut dyn RayObserver>,
     ) -> [Vec3; PACKET_WIDTH] {
         let scene = self.scene;
-        let mut colors = [Vec3::ZERO; PACKET_WIDTH];
         if mask == 0 {
-            return colors;
+            return [Vec3::ZERO; PACKET_WIDTH];
         }
         let traced = u64::from(mask.count_ones());
         if depth == 0 {
@@ -357,52 +347,44 @@ impl<'a> Shader<'a> {
             observer.traced(rays, mask, &ends);
         }
 
-        let mut surfaces = [Surface::NONE; PACKET_WIDTH];
-        let mut albedos = [Vec3::ZERO; PACKET_WIDTH];
-        // Unit ray directions: the view vector of highlights and the input
-        // of mirror reflection, normalized once per hit.
-        let mut directions = [Vec3::ZERO; PACKET_WIDTH];
+        let mut colors = Vec3Lanes::default();
+        let mut lanes_hit = HitLanes::default();
         let mut hit_mask: LaneMask = 0;
         for lane in lanes(mask) {
             match &hits[lane] {
-                None => colors[lane] = scene.background,
+                None => colors.set(lane, scene.background),
                 Some(hit) => {
                     let object = hit.object as usize;
-                    let surface = self.shapes[object].surface(
-                        &rays[lane],
-                        hit,
-                        scene.objects[object].material,
-                    );
-                    let albedo = albedo(&scene.materials[surface.material], &surface);
-                    colors[lane] = scene.ambient * albedo;
-                    albedos[lane] = albedo;
-                    surfaces[lane] = surface;
-                    directions[lane] = rays[lane].dir.normalize();
+                    let material = scene.objects[object].material;
+                    let surface = self.shapes[object].surface(&rays[lane], hit, material);
+                    let albedo = albedo(&scene.materials[material], &surface);
+                    colors.set(lane, scene.ambient * albedo);
+                    lanes_hit.set(lane, &surface, albedo, rays[lane].dir.normalize());
+                    lanes_hit.cutoff[lane] = self.highlight_cutoffs[material];
+                    lanes_hit.reflectivity[lane] = scene.materials[material].reflectivity;
                     hit_mask |= 1 << lane;
                 }
             }
         }
         if hit_mask == 0 {
-            return colors;
+            return colors.to_vectors();
         }
 
         for light in &scene.lights {
-            let mut shadow_rays = [Ray::INACTIVE; PACKET_WIDTH];
-            let mut lit_mask: LaneMask = 0;
-            for lane in lanes(hit_mask) {
-                let surface = &surfaces[lane];
-                let to_light = light.position - surface.point;
-                // A light behind the surface cannot light it: no ray needed.
-                if to_light.dot(surface.geometric_normal) <= 0.0 {
-                    continue;
-                }
-                let origin = surface.spawn_point;
-                // The segment ends at the light: dir spans it, so t < 1.
-                shadow_rays[lane] = Ray::segment(origin, light.position - origin, 1.0);
-                lit_mask |= 1 << lane;
-            }
+            let h = &lanes_hit;
+            // A light behind the surface cannot light it: no ray needed.
+            let facing = h
+                .geometric_normal
+                .dot(&Vec3Lanes::splat(light.position).sub(&h.point));
+            let lit_mask = hit_mask & lanes_where(|lane| facing[lane] > 0.0);
             if lit_mask == 0 {
                 continue;
+            }
+            // The segment ends at the light: dir spans it, so t < 1.
+            let to_light = Vec3Lanes::splat(light.position).sub(&h.spawn_point);
+            let mut shadow_rays = [Ray::INACTIVE; PACKET_WIDTH];
+            for lane in lanes(lit_mask) {
+                shadow_rays[lane] = Ray::segment(h.spawn_point.get(lane), to_light.get(lane), 1.0);
             }
             counts.shadow += u64::from(lit_mask.count_ones());
             let blocked = self.intersector.occluded8(&shadow_rays, lit_mask);
@@ -410,54 +392,201 @@ impl<'a> Shader<'a> {
                 let ends = std::array::from_fn(|lane| shadow_rays[lane].tmax);
                 observer.traced(&shadow_rays, lit_mask, &ends);
             }
-            for lane in lanes(lit_mask & !blocked) {
-                let surface = &surfaces[lane];
-                let material = &scene.materials[surface.material];
-                let n = surface.shading_normal;
-                let l = shadow_rays[lane].dir.normalize();
-                let n_dot_l = n.dot(l).max(0.0);
-                let view = -directions[lane];
-                let r_dot_v = reflect(-l, n).dot(view);
-                // Below the cutoff the highlight is under 1e-5: skip the powf.
-                let specular = if r_dot_v > self.highlight_cutoffs[surface.material] {
-                    material.specular
-                        * phong(
-                            r_dot_v,
-                            material.shininess,
-                            self.whole_exponents[surface.material],
-                        )
-                } else {
-                    Vec3::ZERO
-                };
-                colors[lane] += light.power * (albedos[lane] * n_dot_l + specular);
+            let shaded = lit_mask & !blocked;
+            if shaded == 0 {
+                continue;
             }
+            let n = &h.shading_normal;
+            let l = to_light.normalize();
+            let n_dot_l = n.dot(&l).map(|c| c.max(0.0));
+            let view = h.direction.neg();
+            let r_dot_v = reflect_lanes(&l.neg(), n).dot(&view);
+            // Below the cutoff the highlight is under 1e-5: skip the powf.
+            let mut specular = Vec3Lanes::default();
+            for lane in lanes(shaded & lanes_where(|lane| r_dot_v[lane] > h.cutoff[lane])) {
+                let material = h.material[lane] as usize;
+                specular.set(
+                    lane,
+                    scene.materials[material].specular
+                        * phong(
+                            r_dot_v[lane],
+                            scene.materials[material].shininess,
+                            self.whole_exponents[material],
+                        ),
+                );
+            }
+            let power = light.power;
+            let add = |color: &mut Lanes, power: f32, albedo: &Lanes, specular: &Lanes| {
+                *color = std::array::from_fn(|lane| {
+                    let term = power * (albedo[lane] * n_dot_l[lane] + specular[lane]);
+                    if shaded & (1 << lane) != 0 {
+                        color[lane] + term
+                    } else {
+                        color[lane]
+                    }
+                });
+            };
+            add(&mut colors.x, power.x, &h.albedo.x, &specular.x);
+            add(&mut colors.y, power.y, &h.albedo.y, &specular.y);
+            add(&mut colors.z, power.z, &h.albedo.z, &specular.z);
         }
 
+        let mut colors = colors.to_vectors();
         if depth < scene.max_depth {
-            let mut reflected = [Ray::INACTIVE; PACKET_WIDTH];
-            let mut mirror_mask: LaneMask = 0;
-            for lane in lanes(hit_mask) {
-                let surface = &surfaces[lane];
-                if scene.materials[surface.material].reflectivity <= 0.0 {
-                    continue;
-                }
-                let d = directions[lane];
-                let mut r = reflect(d, surface.shading_normal);
-                // Interpolated normals can bend a reflection into the surface.
-                if r.dot(surface.geometric_normal) <= 0.0 {
-                    r = reflect(d, surface.geometric_normal);
-                }
-                reflected[lane] = Ray::new(surface.spawn_point, r);
-                mirror_mask |= 1 << lane;
-            }
+            let h = &lanes_hit;
+            let mirror_mask = hit_mask & lanes_where(|lane| !(h.reflectivity[lane] <= 0.0));
             if mirror_mask != 0 {
+                let d = &h.direction;
+                let by_shading = reflect_lanes(d, &h.shading_normal);
+                let by_geometry = reflect_lanes(d, &h.geometric_normal);
+                // Interpolated normals can bend a reflection into the surface.
+                let bent = by_shading.dot(&h.geometric_normal);
+                let mut reflected = [Ray::INACTIVE; PACKET_WIDTH];
+                for lane in lanes(mirror_mask) {
+                    let r = if bent[lane] <= 0.0 {
+                        by_geometry.get(lane)
+                    } else {
+                        by_shading.get(lane)
+                    };
+                    reflected[lane] = Ray::new(h.spawn_point.get(lane), r);
+                }
                 let mirrored = self.shade(&reflected, mirror_mask, depth + 1, counts, observer);
                 for lane in lanes(mirror_mask) {
-                    let k = scene.materials[surfaces[lane].material].reflectivity;
+                    let k = h.reflectivity[lane];
                     colors[lane] = colors[lane] * (1.0 - k) + mirrored[lane] * k;
                 }
             }
         }
         colors
+    }
+}
+
+type Lanes = [f32; PACKET_WIDTH];
+
+/// The mask of lanes where `test` holds.
+#[inline]
+fn lanes_where(test: impl Fn(usize) -> bool) -> LaneMask {
+    (0..PACKET_WIDTH).fold(0, |acc, lane| acc | (u8::from(test(lane)) << lane))
+}
+
+/// Eight vectors stored by coordinate, so arithmetic on all lanes at once
+/// vectorizes. Each operation is glam's, lane by lane, with the same
+/// operations in the same order (a dot product is `x*x' + y*y' + z*z'`, a
+/// normalization multiplies by `1 / sqrt(dot)`), so results are bit for bit
+/// those of [`Vec3`].
+#[derive(Clone, Copy, Default)]
+struct Vec3Lanes {
+    x: Lanes,
+    y: Lanes,
+    z: Lanes,
+}
+
+impl Vec3Lanes {
+    #[inline]
+    fn splat(v: Vec3) -> Vec3Lanes {
+        Vec3Lanes {
+            x: [v.x; PACKET_WIDTH],
+            y: [v.y; PACKET_WIDTH],
+            z: [v.z; PACKET_WIDTH],
+        }
+    }
+
+    #[inline]
+    fn get(&self, lane: usize) -> Vec3 {
+        Vec3::new(self.x[lane], self.y[lane], self.z[lane])
+    }
+
+    #[inline]
+    fn set(&mut self, lane: usize, v: Vec3) {
+        self.x[lane] = v.x;
+        self.y[lane] = v.y;
+        self.z[lane] = v.z;
+    }
+
+    #[inline]
+    fn to_vectors(&self) -> [Vec3; PACKET_WIDTH] {
+        std::array::from_fn(|lane| self.get(lane))
+    }
+
+    #[inline]
+    fn zip(&self, other: &Vec3Lanes, f: impl Fn(f32, f32) -> f32) -> Vec3Lanes {
+        Vec3Lanes {
+            x: std::array::from_fn(|i| f(self.x[i], other.x[i])),
+            y: std::array::from_fn(|i| f(self.y[i], other.y[i])),
+            z: std::array::from_fn(|i| f(self.z[i], other.z[i])),
+        }
+    }
+
+    #[inline]
+    fn sub(&self, other: &Vec3Lanes) -> Vec3Lanes {
+        self.zip(other, |a, b| a - b)
+    }
+
+    #[inline]
+    fn neg(&self) -> Vec3Lanes {
+        Vec3Lanes {
+            x: self.x.map(|c| -c),
+            y: self.y.map(|c| -c),
+            z: self.z.map(|c| -c),
+        }
+    }
+
+    /// Each lane times its own scalar.
+    #[inline]
+    fn scale(&self, s: &Lanes) -> Vec3Lanes {
+        Vec3Lanes {
+            x: std::array::from_fn(|i| self.x[i] * s[i]),
+            y: std::array::from_fn(|i| self.y[i] * s[i]),
+            z: std::array::from_fn(|i| self.z[i] * s[i]),
+        }
+    }
+
+    #[inline]
+    fn dot(&self, other: &Vec3Lanes) -> Lanes {
+        std::array::from_fn(|i| {
+            (self.x[i] * other.x[i]) + (self.y[i] * other.y[i]) + (self.z[i] * other.z[i])
+        })
+    }
+
+    #[inline]
+    fn normalize(&self) -> Vec3Lanes {
+        let recip = self.dot(self).map(|d| 1.0 / d.sqrt());
+        self.scale(&recip)
+    }
+}
+
+/// `d` mirrored about `n`, lane by lane: `d - n * (2 (d.n))`.
+#[inline]
+fn reflect_lanes(d: &Vec3Lanes, n: &Vec3Lanes) -> Vec3Lanes {
+    let twice = d.dot(n).map(|c| 2.0 * c);
+    d.sub(&n.scale(&twice))
+}
+
+/// What lighting and reflection need of each lane's hit, by coordinate.
+#[derive(Default)]
+struct HitLanes {
+    point: Vec3Lanes,
+    geometric_normal: Vec3Lanes,
+    shading_normal: Vec3Lanes,
+    spawn_point: Vec3Lanes,
+    albedo: Vec3Lanes,
+    /// The incoming ray's unit direction.
+    direction: Vec3Lanes,
+    material: [u32; PACKET_WIDTH],
+    /// The material's highlight cutoff and reflectivity.
+    cutoff: Lanes,
+    reflectivity: Lanes,
+}
+
+impl HitLanes {
+    #[inline]
+    fn set(&mut self, lane: usize, surface: &Surface, albedo: Vec3, direction: Vec3) {
+        self.point.set(lane, surface.point);
+        self.geometric_normal.set(lane, surface.geometric_normal);
+        self.shading_normal.set(lane, surface.shading_normal);
+        self.spawn_point.set(lane, surface.spawn_point);
+        self.albedo.set(lane, albedo);
+        self.direction.set(lane, direction);
+        self.material[lane] = surface.material as u32;
     }
 }
