@@ -12,7 +12,7 @@ use rayon::prelude::*;
 
 use crate::accel::Intersector;
 use crate::camera::{Camera, RayTable};
-use crate::ray::{LaneMask, Ray, PACKET_WIDTH};
+use crate::ray::{LaneMask, Ray, RayPacket, PACKET_WIDTH};
 use crate::scene::Scene;
 use crate::shade::{RayCounts, RayObserver, Shader};
 
@@ -71,10 +71,27 @@ impl SampleGroup {
 /// what the projection covers).
 pub trait PrimaryRays: Sync {
     fn primary(&self, col: i64, row: i64) -> Option<Ray>;
+
+    /// The rays of a whole group and the mask of lanes that have one. One
+    /// dynamic call per packet: inside, `primary` is called on the concrete
+    /// type and inlines (eight dynamic calls per packet cost more than the
+    /// ray arithmetic).
+    fn primary_group(&self, group: SampleGroup) -> (RayPacket, LaneMask) {
+        let mut rays = [Ray::INACTIVE; PACKET_WIDTH];
+        let mut mask: LaneMask = 0;
+        for (lane, (col, row)) in group.lane_samples().into_iter().enumerate() {
+            if let Some(ray) = self.primary(col, row) {
+                rays[lane] = ray;
+                mask |= 1 << lane;
+            }
+        }
+        (rays, mask)
+    }
 }
 
 /// A camera's lattice is its image: one sample per pixel centre.
 impl PrimaryRays for RayTable<'_> {
+    #[inline]
     fn primary(&self, col: i64, row: i64) -> Option<Ray> {
         let (width, height) = self.size();
         let inside = (0..i64::from(width)).contains(&col) && (0..i64::from(height)).contains(&row);
@@ -93,14 +110,7 @@ pub fn trace_group(
     counts: &mut RayCounts,
     observer: Option<&mut dyn RayObserver>,
 ) -> [Vec3; PACKET_WIDTH] {
-    let mut rays = [Ray::INACTIVE; PACKET_WIDTH];
-    let mut mask: LaneMask = 0;
-    for (lane, (col, row)) in group.lane_samples().into_iter().enumerate() {
-        if let Some(ray) = source.primary(col, row) {
-            rays[lane] = ray;
-            mask |= 1 << lane;
-        }
-    }
+    let (rays, mask) = source.primary_group(group);
     shader.shade(&rays, mask, 0, counts, observer)
 }
 
