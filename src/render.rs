@@ -91,7 +91,7 @@ pub trait PrimaryRays: Sync {
 
 /// A camera's lattice is its image: one sample per pixel centre.
 impl PrimaryRays for RayTable<'_> {
-    #[inline]
+    #[inline(always)]
     fn primary(&self, col: i64, row: i64) -> Option<Ray> {
         let (width, height) = self.size();
         let inside = (0..i64::from(width)).contains(&col) && (0..i64::from(height)).contains(&row);
