@@ -200,7 +200,8 @@ impl PlaneTest {
 /// ray's range, infinity otherwise.
 #[inline]
 fn in_range(denom: f32, t: f32, tmin: f32, tmax: f32) -> f32 {
-    if denom != 0.0 && denom.is_finite() && t > tmin && t < tmax {
+    // `&`, not `&&`: one select instead of four unpredictable branches.
+    if (denom != 0.0) & denom.is_finite() & (t > tmin) & (t < tmax) {
         t
     } else {
         f32::INFINITY
