@@ -367,7 +367,16 @@ impl<'a> Shader<'a> {
             }
         }
         if hit_mask == 0 {
-            return colors.to_vectors();
+            // All misses (common for reflections): the colours straight
+            // from registers. Read back from `colors`, whose lanes were just
+            // stored one by one, they would wait on store forwarding.
+            return std::array::from_fn(|lane| {
+                if mask & (1 << lane) != 0 {
+                    scene.background
+                } else {
+                    Vec3::ZERO
+                }
+            });
         }
 
         for light in &scene.lights {
