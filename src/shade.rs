@@ -440,10 +440,11 @@ impl<'a> Shader<'a> {
             add(&mut colors.z, power.z, &h.albedo.z, &specular.z);
         }
 
-        let mut colors = colors.to_vectors();
+        let mut colors = colors.vectors();
         if depth < scene.max_depth {
             let h = &lanes_hit;
-            let mirror_mask = hit_mask & lanes_where(|lane| !(h.reflectivity[lane] <= 0.0));
+            // Scene numbers are finite (a `Scene` promise), so no NaN to exclude.
+            let mirror_mask = hit_mask & lanes_where(|lane| h.reflectivity[lane] > 0.0);
             if mirror_mask != 0 {
                 let d = &h.direction;
                 let by_shading = reflect_lanes(d, &h.shading_normal);
@@ -513,7 +514,7 @@ impl Vec3Lanes {
     }
 
     #[inline]
-    fn to_vectors(&self) -> [Vec3; PACKET_WIDTH] {
+    fn vectors(&self) -> [Vec3; PACKET_WIDTH] {
         std::array::from_fn(|lane| self.get(lane))
     }
 
