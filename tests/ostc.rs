@@ -276,3 +276,62 @@ proptest! {
         }
     }
 }
+
+#[test]
+fn animate_writes_dirty_images_and_ostc_stats() {
+    let dir = tempfile::tempdir().unwrap();
+    let scenes = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes");
+    for name in ["paper.toml", "paper-bounce.toml"] {
+        std::fs::copy(format!("{scenes}/{name}"), dir.path().join(name)).unwrap();
+    }
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_retrace"))
+        .args([
+            "animate",
+            "paper-bounce.toml",
+            "--frames",
+            "0-3",
+            "--width",
+            "64",
+            "--height",
+            "48",
+            "-o",
+            "out/f_##.png",
+            "--dirty-image",
+            "out/d_##.png",
+            "--stats",
+            "out/s.csv",
+            "--verify",
+        ])
+        .current_dir(dir.path())
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let black = |name: &str| {
+        let image = image::open(dir.path().join("out").join(name))
+            .unwrap()
+            .to_rgb8();
+        image.pixels().filter(|p| p.0 == [0, 0, 0]).count()
+    };
+    // Frame 0 traces everything; later frames only the ball's regions.
+    assert_eq!(black("d_00.png"), 64 * 48);
+    let later = black("d_02.png");
+    assert!(later > 0 && later < 64 * 48 / 2, "{later} black pixels");
+    assert_eq!(black("f_02.png"), 0);
+    let csv = std::fs::read_to_string(dir.path().join("out/s.csv")).unwrap();
+    let header: Vec<&str> = csv.lines().next().unwrap().split(',').collect();
+    for column in [
+        "dirty_regions",
+        "voxels_walked",
+        "bookkeeping_ms",
+        "changed_regions",
+    ] {
+        assert!(header.contains(&column), "{column} missing from {header:?}");
+    }
+    let mode = header.iter().position(|&c| c == "mode").unwrap();
+    let row: Vec<&str> = csv.lines().nth(3).unwrap().split(',').collect();
+    assert_eq!(row[mode], "ostc");
+}
