@@ -3,3 +3,4 @@
 //! be traced and hands them to [`crate::render`].
 
 pub mod pan;
+pub mod samples;
