@@ -13,6 +13,7 @@ use crate::accel::Accelerator;
 use crate::camera::{Camera, Projection};
 use crate::render::{render_view, Frame};
 use crate::reuse::pan::{render_window, EqualAngleLattice, PanBuffer};
+use crate::reuse::samples::{render_direct, RsvpKnobs, SampleBuffer, SampleLattice, ViewportPose};
 use crate::scene::Scene;
 use crate::shade::{RayCounts, Shader};
 
@@ -27,7 +28,7 @@ pub enum Ease {
 }
 
 impl Ease {
-    fn apply(self, t: f64) -> f64 {
+    pub fn apply(self, t: f64) -> f64 {
         match self {
             Ease::Linear => t,
             Ease::EaseInOut => t * t * (3.0 - 2.0 * t),
@@ -129,14 +130,22 @@ impl std::str::FromStr for FractionalPan {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Techniques {
     pub pan: bool,
+    /// RSVP: viewports resample the lazily traced camera sample buffer.
+    pub rsvp: bool,
 }
 
 impl Techniques {
-    pub const FULL: Techniques = Techniques { pan: false };
+    pub const FULL: Techniques = Techniques {
+        pan: false,
+        rsvp: false,
+    };
     /// Everything the timeline allows.
-    pub const AUTO: Techniques = Techniques { pan: true };
+    pub const AUTO: Techniques = Techniques {
+        pan: true,
+        rsvp: true,
+    };
 
-    /// Parses `full`, `auto`, or a comma list of techniques (`pan`).
+    /// Parses `full`, `auto`, or a comma list of techniques (`pan`, `rsvp`).
     pub fn parse(text: &str) -> Result<Techniques, String> {
         let mut techniques = Techniques::FULL;
         for word in text.split(',').map(str::trim) {
@@ -144,14 +153,15 @@ impl Techniques {
                 "full" => {}
                 "auto" => techniques = Techniques::AUTO,
                 "pan" => techniques.pan = true,
-                "rsvp" | "ostc" => {
+                "rsvp" => techniques.rsvp = true,
+                "ostc" => {
                     return Err(format!(
-                        "mode '{word}' is not implemented yet (available: full, auto, pan)"
+                        "mode '{word}' is not implemented yet (available: full, auto, pan, rsvp)"
                     ))
                 }
                 other => {
                     return Err(format!(
-                        "unknown mode '{other}' (expected full, auto, or a comma list of: pan)"
+                        "unknown mode '{other}' (expected full, auto, or a comma list of: pan, rsvp)"
                     ))
                 }
             }
@@ -191,6 +201,10 @@ pub struct FrameStats {
     /// With verification: the frame's error against the camera's own,
     /// unsnapped rays (what snapping or resampling costs).
     pub error: Option<ImageError>,
+    /// RSVP: the viewport this row is about (empty: the camera's image).
+    pub viewport: String,
+    /// RSVP: finest and coarsest pyramid level the viewport read.
+    pub levels: Option<(u32, u32)>,
 }
 
 impl FrameStats {
@@ -212,6 +226,17 @@ pub struct Animator<'a> {
     /// Whether reused frames are also assembled in linear colour.
     linear_output: bool,
     fractional: FractionalPan,
+    samples: Option<SampleBuffer>,
+    knobs: RsvpKnobs,
+}
+
+/// One viewport's image of a frame, and what it cost.
+pub struct ViewportOutput {
+    pub name: String,
+    /// Linear colour, unless turned off.
+    pub frame: Option<Frame>,
+    pub image: image::RgbImage,
+    pub stats: FrameStats,
 }
 
 impl<'a> Animator<'a> {
@@ -229,7 +254,137 @@ impl<'a> Animator<'a> {
             frame_range: frames,
             linear_output: true,
             fractional: FractionalPan::Snap,
+            samples: None,
+            knobs: RsvpKnobs::default(),
         }
+    }
+
+    pub fn set_rsvp_knobs(&mut self, knobs: RsvpKnobs) {
+        self.knobs = knobs;
+    }
+
+    /// Whether the scene's output is its viewports (RSVP) rather than the
+    /// camera's image.
+    pub fn has_viewports(&self) -> bool {
+        !self.scene.viewports.is_empty()
+    }
+
+    /// Every viewport at `frame`.
+    pub fn viewport_poses(&self, frame: u32) -> Vec<ViewportPose> {
+        let camera = self.camera_at(frame);
+        self.scene
+            .viewports
+            .iter()
+            .map(|track| track.pose_at(&camera, frame))
+            .collect()
+    }
+
+    /// Viewport `index` at `frame`, traced through its own rays: the
+    /// reference RSVP frames are measured against.
+    pub fn render_viewport_direct(&self, frame: u32, index: usize) -> (Frame, RayCounts) {
+        let pose = self.scene.viewports[index].pose_at(&self.camera_at(frame), frame);
+        render_direct(&Shader::new(self.scene, self.accel), &pose)
+    }
+
+    /// The camera's sample buffer around the view at `frame`: traced samples
+    /// in colour, never-traced ones black (None before RSVP ran).
+    pub fn buffer_image(&self, frame: u32) -> Option<image::RgbImage> {
+        let camera = self.camera_at(frame);
+        let buffer = self.samples.as_ref()?;
+        Some(buffer.buffer_image(&camera, self.scene.camera.width, self.scene.camera.height))
+    }
+
+    /// Renders every viewport of `frame`: with RSVP from the sample buffer
+    /// (tracing, in one batch, the null samples they touch), otherwise
+    /// each through its own rays.
+    pub fn render_viewports(&mut self, frame: u32) -> Vec<ViewportOutput> {
+        let start = Instant::now();
+        let camera = self.camera_at(frame);
+        let poses = self.viewport_poses(frame);
+        let shader = Shader::new(self.scene, self.accel);
+        let names = self.scene.viewports.iter().map(|t| t.viewport.name.clone());
+        let pixels = |pose: &ViewportPose| u64::from(pose.camera.width) * u64::from(pose.camera.height);
+        if !self.techniques.rsvp {
+            self.samples = None;
+            return poses
+                .iter()
+                .zip(names)
+                .map(|(pose, name)| {
+                    let start = Instant::now();
+                    let (image, rays) = render_direct(&shader, pose);
+                    let rgb = image.to_rgb8();
+                    let ms = start.elapsed().as_secs_f64() * 1e3;
+                    let mut stats = FrameStats {
+                        frame,
+                        mode: "full",
+                        pixels: pixels(pose),
+                        samples_traced: rays.primary,
+                        trace_ms: ms,
+                        total_ms: ms,
+                        viewport: name.clone(),
+                        ..FrameStats::default()
+                    };
+                    stats.count_rays(rays);
+                    ViewportOutput {
+                        name,
+                        frame: Some(image),
+                        image: rgb,
+                        stats,
+                    }
+                })
+                .collect();
+        }
+        let mut reason = String::new();
+        let lattice = SampleLattice::for_camera(&self.scene.camera);
+        let restart = match &self.samples {
+            None => Some("first frame"),
+            Some(buffer) if buffer.lattice().position != camera.position => {
+                Some("eye moved: sample buffer restarted")
+            }
+            Some(buffer) if *buffer.lattice() != SampleLattice { position: camera.position, ..lattice.clone() } => {
+                Some("buffer resolution changed: restarted")
+            }
+            Some(_) => None,
+        };
+        if let Some(why) = restart {
+            self.samples = Some(SampleBuffer::new(SampleLattice {
+                position: camera.position,
+                ..lattice
+            }));
+            reason = why.to_string();
+        }
+        let buffer = self.samples.as_mut().expect("sample buffer just ensured");
+        let setup_ms = start.elapsed().as_secs_f64() * 1e3;
+        let views = buffer.render(&shader, &poses, &self.knobs, self.linear_output);
+        let count = views.len().max(1) as f64;
+        views
+            .into_iter()
+            .zip(poses.iter().zip(names))
+            .map(|(view, (pose, name))| {
+                let total = setup_ms / count + view.map_ms + view.trace_ms + view.gather_ms;
+                let mut stats = FrameStats {
+                    frame,
+                    mode: "rsvp",
+                    reason: reason.clone(),
+                    pixels: pixels(pose),
+                    pixels_reused: pixels(pose).saturating_sub(view.samples_traced),
+                    samples_traced: view.samples_traced,
+                    trace_ms: view.trace_ms,
+                    copy_ms: total - view.trace_ms,
+                    total_ms: total,
+                    viewport: name.clone(),
+                    levels: Some(view.levels),
+                    ..FrameStats::default()
+                };
+                stats.count_rays(view.rays);
+                ViewportOutput {
+                    name,
+                    frame: view.frame,
+                    image: view.image,
+                    stats,
+                }
+            })
+            .collect()
     }
 
     pub fn set_fractional_pan(&mut self, fractional: FractionalPan) {
@@ -494,7 +649,20 @@ mod tests {
     fn modes_parse() {
         assert_eq!(Techniques::parse("full"), Ok(Techniques::FULL));
         assert_eq!(Techniques::parse("auto"), Ok(Techniques::AUTO));
-        assert_eq!(Techniques::parse("pan"), Ok(Techniques { pan: true }));
+        assert_eq!(
+            Techniques::parse("pan"),
+            Ok(Techniques {
+                pan: true,
+                rsvp: false
+            })
+        );
+        assert_eq!(
+            Techniques::parse("rsvp,pan"),
+            Ok(Techniques {
+                pan: true,
+                rsvp: true
+            })
+        );
         assert!(Techniques::parse("zoom").is_err());
         assert!(Techniques::parse("ostc")
             .unwrap_err()

@@ -151,9 +151,25 @@ struct AnimateArgs {
     /// Frames to render: A-B (inclusive) or A; default: the whole animation.
     #[arg(long)]
     frames: Option<String>,
-    /// Frame files (.png or .tga); a run of # becomes the zero-padded frame number.
+    /// Frame files (.png or .tga); a run of # becomes the zero-padded frame
+    /// number. A scene with RSVP viewports writes one file per viewport,
+    /// its name added before the extension: out/frame_0007_zoomed.png.
     #[arg(short, long, default_value = "out/frame_####.png")]
     output: String,
+    /// RSVP: also write the camera's sample buffer per frame (e.g.
+    /// out/buffer_####.png), never-traced samples black (paper, figure 5a).
+    #[arg(long)]
+    buffer_image: Option<String>,
+    /// RSVP reconstruction filter: nearest, bilinear or box.
+    #[arg(long, default_value = "bilinear")]
+    filter: retrace::reuse::samples::Filter,
+    /// RSVP: buffer samples per viewport pixel (per side) the pyramid level
+    /// is chosen for, at least.
+    #[arg(long, default_value_t = 1.0)]
+    oversample: f64,
+    /// RSVP: pyramid levels added to the chosen one (negative: coarser).
+    #[arg(long, default_value_t = 0, allow_negative_numbers = true)]
+    level_bias: i32,
     /// Also write the frames as an animated GIF here.
     #[arg(long)]
     gif: Option<PathBuf>,
@@ -161,7 +177,8 @@ struct AnimateArgs {
     #[arg(long)]
     stats: Option<PathBuf>,
     /// full (no reuse), auto (every technique the timeline allows), or a
-    /// comma list of techniques: pan.
+    /// comma list of techniques: pan, rsvp. With viewports, full traces
+    /// each viewport's own rays.
     #[arg(long, default_value = "auto", value_parser = Techniques::parse)]
     mode: Techniques,
     /// How a pan by a fraction of a sample is shown: snap (to whole samples:
@@ -170,7 +187,8 @@ struct AnimateArgs {
     #[arg(long, default_value = "snap")]
     fractional_pan: retrace::anim::FractionalPan,
     /// Also render every frame in full: exact (snapped) frames must equal
-    /// it bit for bit; resampled frames report their error against it.
+    /// it bit for bit; resampled frames (and RSVP viewports) report their
+    /// error against it.
     #[arg(long)]
     verify: bool,
     /// Leave frames whose file already exists (to resume a run).
@@ -503,12 +521,12 @@ fn write_stats(path: &Path, stats: &[retrace::anim::FrameStats]) -> Result<()> {
         let mut csv = String::from(
             "frame,mode,reason,pixels,pixels_reused,samples_traced,primary_rays,shadow_rays,reflection_rays,\
              trace_ms,copy_ms,total_ms,yaw_error_deg,pitch_error_deg,full_ms,speedup,differing_pixels,\
-             psnr_db,max_abs_error,mean_abs_error\n",
+             psnr_db,max_abs_error,mean_abs_error,differing_share,viewport,finest_level,coarsest_level\n",
         );
         let opt = |v: Option<f64>| v.map_or(String::new(), |v| format!("{v:.4}"));
         for s in stats {
             csv.push_str(&format!(
-                "{},{},\"{}\",{},{},{},{},{},{},{:.4},{:.4},{:.4},{:.6},{:.6},{},{},{},{},{},{}\n",
+                "{},{},\"{}\",{},{},{},{},{},{},{:.4},{:.4},{:.4},{:.6},{:.6},{},{},{},{},{},{},{},{},{},{}\n",
                 s.frame,
                 s.mode,
                 s.reason.replace('"', "'"),
@@ -530,6 +548,11 @@ fn write_stats(path: &Path, stats: &[retrace::anim::FrameStats]) -> Result<()> {
                 opt(s.error.map(|e| f64::from(e.max_abs))),
                 s.error
                     .map_or(String::new(), |e| format!("{:.6}", e.mean_abs)),
+                s.error
+                    .map_or(String::new(), |e| format!("{:.6}", e.differing_share)),
+                s.viewport,
+                s.levels.map_or(String::new(), |l| l.0.to_string()),
+                s.levels.map_or(String::new(), |l| l.1.to_string()),
             ));
         }
         csv
@@ -568,6 +591,21 @@ fn animate(args: AnimateArgs) -> Result<()> {
     let mut animator = Animator::new(&scene, &accel, args.mode, *range.start()..*range.end() + 1);
     animator.set_linear_output(args.verify);
     animator.set_fractional_pan(args.fractional_pan);
+    if animator.has_viewports() {
+        let knobs = retrace::reuse::samples::RsvpKnobs {
+            filter: args.filter,
+            oversample: args.oversample,
+            level_bias: args.level_bias,
+        };
+        if !(knobs.oversample.is_finite() && (0.01..=64.0).contains(&knobs.oversample)) {
+            anyhow::bail!("--oversample {}: must be within 0.01..64", knobs.oversample);
+        }
+        animator.set_rsvp_knobs(knobs);
+        return animate_viewports(&args, &scene, animator, range, gif);
+    }
+    if args.buffer_image.is_some() {
+        anyhow::bail!("--buffer-image needs a scene with [[viewport]] tables (RSVP)");
+    }
 
     let bar = indicatif::ProgressBar::new(u64::from(range.end() - range.start() + 1)).with_style(
         indicatif::ProgressStyle::with_template(
@@ -678,6 +716,133 @@ fn animate(args: AnimateArgs) -> Result<()> {
                 "verify ({}, against the camera's own unsnapped rays): worst PSNR {worst_psnr:.2} dB, \
                  max abs error {max_abs:.4}, mean abs error {mean:.5}, {:.2}% of pixels differ in 8 bits",
                 if animator.is_exact() { "snapped" } else { "resampled" },
+                share * 100.0
+            );
+        }
+    }
+    Ok(())
+}
+
+/// `pattern`'s file for `frame` and viewport `name`: the name goes before
+/// the extension (out/frame_####.png -> out/frame_0007_zoomed.png).
+fn viewport_path(pattern: &(String, usize, String), frame: u32, name: &str) -> PathBuf {
+    let (prefix, digits, suffix) = pattern;
+    let (stem, ext) = match suffix.rfind('.') {
+        Some(dot) if !suffix[dot..].contains('/') => suffix.split_at(dot),
+        _ => (suffix.as_str(), ""),
+    };
+    PathBuf::from(format!("{prefix}{frame:0digits$}{stem}_{name}{ext}"))
+}
+
+/// The frame loop for a scene whose output is its RSVP viewports: one file
+/// per viewport per frame, the buffer image on request, per-viewport stats
+/// and, with --verify, each viewport's error against its own rays.
+fn animate_viewports(
+    args: &AnimateArgs,
+    scene: &Scene,
+    mut animator: Animator,
+    range: std::ops::RangeInclusive<u32>,
+    mut gif: Option<GifWriter>,
+) -> Result<()> {
+    let pattern = frame_pattern(&args.output)?;
+    let buffer_pattern = args.buffer_image.as_deref().map(frame_pattern).transpose()?;
+    if let Some((prefix, digits, suffix)) = &buffer_pattern {
+        retrace::output::format_for(Path::new(&format!("{prefix}{:0digits$}{suffix}", 0)))?;
+    }
+    let names: Vec<String> = scene.viewports.iter().map(|t| t.viewport.name.clone()).collect();
+    let bar = indicatif::ProgressBar::new(u64::from(range.end() - range.start() + 1)).with_style(
+        indicatif::ProgressStyle::with_template(
+            "{bar:30} {pos}/{len} frames {msg} [{elapsed} < {eta}]",
+        )
+        .expect("static template"),
+    );
+    let mut all_stats = Vec::new();
+    let mut write_ms = 0.0;
+    for frame in range.clone() {
+        if args.skip_existing && names.iter().all(|n| viewport_path(&pattern, frame, n).exists()) {
+            bar.inc(1);
+            continue;
+        }
+        let outputs = animator.render_viewports(frame);
+        let mut frame_ms = 0.0;
+        for (index, mut output) in outputs.into_iter().enumerate() {
+            if args.verify {
+                let start = Instant::now();
+                let (reference, _) = animator.render_viewport_direct(frame, index);
+                let full_ms = start.elapsed().as_secs_f64() * 1e3;
+                let image = output.frame.as_ref().expect("verification keeps linear colour");
+                output.stats.full_ms = Some(full_ms);
+                output.stats.speedup = Some(full_ms / output.stats.total_ms);
+                output.stats.differing_pixels =
+                    Some(retrace::anim::count_differences(image, &reference));
+                output.stats.error = Some(retrace::anim::image_error(image, &reference));
+            }
+            let write_start = Instant::now();
+            save_image(&viewport_path(&pattern, frame, &output.name), &output.image)?;
+            if index == 0 {
+                if let Some(gif) = &mut gif {
+                    gif.add(&output.image)?;
+                }
+            }
+            write_ms += write_start.elapsed().as_secs_f64() * 1e3;
+            frame_ms += output.stats.total_ms;
+            all_stats.push(output.stats);
+        }
+        if let Some((prefix, digits, suffix)) = &buffer_pattern {
+            if let Some(image) = animator.buffer_image(frame) {
+                let write_start = Instant::now();
+                save_image(Path::new(&format!("{prefix}{frame:0digits$}{suffix}")), &image)?;
+                write_ms += write_start.elapsed().as_secs_f64() * 1e3;
+            }
+        }
+        bar.set_message(format!("{frame_ms:.0} ms"));
+        bar.inc(1);
+    }
+    bar.finish_and_clear();
+    if let Some(gif) = gif {
+        gif.finish()?;
+    }
+    if let Some(path) = &args.stats {
+        write_stats(path, &all_stats)?;
+    }
+    let total: f64 = all_stats.iter().map(|s| s.total_ms).sum();
+    let traced: u64 = all_stats.iter().map(|s| s.samples_traced).sum();
+    let pixels: u64 = all_stats.iter().map(|s| s.pixels).sum();
+    println!(
+        "{}: {} frames x {} viewports ({}) in {:.1} ms rendering ({:.1} ms writing); traced {traced} samples for {pixels} pixels ({:.1}%)",
+        scene_name(&args.scene),
+        range.end() - range.start() + 1,
+        names.len(),
+        names.join(", "),
+        total,
+        write_ms,
+        100.0 * traced as f64 / pixels.max(1) as f64
+    );
+    if args.verify {
+        let full: f64 = all_stats.iter().filter_map(|s| s.full_ms).sum();
+        println!(
+            "verify: direct renders {full:.1} ms, speedup {:.2}x",
+            full / total.max(1e-9)
+        );
+        for name in &names {
+            let errors: Vec<_> = all_stats
+                .iter()
+                .filter(|s| &s.viewport == name)
+                .filter_map(|s| s.error)
+                .collect();
+            let count = errors.len().max(1) as f64;
+            let worst_psnr = errors.iter().map(|e| e.psnr_db).fold(f64::INFINITY, f64::min);
+            let mean_psnr = errors
+                .iter()
+                .map(|e| e.psnr_db.min(100.0))
+                .sum::<f64>()
+                / count;
+            let max_abs = errors.iter().map(|e| e.max_abs).fold(0.0f32, f32::max);
+            let mean = errors.iter().map(|e| e.mean_abs).sum::<f64>() / count;
+            let share = errors.iter().map(|e| e.differing_share).sum::<f64>() / count;
+            println!(
+                "verify {name} (against its own rays): PSNR worst {worst_psnr:.2} dB, mean {mean_psnr:.2} dB; \
+                 max abs error {max_abs:.4}, mean abs error {mean:.5}, {:.2}% of pixels differ in 8 bits",
                 share * 100.0
             );
         }

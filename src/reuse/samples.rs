@@ -375,8 +375,9 @@ impl ViewTransform {
 }
 
 impl Viewport {
-    /// Checks size, field of view and transform; the error names the field.
-    pub fn validate(&self) -> Result<(), TransformError> {
+    /// Checks size, field of view, elevation and transform against the
+    /// scene camera `base`; the error names the field.
+    pub fn validate(&self, base: &Camera) -> Result<(), TransformError> {
         let err = |field, message: String| Err(TransformError { field, message });
         if self.width == 0 || self.height == 0 {
             return err(
@@ -392,24 +393,16 @@ impl Viewport {
                 return err(field, format!("must be finite, got {value}"));
             }
         }
-        if self.pitch.abs() > FRAC_PI_2 {
+        let camera = self.camera(base);
+        if camera.pitch.abs() > FRAC_PI_2 {
             return err(
                 "pitch",
                 format!(
-                    "elevation {:.3} degrees is beyond +-90",
-                    self.pitch.to_degrees()
+                    "looks at elevation {:.3} degrees (camera pitch plus the viewport's): beyond +-90",
+                    camera.pitch.to_degrees()
                 ),
             );
         }
-        let camera = self.camera(&Camera {
-            projection: Projection::Perspective,
-            position: DVec3::ZERO,
-            yaw: 0.0,
-            pitch: 0.0,
-            fov: 1.0,
-            width: 1,
-            height: 1,
-        });
         camera.validate().map_err(|e| TransformError {
             field: match e {
                 crate::camera::CameraError::EmptyImage { .. }
@@ -438,6 +431,51 @@ impl Viewport {
 
     pub fn pose(&self, base: &Camera, transform: ViewTransform) -> ViewportPose {
         ViewportPose::new(self.camera(base), transform)
+    }
+}
+
+/// A viewport transform keyframe, fully resolved (unset values carried
+/// over from the previous key of the same viewport).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ViewportKey {
+    pub frame: u32,
+    pub transform: ViewTransform,
+    /// How the segment from this key to the next is eased.
+    pub ease: crate::anim::Ease,
+}
+
+/// A viewport and its keyframes (in increasing frame order).
+#[derive(Clone, Debug, PartialEq)]
+pub struct ViewportTrack {
+    pub viewport: Viewport,
+    pub keys: Vec<ViewportKey>,
+}
+
+impl ViewportTrack {
+    /// The transform at `frame`, from the frame number alone: the nearest
+    /// key outside the keyed range, interpolated between keys.
+    pub fn transform_at(&self, frame: u32) -> ViewTransform {
+        let keys = &self.keys;
+        let Some(first) = keys.first() else {
+            return self.viewport.transform;
+        };
+        let next = keys.partition_point(|k| k.frame <= frame);
+        if next == 0 {
+            return first.transform;
+        }
+        let a = &keys[next - 1];
+        let Some(b) = keys.get(next) else {
+            return a.transform;
+        };
+        let t = a
+            .ease
+            .apply(f64::from(frame - a.frame) / f64::from(b.frame - a.frame));
+        a.transform.lerp(&b.transform, t)
+    }
+
+    /// The viewport at `frame` when the scene camera is `base`.
+    pub fn pose_at(&self, base: &Camera, frame: u32) -> ViewportPose {
+        self.viewport.pose(base, self.transform_at(frame))
     }
 }
 
