@@ -341,16 +341,16 @@ impl<'a> Animator<'a> {
             Some(buffer) if buffer.lattice().position != camera.position => {
                 Some("eye moved: sample buffer restarted")
             }
-            Some(buffer) if *buffer.lattice() != SampleLattice { position: camera.position, ..lattice.clone() } => {
+            Some(buffer) if buffer.lattice().columns_per_turn != lattice.columns_per_turn => {
                 Some("buffer resolution changed: restarted")
             }
             Some(_) => None,
         };
         if let Some(why) = restart {
-            self.samples = Some(SampleBuffer::new(SampleLattice {
-                position: camera.position,
-                ..lattice
-            }));
+            self.samples = Some(SampleBuffer::new(SampleLattice::new(
+                camera.position,
+                lattice.columns_per_turn,
+            )));
             reason = why.to_string();
         }
         let buffer = self.samples.as_mut().expect("sample buffer just ensured");

@@ -203,8 +203,10 @@ struct BenchArgs {
     #[command(flatten)]
     backend: BackendArg,
     /// Which measurement: `frame` (a full frame against bare Embree on the
-    /// same ray packets) or `backends` (the grid against Embree on the same
-    /// ray packets).
+    /// same ray packets), `backends` (the grid against Embree on the same
+    /// ray packets), `E1` (pan), `E2` (RSVP zoom in and out),
+    /// `E4nomotion` (pan 3.6 deg/frame and zoom together) or `knobs` (RSVP
+    /// filter, oversampling and level bias: cost and error).
     #[arg(long, default_value = "frame")]
     only: String,
     /// Timed repetitions (the median is reported).
@@ -294,9 +296,12 @@ fn bench(args: BenchArgs) -> Result<()> {
         "frame" => bench_frame(&args, &scene, bar),
         "backends" => bench_backends(&args, &scene, bar),
         "E1" | "e1" => bench_e1(&args, scene, bar),
+        "E2" | "e2" => bench_e2(&args, scene, bar, 0.0),
+        "E4nomotion" | "e4nomotion" => bench_e2(&args, scene, bar, 3.6),
+        "knobs" => bench_knobs(&args, scene, bar),
         other => {
             anyhow::bail!(
-                "unknown measurement '{other}' for --only (available: frame, backends, E1)"
+                "unknown measurement '{other}' for --only (available: frame, backends, E1, E2, E4nomotion, knobs)"
             )
         }
     }
@@ -382,6 +387,112 @@ fn bench_e1(args: &BenchArgs, scene: Scene, bar: indicatif::ProgressBar) -> Resu
     }
     if !result.exact {
         anyhow::bail!("E1: accelerated frames differ from full renders");
+    }
+    Ok(())
+}
+
+fn print_viewport_bench(label: &str, r: &retrace::bench::ViewportSequenceBench) {
+    println!(
+        "{label}: full {:8.1} ms ({:6.2} ms/frame)  RSVP {:7.1} ms ({:5.2} ms/frame)  speedup {:6.2}x  \
+         PSNR worst {:5.2} dB mean {:5.2} dB  max abs {:.3}  mean abs {:.5}  differ {:5.2}%  traced {}",
+        r.full_ms,
+        r.full_ms / f64::from(r.frames),
+        r.rsvp_ms,
+        r.rsvp_ms / f64::from(r.frames),
+        r.speedup,
+        r.worst_psnr_db,
+        r.mean_psnr_db,
+        r.max_abs,
+        r.mean_abs,
+        r.differing_share * 100.0,
+        r.samples_traced,
+    );
+}
+
+/// E2 (zoom 100 <-> 50 degrees over 100 frames, both directions), or with
+/// a pan E4 without the moving ball.
+fn bench_e2(
+    args: &BenchArgs,
+    scene: Scene,
+    bar: indicatif::ProgressBar,
+    pan_deg_per_frame: f64,
+) -> Result<()> {
+    use retrace::bench::{bench_viewport_sequence, e2_scene, ZoomDirection};
+    let accel = args.backend.build(&scene)?;
+    bar.set_length(2 * 300);
+    let mut results = Vec::new();
+    for (label, direction) in [("zoom in ", ZoomDirection::In), ("zoom out", ZoomDirection::Out)] {
+        bar.set_message(label);
+        let scene = e2_scene(scene.clone(), direction, pan_deg_per_frame);
+        let result = bench_viewport_sequence(
+            &scene,
+            &accel,
+            0..100,
+            retrace::reuse::samples::RsvpKnobs::default(),
+            true,
+            || bar.inc(1),
+        );
+        results.push((label, result));
+    }
+    bar.finish_and_clear();
+    println!(
+        "{} (perspective viewport 640x480, 100 <-> 50 deg over 100 frames{}), {} threads, one run, release",
+        if pan_deg_per_frame == 0.0 { "E2" } else { "E4 without motion" },
+        if pan_deg_per_frame == 0.0 {
+            String::new()
+        } else {
+            format!(", camera yaw {pan_deg_per_frame} deg/frame")
+        },
+        rayon::current_num_threads()
+    );
+    for (label, result) in &results {
+        print_viewport_bench(label, result);
+    }
+    if let Some(path) = &args.json {
+        let list: Vec<_> = results.iter().map(|(_, r)| r).collect();
+        write_json(path, &list)?;
+    }
+    Ok(())
+}
+
+/// RSVP knobs on E2's zoom in: each filter, oversampling and level bias,
+/// with its time and its error against direct renders.
+fn bench_knobs(args: &BenchArgs, scene: Scene, bar: indicatif::ProgressBar) -> Result<()> {
+    use retrace::bench::{bench_viewport_sequence, e2_scene, ZoomDirection};
+    use retrace::reuse::samples::{Filter, RsvpKnobs};
+    let accel = args.backend.build(&scene)?;
+    let scene = e2_scene(scene, ZoomDirection::In, 0.0);
+    let default = RsvpKnobs::default();
+    let mut settings = vec![default];
+    for filter in [Filter::Nearest, Filter::Box] {
+        settings.push(RsvpKnobs { filter, ..default });
+    }
+    for oversample in [0.5, 0.71, 1.41, 2.0] {
+        settings.push(RsvpKnobs { oversample, ..default });
+    }
+    for level_bias in [-1, 1] {
+        settings.push(RsvpKnobs { level_bias, ..default });
+    }
+    bar.set_length((settings.len() * 300) as u64);
+    let mut results = Vec::new();
+    for knobs in settings {
+        bar.set_message(format!("{} x{} {:+}", knobs.filter, knobs.oversample, knobs.level_bias));
+        let result = bench_viewport_sequence(&scene, &accel, 0..100, knobs, true, || bar.inc(1));
+        results.push(result);
+    }
+    bar.finish_and_clear();
+    println!("RSVP knobs on E2 zoom in (100 frames, 640x480), {} threads", rayon::current_num_threads());
+    for r in &results {
+        let label = format!(
+            "{:8} oversample {:4.2} bias {:+}",
+            r.knobs.filter.to_string(),
+            r.knobs.oversample,
+            r.knobs.level_bias
+        );
+        print_viewport_bench(&label, r);
+    }
+    if let Some(path) = &args.json {
+        write_json(path, &results)?;
     }
     Ok(())
 }
