@@ -1116,7 +1116,9 @@ impl SampleBuffer {
         out
     }
 
-    /// Pass 2: each pixel's colour from its samples.
+    /// Pass 2: each pixel's colour from its samples. Each region first
+    /// copies the samples under it into a small dense window (whole runs
+    /// where one level owns a row), so the filter reads plain arrays.
     fn gather(
         &self,
         pose: &ViewportPose,
@@ -1125,45 +1127,52 @@ impl SampleBuffer {
         linear: bool,
     ) -> (Option<Frame>, image::RgbImage) {
         let (w, h) = (pose.camera.width as usize, pose.camera.height as usize);
-        let srgb = srgb_table();
+        let band = w * REGION as usize;
         let mut bytes = vec![0u8; w * h * 3];
         let mut pixels = if linear {
             vec![Vec3::ZERO; w * h]
         } else {
             Vec::new()
         };
-        let rows: Vec<(usize, &mut [u8])> = bytes.chunks_mut(w * 3).enumerate().collect();
-        let colors: Vec<Vec<Vec3>> = rows
-            .into_par_iter()
-            .map(|(y, out)| {
+        let mut pixel_bands: Vec<&mut [Vec3]> = if linear {
+            pixels.chunks_mut(band).collect()
+        } else {
+            Vec::new()
+        };
+        pixel_bands.resize_with(h.div_ceil(REGION as usize), || &mut []);
+        bytes
+            .par_chunks_mut(band * 3)
+            .zip(pixel_bands.into_par_iter())
+            .enumerate()
+            .for_each(|(band_index, (out, linear_out))| {
                 let mut cache = TileCache::new();
-                let mut row_colors = if linear {
-                    Vec::with_capacity(w)
-                } else {
-                    Vec::new()
-                };
-                let region_row = y / REGION as usize * mapped.regions_x;
-                for x in 0..w {
-                    let level = mapped.levels[region_row + x / REGION as usize];
-                    let (cx, cy) = mapped.coords[y * w + x];
-                    let c = if cx.is_nan() {
-                        Vec3::ZERO
-                    } else {
-                        self.filter(&mut cache, level, filter, cx, cy)
-                    };
-                    out[x * 3..x * 3 + 3].copy_from_slice(&c.to_array().map(|v| srgb.encode(v)));
-                    if linear {
-                        row_colors.push(c);
-                    }
+                let mut window = Vec::new();
+                let y0 = band_index * REGION as usize;
+                let rows = (h - y0).min(REGION as usize);
+                for rx in 0..mapped.regions_x {
+                    let x0 = rx * REGION as usize;
+                    let cols = (w - x0).min(REGION as usize);
+                    let level = mapped.levels[band_index * mapped.regions_x + rx];
+                    let at = |i: usize, j: usize| mapped.coords[(y0 + j) * w + x0 + i];
+                    self.gather_region(
+                        &mut cache,
+                        &mut window,
+                        level,
+                        filter,
+                        (cols, rows),
+                        at,
+                        |i, j, c| {
+                            let p = j * w + x0 + i;
+                            let srgb = srgb_table();
+                            out[p * 3..p * 3 + 3]
+                                .copy_from_slice(&c.to_array().map(|v| srgb.encode(v)));
+                            if let Some(slot) = linear_out.get_mut(p) {
+                                *slot = c;
+                            }
+                        },
+                    );
                 }
-                row_colors
-            })
-            .collect();
-        if linear {
-            for (y, row) in colors.into_iter().enumerate() {
-                pixels[y * w..(y + 1) * w].copy_from_slice(&row);
-            }
-        }
+            });
         let image =
             image::RgbImage::from_raw(w as u32, h as u32, bytes).expect("three bytes per pixel");
         let frame = linear.then(|| Frame {
@@ -1172,6 +1181,122 @@ impl SampleBuffer {
             pixels,
         });
         (frame, image)
+    }
+
+    /// Filters one region's pixels (`size` = columns, rows; `at` gives a
+    /// pixel's lattice coordinates, NaN for no ray) into `put`.
+    #[allow(clippy::too_many_arguments)]
+    fn gather_region(
+        &self,
+        cache: &mut TileCache,
+        window: &mut Vec<Vec3>,
+        level: u32,
+        filter: Filter,
+        size: (usize, usize),
+        at: impl Fn(usize, usize) -> (f64, f64),
+        mut put: impl FnMut(usize, usize, Vec3),
+    ) {
+        let (cols, rows) = size;
+        let (mut c0, mut r0, mut c1, mut r1) = (i64::MAX, i64::MAX, i64::MIN, i64::MIN);
+        for j in 0..rows {
+            for i in 0..cols {
+                let (x, y) = at(i, j);
+                if x.is_nan() {
+                    continue;
+                }
+                let (c, r) = filter_origin(filter, x, y);
+                c0 = c0.min(c);
+                c1 = c1.max(c + 1);
+                r0 = r0.min(r);
+                r1 = r1.max(r + 1);
+            }
+        }
+        if c0 > c1 {
+            for j in 0..rows {
+                for i in 0..cols {
+                    put(i, j, Vec3::ZERO);
+                }
+            }
+            return;
+        }
+        let (wd, ht) = ((c1 - c0 + 1) as usize, (r1 - r0 + 1) as usize);
+        if wd * ht > 16 * cols * rows {
+            // Zoomed far out: a window would copy far more than it reads.
+            for j in 0..rows {
+                for i in 0..cols {
+                    let (x, y) = at(i, j);
+                    let c = if x.is_nan() {
+                        Vec3::ZERO
+                    } else {
+                        self.filter(cache, level, filter, x, y)
+                    };
+                    put(i, j, c);
+                }
+            }
+            return;
+        }
+        window.clear();
+        window.resize(wd * ht, Vec3::ZERO);
+        let last_row = self.lattice.last_row(level);
+        for (j, line) in window.chunks_mut(wd).enumerate() {
+            let row = (r0 + j as i64).clamp(0, last_row);
+            if level == 0 || row & 1 == 1 {
+                self.copy_run(level, c0, row, line);
+            } else {
+                for (i, slot) in line.iter_mut().enumerate() {
+                    *slot = self.read(cache, level, c0 + i as i64, row);
+                }
+            }
+        }
+        for j in 0..rows {
+            for i in 0..cols {
+                let (x, y) = at(i, j);
+                if x.is_nan() {
+                    put(i, j, Vec3::ZERO);
+                    continue;
+                }
+                let (c, r) = filter_origin(filter, x, y);
+                let k = (r - r0) as usize * wd + (c - c0) as usize;
+                let colour = match filter {
+                    Filter::Nearest => window[k],
+                    Filter::Box => {
+                        (window[k] + window[k + 1] + window[k + wd] + window[k + wd + 1]) * 0.25
+                    }
+                    Filter::Bilinear => {
+                        let (fx, fy) = (snap_fraction(x - c as f64), snap_fraction(y - r as f64));
+                        bilinear(
+                            [window[k], window[k + 1], window[k + wd], window[k + wd + 1]],
+                            fx as f32,
+                            fy as f32,
+                        )
+                    }
+                };
+                put(i, j, colour);
+            }
+        }
+    }
+
+    /// Samples (col.., row) of `level`, all owned by that level, copied in
+    /// runs from the tiles (black where nothing was traced).
+    fn copy_run(&self, level: u32, col: i64, row: i64, out: &mut [Vec3]) {
+        let store = &self.levels[level as usize];
+        let columns = self.lattice.columns(level);
+        let mut i = 0;
+        while i < out.len() {
+            let wc = self.lattice.wrap_column(level, col + i as i64);
+            let (key, sample, _) = tile_key(wc, row);
+            let run = (out.len() - i)
+                .min((TILE_COLS - (wc & (TILE_COLS - 1))) as usize)
+                .min((columns - wc) as usize);
+            match store.tile(key) {
+                Some(tile) => {
+                    let start = tile as usize * TILE_SAMPLES + sample;
+                    out[i..i + run].copy_from_slice(&store.colors[start..start + run]);
+                }
+                None => out[i..i + run].fill(Vec3::ZERO),
+            }
+            i += run;
+        }
     }
 
     #[inline(always)]
@@ -1188,19 +1313,16 @@ impl SampleBuffer {
             }
             Filter::Bilinear => {
                 let (fx, fy) = (snap_fraction(x - c as f64), snap_fraction(y - r as f64));
-                let (fx, fy) = (fx as f32, fy as f32);
-                let mut sum = self.read(cache, level, c, r) * ((1.0 - fx) * (1.0 - fy));
-                // Skipping zero weights keeps exact lattice hits exact.
-                if fx > 0.0 {
-                    sum += self.read(cache, level, c + 1, r) * (fx * (1.0 - fy));
-                }
-                if fy > 0.0 {
-                    sum += self.read(cache, level, c, r + 1) * ((1.0 - fx) * fy);
-                    if fx > 0.0 {
-                        sum += self.read(cache, level, c + 1, r + 1) * (fx * fy);
-                    }
-                }
-                sum
+                bilinear(
+                    [
+                        self.read(cache, level, c, r),
+                        self.read(cache, level, c + 1, r),
+                        self.read(cache, level, c, r + 1),
+                        self.read(cache, level, c + 1, r + 1),
+                    ],
+                    fx as f32,
+                    fy as f32,
+                )
             }
         }
     }
@@ -1278,6 +1400,23 @@ impl SampleBuffer {
             image::Rgb(colour.map_or([0; 3], |c| c.to_array().map(|v| srgb.encode(v))))
         })
     }
+}
+
+/// Weighted by distance; a zero weight drops its sample entirely, so a
+/// pixel exactly on a sample shows it bit for bit.
+#[inline(always)]
+fn bilinear(s: [Vec3; 4], fx: f32, fy: f32) -> Vec3 {
+    let mut sum = s[0] * ((1.0 - fx) * (1.0 - fy));
+    if fx > 0.0 {
+        sum += s[1] * (fx * (1.0 - fy));
+    }
+    if fy > 0.0 {
+        sum += s[2] * ((1.0 - fx) * fy);
+        if fx > 0.0 {
+            sum += s[3] * (fx * fy);
+        }
+    }
+    sum
 }
 
 /// The top-left sample a filter starts from.
