@@ -55,7 +55,7 @@ fn bits(v: glam::Vec3) -> [u32; 3] {
     v.to_array().map(f32::to_bits)
 }
 
-common::on_every_backend! {
+on_every_backend! {
     null_samples_are_traced_once_and_kept(backend) {
         let scene = paper_with("").unwrap();
         let accel = Accelerator::build(backend, &scene.objects).unwrap();

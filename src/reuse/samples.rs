@@ -861,7 +861,9 @@ impl SampleBuffer {
         if !footprint.is_finite() || footprint <= 0.0 {
             return 0;
         }
-        let wanted = (knobs.oversample / footprint).log2().ceil() as i64
+        // A hair of tolerance: exactly one sample per pixel, up to
+        // rounding, needs no finer level.
+        let wanted = ((knobs.oversample / footprint).log2() - 1e-6).ceil() as i64
             + i64::from(knobs.level_bias)
             + i64::from(knobs.filter == Filter::Box);
         wanted.clamp(0, i64::from(MAX_LEVEL)) as u32
