@@ -45,6 +45,8 @@ test-embree4:
 bench: build
 	$(RETRACE) bench --only frame
 	$(RETRACE) bench --only frame scenes/bunny.toml
+	$(RETRACE) bench --only E1
+	$(RETRACE) bench --only E3
 
 clean:
 	cargo clean

@@ -260,11 +260,18 @@ pub struct SequenceBench {
     pub accelerated_ms: f64,
     pub speedup: f64,
     pub samples_traced: u64,
-    /// Frames x pixels over the samples no reuse could avoid tracing (the
-    /// lattice samples the windows expose, each once).
+    /// Frames x pixels over the samples no reuse could avoid tracing: the
+    /// lattice samples the windows expose, each once, and the samples whose
+    /// colour changed.
     pub oracle_speedup: f64,
+    /// The same, with every region that holds such a sample traced whole
+    /// (the best OSTC can do at its region size).
+    pub region_oracle_speedup: f64,
     /// speedup / oracle_speedup.
     pub efficiency: f64,
+    /// OSTC's recording and merging per frame, as a share of a full
+    /// frame's time (last round).
+    pub bookkeeping_share: f64,
     /// Every accelerated frame equal, bit for bit, to its full render.
     pub exact: bool,
     pub max_yaw_error_deg: f64,
@@ -284,40 +291,105 @@ fn frame_hash(frame: &crate::render::Frame) -> u64 {
         })
 }
 
-/// Samples that no reuse could avoid tracing for a static scene: every
-/// lattice sample some frame shows, once (for equal-angle cameras; other
-/// cameras trace every pixel of every frame).
-fn oracle_samples(animator: &crate::anim::Animator, frames: std::ops::Range<u32>) -> u64 {
-    use crate::reuse::pan::EqualAngleLattice;
-    let mut seen: std::collections::HashMap<(i64, i64), ()> = std::collections::HashMap::new();
-    let mut other = 0u64;
-    for frame in frames {
-        let camera = animator.camera_at(frame);
-        if camera.projection != crate::camera::Projection::EqualAngle {
-            other += u64::from(camera.width) * u64::from(camera.height);
-            continue;
-        }
-        let lattice = EqualAngleLattice::for_camera(&camera);
-        let window = lattice.window(&camera);
-        for y in 0..i64::from(window.height) {
-            for x in 0..i64::from(window.width) {
-                seen.insert((lattice.wrap_column(window.col + x), window.row + y), ());
-            }
+/// The least tracing any reuse could get away with, counted from the full
+/// renders of a sequence: samples never traced before (newly exposed by a
+/// pan) plus samples whose value truly changed since they were last shown,
+/// per sample and per region (a region counts whole when any of its
+/// samples needs tracing: what OSTC at that granularity could at best do).
+///
+/// Equal-angle views are placed on their pan lattice, so a sample keeps its
+/// identity as the window moves; other views count every pixel of every
+/// frame (no reuse keeps them).
+struct Oracle {
+    /// Per lattice sample (column-major within a whole turn): a hash of
+    /// the colour last shown, 0 for never.
+    shown: Vec<u64>,
+    lattice: Option<crate::reuse::pan::EqualAngleLattice>,
+    region_size: (i64, i64),
+    samples: u64,
+    region_samples: u64,
+}
+
+impl Oracle {
+    fn new(region_size: (i64, i64)) -> Oracle {
+        Oracle {
+            shown: Vec::new(),
+            lattice: None,
+            region_size,
+            samples: 0,
+            region_samples: 0,
         }
     }
-    seen.len() as u64 + other
+
+    fn add(&mut self, camera: &crate::camera::Camera, frame: &crate::render::Frame) {
+        use crate::reuse::pan::EqualAngleLattice;
+        let pixels = frame.pixels.len() as u64;
+        if camera.projection != crate::camera::Projection::EqualAngle {
+            self.samples += pixels;
+            self.region_samples += pixels;
+            return;
+        }
+        let fits = self.lattice.as_ref().is_some_and(|l| l.fits(camera));
+        if !fits {
+            let lattice = EqualAngleLattice::for_camera(camera);
+            self.shown = vec![0; (lattice.columns_per_turn * lattice.rows) as usize];
+            self.lattice = Some(lattice);
+        }
+        let lattice = self.lattice.as_ref().expect("lattice just ensured");
+        let window = lattice.window(camera);
+        let (rw, rh) = self.region_size;
+        let regions_across = (lattice.columns_per_turn + rw - 1) / rw;
+        let mut dirty_regions = std::collections::HashSet::new();
+        let mut region_of_pixel = Vec::with_capacity(frame.pixels.len());
+        for (i, color) in frame.pixels.iter().enumerate() {
+            let (x, y) = (
+                i as i64 % i64::from(frame.width),
+                i as i64 / i64::from(frame.width),
+            );
+            let (col, row) = (lattice.wrap_column(window.col + x), window.row + y);
+            let region = row.div_euclid(rh) * regions_across + col / rw;
+            region_of_pixel.push(region);
+            let hash = color
+                .to_array()
+                .iter()
+                .fold(0xcbf2_9ce4_8422_2325u64, |h, c| {
+                    (h ^ u64::from(c.to_bits())).wrapping_mul(0x0100_0000_01b3)
+                })
+                | 1;
+            let Some(slot) = usize::try_from(row)
+                .ok()
+                .filter(|&r| (r as i64) < lattice.rows)
+                .map(|r| r * lattice.columns_per_turn as usize + col as usize)
+            else {
+                continue;
+            };
+            if self.shown[slot] != hash {
+                self.shown[slot] = hash;
+                self.samples += 1;
+                dirty_regions.insert(region);
+            }
+        }
+        self.region_samples += region_of_pixel
+            .iter()
+            .filter(|r| dirty_regions.contains(r))
+            .count() as u64;
+    }
 }
 
 /// Renders `frames` in full and with `techniques`, alternating `rounds`
 /// times; compares the medians of the sequence totals.
 pub fn bench_sequence(
     scene: &Scene,
-    accel: &Accelerator,
+    accel: &mut Accelerator,
     techniques: crate::anim::Techniques,
+    ostc: crate::anim::OstcSettings,
     frames: std::ops::Range<u32>,
     rounds: usize,
     mut progress: impl FnMut(),
 ) -> SequenceBench {
+    let region_size = ostc
+        .regions
+        .region_size(scene.camera.width, scene.camera.height);
     use crate::anim::{Animator, Techniques};
     let rounds = rounds.max(1);
     let (mut full_times, mut fast_times) = (Vec::new(), Vec::new());
@@ -325,8 +397,10 @@ pub fn bench_sequence(
     let mut samples_traced = 0;
     let mut max_yaw_error: f64 = 0.0;
     let mut pixels_per_frame = 0;
-    for _ in 0..rounds {
-        let full = Animator::new(scene, accel, Techniques::FULL, frames.clone());
+    let mut bookkeeping_ms = 0.0;
+    let mut oracle = Oracle::new(region_size);
+    for round in 0..rounds {
+        let mut full = Animator::new(scene, accel, Techniques::FULL, frames.clone());
         let mut hashes = Vec::new();
         let mut elapsed = 0.0;
         for frame in frames.clone() {
@@ -335,13 +409,18 @@ pub fn bench_sequence(
             std::hint::black_box(image.to_rgb8());
             elapsed += start.elapsed().as_secs_f64() * 1e3;
             hashes.push(frame_hash(&image));
+            if round == 0 {
+                oracle.add(&full.camera_at(frame), &image);
+            }
             progress();
         }
         full_times.push(elapsed);
 
         let mut fast = Animator::new(scene, accel, techniques, frames.clone());
         fast.set_linear_output(false);
+        fast.set_ostc(ostc);
         samples_traced = 0;
+        bookkeeping_ms = 0.0;
         let mut elapsed = 0.0;
         for frame in frames.clone() {
             let start = Instant::now();
@@ -349,6 +428,7 @@ pub fn bench_sequence(
             std::hint::black_box(rgb);
             elapsed += start.elapsed().as_secs_f64() * 1e3;
             samples_traced += stats.samples_traced;
+            bookkeeping_ms += stats.bookkeeping_ms;
             max_yaw_error = max_yaw_error.max(stats.yaw_error_deg.abs());
             pixels_per_frame = stats.pixels;
             progress();
@@ -356,18 +436,19 @@ pub fn bench_sequence(
         fast_times.push(elapsed);
         // Exactness on a separate, untimed pass that keeps linear colour.
         let mut check = Animator::new(scene, accel, techniques, frames.clone());
+        check.set_ostc(ostc);
         let fast_hashes: Vec<u64> = frames
             .clone()
             .map(|frame| frame_hash(&check.render(frame).0.expect("linear output is on")))
             .collect();
         exact &= hashes == fast_hashes;
     }
-    let animator = Animator::new(scene, accel, techniques, frames.clone());
-    let oracle = oracle_samples(&animator, frames.clone());
     let frame_count = frames.end - frames.start;
     let (full_ms, accelerated_ms) = (median(full_times), median(fast_times));
     let speedup = full_ms / accelerated_ms;
-    let oracle_speedup = (u64::from(frame_count) * pixels_per_frame) as f64 / oracle.max(1) as f64;
+    let all_pixels = (u64::from(frame_count) * pixels_per_frame) as f64;
+    let oracle_speedup = all_pixels / oracle.samples.max(1) as f64;
+    let region_oracle_speedup = all_pixels / oracle.region_samples.max(1) as f64;
     SequenceBench {
         frames: frame_count,
         pixels_per_frame,
@@ -376,7 +457,11 @@ pub fn bench_sequence(
         speedup,
         samples_traced,
         oracle_speedup,
+        region_oracle_speedup,
         efficiency: speedup / oracle_speedup,
+        bookkeeping_share: bookkeeping_ms
+            / (full_ms / f64::from(frame_count.max(1)))
+            / f64::from(frame_count.max(1)),
         exact,
         max_yaw_error_deg: max_yaw_error,
         rounds,
@@ -397,11 +482,11 @@ pub fn e1_scene(mut scene: Scene) -> Scene {
         position: camera.position,
         ease: Ease::Linear,
     };
-    scene.animation = Some(Animation {
-        frames: 100,
-        fps: 25.0,
-        camera_keys: vec![key(0, 0.0), key(100, 360.0)],
-    });
+    scene.animation = Some(Animation::camera_only(
+        100,
+        25.0,
+        vec![key(0, 0.0), key(100, 360.0)],
+    ));
     scene
 }
 
@@ -434,7 +519,7 @@ pub struct ViewportSequenceBench {
 /// (untimed; skipped with `measure_error` off).
 pub fn bench_viewport_sequence(
     scene: &Scene,
-    accel: &Accelerator,
+    accel: &mut Accelerator,
     frames: std::ops::Range<u32>,
     knobs: crate::reuse::samples::RsvpKnobs,
     measure_error: bool,
@@ -447,7 +532,7 @@ pub fn bench_viewport_sequence(
     };
     let views = scene.viewports.len();
     let mut pixels_per_frame = 0;
-    let full = Animator::new(scene, accel, Techniques::FULL, frames.clone());
+    let mut full = Animator::new(scene, accel, Techniques::FULL, frames.clone());
     let mut full_ms = 0.0;
     for frame in frames.clone() {
         let start = Instant::now();
@@ -458,6 +543,7 @@ pub fn bench_viewport_sequence(
         full_ms += start.elapsed().as_secs_f64() * 1e3;
         progress();
     }
+    drop(full);
     let mut fast = Animator::new(scene, accel, rsvp_only, frames.clone());
     fast.set_linear_output(false);
     fast.set_rsvp_knobs(knobs);
@@ -472,6 +558,7 @@ pub fn bench_viewport_sequence(
         std::hint::black_box(outputs);
         progress();
     }
+    drop(fast);
     let mut errors = Vec::new();
     if measure_error {
         let mut check = Animator::new(scene, accel, rsvp_only, frames.clone());
@@ -565,6 +652,8 @@ pub fn e2_scene(mut scene: Scene, direction: ZoomDirection, pan_deg_per_frame: f
         frames: 100,
         fps: 25.0,
         camera_keys: vec![camera_key(0), camera_key(100)],
+        objects: Vec::new(),
+        lights: Vec::new(),
     });
     scene
 }

@@ -289,14 +289,14 @@ impl Camera {
 /// elevation terms depend only on the column or only on the row, so the
 /// trigonometry runs w + h times instead of w * h. Directions come out bit
 /// for bit as [`Camera::direction`] gives them.
-pub struct RayTable<'a> {
-    camera: &'a Camera,
+pub struct RayTable {
+    camera: Camera,
     columns: Vec<(f64, f64)>,
     rows: Vec<(f64, f64)>,
 }
 
-impl<'a> RayTable<'a> {
-    pub fn new(camera: &'a Camera) -> RayTable<'a> {
+impl RayTable {
+    pub fn new(camera: &Camera) -> RayTable {
         let centre = camera.half_size();
         let pixel = |i: u32| f64::from(i) + 0.5;
         let (columns, rows) = match camera.projection {
@@ -325,10 +325,14 @@ impl<'a> RayTable<'a> {
             Projection::Fisheye => (Vec::new(), Vec::new()),
         };
         RayTable {
-            camera,
+            camera: camera.clone(),
             columns,
             rows,
         }
+    }
+
+    pub fn camera(&self) -> &Camera {
+        &self.camera
     }
 
     pub fn size(&self) -> (u32, u32) {
@@ -338,7 +342,7 @@ impl<'a> RayTable<'a> {
     /// The primary ray through the centre of pixel (x, y), which must lie
     /// inside the image.
     pub fn primary_ray(&self, x: u32, y: u32) -> Option<Ray> {
-        let cam = self.camera;
+        let cam = &self.camera;
         let d = match cam.projection {
             Projection::EqualAngle => {
                 let (sin_az, cos_az) = self.columns[x as usize];

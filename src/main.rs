@@ -66,7 +66,7 @@ struct ValidateArgs {
     grid_resolution: Option<[u32; 3]>,
 }
 
-#[derive(Args)]
+#[derive(Args, Clone)]
 struct SceneArgs {
     /// Scene file (.toml) or OBJ model; the built-in paper scene if omitted.
     scene: Option<PathBuf>,
@@ -176,11 +176,19 @@ struct AnimateArgs {
     /// Per-frame statistics: .csv or .json.
     #[arg(long)]
     stats: Option<PathBuf>,
+    /// Also write each frame with the samples it re-traced painted black
+    /// (like the paper's figure 4), e.g. out/dirty_####.png.
+    #[arg(long)]
+    dirty_image: Option<String>,
     /// full (no reuse), auto (every technique the timeline allows), or a
-    /// comma list of techniques: pan, rsvp. With viewports, full traces
-    /// each viewport's own rays.
+    /// comma list of techniques: pan (camera pans shift the image), ostc
+    /// (moving objects and lights re-trace only their regions), rsvp
+    /// (viewports resample the camera's lazily traced sample buffer; with
+    /// viewports, full traces each viewport's own rays).
     #[arg(long, default_value = "auto", value_parser = Techniques::parse)]
     mode: Techniques,
+    #[command(flatten)]
+    ostc: OstcArgs,
     /// How a pan by a fraction of a sample is shown: snap (to whole samples:
     /// exact, the angle off by at most half a sample) or resample (the true
     /// angle, bilinear from the buffer: slightly blurred).
@@ -194,6 +202,27 @@ struct AnimateArgs {
     /// Leave frames whose file already exists (to resume a run).
     #[arg(long)]
     skip_existing: bool,
+}
+
+#[derive(Args)]
+struct OstcArgs {
+    /// OSTC: the screen is cut into N x N regions (the paper's 16: 40x30
+    /// pixels at 640x480); finer regions re-trace less but mark more.
+    #[arg(long, default_value_t = 16, value_parser = clap::value_parser!(u32).range(1..=256))]
+    regions: u32,
+    /// OSTC: about this many voxels in the grid over the moving objects'
+    /// swept volume.
+    #[arg(long, default_value_t = retrace::reuse::ostc::DEFAULT_VOXELS, value_parser = clap::value_parser!(u32).range(1..=16_777_216))]
+    ostc_voxels: u32,
+}
+
+impl OstcArgs {
+    fn settings(&self) -> retrace::anim::OstcSettings {
+        retrace::anim::OstcSettings {
+            regions: retrace::reuse::ostc::RegionGrid(self.regions),
+            voxels: self.ostc_voxels,
+        }
+    }
 }
 
 #[derive(Args)]
@@ -215,6 +244,8 @@ struct BenchArgs {
     /// Also write the result as JSON here.
     #[arg(long)]
     json: Option<PathBuf>,
+    #[command(flatten)]
+    ostc: OstcArgs,
 }
 
 fn load(args: &SceneArgs) -> Result<Scene> {
@@ -297,11 +328,12 @@ fn bench(args: BenchArgs) -> Result<()> {
         "backends" => bench_backends(&args, &scene, bar),
         "E1" | "e1" => bench_e1(&args, scene, bar),
         "E2" | "e2" => bench_e2(&args, scene, bar, 0.0),
+        "E3" | "e3" => bench_e3(&args, bar),
         "E4nomotion" | "e4nomotion" => bench_e2(&args, scene, bar, 3.6),
         "knobs" => bench_knobs(&args, scene, bar),
         other => {
             anyhow::bail!(
-                "unknown measurement '{other}' for --only (available: frame, backends, E1, E2, E4nomotion, knobs)"
+                "unknown measurement '{other}' for --only (available: frame, backends, E1, E2, E3, E4nomotion, knobs)"
             )
         }
     }
@@ -343,38 +375,106 @@ fn bench_frame(args: &BenchArgs, scene: &Scene, bar: indicatif::ProgressBar) -> 
 
 fn bench_e1(args: &BenchArgs, scene: Scene, bar: indicatif::ProgressBar) -> Result<()> {
     let scene = retrace::bench::e1_scene(scene);
-    let accel = args.backend.build(&scene)?;
+    bench_experiment(
+        args,
+        &scene,
+        "E1 (pan 3.6 deg/frame, 100 frames)",
+        "Panimation",
+        "~10x",
+        bar,
+    )
+}
+
+/// E3: a small ball bouncing before the still camera (scenes/paper-bounce.toml
+/// unless a scene is given).
+fn bench_e3(args: &BenchArgs, bar: indicatif::ProgressBar) -> Result<()> {
+    let scene = match &args.scene.scene {
+        Some(_) => load(&args.scene)?,
+        None => {
+            let path = Path::new("scenes/paper-bounce.toml");
+            if !path.exists() {
+                anyhow::bail!(
+                    "E3 needs scenes/paper-bounce.toml (run from the repository) or a scene file"
+                );
+            }
+            load(&SceneArgs {
+                scene: Some(path.to_path_buf()),
+                ..args.scene.clone()
+            })?
+        }
+    };
+    if !matches!(&scene.animation, Some(a) if a.moves_scene()) {
+        anyhow::bail!("E3 needs a scene whose timeline moves objects or lights");
+    }
+    bench_experiment(
+        args,
+        &scene,
+        "E3 (bouncing ball, still camera)",
+        "OSTC",
+        "~2x",
+        bar,
+    )
+}
+
+/// Renders a scene's whole timeline in full and with every reuse the
+/// timeline allows, in one run, and prints the comparison.
+fn bench_experiment(
+    args: &BenchArgs,
+    scene: &Scene,
+    title: &str,
+    technique: &str,
+    paper: &str,
+    bar: indicatif::ProgressBar,
+) -> Result<()> {
+    let mut accel = args.backend.build(scene)?;
+    let frames = scene.animation.as_ref().map_or(1, |a| a.frames);
     let rounds = args.repeats.clamp(1, 5);
-    bar.set_length((rounds * 200) as u64);
-    bar.set_message("E1: 100 full frames vs Panimation");
-    let result =
-        retrace::bench::bench_sequence(&scene, &accel, Techniques::AUTO, 0..100, rounds, || {
-            bar.inc(1)
-        });
+    bar.set_length(u64::from(frames) * 3 * rounds as u64);
+    bar.set_message(format!("{title}: full vs {technique}"));
+    let result = retrace::bench::bench_sequence(
+        scene,
+        &mut accel,
+        Techniques::AUTO,
+        args.ostc.settings(),
+        0..frames,
+        rounds,
+        || bar.inc(1),
+    );
     bar.finish_and_clear();
     println!(
-        "E1 (pan 3.6 deg/frame, 100 frames, {}x{}), {} threads, median of {} rounds",
+        "{title}, {}x{}, {frames} frames, {} threads, median of {} rounds",
         scene.camera.width, scene.camera.height, result.threads, result.rounds
     );
+    let per_frame = f64::from(frames.max(1));
     println!(
         "full renders:      {:9.1} ms ({:.2} ms/frame)",
         result.full_ms,
-        result.full_ms / 100.0
+        result.full_ms / per_frame
     );
     println!(
-        "Panimation:        {:9.1} ms ({:.2} ms/frame)",
+        "{:<18} {:9.1} ms ({:.2} ms/frame)",
+        format!("{technique}:"),
         result.accelerated_ms,
-        result.accelerated_ms / 100.0
+        result.accelerated_ms / per_frame
     );
-    println!("speedup:           {:9.2}x (paper: ~10x)", result.speedup);
     println!(
-        "oracle speedup:    {:9.2}x, efficiency {:.0}%",
+        "speedup:           {:9.2}x (paper: {paper})",
+        result.speedup
+    );
+    println!(
+        "oracle speedup:    {:9.2}x per sample, {:.2}x per region; efficiency {:.0}% / {:.0}%",
         result.oracle_speedup,
-        result.efficiency * 100.0
+        result.region_oracle_speedup,
+        result.efficiency * 100.0,
+        result.speedup / result.region_oracle_speedup * 100.0
     );
     println!("samples traced:    {:9}", result.samples_traced);
     println!(
-        "exact:             {} (snapped pan; max yaw error {:.4} deg)",
+        "bookkeeping:       {:9.1}% of a full frame's time per frame",
+        result.bookkeeping_share * 100.0
+    );
+    println!(
+        "exact:             {} (max yaw snap {:.4} deg)",
         if result.exact {
             "every frame bit-identical to its full render"
         } else {
@@ -386,7 +486,7 @@ fn bench_e1(args: &BenchArgs, scene: Scene, bar: indicatif::ProgressBar) -> Resu
         write_json(path, &result)?;
     }
     if !result.exact {
-        anyhow::bail!("E1: accelerated frames differ from full renders");
+        anyhow::bail!("{title}: accelerated frames differ from full renders");
     }
     Ok(())
 }
@@ -418,15 +518,18 @@ fn bench_e2(
     pan_deg_per_frame: f64,
 ) -> Result<()> {
     use retrace::bench::{bench_viewport_sequence, e2_scene, ZoomDirection};
-    let accel = args.backend.build(&scene)?;
+    let mut accel = args.backend.build(&scene)?;
     bar.set_length(2 * 300);
     let mut results = Vec::new();
-    for (label, direction) in [("zoom in ", ZoomDirection::In), ("zoom out", ZoomDirection::Out)] {
+    for (label, direction) in [
+        ("zoom in ", ZoomDirection::In),
+        ("zoom out", ZoomDirection::Out),
+    ] {
         bar.set_message(label);
         let scene = e2_scene(scene.clone(), direction, pan_deg_per_frame);
         let result = bench_viewport_sequence(
             &scene,
-            &accel,
+            &mut accel,
             0..100,
             retrace::reuse::samples::RsvpKnobs::default(),
             true,
@@ -460,7 +563,7 @@ fn bench_e2(
 fn bench_knobs(args: &BenchArgs, scene: Scene, bar: indicatif::ProgressBar) -> Result<()> {
     use retrace::bench::{bench_viewport_sequence, e2_scene, ZoomDirection};
     use retrace::reuse::samples::{Filter, RsvpKnobs};
-    let accel = args.backend.build(&scene)?;
+    let mut accel = args.backend.build(&scene)?;
     let scene = e2_scene(scene, ZoomDirection::In, 0.0);
     let default = RsvpKnobs::default();
     let mut settings = vec![default];
@@ -468,20 +571,33 @@ fn bench_knobs(args: &BenchArgs, scene: Scene, bar: indicatif::ProgressBar) -> R
         settings.push(RsvpKnobs { filter, ..default });
     }
     for oversample in [0.5, 0.71, 1.41, 2.0] {
-        settings.push(RsvpKnobs { oversample, ..default });
+        settings.push(RsvpKnobs {
+            oversample,
+            ..default
+        });
     }
     for level_bias in [-1, 1] {
-        settings.push(RsvpKnobs { level_bias, ..default });
+        settings.push(RsvpKnobs {
+            level_bias,
+            ..default
+        });
     }
     bar.set_length((settings.len() * 300) as u64);
     let mut results = Vec::new();
     for knobs in settings {
-        bar.set_message(format!("{} x{} {:+}", knobs.filter, knobs.oversample, knobs.level_bias));
-        let result = bench_viewport_sequence(&scene, &accel, 0..100, knobs, true, || bar.inc(1));
+        bar.set_message(format!(
+            "{} x{} {:+}",
+            knobs.filter, knobs.oversample, knobs.level_bias
+        ));
+        let result =
+            bench_viewport_sequence(&scene, &mut accel, 0..100, knobs, true, || bar.inc(1));
         results.push(result);
     }
     bar.finish_and_clear();
-    println!("RSVP knobs on E2 zoom in (100 frames, 640x480), {} threads", rayon::current_num_threads());
+    println!(
+        "RSVP knobs on E2 zoom in (100 frames, 640x480), {} threads",
+        rayon::current_num_threads()
+    );
     for r in &results {
         let label = format!(
             "{:8} oversample {:4.2} bias {:+}",
@@ -535,6 +651,15 @@ fn parse_frame_range(text: Option<&str>, count: u32) -> Result<std::ops::RangeIn
         anyhow::bail!("--frames {text}: the animation has frames 0-{}", count - 1);
     }
     Ok(first..=last)
+}
+
+/// The file name of each frame under `pattern` (a run of # becomes the
+/// zero-padded frame number), checked for a known image format.
+fn frame_namer(pattern: &str) -> Result<impl Fn(u32) -> PathBuf> {
+    let (prefix, digits, suffix) = frame_pattern(pattern)?;
+    let name = move |frame: u32| PathBuf::from(format!("{prefix}{frame:0digits$}{suffix}"));
+    retrace::output::format_for(&name(0))?;
+    Ok(name)
 }
 
 /// Splits a frame pattern around its run of `#`.
@@ -629,54 +754,78 @@ fn write_stats(path: &Path, stats: &[retrace::anim::FrameStats]) -> Result<()> {
     let text = if is_json {
         serde_json::to_string_pretty(stats)?
     } else {
-        let mut csv = String::from(
-            "frame,mode,reason,pixels,pixels_reused,samples_traced,primary_rays,shadow_rays,reflection_rays,\
-             trace_ms,copy_ms,total_ms,yaw_error_deg,pitch_error_deg,full_ms,speedup,differing_pixels,\
-             psnr_db,max_abs_error,mean_abs_error,differing_share,viewport,finest_level,coarsest_level\n",
-        );
-        let opt = |v: Option<f64>| v.map_or(String::new(), |v| format!("{v:.4}"));
-        for s in stats {
-            csv.push_str(&format!(
-                "{},{},\"{}\",{},{},{},{},{},{},{:.4},{:.4},{:.4},{:.6},{:.6},{},{},{},{},{},{},{},{},{},{}\n",
-                s.frame,
-                s.mode,
-                s.reason.replace('"', "'"),
-                s.pixels,
-                s.pixels_reused,
-                s.samples_traced,
-                s.primary_rays,
-                s.shadow_rays,
-                s.reflection_rays,
-                s.trace_ms,
-                s.copy_ms,
-                s.total_ms,
-                s.yaw_error_deg,
-                s.pitch_error_deg,
-                opt(s.full_ms),
-                opt(s.speedup),
-                s.differing_pixels.map_or(String::new(), |d| d.to_string()),
-                opt(s.error.map(|e| e.psnr_db)),
-                opt(s.error.map(|e| f64::from(e.max_abs))),
-                s.error
-                    .map_or(String::new(), |e| format!("{:.6}", e.mean_abs)),
-                s.error
-                    .map_or(String::new(), |e| format!("{:.6}", e.differing_share)),
-                s.viewport,
-                s.levels.map_or(String::new(), |l| l.0.to_string()),
-                s.levels.map_or(String::new(), |l| l.1.to_string()),
-            ));
-        }
-        csv
+        stats_csv(stats)?
     };
     ensure_parent(path)?;
     retrace::output::save_text(path, &text)?;
     Ok(())
 }
 
+/// The stats as CSV, one column per field (nested fields as `error.psnr_db`),
+/// in the order `FrameStats` declares them, so CSV and JSON never drift apart.
+fn stats_csv(stats: &[retrace::anim::FrameStats]) -> Result<String> {
+    fn flatten(prefix: &str, value: &serde_json::Value, out: &mut Vec<(String, String)>) {
+        match value {
+            serde_json::Value::Object(map) => {
+                for (key, inner) in map {
+                    let name = if prefix.is_empty() {
+                        key.clone()
+                    } else {
+                        format!("{prefix}.{key}")
+                    };
+                    flatten(&name, inner, out);
+                }
+            }
+            serde_json::Value::Null => out.push((prefix.to_string(), String::new())),
+            serde_json::Value::String(text) => {
+                let cell = if text.contains([',', '"', '\n']) {
+                    format!("\"{}\"", text.replace('"', "\"\""))
+                } else {
+                    text.clone()
+                };
+                out.push((prefix.to_string(), cell))
+            }
+            serde_json::Value::Number(n) => out.push((
+                prefix.to_string(),
+                match n.as_f64() {
+                    Some(x) if n.is_f64() => format!("{x:.6}"),
+                    _ => n.to_string(),
+                },
+            )),
+            other => out.push((prefix.to_string(), other.to_string())),
+        }
+    }
+    // Optional nested values are null in some rows: the columns of a row
+    // with every value present name them all.
+    let template = retrace::anim::FrameStats {
+        error: Some(retrace::anim::ImageError::default()),
+        ..Default::default()
+    };
+    let mut header = Vec::new();
+    flatten("", &serde_json::to_value(&template)?, &mut header);
+    let mut csv = header
+        .iter()
+        .map(|(name, _)| name.as_str())
+        .collect::<Vec<_>>()
+        .join(",");
+    csv.push('\n');
+    for s in stats {
+        let mut row = Vec::new();
+        flatten("", &serde_json::to_value(s)?, &mut row);
+        let cells: std::collections::HashMap<_, _> = row.into_iter().collect();
+        let line: Vec<&str> = header
+            .iter()
+            .map(|(name, _)| cells.get(name).map_or("", String::as_str))
+            .collect();
+        csv.push_str(&line.join(","));
+        csv.push('\n');
+    }
+    Ok(csv)
+}
+
 fn animate(args: AnimateArgs) -> Result<()> {
-    let (prefix, digits, suffix) = frame_pattern(&args.output)?;
-    let frame_path = |frame: u32| PathBuf::from(format!("{prefix}{frame:0digits$}{suffix}"));
-    retrace::output::format_for(&frame_path(0))?;
+    let frame_path = frame_namer(&args.output)?;
+    let dirty_path = args.dirty_image.as_deref().map(frame_namer).transpose()?;
     if let Some(path) = &args.stats {
         let ext = path.extension().map(|e| e.to_string_lossy().to_lowercase());
         if !matches!(ext.as_deref(), Some("csv" | "json")) {
@@ -694,14 +843,30 @@ fn animate(args: AnimateArgs) -> Result<()> {
         .filter(|d| !d.as_os_str().is_empty())
         .map_or(PathBuf::from("."), Path::to_path_buf);
     check_writable(&out_dir)?;
+    if let Some(dirty_path) = &dirty_path {
+        if let Some(dir) = dirty_path(*range.start()).parent() {
+            check_writable(&if dir.as_os_str().is_empty() {
+                PathBuf::from(".")
+            } else {
+                dir.to_path_buf()
+            })?;
+        }
+    }
     let mut gif = match &args.gif {
         Some(path) => Some(GifWriter::create(path, fps)?),
         None => None,
     };
-    let accel = args.backend.build(&scene)?;
-    let mut animator = Animator::new(&scene, &accel, args.mode, *range.start()..*range.end() + 1);
+    let mut accel = args.backend.build(&scene)?;
+    let mut animator = Animator::new(
+        &scene,
+        &mut accel,
+        args.mode,
+        *range.start()..*range.end() + 1,
+    );
     animator.set_linear_output(args.verify);
     animator.set_fractional_pan(args.fractional_pan);
+    animator.set_ostc(args.ostc.settings());
+    animator.set_traced_image(dirty_path.is_some());
     if animator.has_viewports() {
         let knobs = retrace::reuse::samples::RsvpKnobs {
             filter: args.filter,
@@ -726,6 +891,12 @@ fn animate(args: AnimateArgs) -> Result<()> {
     );
     let mut all_stats = Vec::new();
     let mut failed_frames = Vec::new();
+    let mut previous_reference: Option<retrace::render::Frame> = None;
+    let region_size = args
+        .ostc
+        .settings()
+        .regions
+        .region_size(scene.camera.width, scene.camera.height);
     let mut write_ms = 0.0;
     for frame in range.clone() {
         let path = frame_path(frame);
@@ -743,6 +914,13 @@ fn animate(args: AnimateArgs) -> Result<()> {
             stats.full_ms = Some(full_ms);
             stats.speedup = Some(full_ms / stats.total_ms);
             stats.differing_pixels = Some(differing);
+            if let Some(previous) = &previous_reference {
+                stats.changed_regions = Some(retrace::anim::changed_regions(
+                    previous,
+                    &reference,
+                    region_size,
+                ));
+            }
             if animator.is_exact() {
                 if differing > 0 {
                     failed_frames.push((frame, differing));
@@ -753,9 +931,13 @@ fn animate(args: AnimateArgs) -> Result<()> {
             } else {
                 stats.error = Some(retrace::anim::image_error(&image, &reference));
             }
+            previous_reference = Some(reference);
         }
         let write_start = Instant::now();
         save_image(&path, &rgb)?;
+        if let (Some(dirty_path), Some(dirty)) = (&dirty_path, animator.take_traced_image()) {
+            save_image(&dirty_path(frame), &dirty)?;
+        }
         if let Some(gif) = &mut gif {
             gif.add(&rgb)?;
         }
@@ -856,11 +1038,19 @@ fn animate_viewports(
     mut gif: Option<GifWriter>,
 ) -> Result<()> {
     let pattern = frame_pattern(&args.output)?;
-    let buffer_pattern = args.buffer_image.as_deref().map(frame_pattern).transpose()?;
+    let buffer_pattern = args
+        .buffer_image
+        .as_deref()
+        .map(frame_pattern)
+        .transpose()?;
     if let Some((prefix, digits, suffix)) = &buffer_pattern {
         retrace::output::format_for(Path::new(&format!("{prefix}{:0digits$}{suffix}", 0)))?;
     }
-    let names: Vec<String> = scene.viewports.iter().map(|t| t.viewport.name.clone()).collect();
+    let names: Vec<String> = scene
+        .viewports
+        .iter()
+        .map(|t| t.viewport.name.clone())
+        .collect();
     let bar = indicatif::ProgressBar::new(u64::from(range.end() - range.start() + 1)).with_style(
         indicatif::ProgressStyle::with_template(
             "{bar:30} {pos}/{len} frames {msg} [{elapsed} < {eta}]",
@@ -870,7 +1060,11 @@ fn animate_viewports(
     let mut all_stats = Vec::new();
     let mut write_ms = 0.0;
     for frame in range.clone() {
-        if args.skip_existing && names.iter().all(|n| viewport_path(&pattern, frame, n).exists()) {
+        if args.skip_existing
+            && names
+                .iter()
+                .all(|n| viewport_path(&pattern, frame, n).exists())
+        {
             bar.inc(1);
             continue;
         }
@@ -881,7 +1075,10 @@ fn animate_viewports(
                 let start = Instant::now();
                 let (reference, _) = animator.render_viewport_direct(frame, index);
                 let full_ms = start.elapsed().as_secs_f64() * 1e3;
-                let image = output.frame.as_ref().expect("verification keeps linear colour");
+                let image = output
+                    .frame
+                    .as_ref()
+                    .expect("verification keeps linear colour");
                 output.stats.full_ms = Some(full_ms);
                 output.stats.speedup = Some(full_ms / output.stats.total_ms);
                 output.stats.differing_pixels =
@@ -902,7 +1099,10 @@ fn animate_viewports(
         if let Some((prefix, digits, suffix)) = &buffer_pattern {
             if let Some(image) = animator.buffer_image(frame) {
                 let write_start = Instant::now();
-                save_image(Path::new(&format!("{prefix}{frame:0digits$}{suffix}")), &image)?;
+                save_image(
+                    Path::new(&format!("{prefix}{frame:0digits$}{suffix}")),
+                    &image,
+                )?;
                 write_ms += write_start.elapsed().as_secs_f64() * 1e3;
             }
         }
@@ -942,12 +1142,11 @@ fn animate_viewports(
                 .filter_map(|s| s.error)
                 .collect();
             let count = errors.len().max(1) as f64;
-            let worst_psnr = errors.iter().map(|e| e.psnr_db).fold(f64::INFINITY, f64::min);
-            let mean_psnr = errors
+            let worst_psnr = errors
                 .iter()
-                .map(|e| e.psnr_db.min(100.0))
-                .sum::<f64>()
-                / count;
+                .map(|e| e.psnr_db)
+                .fold(f64::INFINITY, f64::min);
+            let mean_psnr = errors.iter().map(|e| e.psnr_db.min(100.0)).sum::<f64>() / count;
             let max_abs = errors.iter().map(|e| e.max_abs).fold(0.0f32, f32::max);
             let mean = errors.iter().map(|e| e.mean_abs).sum::<f64>() / count;
             let share = errors.iter().map(|e| e.differing_share).sum::<f64>() / count;

@@ -74,7 +74,7 @@ pub trait PrimaryRays: Sync {
 }
 
 /// A camera's lattice is its image: one sample per pixel centre.
-impl PrimaryRays for RayTable<'_> {
+impl PrimaryRays for RayTable {
     fn primary(&self, col: i64, row: i64) -> Option<Ray> {
         let (width, height) = self.size();
         let inside = (0..i64::from(width)).contains(&col) && (0..i64::from(height)).contains(&row);
@@ -117,7 +117,13 @@ pub fn trace_groups(
 pub enum NoObserver {}
 
 impl RayObserver for NoObserver {
-    fn traced(&mut self, _: &crate::ray::RayPacket, _: LaneMask, _: &[f32; PACKET_WIDTH]) {
+    fn traced(
+        &mut self,
+        _: crate::shade::RayKind,
+        _: &crate::ray::RayPacket,
+        _: LaneMask,
+        _: &[f32; PACKET_WIDTH],
+    ) {
         match *self {}
     }
 }

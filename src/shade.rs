@@ -46,11 +46,24 @@ impl std::ops::Add for RayCounts {
 /// Sees every ray shading traces, with where it stopped: OSTC records the
 /// voxels each ray crossed (primary, reflection and shadow rays alike).
 pub trait RayObserver {
-    /// `ends[lane]` is the `t` at which lane's ray stopped: its hit, or its
+    /// `kind` says which rays these are; `ends[lane]` is the `t` at which lane's ray stopped: its hit, or its
     /// `tmax` on a miss. Shadow rays always report their `tmax` (the light):
     /// an occlusion query finds *a* blocker, not the nearest, so the whole
     /// segment must count.
-    fn traced(&mut self, rays: &RayPacket, mask: LaneMask, ends: &[f32; PACKET_WIDTH]);
+    fn traced(
+        &mut self,
+        kind: RayKind,
+        rays: &RayPacket,
+        mask: LaneMask,
+        ends: &[f32; PACKET_WIDTH],
+    );
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum RayKind {
+    Primary,
+    Shadow,
+    Reflection,
 }
 
 /// Where a ray met a surface, refined for shading and for spawning rays.
@@ -241,7 +254,12 @@ impl<'a> Shader<'a> {
         self.intersector.intersect8(rays, mask, &mut hits);
         if let Some(observer) = observer.as_deref_mut() {
             let ends = std::array::from_fn(|lane| hits[lane].map_or(rays[lane].tmax, |h| h.t));
-            observer.traced(rays, mask, &ends);
+            let kind = if depth == 0 {
+                RayKind::Primary
+            } else {
+                RayKind::Reflection
+            };
+            observer.traced(kind, rays, mask, &ends);
         }
 
         let mut surfaces: [Option<Surface>; PACKET_WIDTH] = [None; PACKET_WIDTH];
@@ -284,7 +302,7 @@ impl<'a> Shader<'a> {
             let blocked = self.intersector.occluded8(&shadow_rays, lit_mask);
             if let Some(observer) = observer.as_deref_mut() {
                 let ends = std::array::from_fn(|lane| shadow_rays[lane].tmax);
-                observer.traced(&shadow_rays, lit_mask, &ends);
+                observer.traced(RayKind::Shadow, &shadow_rays, lit_mask, &ends);
             }
             for lane in lanes(lit_mask & !blocked) {
                 let surface = surfaces[lane].as_ref().expect("lit lanes have surfaces");

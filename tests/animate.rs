@@ -34,9 +34,9 @@ fn run_exact(
     backend: retrace::accel::BackendKind,
     techniques: Techniques,
 ) -> (u64, Vec<String>) {
-    let accel = Accelerator::build(backend, &scene.objects).unwrap();
+    let mut accel = Accelerator::build(backend, &scene.objects).unwrap();
     let frames = scene.animation.as_ref().unwrap().frames;
-    let mut animator = Animator::new(scene, &accel, techniques, 0..frames);
+    let mut animator = Animator::new(scene, &mut accel, techniques, 0..frames);
     let mut traced = 0;
     let mut modes = Vec::new();
     for frame in 0..frames {
@@ -75,8 +75,8 @@ on_every_backend! {
 
     a_pan_that_comes_back_traces_nothing(backend) {
         let scene = paper_with_keys(&(key(0, "yaw = 0.0") + &key(4, "yaw = 40.0") + &key(8, "yaw = 0.0")), 9);
-        let accel = Accelerator::build(backend, &scene.objects).unwrap();
-        let mut animator = Animator::new(&scene, &accel, Techniques::AUTO, 0..9);
+        let mut accel = Accelerator::build(backend, &scene.objects).unwrap();
+        let mut animator = Animator::new(&scene, &mut accel, Techniques::AUTO, 0..9);
         let traced: Vec<u64> = (0..9).map(|f| animator.render(f).2.samples_traced).collect();
         assert!(traced[1..=4].iter().all(|&t| t > 0), "{traced:?}");
         assert!(traced[5..].iter().all(|&t| t == 0), "coming back traced again: {traced:?}");
@@ -94,8 +94,9 @@ on_every_backend! {
 fn non_equal_angle_cameras_fall_back_with_a_reason() {
     let mut scene = paper_with_keys(&(key(0, "yaw = 0.0") + &key(2, "yaw = 10.0")), 3);
     scene.camera.projection = retrace::camera::Projection::Perspective;
-    let accel = Accelerator::build(retrace::accel::BackendKind::Embree, &scene.objects).unwrap();
-    let mut animator = Animator::new(&scene, &accel, Techniques::AUTO, 0..3);
+    let mut accel =
+        Accelerator::build(retrace::accel::BackendKind::Embree, &scene.objects).unwrap();
+    let mut animator = Animator::new(&scene, &mut accel, Techniques::AUTO, 0..3);
     let (_, _, stats) = animator.render(1);
     assert_eq!(stats.mode, "full");
     assert!(stats.reason.contains("equal-angle"), "{}", stats.reason);
@@ -290,9 +291,13 @@ fn resampled_pans_match_snapped_ones_on_whole_samples_and_measure_their_error() 
         5,
     );
     scene.camera.fov = 90f64.to_radians();
-    let accel = Accelerator::build(retrace::accel::BackendKind::Embree, &scene.objects).unwrap();
-    let mut snapped = Animator::new(&scene, &accel, Techniques::AUTO, 0..5);
-    let mut resampled = Animator::new(&scene, &accel, Techniques::AUTO, 0..5);
+    let mut accel =
+        Accelerator::build(retrace::accel::BackendKind::Embree, &scene.objects).unwrap();
+    // One accelerator each: an animator holds its accelerator for its life.
+    let mut accel2 =
+        Accelerator::build(retrace::accel::BackendKind::Embree, &scene.objects).unwrap();
+    let mut snapped = Animator::new(&scene, &mut accel, Techniques::AUTO, 0..5);
+    let mut resampled = Animator::new(&scene, &mut accel2, Techniques::AUTO, 0..5);
     resampled.set_fractional_pan(FractionalPan::Resample);
     assert!(!resampled.is_exact());
     for frame in 0..5 {
@@ -305,7 +310,8 @@ fn resampled_pans_match_snapped_ones_on_whole_samples_and_measure_their_error() 
     // view: close, not exact, and measured.
     let mut scene = paper_with_keys(&(key(0, "yaw = 0.0") + &key(3, "yaw = 10.0")), 4);
     scene.camera.fov = 100f64.to_radians();
-    let mut resampled = Animator::new(&scene, &accel, Techniques::AUTO, 0..4);
+    drop(snapped);
+    let mut resampled = Animator::new(&scene, &mut accel, Techniques::AUTO, 0..4);
     resampled.set_fractional_pan(FractionalPan::Resample);
     let (frame, _, stats) = resampled.render(2);
     assert_eq!(stats.mode, "pan");

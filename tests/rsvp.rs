@@ -171,8 +171,8 @@ on_every_backend! {
              [[animation.viewport]]\nframe = 5\nzoom = 2.0\nrotate = 20.0\n",
         )
         .unwrap();
-        let accel = Accelerator::build(backend, &scene.objects).unwrap();
-        let mut animator = Animator::new(&scene, &accel, Techniques::AUTO, 0..6);
+        let mut accel = Accelerator::build(backend, &scene.objects).unwrap();
+        let mut animator = Animator::new(&scene, &mut accel, Techniques::AUTO, 0..6);
         let mut traced = 0;
         for frame in 0..6 {
             let outputs = animator.render_viewports(frame);
@@ -188,7 +188,7 @@ on_every_backend! {
         let buffer = animator.buffer_image(5).unwrap();
         assert_eq!(buffer.dimensions(), (64, 48));
         // Full mode traces the viewport's own rays.
-        let mut full = Animator::new(&scene, &accel, Techniques::FULL, 0..6);
+        let mut full = Animator::new(&scene, &mut accel, Techniques::FULL, 0..6);
         let outputs = full.render_viewports(3);
         let (direct, _) = full.render_viewport_direct(3, 0);
         assert_eq!(outputs[0].frame.as_ref().unwrap(), &direct);
@@ -233,7 +233,9 @@ fn bad_viewports_name_file_line_and_field() {
     // The paper camera looks 9 degrees down: 85 more is beyond -90.
     let e = scene_error(&view("width = 10\nheight = 10\npitch = -85.0"));
     assert_names(&e, line, "viewport[0].pitch");
-    let e = scene_error(&view("width = 10\nheight = 10\nprojection = \"perspective\"\nfov = 180.0"));
+    let e = scene_error(&view(
+        "width = 10\nheight = 10\nprojection = \"perspective\"\nfov = 180.0",
+    ));
     assert_names(&e, line, "viewport[0].fov");
     // Keyframes: their own line, the viewport named.
     let keys = format!(
@@ -303,8 +305,8 @@ fn eye_moves_restart_the_buffer() {
          [[viewport]]\nwidth = 16\nheight = 8\n",
     )
     .unwrap();
-    let accel = Accelerator::build(retrace::accel::BackendKind::Grid, &scene.objects).unwrap();
-    let mut animator = Animator::new(&scene, &accel, Techniques::AUTO, 0..2);
+    let mut accel = Accelerator::build(retrace::accel::BackendKind::Grid, &scene.objects).unwrap();
+    let mut animator = Animator::new(&scene, &mut accel, Techniques::AUTO, 0..2);
     animator.render_viewports(0);
     let outputs = animator.render_viewports(1);
     assert!(outputs[0].stats.reason.contains("eye moved"));

@@ -75,9 +75,25 @@ pub enum AccelError {
     Unavailable(BackendKind),
 }
 
+/// The backend behind an [`Accelerator`], kept concrete so instanced
+/// objects can be moved.
+enum Backend {
+    Embree(embree::EmbreeIntersector),
+    Grid(grid::GridIntersector),
+}
+
+impl Backend {
+    fn intersector(&self) -> &dyn Intersector {
+        match self {
+            Backend::Embree(embree) => embree,
+            Backend::Grid(grid) => grid,
+        }
+    }
+}
+
 /// A backend plus the scene's infinite planes: what the renderer traces.
 pub struct Accelerator {
-    bounded: Box<dyn Intersector + Send>,
+    bounded: Backend,
     planes: Vec<(u32, Plane)>,
     kind: BackendKind,
 }
@@ -94,9 +110,11 @@ impl Accelerator {
         objects: &[Object],
         grid_resolution: Option<[u32; 3]>,
     ) -> Result<Accelerator, AccelError> {
-        let bounded: Box<dyn Intersector + Send> = match kind {
-            BackendKind::Embree => Box::new(embree::EmbreeIntersector::build(objects)?),
-            BackendKind::Grid => Box::new(grid::GridIntersector::build(objects, grid_resolution)),
+        let bounded = match kind {
+            BackendKind::Embree => Backend::Embree(embree::EmbreeIntersector::build(objects)?),
+            BackendKind::Grid => {
+                Backend::Grid(grid::GridIntersector::build(objects, grid_resolution))
+            }
         };
         let planes = objects
             .iter()
@@ -122,6 +140,27 @@ impl Accelerator {
 
     pub fn kind(&self) -> BackendKind {
         self.kind
+    }
+
+    /// Moves object `object`, which must have been built as an instance
+    /// (not a plane), to `transform`; only the top level is rebuilt.
+    pub fn set_object_transform(
+        &mut self,
+        object: u32,
+        transform: &glam::Affine3A,
+    ) -> Result<(), AccelError> {
+        match &mut self.bounded {
+            Backend::Embree(embree) => Ok(embree
+                .scene_mut()
+                .set_instance_transform(object, transform)?),
+            Backend::Grid(grid) => {
+                // False means the grid holds nothing of the object (an empty
+                // mesh): nothing to move. Motion transforms are rigid, so
+                // always invertible.
+                grid.set_instance_transform(object, transform);
+                Ok(())
+            }
+        }
     }
 
     fn nearest_plane(&self, ray: &Ray, tmax: f32) -> Option<Hit> {
@@ -166,7 +205,7 @@ impl Accelerator {
 
 impl Intersector for Accelerator {
     fn intersect(&self, ray: &Ray) -> Option<Hit> {
-        let hit = self.bounded.intersect(ray);
+        let hit = self.bounded.intersector().intersect(ray);
         let limit = hit.map_or(ray.tmax, |h| h.t);
         self.nearest_plane(ray, limit).or(hit)
     }
@@ -175,11 +214,11 @@ impl Intersector for Accelerator {
         let blocked_by_plane = self.planes.iter().any(|(_, plane)| {
             intersect_plane(plane, ray.origin, ray.dir, ray.tmin, ray.tmax).is_some()
         });
-        blocked_by_plane || self.bounded.occluded(ray)
+        blocked_by_plane || self.bounded.intersector().occluded(ray)
     }
 
     fn intersect8(&self, rays: &RayPacket, mask: LaneMask, hits: &mut HitPacket) {
-        self.bounded.intersect8(rays, mask, hits);
+        self.bounded.intersector().intersect8(rays, mask, hits);
         for &(object, ref plane) in &self.planes {
             let limits: [f32; PACKET_WIDTH] =
                 std::array::from_fn(|lane| hits[lane].map_or(rays[lane].tmax, |h| h.t));
@@ -212,7 +251,7 @@ impl Intersector for Accelerator {
         if rest == 0 {
             return by_planes;
         }
-        by_planes | self.bounded.occluded8(rays, rest)
+        by_planes | self.bounded.intersector().occluded8(rays, rest)
     }
 }
 

@@ -2,5 +2,6 @@
 //! of tracing. Reuse code never calls Embree: it decides which samples must
 //! be traced and hands them to [`crate::render`].
 
+pub mod ostc;
 pub mod pan;
 pub mod samples;

@@ -21,8 +21,10 @@ use glam::{DVec3, Vec3};
 use crate::camera::{Camera, Projection};
 use crate::ray::Ray;
 use crate::render::{
-    srgb_table, trace_groups, Frame, PrimaryRays, SampleGroup, GROUP_HEIGHT, GROUP_WIDTH,
+    srgb_table, trace_groups, trace_groups_observed, Frame, PrimaryRays, SampleGroup, GROUP_HEIGHT,
+    GROUP_WIDTH,
 };
+use crate::reuse::ostc::{Ostc, RegionLayout, RegionSet};
 use crate::shade::{RayCounts, Shader};
 
 /// The world-fixed equal-angle sample lattice around one eye position.
@@ -135,6 +137,55 @@ impl EqualAngleLattice {
     }
 }
 
+/// A sample lattice a [`PanBuffer`] can hold: rays by integer position,
+/// repeating every `period()` columns, `rows()` rows from row 0.
+pub trait Lattice: PrimaryRays {
+    /// Columns after which the lattice repeats (a multiple of the group
+    /// width).
+    fn period(&self) -> i64;
+    fn rows(&self) -> i64;
+    fn wrap(&self, col: i64) -> i64 {
+        col.rem_euclid(self.period())
+    }
+}
+
+impl Lattice for EqualAngleLattice {
+    fn period(&self) -> i64 {
+        self.columns_per_turn
+    }
+    fn rows(&self) -> i64 {
+        self.rows
+    }
+}
+
+/// A fixed camera's own pixels as a lattice (its image, padded to whole
+/// groups, repeating past its width): a still camera of any projection
+/// keeps its samples in a [`PanBuffer`] of these, traced in exactly the
+/// groups a full render uses.
+impl Lattice for crate::camera::RayTable {
+    fn period(&self) -> i64 {
+        let gw = i64::from(GROUP_WIDTH);
+        (i64::from(self.size().0) + gw - 1) / gw * gw
+    }
+    fn rows(&self) -> i64 {
+        let gh = i64::from(GROUP_HEIGHT);
+        (i64::from(self.size().1) + gh - 1) / gh * gh
+    }
+}
+
+/// The window of a fixed camera's lattice: its whole image.
+pub fn image_window(table: &crate::camera::RayTable) -> Window {
+    let (width, height) = table.size();
+    Window {
+        col: 0,
+        row: 0,
+        width,
+        height,
+        yaw_error: 0.0,
+        pitch_error: 0.0,
+    }
+}
+
 impl PrimaryRays for EqualAngleLattice {
     fn primary(&self, col: i64, row: i64) -> Option<Ray> {
         self.direction(col, row)
@@ -144,8 +195,8 @@ impl PrimaryRays for EqualAngleLattice {
 
 /// The groups covering a window, with their columns wrapped into one turn,
 /// each once, that `keep` accepts.
-pub fn window_groups_where(
-    lattice: &EqualAngleLattice,
+pub fn window_groups_where<L: Lattice>(
+    lattice: &L,
     window: &Window,
     mut keep: impl FnMut(SampleGroup) -> bool,
 ) -> Vec<SampleGroup> {
@@ -161,12 +212,12 @@ pub fn window_groups_where(
     };
     let (gw, gh) = (i64::from(GROUP_WIDTH), i64::from(GROUP_HEIGHT));
     // A window wider than a turn would meet some groups twice.
-    let group_cols = ((last.col - first.col) / gw + 1).min(lattice.columns_per_turn / gw);
+    let group_cols = ((last.col - first.col) / gw + 1).min(lattice.period() / gw);
     let mut groups = Vec::new();
     for row in (first.row..=last.row).step_by(gh as usize) {
         for k in 0..group_cols {
             let group = SampleGroup {
-                col: lattice.wrap_column(first.col + k * gw),
+                col: lattice.wrap(first.col + k * gw),
                 row,
             };
             if keep(group) {
@@ -178,15 +229,15 @@ pub fn window_groups_where(
 }
 
 /// The groups covering a window, with their columns wrapped into one turn.
-pub fn window_groups(lattice: &EqualAngleLattice, window: &Window) -> Vec<SampleGroup> {
+pub fn window_groups<L: Lattice>(lattice: &L, window: &Window) -> Vec<SampleGroup> {
     window_groups_where(lattice, window, |_| true)
 }
 
 /// Renders the window fresh (nothing kept): the reference a shifted frame
 /// must equal.
-pub fn render_window(
+pub fn render_window<L: Lattice>(
     shader: &Shader,
-    lattice: &EqualAngleLattice,
+    lattice: &L,
     window: &Window,
 ) -> (Frame, RayCounts) {
     let groups = window_groups(lattice, window);
@@ -204,14 +255,14 @@ pub fn render_window(
 
 /// Image positions of lattice sample (col, row) in the window (none, one,
 /// or several when the window spans more than a turn).
-fn window_positions(
-    lattice: &EqualAngleLattice,
+fn window_positions<L: Lattice>(
+    lattice: &L,
     window: &Window,
     col: i64,
     row: i64,
 ) -> impl Iterator<Item = (usize, usize)> {
     let y = row - window.row;
-    let turn = lattice.columns_per_turn;
+    let turn = lattice.period();
     let first = (col - window.col).rem_euclid(turn);
     let (width, height) = (i64::from(window.width), i64::from(window.height));
     let row_inside = (0..height).contains(&y);
@@ -240,8 +291,8 @@ fn assembled(
 }
 
 /// Every sample traced so far on one lattice, in a band of rows.
-pub struct PanBuffer {
-    lattice: EqualAngleLattice,
+pub struct PanBuffer<L: Lattice = EqualAngleLattice> {
+    lattice: L,
     /// First stored row (even) and number of stored rows (even).
     first_row: i64,
     row_count: i64,
@@ -254,21 +305,24 @@ pub struct PanBuffer {
 }
 
 /// What one frame of a pan cost.
-#[derive(Clone, Copy, Debug, Default, serde::Serialize)]
+#[derive(Clone, Debug, Default, serde::Serialize)]
 pub struct PanFrameStats {
     pub samples_traced: u64,
     pub pixels_reused: u64,
     pub rays: RayCounts,
+    /// The groups traced for the frame (wrapped lattice coordinates).
+    #[serde(skip)]
+    pub traced: Vec<SampleGroup>,
 }
 
-impl PanBuffer {
+impl<L: Lattice> PanBuffer<L> {
     /// A buffer for windows within rows `rows` of the lattice.
-    pub fn new(lattice: EqualAngleLattice, rows: std::ops::Range<i64>) -> PanBuffer {
+    pub fn new(lattice: L, rows: std::ops::Range<i64>) -> PanBuffer<L> {
         let gh = i64::from(GROUP_HEIGHT);
         let first_row = rows.start.max(0).div_euclid(gh) * gh;
-        let end = rows.end.min(lattice.rows);
+        let end = rows.end.min(lattice.rows());
         let row_count = ((end - first_row + gh - 1).div_euclid(gh) * gh).max(0);
-        let samples = (lattice.columns_per_turn * row_count) as usize;
+        let samples = (lattice.period() * row_count) as usize;
         let groups = samples / (GROUP_WIDTH * GROUP_HEIGHT) as usize;
         PanBuffer {
             lattice,
@@ -280,7 +334,7 @@ impl PanBuffer {
         }
     }
 
-    pub fn lattice(&self) -> &EqualAngleLattice {
+    pub fn lattice(&self) -> &L {
         &self.lattice
     }
 
@@ -290,23 +344,50 @@ impl PanBuffer {
     }
 
     fn group_index(&self, group: SampleGroup) -> usize {
-        let per_row = self.lattice.columns_per_turn / i64::from(GROUP_WIDTH);
+        let per_row = self.lattice.period() / i64::from(GROUP_WIDTH);
         let group_row = (group.row - self.first_row) / i64::from(GROUP_HEIGHT);
         (group_row * per_row + group.col / i64::from(GROUP_WIDTH)) as usize
     }
 
     fn sample_index(&self, col: i64, row: i64) -> usize {
-        ((row - self.first_row) * self.lattice.columns_per_turn + self.lattice.wrap_column(col))
-            as usize
+        ((row - self.first_row) * self.lattice.period() + self.lattice.wrap(col)) as usize
     }
 
-    /// Traces the window's groups not traced before; returns how many of the
-    /// window's pixels got fresh samples, and the rays.
-    fn trace_missing(&mut self, shader: &Shader, window: &Window) -> (u64, RayCounts) {
+    /// Regions of `size` samples tiling the whole buffer (a whole turn by
+    /// the buffer's rows), for OSTC.
+    pub fn regions(&self, size: (i64, i64)) -> RegionLayout {
+        RegionLayout::new(size, self.lattice.period(), self.first_row, self.row_count)
+    }
+
+    /// Nulls every sample of `regions` (of `layout`, from
+    /// [`PanBuffer::regions`]); returns how many samples had been traced.
+    pub fn erase(&mut self, layout: &RegionLayout, regions: &RegionSet) -> u64 {
+        let mut nulled = 0;
+        for region in regions.iter() {
+            for group in layout.groups(region) {
+                let index = self.group_index(group);
+                nulled += u64::from(std::mem::replace(&mut self.traced[index], false))
+                    * u64::from(GROUP_WIDTH * GROUP_HEIGHT);
+            }
+        }
+        nulled
+    }
+
+    /// Traces the window's groups not traced before (their rays recorded
+    /// into `ostc` when given); returns how many of the window's pixels got
+    /// fresh samples, and the rays.
+    fn trace_missing(
+        &mut self,
+        shader: &Shader,
+        window: &Window,
+        ostc: Option<&Ostc>,
+    ) -> (u64, RayCounts, Vec<SampleGroup>) {
         assert!(self.covers(window), "window rows outside the pan buffer");
         let missing =
             window_groups_where(&self.lattice, window, |g| !self.traced[self.group_index(g)]);
-        let (colors, rays) = trace_groups(shader, &self.lattice, &missing);
+        let (colors, rays) = trace_groups_observed(shader, &self.lattice, &missing, |g| {
+            ostc.map(|o| o.marker(g))
+        });
         let srgb = srgb_table();
         let mut fresh_pixels = 0u64;
         for (group, colors) in missing.iter().zip(&colors) {
@@ -319,9 +400,76 @@ impl PanBuffer {
                 fresh_pixels += window_positions(&self.lattice, window, col, row).count() as u64;
             }
         }
-        (fresh_pixels, rays)
+        (fresh_pixels, rays, missing)
     }
 
+    /// Paints black, in `image` (a view of `window`), every sample of
+    /// `groups`: what a frame re-traced, like the paper's figure 4.
+    pub fn paint_groups(
+        &self,
+        window: &Window,
+        groups: &[SampleGroup],
+        image: &mut image::RgbImage,
+    ) {
+        for group in groups {
+            for (col, row) in group.lane_samples() {
+                for (x, y) in window_positions(&self.lattice, window, col, row) {
+                    if x < image.width() as usize && y < image.height() as usize {
+                        image.put_pixel(x as u32, y as u32, image::Rgb([0, 0, 0]));
+                    }
+                }
+            }
+        }
+    }
+
+    /// Traces the window's groups not traced before, then copies the window
+    /// out as 8-bit sRGB and, when `linear` is set, in linear colour too
+    /// (for bit-exact checks). The window must lie within the buffer's rows.
+    pub fn frame(
+        &mut self,
+        shader: &Shader,
+        window: &Window,
+        linear: bool,
+        ostc: Option<&Ostc>,
+    ) -> (Option<Frame>, image::RgbImage, PanFrameStats) {
+        let (fresh_pixels, rays, traced) = self.trace_missing(shader, window, ostc);
+        let (width, height) = (window.width as usize, window.height as usize);
+        let mut pixels = Vec::with_capacity(if linear { width * height } else { 0 });
+        let mut bytes: Vec<u8> = Vec::with_capacity(width * height * 3);
+        let turn = self.lattice.period() as usize;
+        for y in 0..height {
+            let row_start = (window.row + y as i64 - self.first_row) as usize * turn;
+            // Copy whole runs up to each wrap of the turn.
+            let mut x = 0usize;
+            while x < width {
+                let col = self.lattice.wrap(window.col + x as i64) as usize;
+                let run = (turn - col).min(width - x);
+                let samples = row_start + col..row_start + col + run;
+                if linear {
+                    pixels.extend_from_slice(&self.colors[samples.clone()]);
+                }
+                bytes.extend(self.bytes[samples].iter().flatten());
+                x += run;
+            }
+        }
+        let (frame, image) =
+            assembled(window.width, window.height, linear.then_some(pixels), bytes);
+        let pixels = u64::from(window.width) * u64::from(window.height);
+        (
+            frame,
+            image,
+            PanFrameStats {
+                samples_traced: rays.primary,
+                pixels_reused: pixels - fresh_pixels.min(pixels),
+                rays,
+                traced,
+            },
+        )
+    }
+}
+
+/// Resampling needs the lattice's angles: equal-angle buffers only.
+impl PanBuffer<EqualAngleLattice> {
     /// The window a resampled view of `camera` reads: its unsnapped corner
     /// rounded down, one sample wider and taller (bilinear neighbours).
     pub fn resample_window(&self, camera: &Camera) -> (Window, f64, f64) {
@@ -346,9 +494,10 @@ impl PanBuffer {
         shader: &Shader,
         camera: &Camera,
         linear: bool,
+        ostc: Option<&Ostc>,
     ) -> (Option<Frame>, image::RgbImage, PanFrameStats) {
         let (window, fx, fy) = self.resample_window(camera);
-        let (_, rays) = self.trace_missing(shader, &window);
+        let (_, rays, traced) = self.trace_missing(shader, &window, ostc);
         let (fx, fy) = (fx as f32, fy as f32);
         let weights = [
             (1.0 - fx) * (1.0 - fy),
@@ -384,49 +533,7 @@ impl PanBuffer {
                 samples_traced: rays.primary,
                 pixels_reused: total.saturating_sub(rays.primary),
                 rays,
-            },
-        )
-    }
-
-    /// Traces the window's groups not traced before, then copies the window
-    /// out as 8-bit sRGB and, when `linear` is set, in linear colour too
-    /// (for bit-exact checks). The window must lie within the buffer's rows.
-    pub fn frame(
-        &mut self,
-        shader: &Shader,
-        window: &Window,
-        linear: bool,
-    ) -> (Option<Frame>, image::RgbImage, PanFrameStats) {
-        let (fresh_pixels, rays) = self.trace_missing(shader, window);
-        let (width, height) = (window.width as usize, window.height as usize);
-        let mut pixels = Vec::with_capacity(if linear { width * height } else { 0 });
-        let mut bytes: Vec<u8> = Vec::with_capacity(width * height * 3);
-        let turn = self.lattice.columns_per_turn as usize;
-        for y in 0..height {
-            let row_start = (window.row + y as i64 - self.first_row) as usize * turn;
-            // Copy whole runs up to each wrap of the turn.
-            let mut x = 0usize;
-            while x < width {
-                let col = self.lattice.wrap_column(window.col + x as i64) as usize;
-                let run = (turn - col).min(width - x);
-                let samples = row_start + col..row_start + col + run;
-                if linear {
-                    pixels.extend_from_slice(&self.colors[samples.clone()]);
-                }
-                bytes.extend(self.bytes[samples].iter().flatten());
-                x += run;
-            }
-        }
-        let (frame, image) =
-            assembled(window.width, window.height, linear.then_some(pixels), bytes);
-        let pixels = u64::from(window.width) * u64::from(window.height);
-        (
-            frame,
-            image,
-            PanFrameStats {
-                samples_traced: rays.primary,
-                pixels_reused: pixels - fresh_pixels.min(pixels),
-                rays,
+                traced,
             },
         )
     }

@@ -137,7 +137,9 @@ impl SampleLattice {
             position,
             columns_per_turn,
             step,
-            last_rows: std::array::from_fn(|level| (PI / (step / f64::from(1u32 << level))).floor() as i64),
+            last_rows: std::array::from_fn(|level| {
+                (PI / (step / f64::from(1u32 << level))).floor() as i64
+            }),
         }
     }
 
@@ -835,7 +837,13 @@ impl SampleBuffer {
         let cam = &pose.camera;
         let x1 = (x0 + REGION).min(cam.width) - 1;
         let y1 = (y0 + REGION).min(cam.height) - 1;
-        let points = [(x0, y0), (x1, y0), (x0, y1), (x1, y1), ((x0 + x1) / 2, (y0 + y1) / 2)];
+        let points = [
+            (x0, y0),
+            (x1, y0),
+            (x0, y1),
+            (x1, y1),
+            ((x0 + x1) / 2, (y0 + y1) / 2),
+        ];
         let mut footprint = f64::INFINITY;
         for (x, y) in points {
             // In level-0 samples.
@@ -1358,7 +1366,9 @@ impl SampleBuffer {
                 let start = Instant::now();
                 let (frame, image) = self.gather(pose, mapped, knobs.filter, linear);
                 let gather_ms = start.elapsed().as_secs_f64() * 1e3;
-                if std::env::var_os("RSVP_DEBUG").is_some() { eprintln!("map {map_ms:.2} trace {trace_ms:.2} gather {gather_ms:.2}"); }
+                if std::env::var_os("RSVP_DEBUG").is_some() {
+                    eprintln!("map {map_ms:.2} trace {trace_ms:.2} gather {gather_ms:.2}");
+                }
                 let levels = mapped
                     .levels
                     .iter()

@@ -12,7 +12,9 @@ use serde::Deserialize;
 use toml::Spanned;
 
 use super::{Checker, Light, Material, Scene, SceneError};
-use crate::anim::{Animation, CameraKey, Ease};
+use crate::anim::{
+    Animation, Bounce, CameraKey, Ease, LightKey, LightTrack, ObjectKey, ObjectTrack,
+};
 use crate::camera::{yaw_pitch_toward, Camera, Projection};
 use crate::geometry::{Object, Placement, Plane, Shape, Sphere, TriangleMesh};
 use crate::reuse::samples::{ViewTransform, Viewport, ViewportKey, ViewportTrack};
@@ -53,6 +55,12 @@ struct AnimationDef {
     #[serde(default)]
     camera: Vec<Spanned<CameraKeyDef>>,
     #[serde(default)]
+    object: Vec<Spanned<ObjectKeyDef>>,
+    #[serde(default)]
+    bounce: Vec<Spanned<BounceDef>>,
+    #[serde(default)]
+    light: Vec<Spanned<LightKeyDef>>,
+    #[serde(default)]
     viewport: Vec<Spanned<ViewportKeyDef>>,
 }
 
@@ -89,6 +97,44 @@ struct ViewportKeyDef {
     rotate: Option<f64>,
     shear: Option<[f64; 2]>,
     translate: Option<[f64; 2]>,
+    #[serde(default)]
+    ease: Ease,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ObjectKeyDef {
+    /// The object's `name` (all parts of a multi-part mesh move together).
+    object: String,
+    frame: u32,
+    translate: Option<[f32; 3]>,
+    /// Degrees about x, then y, then z, around the object's centre.
+    rotate: Option<[f32; 3]>,
+    #[serde(default)]
+    ease: Ease,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct BounceDef {
+    object: String,
+    height: f32,
+    /// Frames per hop.
+    period: f64,
+    /// Fraction of a hop to start at.
+    #[serde(default)]
+    phase: f64,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct LightKeyDef {
+    /// Index of the `[[light]]` (0 = the first).
+    light: usize,
+    frame: u32,
+    position: Option<[f32; 3]>,
+    color: Option<[f32; 3]>,
+    intensity: Option<f32>,
     #[serde(default)]
     ease: Ease,
 }
@@ -510,8 +556,37 @@ pub fn parse_scene_str(
 
     let animation = match &file.animation {
         None => None,
-        Some(def) => Some(convert_animation(&ctx, def, &camera)?),
+        Some(def) => {
+            let mut animation = convert_animation(&ctx, def, &camera)?;
+            animation.objects = convert_object_tracks(&ctx, def, &objects)?;
+            animation.lights = convert_light_tracks(&ctx, def, &lights)?;
+            Some(animation)
+        }
     };
+    let mut lights = lights;
+    if let Some(animation) = &animation {
+        // Animated objects become instances, so a move updates a transform
+        // instead of rebuilding geometry; the scene shows frame 0.
+        for track in &animation.objects {
+            for &object in &track.objects {
+                objects[object].placement = Placement::Instance(Affine3A::IDENTITY);
+            }
+        }
+        let mut posed = Scene {
+            camera: camera.clone(),
+            objects,
+            materials: Vec::new(),
+            lights,
+            background,
+            ambient,
+            max_depth: 0,
+            warnings: Vec::new(),
+            animation: None,
+            viewports: Vec::new(),
+        };
+        animation.pose(&mut posed, 0);
+        (objects, lights) = (posed.objects, posed.lights);
+    }
 
     let viewports = convert_viewports(&ctx, &file, &camera)?;
 
@@ -548,7 +623,11 @@ fn convert_viewports(
         let v = def.get_ref();
         let field = format!("viewport[{i}]");
         let name = v.name.clone().unwrap_or_else(|| format!("view{i}"));
-        if name.is_empty() || !name.chars().all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_') {
+        if name.is_empty()
+            || !name
+                .chars()
+                .all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_')
+        {
             return Err(ctx.error(
                 def.span(),
                 format!("{field}.name"),
@@ -621,8 +700,14 @@ fn convert_viewports(
                 format!("{field}.viewport"),
                 format!(
                     "no such viewport{} (defined: {})",
-                    k.viewport.as_ref().map_or(String::new(), |v| format!(" {v}")),
-                    if names.is_empty() { "none".to_string() } else { names.join(", ") }
+                    k.viewport
+                        .as_ref()
+                        .map_or(String::new(), |v| format!(" {v}")),
+                    if names.is_empty() {
+                        "none".to_string()
+                    } else {
+                        names.join(", ")
+                    }
                 ),
             ));
         };
@@ -735,11 +820,220 @@ fn convert_animation(
         resolved.frame = k.frame;
         keys.push(resolved);
     }
-    Ok(Animation {
-        frames: def.frames,
-        fps: def.fps,
-        camera_keys: keys,
-    })
+    Ok(Animation::camera_only(def.frames, def.fps, keys))
+}
+
+/// The objects a track's name moves: the object of that name and, for a
+/// multi-part mesh, its parts.
+fn objects_named(objects: &[Object], name: &str) -> Vec<usize> {
+    let part_prefix = format!("{name} part ");
+    (0..objects.len())
+        .filter(|&i| objects[i].name == name || objects[i].name.starts_with(&part_prefix))
+        .collect()
+}
+
+fn convert_object_tracks(
+    ctx: &Ctx,
+    def: &AnimationDef,
+    objects: &[Object],
+) -> Result<Vec<ObjectTrack>, SceneError> {
+    let mut tracks: Vec<ObjectTrack> = Vec::new();
+    let track_for = |tracks: &mut Vec<ObjectTrack>,
+                     name: &str,
+                     span: std::ops::Range<usize>,
+                     field: String| {
+        if let Some(index) = tracks.iter().position(|t| t.name == name) {
+            return Ok(index);
+        }
+        let members = objects_named(objects, name);
+        if members.is_empty() {
+            let known: Vec<&str> = objects.iter().map(|o| o.name.as_str()).collect();
+            return Err(ctx.error(
+                span,
+                field,
+                format!("no object named '{name}' (objects: {})", known.join(", ")),
+            ));
+        }
+        if let Some(&plane) = members
+            .iter()
+            .find(|&&i| matches!(objects[i].shape, Shape::Plane(_)))
+        {
+            return Err(ctx.error(
+                span,
+                field,
+                format!(
+                    "'{}' is an infinite plane, which cannot move (give it a size to make it finite)",
+                    objects[plane].name
+                ),
+            ));
+        }
+        let rest = members
+            .iter()
+            .map(|&i| objects[i].world_bounds())
+            .fold(crate::geometry::Aabb::EMPTY, |a, b| a.union(b));
+        tracks.push(ObjectTrack {
+            name: name.to_string(),
+            objects: members,
+            pivot: if rest.is_empty() {
+                Vec3::ZERO
+            } else {
+                rest.center()
+            },
+            keys: Vec::new(),
+            bounce: None,
+        });
+        Ok(tracks.len() - 1)
+    };
+    for (i, key) in def.object.iter().enumerate() {
+        let k = key.get_ref();
+        let field = |f: &str| format!("animation.object[{i}].{f}");
+        let index = track_for(&mut tracks, &k.object, key.span(), field("object"))?;
+        let track = &mut tracks[index];
+        let previous = track.keys.last().copied();
+        if let Some(previous) = previous {
+            if k.frame <= previous.frame {
+                return Err(ctx.error(
+                    key.span(),
+                    field("frame"),
+                    format!(
+                        "keyframes of '{}' must be in increasing frame order: frame {} follows frame {}",
+                        k.object, k.frame, previous.frame
+                    ),
+                ));
+            }
+        }
+        let carried = previous.unwrap_or(ObjectKey {
+            frame: 0,
+            translate: Vec3::ZERO,
+            rotate: Vec3::ZERO,
+            ease: Ease::Linear,
+        });
+        let value = |v: Option<[f32; 3]>, old: Vec3, name: &str| match v {
+            None => Ok(old),
+            Some(v) => finite3(v).map_err(|m| ctx.error(key.span(), field(name), m)),
+        };
+        track.keys.push(ObjectKey {
+            frame: k.frame,
+            translate: value(k.translate, carried.translate, "translate")?,
+            rotate: value(k.rotate, carried.rotate, "rotate")?,
+            ease: k.ease,
+        });
+    }
+    for (i, bounce) in def.bounce.iter().enumerate() {
+        let b = bounce.get_ref();
+        let field = |f: &str| format!("animation.bounce[{i}].{f}");
+        let index = track_for(&mut tracks, &b.object, bounce.span(), field("object"))?;
+        if !(b.height.is_finite() && b.height >= 0.0) {
+            return Err(ctx.error(
+                bounce.span(),
+                field("height"),
+                format!("must be a finite number >= 0, got {}", b.height),
+            ));
+        }
+        if !(b.period.is_finite() && b.period > 0.0) {
+            return Err(ctx.error(
+                bounce.span(),
+                field("period"),
+                format!("must be above 0 frames, got {}", b.period),
+            ));
+        }
+        if !b.phase.is_finite() {
+            return Err(ctx.error(bounce.span(), field("phase"), "must be finite"));
+        }
+        if tracks[index].bounce.is_some() {
+            return Err(ctx.error(
+                bounce.span(),
+                field("object"),
+                format!("'{}' already bounces", b.object),
+            ));
+        }
+        tracks[index].bounce = Some(Bounce {
+            height: b.height,
+            period: b.period,
+            phase: b.phase,
+        });
+    }
+    Ok(tracks)
+}
+
+fn convert_light_tracks(
+    ctx: &Ctx,
+    def: &AnimationDef,
+    lights: &[Light],
+) -> Result<Vec<LightTrack>, SceneError> {
+    let mut tracks: Vec<LightTrack> = Vec::new();
+    for (i, key) in def.light.iter().enumerate() {
+        let k = key.get_ref();
+        let field = |f: &str| format!("animation.light[{i}].{f}");
+        let Some(base) = lights.get(k.light) else {
+            return Err(ctx.error(
+                key.span(),
+                field("light"),
+                format!(
+                    "no light {} (the scene has {} [[light]] table(s), numbered from 0)",
+                    k.light,
+                    lights.len()
+                ),
+            ));
+        };
+        let index = match tracks.iter().position(|t| t.light == k.light) {
+            Some(index) => index,
+            None => {
+                tracks.push(LightTrack {
+                    light: k.light,
+                    keys: Vec::new(),
+                });
+                tracks.len() - 1
+            }
+        };
+        let track = &mut tracks[index];
+        let previous = track.keys.last().copied();
+        if let Some(previous) = previous {
+            if k.frame <= previous.frame {
+                return Err(ctx.error(
+                    key.span(),
+                    field("frame"),
+                    format!(
+                        "keyframes of light {} must be in increasing frame order: frame {} follows frame {}",
+                        k.light, k.frame, previous.frame
+                    ),
+                ));
+            }
+        }
+        // The scene's light is the starting point: power = colour x intensity,
+        // so an unset colour or intensity carries over as a whole.
+        let carried = previous.unwrap_or(LightKey {
+            frame: 0,
+            position: base.position,
+            color: base.power,
+            intensity: 1.0,
+            ease: Ease::Linear,
+        });
+        let position = match k.position {
+            None => carried.position,
+            Some(p) => finite3(p).map_err(|m| ctx.error(key.span(), field("position"), m))?,
+        };
+        let color = match k.color {
+            None => carried.color,
+            Some(c) => colour(c).map_err(|m| ctx.error(key.span(), field("color"), m))?,
+        };
+        let intensity = k.intensity.unwrap_or(carried.intensity);
+        if !(intensity.is_finite() && intensity >= 0.0) {
+            return Err(ctx.error(
+                key.span(),
+                field("intensity"),
+                format!("must be a finite number >= 0, got {intensity}"),
+            ));
+        }
+        track.keys.push(LightKey {
+            frame: k.frame,
+            position,
+            color,
+            intensity,
+            ease: k.ease,
+        });
+    }
+    Ok(tracks)
 }
 
 fn convert_camera(

@@ -1,0 +1,266 @@
+//! OSTC: moving objects and lights re-trace only their regions, and every
+//! frame still equals a full render of the same frame bit for bit, on every
+//! backend.
+
+use std::path::Path;
+
+use proptest::prelude::*;
+use retrace::accel::{Accelerator, BackendKind};
+use retrace::anim::{count_differences, Animator, FrameStats, Techniques};
+use retrace::camera::Projection;
+use retrace::scene::{parse_scene_str, Scene, SceneOverrides};
+
+mod common;
+
+const PAPER: &str = include_str!("../scenes/paper.toml");
+
+/// The paper scene at `width` x `height` with `extra` (objects and a
+/// timeline) appended.
+fn paper_with(extra: &str, width: u32, height: u32) -> Scene {
+    let text = format!("{PAPER}\n{extra}");
+    let overrides = SceneOverrides {
+        width: Some(width),
+        height: Some(height),
+        ..SceneOverrides::default()
+    };
+    parse_scene_str(&text, Path::new("scenes/paper.toml"), &overrides).unwrap()
+}
+
+const BALL: &str = r#"
+[material.bouncer]
+diffuse = [0.95, 0.75, 0.1]
+specular = [0.6, 0.6, 0.6]
+shininess = 80.0
+
+[[object]]
+type = "sphere"
+name = "ball"
+center = [-2.6, 0.5, 3.0]
+radius = 0.5
+material = "bouncer"
+"#;
+
+/// Renders every frame with `techniques`, checks each against a full
+/// render bit for bit (linear colour and 8-bit output), returns the stats.
+fn run_exact(scene: &Scene, backend: BackendKind, techniques: Techniques) -> Vec<FrameStats> {
+    let mut accel = Accelerator::build(backend, &scene.objects).unwrap();
+    let frames = scene.animation.as_ref().unwrap().frames;
+    let mut animator = Animator::new(scene, &mut accel, techniques, 0..frames);
+    let mut all = Vec::new();
+    for frame in 0..frames {
+        let (image, rgb, stats) = animator.render(frame);
+        let image = image.unwrap();
+        let (reference, _) = animator.render_full(frame);
+        assert_eq!(
+            count_differences(&image, &reference),
+            0,
+            "frame {frame} ({}) differs from its full render",
+            stats.mode
+        );
+        assert_eq!(rgb, reference.to_rgb8(), "frame {frame}: 8-bit output");
+        all.push(stats);
+    }
+    all
+}
+
+fn traced(stats: &[FrameStats]) -> u64 {
+    stats.iter().map(|s| s.samples_traced).sum()
+}
+
+on_every_backend! {
+    a_bouncing_ball_retraces_only_its_regions_exactly(backend) {
+        let scene = paper_with(
+            &format!("{BALL}\n[animation]\nframes = 8\n[[animation.bounce]]\nobject = \"ball\"\nheight = 2.0\nperiod = 8\n"),
+            96,
+            64,
+        );
+        let stats = run_exact(&scene, backend, Techniques::AUTO);
+        assert!(stats.iter().all(|s| s.mode == "pan+ostc"), "{:?}", stats.iter().map(|s| s.mode).collect::<Vec<_>>());
+        assert!(stats[1..].iter().all(|s| s.dirty_regions > 0));
+        assert!(stats[1..].iter().all(|s| s.voxels_walked > 0));
+        // Less than half of the frames after the first is re-traced.
+        let later = traced(&stats[1..]);
+        assert!(later < 7 * 96 * 64 / 2, "traced {later}");
+    }
+
+    a_moving_light_retraces_lit_regions_exactly(backend) {
+        let scene = paper_with(
+            "[animation]\nframes = 4\n[[animation.light]]\nlight = 0\nframe = 0\n[[animation.light]]\nlight = 0\nframe = 3\nposition = [-4.0, 10.0, 12.0]\nintensity = 0.5\n",
+            64,
+            48,
+        );
+        let stats = run_exact(&scene, backend, Techniques::AUTO);
+        // No object moves: no voxel grid, nothing walked.
+        assert!(stats.iter().all(|s| s.voxels_walked == 0));
+        // The sky above the horizon keeps its samples.
+        assert!(stats[1..].iter().all(|s| s.samples_traced < 64 * 48), "{:?}", stats.iter().map(|s| s.samples_traced).collect::<Vec<_>>());
+        assert!(stats[1..].iter().all(|s| s.dirty_regions > 0));
+    }
+
+    pan_and_motion_together_stay_exact(backend) {
+        let scene = paper_with(
+            &format!("{BALL}\n[animation]\nframes = 6\n[[animation.camera]]\nframe = 0\nyaw = -20.0\n[[animation.camera]]\nframe = 5\nyaw = 20.0\n[[animation.object]]\nobject = \"ball\"\nframe = 0\n[[animation.object]]\nobject = \"ball\"\nframe = 5\ntranslate = [3.0, 0.5, -1.0]\nrotate = [0.0, 90.0, 0.0]\n"),
+            64,
+            48,
+        );
+        let stats = run_exact(&scene, backend, Techniques::AUTO);
+        assert!(stats.iter().all(|s| s.mode == "pan+ostc"));
+        assert!(traced(&stats) < 6 * 64 * 48);
+    }
+
+    still_cameras_of_any_projection_use_ostc(backend) {
+        for projection in [Projection::Perspective, Projection::Fisheye] {
+            let mut scene = paper_with(
+                &format!("{BALL}\n[animation]\nframes = 5\n[[animation.bounce]]\nobject = \"ball\"\nheight = 2.0\nperiod = 6\n"),
+                64,
+                48,
+            );
+            scene.camera.projection = projection;
+            scene.camera.fov = 70f64.to_radians();
+            let stats = run_exact(&scene, backend, Techniques::AUTO);
+            assert!(stats.iter().all(|s| s.mode == "ostc"), "{projection}: {:?}", stats.iter().map(|s| (s.mode, s.reason.clone())).collect::<Vec<_>>());
+            assert!(traced(&stats[1..]) < 4 * 64 * 48 / 2, "{projection}: traced {}", traced(&stats[1..]));
+        }
+    }
+
+    ostc_off_rerenders_moving_scenes_in_full(backend) {
+        let scene = paper_with(
+            &format!("{BALL}\n[animation]\nframes = 3\n[[animation.bounce]]\nobject = \"ball\"\nheight = 1.0\nperiod = 4\n"),
+            32,
+            24,
+        );
+        let pan_only = Techniques {
+            pan: true,
+            ..Techniques::FULL
+        };
+        let stats = run_exact(&scene, backend, pan_only);
+        assert!(stats[1..].iter().all(|s| s.samples_traced >= 32 * 24));
+        assert!(stats[1].reason.contains("ostc is off"), "{}", stats[1].reason);
+    }
+}
+
+#[test]
+fn still_scenes_build_no_ostc_bookkeeping() {
+    let scene = paper_with(
+        "[animation]\nframes = 3\n[[animation.camera]]\nframe = 0\nyaw = 0.0\n[[animation.camera]]\nframe = 2\nyaw = 10.0\n",
+        32,
+        24,
+    );
+    let stats = run_exact(&scene, BackendKind::Embree, Techniques::AUTO);
+    assert!(stats
+        .iter()
+        .all(|s| s.mode == "pan" && s.voxels_walked == 0));
+}
+
+#[test]
+fn bad_animation_input_names_file_line_and_field() {
+    let parse = |extra: &str| {
+        parse_scene_str(
+            &format!("{PAPER}\n{BALL}\n[animation]\nframes = 4\n{extra}"),
+            Path::new("scenes/paper.toml"),
+            &SceneOverrides::default(),
+        )
+        .unwrap_err()
+    };
+    let err = parse("[[animation.bounce]]\nobject = \"balll\"\nheight = 1.0\nperiod = 4\n");
+    assert_eq!(err.field.as_deref(), Some("animation.bounce[0].object"));
+    assert!(err.message.contains("no object named 'balll'"), "{err}");
+    assert!(err.line.is_some());
+    let err = parse("[[animation.object]]\nobject = \"ground\"\nframe = 0\n");
+    assert!(err.message.contains("infinite plane"), "{err}");
+    let err = parse("[[animation.light]]\nlight = 7\nframe = 0\n");
+    assert_eq!(err.field.as_deref(), Some("animation.light[0].light"));
+    let err = parse(
+        "[[animation.object]]\nobject = \"ball\"\nframe = 3\n[[animation.object]]\nobject = \"ball\"\nframe = 1\n",
+    );
+    assert_eq!(err.field.as_deref(), Some("animation.object[1].frame"));
+    let err = parse("[[animation.bounce]]\nobject = \"ball\"\nheight = 1.0\nperiod = 0\n");
+    assert_eq!(err.field.as_deref(), Some("animation.bounce[0].period"));
+    let err =
+        parse("[[animation.object]]\nobject = \"ball\"\nframe = 0\ntranslate = [0, nan, 0]\n");
+    assert_eq!(err.field.as_deref(), Some("animation.object[0].translate"));
+}
+
+/// A random small animation: a few spheres and quads near the paper
+/// scene's centre, some moving (keys or bounces), maybe a moving light,
+/// maybe a panning camera.
+fn random_animation() -> impl Strategy<Value = String> {
+    let object = (
+        prop::bool::ANY,
+        -4.0f32..4.0,
+        0.2f32..2.0,
+        -4.0f32..6.0,
+        0.2f32..1.2,
+    )
+        .prop_map(|(sphere, x, y, z, size)| (sphere, x, y, z, size));
+    let motion = (
+        0u8..3,
+        -3.0f32..3.0,
+        -1.0f32..2.0,
+        -3.0f32..3.0,
+        0.0f32..180.0,
+        2u32..6,
+    );
+    (
+        prop::collection::vec((object, motion), 1..4),
+        prop::bool::ANY,
+        -30.0f64..30.0,
+        -12.0f64..0.0,
+    )
+        .prop_map(|(objects, light_moves, yaw, pitch)| {
+            let mut text = String::new();
+            let mut timeline = String::from("[animation]\nframes = 5\n");
+            for (i, ((sphere, x, y, z, size), (kind, dx, dy, dz, turn, period))) in
+                objects.into_iter().enumerate()
+            {
+                let name = format!("thing{i}");
+                if sphere {
+                    text += &format!(
+                        "[[object]]\ntype = \"sphere\"\nname = \"{name}\"\ncenter = [{x}, {y}, {z}]\nradius = {size}\nmaterial = \"red\"\n"
+                    );
+                } else {
+                    text += &format!(
+                        "[[object]]\ntype = \"quad\"\nname = \"{name}\"\nvertices = [[{x}, {y}, {z}], [{}, {y}, {z}], [{}, {}, {z}], [{x}, {}, {z}]]\nmaterial = \"mirror\"\n",
+                        x + size,
+                        x + size,
+                        y + size,
+                        y + size
+                    );
+                }
+                match kind {
+                    0 => {}
+                    1 => {
+                        timeline += &format!(
+                            "[[animation.object]]\nobject = \"{name}\"\nframe = 0\n[[animation.object]]\nobject = \"{name}\"\nframe = 4\ntranslate = [{dx}, {dy}, {dz}]\nrotate = [0.0, {turn}, 0.0]\n"
+                        );
+                    }
+                    _ => {
+                        timeline += &format!(
+                            "[[animation.bounce]]\nobject = \"{name}\"\nheight = {}\nperiod = {period}\n",
+                            dy.abs() + 0.5
+                        );
+                    }
+                }
+            }
+            if light_moves {
+                timeline += "[[animation.light]]\nlight = 1\nframe = 1\n[[animation.light]]\nlight = 1\nframe = 3\nposition = [4.0, 9.0, 6.0]\n";
+            }
+            timeline += &format!(
+                "[[animation.camera]]\nframe = 0\nyaw = {yaw}\npitch = {pitch}\n[[animation.camera]]\nframe = 4\nyaw = {}\npitch = {pitch}\n",
+                yaw + 12.0
+            );
+            format!("{text}\n{timeline}")
+        })
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 12, ..ProptestConfig::default() })]
+
+    #[test]
+    fn random_animations_are_exact_on_both_backends(extra in random_animation()) {
+        let scene = paper_with(&extra, 32, 24);
+        for backend in [BackendKind::Embree, BackendKind::Grid] {
+            run_exact(&scene, backend, Techniques::AUTO);
+        }
+    }
+}
