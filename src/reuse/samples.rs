@@ -975,9 +975,10 @@ impl SampleBuffer {
     }
 
     /// Adds the untraced groups a region's filter reads. A region whose
-    /// samples are dense (a few per pixel) checks every group of its
-    /// bounding box at every owning level; a sparse one (zoomed far out, or
-    /// near a pole) checks each pixel's own samples.
+    /// samples are dense (a few per pixel) first checks every group of its
+    /// bounding box at every owning level, a quick no in the usual case that
+    /// all were traced; otherwise, or for a sparse region (zoomed far out,
+    /// or near a pole), each pixel's own samples are checked.
     #[allow(clippy::too_many_arguments)]
     fn collect_missing(
         &self,
@@ -995,23 +996,26 @@ impl SampleBuffer {
         let (r0, r1) = (r0.clamp(0, last_row), r1.clamp(0, last_row));
         let area = ((c1 - c0 + 1) as f64) * ((r1 - r0 + 1) as f64);
         // Consecutive groups mostly share a tile: keep its traced mask.
-        let mut cached: (u32, (i64, i64), u64) = (u32::MAX, (0, 0), 0);
-        let mut add = |owner: u32, group: SampleGroup| {
+        // One tile per owning level (a finer region reads several levels).
+        let mut cached = [((i64::MIN, i64::MIN), 0u64); MAX_LEVEL as usize + 1];
+        let mut add = |missing: &mut Vec<(u32, SampleGroup)>, owner: u32, group: SampleGroup| {
             let group = SampleGroup {
                 col: self.lattice.wrap_column(owner, group.col),
                 row: group.row,
             };
             let (key, _, bit) = tile_key(group.col, group.row);
-            if (cached.0, cached.1) != (owner, key) {
+            let slot = &mut cached[owner as usize];
+            if slot.0 != key {
                 let level = &self.levels[owner as usize];
-                let mask = level.tile(key).map_or(0, |t| level.traced[t as usize]);
-                cached = (owner, key, mask);
+                *slot = (key, level.tile(key).map_or(0, |t| level.traced[t as usize]));
             }
-            if cached.2 >> bit & 1 == 0 && missing.last() != Some(&(owner, group)) {
+            if slot.1 >> bit & 1 == 0 && missing.last() != Some(&(owner, group)) {
                 missing.push((owner, group));
             }
         };
-        if area <= 8.0 * f64::from(pixels) && c1 - c0 < self.lattice.columns(level) {
+        let before = missing.len();
+        let dense = area <= 8.0 * f64::from(pixels) && c1 - c0 < self.lattice.columns(level);
+        if dense {
             let (gw, gh) = (i64::from(GROUP_WIDTH), i64::from(GROUP_HEIGHT));
             for owner in 0..=level {
                 let shift = level - owner;
@@ -1022,13 +1026,18 @@ impl SampleBuffer {
                 while row <= or1 {
                     let mut col = first.col;
                     while col <= oc1 {
-                        add(owner, SampleGroup { col, row });
+                        add(missing, owner, SampleGroup { col, row });
                         col += gw;
                     }
                     row += gh;
                 }
             }
-        } else {
+        }
+        // The bounding box holds more than the filter reads (at the region's
+        // corners, in whole groups): when anything in it is missing, ask for
+        // exactly the pixels' own groups instead.
+        if !dense || missing.len() > before {
+            missing.truncate(before);
             for_each_pixel(&mut |(x, y)| {
                 let (cx, ry) = filter_origin(filter, x, y);
                 let extra = i64::from(filter != Filter::Nearest);
@@ -1036,10 +1045,22 @@ impl SampleBuffer {
                     for dc in 0..=extra {
                         let row = (ry + dr).clamp(0, last_row);
                         let (owner, c, r) = self.lattice.owner(level, cx + dc, row);
-                        add(owner, SampleGroup::containing(c, r));
+                        add(missing, owner, SampleGroup::containing(c, r));
                     }
                 }
             });
+            // Neighbouring pixels share groups: a small sort here keeps the
+            // frame's list short.
+            let region = &mut missing[before..];
+            region.sort_unstable_by_key(|&(level, g)| (level, g.row, g.col));
+            let mut kept = before;
+            for i in before..missing.len() {
+                if kept == before || missing[kept - 1] != missing[i] {
+                    missing[kept] = missing[i];
+                    kept += 1;
+                }
+            }
+            missing.truncate(kept);
         }
     }
 
@@ -1366,9 +1387,6 @@ impl SampleBuffer {
                 let start = Instant::now();
                 let (frame, image) = self.gather(pose, mapped, knobs.filter, linear);
                 let gather_ms = start.elapsed().as_secs_f64() * 1e3;
-                if std::env::var_os("RSVP_DEBUG").is_some() {
-                    eprintln!("map {map_ms:.2} trace {trace_ms:.2} gather {gather_ms:.2}");
-                }
                 let levels = mapped
                     .levels
                     .iter()
