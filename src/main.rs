@@ -170,7 +170,8 @@ struct AnimateArgs {
     /// RSVP: pyramid levels added to the chosen one (negative: coarser).
     #[arg(long, default_value_t = 0, allow_negative_numbers = true)]
     level_bias: i32,
-    /// Also write the frames as an animated GIF here.
+    /// Also write the frames as an animated GIF here (with RSVP viewports:
+    /// the first viewport's frames).
     #[arg(long)]
     gif: Option<PathBuf>,
     /// Per-frame statistics: .csv or .json.
