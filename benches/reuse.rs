@@ -43,7 +43,7 @@ fn ostc_fixture() -> (Ostc, Vec<[Ray; PACKET_WIDTH]>) {
         min: Vec3::new(-1.0, 0.0, -1.0),
         max: Vec3::new(1.0, 4.0, 1.0),
     };
-    let ostc = Ostc::new(layout, Some(swept), DEFAULT_VOXELS, false);
+    let ostc = Ostc::new(layout, Some(swept), DEFAULT_VOXELS, &[]);
     let mut rng = SplitMix64(7);
     let packets = (0..4096)
         .map(|_| {
@@ -73,8 +73,15 @@ fn ostc_recording(c: &mut Criterion) {
                     col: (i as i64 * 4) % 2304,
                     row: (i as i64 / 576) * 2,
                 };
-                ostc.marker(group)
-                    .traced(RayKind::Shadow, packet, 0xff, &ends);
+                ostc.marker(group).traced(
+                    RayKind::Shadow {
+                        light: 0,
+                        blocked: 0,
+                    },
+                    packet,
+                    0xff,
+                    &ends,
+                );
             }
         })
     });

@@ -861,11 +861,15 @@ impl<'a> Animator<'a> {
             .ostc_settings
             .regions
             .region_size(camera.width, camera.height);
+        let mut animated_lights = vec![false; self.base.lights.len()];
+        for track in &animation.lights {
+            animated_lights[track.light] = true;
+        }
         Some(Ostc::new(
             store.regions(size),
             swept,
             self.ostc_settings.voxels,
-            !animation.lights.is_empty(),
+            &animated_lights,
         ))
     }
 
@@ -953,8 +957,11 @@ impl<'a> Animator<'a> {
                 dirty.union_with(&ostc.dirty_for(&[*old, *new]));
             }
         }
-        if buffered.pose.lights != pose.lights {
-            dirty.union_with(&ostc.dirty_for_lights());
+        for (index, (old, new)) in buffered.pose.lights.iter().zip(&pose.lights).enumerate() {
+            if old != new {
+                let moved = old.position != new.position;
+                dirty.union_with(&ostc.dirty_for_light(index, moved));
+            }
         }
         stats.dirty_regions = dirty.len() as u64;
         stats.samples_nulled = buffered.store.erase(ostc.layout(), &dirty);

@@ -293,6 +293,9 @@ pub struct RayTable {
     camera: Camera,
     columns: Vec<(f64, f64)>,
     rows: Vec<(f64, f64)>,
+    /// The camera's basis, which costs trigonometry: once per frame, not per ray.
+    basis: (DVec3, DVec3, DVec3),
+    origin: Vec3,
 }
 
 impl RayTable {
@@ -328,6 +331,8 @@ impl RayTable {
             camera: camera.clone(),
             columns,
             rows,
+            basis: camera.basis(),
+            origin: camera.origin(),
         }
     }
 
@@ -341,6 +346,10 @@ impl RayTable {
 
     /// The primary ray through the centre of pixel (x, y), which must lie
     /// inside the image.
+    /// Inlined always, and no path returns a whole ray from a call: a ray
+    /// returned through memory is written in pieces and read back whole, a
+    /// store-forwarding stall per ray that cost more than computing it.
+    #[inline(always)]
     pub fn primary_ray(&self, x: u32, y: u32) -> Option<Ray> {
         let cam = &self.camera;
         let d = match cam.projection {
@@ -350,14 +359,24 @@ impl RayTable {
                 DVec3::new(cos_el * sin_az, sin_el, -cos_el * cos_az)
             }
             Projection::Perspective => {
-                let (right, up, forward) = cam.basis();
+                let (right, up, forward) = self.basis;
                 let lx = self.columns[x as usize].0;
                 let ly = self.rows[y as usize].0;
                 (right * lx + up * ly + forward).normalize()
             }
-            Projection::Fisheye => return cam.primary_ray(x, y),
+            Projection::Fisheye => {
+                return Some(Ray::new(self.origin, self.fisheye_direction(x, y)?))
+            }
         };
-        Some(Ray::new(cam.origin(), d.as_vec3()))
+        Some(Ray::new(self.origin, d.as_vec3()))
+    }
+
+    /// As [`Camera::primary_ray`] gives it; kept out of line, away from the
+    /// tabled projections.
+    #[inline(never)]
+    fn fisheye_direction(&self, x: u32, y: u32) -> Option<Vec3> {
+        let p = DVec2::new(f64::from(x) + 0.5, f64::from(y) + 0.5);
+        self.camera.direction(p).map(|d| d.as_vec3())
     }
 }
 

@@ -4,7 +4,7 @@
 //! only non-degenerate triangles: the loader drops zero-area ones and counts
 //! them, so backends never see a triangle without a normal.
 
-use glam::{Affine3A, Vec3};
+use glam::{Affine3A, Mat3A, Vec3};
 
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Aabb {
@@ -176,12 +176,13 @@ impl Object {
 /// transpose, so it stays perpendicular under non-uniform scaling); unit
 /// length, or zero for a zero normal.
 pub fn transform_normal(transform: &Affine3A, n: Vec3) -> Vec3 {
-    transform
-        .matrix3
-        .inverse()
-        .transpose()
-        .mul_vec3(n)
-        .normalize_or_zero()
+    normal_matrix(transform).mul_vec3(n).normalize_or_zero()
+}
+
+/// The matrix [`transform_normal`] multiplies by: worth keeping where many
+/// normals go through one transform.
+pub fn normal_matrix(transform: &Affine3A) -> Mat3A {
+    transform.matrix3.inverse().transpose()
 }
 
 /// Two unit vectors spanning the plane with unit normal `n` (a right-handed
@@ -193,6 +194,15 @@ pub fn plane_axes(n: Vec3) -> (Vec3, Vec3) {
     (u, v)
 }
 
+impl Plane {
+    /// The coordinate axis (0, 1 or 2) the normal lies along when it is
+    /// exactly one of +-x, +-y, +-z, as ground planes and walls are.
+    pub fn axis(&self) -> Option<usize> {
+        let n = self.normal.abs();
+        [Vec3::X, Vec3::Y, Vec3::Z].iter().position(|&a| n == a)
+    }
+}
+
 /// Ray/plane intersection shared by all backends (Embree has no infinite
 /// primitive, and a huge quad would lose precision far from the eye).
 pub fn intersect_plane(
@@ -202,12 +212,33 @@ pub fn intersect_plane(
     tmin: f32,
     tmax: f32,
 ) -> Option<f32> {
-    let denom = plane.normal.dot(dir);
-    if denom == 0.0 || !denom.is_finite() {
-        return None;
-    }
-    let t = plane.normal.dot(plane.point - origin) / denom;
+    let t = plane_distance(plane, plane.axis(), origin, dir);
     (t > tmin && t < tmax).then_some(t)
+}
+
+/// Distance along `dir` from `origin` to `plane`, NaN when the ray runs
+/// parallel to it (or `n.d` is not finite). `axis` must be
+/// [`Plane::axis`]; the packet tests in [`crate::accel`] repeat this
+/// arithmetic operation for operation.
+///
+/// Along a coordinate axis, `n.(p - o) / n.d` with `n = +-e_k` is exactly
+/// `(p_k - o_k) / d_k` for finite rays (the zero terms add nothing and the
+/// signs cancel; at most the sign of a zero distance differs, which no
+/// range test can tell apart): one subtraction and one division instead of
+/// two dot products.
+#[inline]
+pub fn plane_distance(plane: &Plane, axis: Option<usize>, origin: Vec3, dir: Vec3) -> f32 {
+    let (along, denom) = match axis {
+        Some(k) => (plane.point[k] - origin[k], dir[k]),
+        None => (
+            plane.normal.dot(plane.point - origin),
+            plane.normal.dot(dir),
+        ),
+    };
+    if denom == 0.0 || !denom.is_finite() {
+        return f32::NAN;
+    }
+    along / denom
 }
 
 #[cfg(test)]

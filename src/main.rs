@@ -14,6 +14,15 @@ use retrace::output::save_image;
 use retrace::render::render_frame;
 use retrace::scene::{load_scene, paper_scene, Scene, SceneOverrides};
 
+/// Prints a line to stdout; a closed stdout (`retrace ... | head -1`) is
+/// not an error worth a panic: the work is done, only the report is cut.
+macro_rules! say {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        let _ = writeln!(std::io::stdout(), $($arg)*);
+    }};
+}
+
 #[derive(Parser)]
 #[command(
     name = "retrace",
@@ -293,7 +302,7 @@ fn render(args: RenderArgs) -> Result<()> {
     ensure_parent(&args.output)?;
     save_image(&args.output, &frame.to_rgb8())?;
     let seconds = elapsed.as_secs_f64();
-    println!(
+    say!(
         "{}: {}x{} {} via {} in {:.1} ms -> {}",
         scene_name(&args.scene),
         frame.width,
@@ -303,7 +312,7 @@ fn render(args: RenderArgs) -> Result<()> {
         seconds * 1e3,
         args.output.display()
     );
-    println!(
+    say!(
         "rays: {} primary, {} shadow, {} reflection ({:.1} Mrays/s)",
         rays.primary,
         rays.shadow,
@@ -341,7 +350,7 @@ fn bench(args: BenchArgs) -> Result<()> {
 }
 
 fn print_packets(args: &BenchArgs, run: &retrace::bench::PacketRun) {
-    println!(
+    say!(
         "{}: {}x{}, {} packets ({} primary, {} shadow, {} reflection rays), {} threads, median of {}",
         scene_name(&args.scene),
         run.width,
@@ -361,13 +370,13 @@ fn bench_frame(args: &BenchArgs, scene: &Scene, bar: indicatif::ProgressBar) -> 
     let result = retrace::bench::bench_frame(scene, &accel, args.repeats, || bar.inc(1))?;
     bar.finish_and_clear();
     print_packets(args, &result.run);
-    println!(
+    say!(
         "full frame ({}):      {:8.2} ms",
         accel.kind(),
         result.full_ms
     );
-    println!("bare Embree, same packets: {:8.2} ms", result.embree_ms);
-    println!("ratio:                     {:8.3}x", result.ratio);
+    say!("bare Embree, same packets: {:8.2} ms", result.embree_ms);
+    say!("ratio:                     {:8.3}x", result.ratio);
     if let Some(path) = &args.json {
         write_json(path, &result)?;
     }
@@ -442,39 +451,42 @@ fn bench_experiment(
         || bar.inc(1),
     );
     bar.finish_and_clear();
-    println!(
+    say!(
         "{title}, {}x{}, {frames} frames, {} threads, median of {} rounds",
-        scene.camera.width, scene.camera.height, result.threads, result.rounds
+        scene.camera.width,
+        scene.camera.height,
+        result.threads,
+        result.rounds
     );
     let per_frame = f64::from(frames.max(1));
-    println!(
+    say!(
         "full renders:      {:9.1} ms ({:.2} ms/frame)",
         result.full_ms,
         result.full_ms / per_frame
     );
-    println!(
+    say!(
         "{:<18} {:9.1} ms ({:.2} ms/frame)",
         format!("{technique}:"),
         result.accelerated_ms,
         result.accelerated_ms / per_frame
     );
-    println!(
+    say!(
         "speedup:           {:9.2}x (paper: {paper})",
         result.speedup
     );
-    println!(
+    say!(
         "oracle speedup:    {:9.2}x per sample, {:.2}x per region; efficiency {:.0}% / {:.0}%",
         result.oracle_speedup,
         result.region_oracle_speedup,
         result.efficiency * 100.0,
         result.speedup / result.region_oracle_speedup * 100.0
     );
-    println!("samples traced:    {:9}", result.samples_traced);
-    println!(
+    say!("samples traced:    {:9}", result.samples_traced);
+    say!(
         "bookkeeping:       {:9.1}% of a full frame's time per frame",
         result.bookkeeping_share * 100.0
     );
-    println!(
+    say!(
         "exact:             {} (max yaw snap {:.4} deg)",
         if result.exact {
             "every frame bit-identical to its full render"
@@ -619,9 +631,9 @@ fn bench_backends(args: &BenchArgs, scene: &Scene, bar: indicatif::ProgressBar) 
     let result = retrace::bench::bench_backends(scene, args.repeats, || bar.inc(1))?;
     bar.finish_and_clear();
     print_packets(args, &result.run);
-    println!("Embree, recorded packets: {:8.2} ms", result.embree_ms);
-    println!("grid, same packets:       {:8.2} ms", result.grid_ms);
-    println!("ratio grid / Embree:      {:8.3}x", result.ratio);
+    say!("Embree, recorded packets: {:8.2} ms", result.embree_ms);
+    say!("grid, same packets:       {:8.2} ms", result.grid_ms);
+    say!("ratio grid / Embree:      {:8.3}x", result.ratio);
     if let Some(path) = &args.json {
         write_json(path, &result)?;
     }
@@ -968,7 +980,7 @@ fn animate(args: AnimateArgs) -> Result<()> {
     let total: f64 = all_stats.iter().map(|s| s.total_ms).sum();
     let traced: u64 = all_stats.iter().map(|s| s.samples_traced).sum();
     let pixels: u64 = all_stats.iter().map(|s| s.pixels).sum();
-    println!(
+    say!(
         "{}: {rendered} frames in {:.1} ms rendering ({:.1} ms writing); traced {traced} samples for {pixels} pixels ({:.1}%)",
         scene_name(&args.scene),
         total,
@@ -977,7 +989,7 @@ fn animate(args: AnimateArgs) -> Result<()> {
     );
     if args.verify {
         let full: f64 = all_stats.iter().filter_map(|s| s.full_ms).sum();
-        println!(
+        say!(
             "verify: full renders {full:.1} ms, speedup {:.2}x",
             full / total.max(1e-9)
         );
@@ -992,9 +1004,7 @@ fn animate(args: AnimateArgs) -> Result<()> {
             );
         }
         if animator.is_exact() {
-            println!(
-                "verify: every frame equals its full render (of the snapped view) bit for bit"
-            );
+            say!("verify: every frame equals its full render (of the snapped view) bit for bit");
         }
         {
             let errors: Vec<_> = all_stats.iter().filter_map(|s| s.error).collect();
@@ -1006,7 +1016,7 @@ fn animate(args: AnimateArgs) -> Result<()> {
             let max_abs = errors.iter().map(|e| e.max_abs).fold(0.0f32, f32::max);
             let mean = errors.iter().map(|e| e.mean_abs).sum::<f64>() / count;
             let share = errors.iter().map(|e| e.differing_share).sum::<f64>() / count;
-            println!(
+            say!(
                 "verify ({}, against the camera's own unsnapped rays): worst PSNR {worst_psnr:.2} dB, \
                  max abs error {max_abs:.4}, mean abs error {mean:.5}, {:.2}% of pixels differ in 8 bits",
                 if animator.is_exact() { "snapped" } else { "resampled" },
@@ -1179,16 +1189,21 @@ fn validate(args: ValidateArgs) -> Result<()> {
     let grid = Accelerator::build_with(BackendKind::Grid, &scene.objects, args.grid_resolution)?;
     let report =
         retrace::validate::validate(&scene, &embree, &grid, args.rays, args.seed, args.show);
-    println!("{}: Embree vs grid", scene_name(&args.scene));
-    println!(
+    say!("{}: Embree vs grid", scene_name(&args.scene));
+    say!(
         "{:<12} {:>9} {:>15} {:>14} {:>12} {:>12}",
-        "rays", "count", "hit/miss agree", "same primitive", "max rel. t", "mean rel. t"
+        "rays",
+        "count",
+        "hit/miss agree",
+        "same primitive",
+        "max rel. t",
+        "mean rel. t"
     );
     for (name, a) in [
         ("camera", &report.camera_rays),
         ("random", &report.random_rays),
     ] {
-        println!(
+        say!(
             "{:<12} {:>9} {:>14.4}% {:>13.4}% {:>12.2e} {:>12.2e}",
             name,
             a.rays,
@@ -1199,7 +1214,7 @@ fn validate(args: ValidateArgs) -> Result<()> {
         );
     }
     let image = &report.image;
-    println!(
+    say!(
         "image        {:>9} pixels: {:.4}% differ by more than 1/255, max difference {:.4}, mean {:.2e}",
         image.pixels,
         image.differing_pixels * 100.0,
@@ -1207,14 +1222,14 @@ fn validate(args: ValidateArgs) -> Result<()> {
         image.mean_difference
     );
     if !report.disagreements.is_empty() {
-        println!("disagreeing rays (first {}):", report.disagreements.len());
+        say!("disagreeing rays (first {}):", report.disagreements.len());
         for d in &report.disagreements {
             let show = |h: &Option<retrace::validate::HitSummary>| {
                 h.map_or("miss".to_string(), |h| {
                     format!("object {} prim {} t {}", h.object, h.prim, h.t)
                 })
             };
-            println!(
+            say!(
                 "  {} origin {:?} dir {:?}: embree {}, grid {}",
                 d.source,
                 d.origin,
@@ -1228,7 +1243,7 @@ fn validate(args: ValidateArgs) -> Result<()> {
         write_json(path, &report)?;
     }
     if report.passed() {
-        println!("PASS");
+        say!("PASS");
         Ok(())
     } else {
         anyhow::bail!("validation failed: {}", report.failures.join("; "))

@@ -12,7 +12,7 @@ use rayon::prelude::*;
 
 use crate::accel::Intersector;
 use crate::camera::{Camera, RayTable};
-use crate::ray::{LaneMask, Ray, PACKET_WIDTH};
+use crate::ray::{LaneMask, Ray, RayPacket, PACKET_WIDTH};
 use crate::scene::Scene;
 use crate::shade::{RayCounts, RayObserver, Shader};
 
@@ -71,10 +71,27 @@ impl SampleGroup {
 /// what the projection covers).
 pub trait PrimaryRays: Sync {
     fn primary(&self, col: i64, row: i64) -> Option<Ray>;
+
+    /// The rays of a whole group and the mask of lanes that have one. One
+    /// dynamic call per packet: inside, `primary` is called on the concrete
+    /// type and inlines (eight dynamic calls per packet cost more than the
+    /// ray arithmetic).
+    fn primary_group(&self, group: SampleGroup) -> (RayPacket, LaneMask) {
+        let mut rays = [Ray::INACTIVE; PACKET_WIDTH];
+        let mut mask: LaneMask = 0;
+        for (lane, (col, row)) in group.lane_samples().into_iter().enumerate() {
+            if let Some(ray) = self.primary(col, row) {
+                rays[lane] = ray;
+                mask |= 1 << lane;
+            }
+        }
+        (rays, mask)
+    }
 }
 
 /// A camera's lattice is its image: one sample per pixel centre.
 impl PrimaryRays for RayTable {
+    #[inline(always)]
     fn primary(&self, col: i64, row: i64) -> Option<Ray> {
         let (width, height) = self.size();
         let inside = (0..i64::from(width)).contains(&col) && (0..i64::from(height)).contains(&row);
@@ -93,14 +110,7 @@ pub fn trace_group(
     counts: &mut RayCounts,
     observer: Option<&mut dyn RayObserver>,
 ) -> [Vec3; PACKET_WIDTH] {
-    let mut rays = [Ray::INACTIVE; PACKET_WIDTH];
-    let mut mask: LaneMask = 0;
-    for (lane, (col, row)) in group.lane_samples().into_iter().enumerate() {
-        if let Some(ray) = source.primary(col, row) {
-            rays[lane] = ray;
-            mask |= 1 << lane;
-        }
-    }
+    let (rays, mask) = source.primary_group(group);
     shader.shade(&rays, mask, 0, counts, observer)
 }
 
@@ -285,16 +295,33 @@ pub fn render_view(
     intersector: &dyn Intersector,
 ) -> (Frame, RayCounts) {
     let shader = Shader::new(scene, intersector);
-    let groups = image_groups(camera.width, camera.height);
-    let (colors, counts) = trace_groups(&shader, &RayTable::new(camera), &groups);
+    let table = RayTable::new(camera);
+    let width = camera.width as usize;
     let mut frame = Frame::new(camera.width, camera.height);
-    for (group, colors) in groups.iter().zip(&colors) {
-        for (lane, (col, row)) in group.lane_samples().into_iter().enumerate() {
-            if col < i64::from(camera.width) && row < i64::from(camera.height) {
-                frame.pixels[row as usize * camera.width as usize + col as usize] = colors[lane];
+    // Each band of GROUP_HEIGHT rows is written in place by the worker that
+    // traces it: no per-frame list of groups or of their colours (at 640x480
+    // those were megabytes, fresh pages to fault in on every frame).
+    let band = width * GROUP_HEIGHT as usize;
+    let counts = frame
+        .pixels
+        .par_chunks_mut(band)
+        .enumerate()
+        .map(|(index, pixels)| {
+            let row = (index * GROUP_HEIGHT as usize) as i64;
+            let mut counts = RayCounts::default();
+            for col in (0..width as i64).step_by(GROUP_WIDTH as usize) {
+                let group = SampleGroup { col, row };
+                let colors = trace_group(&shader, &table, group, &mut counts, None);
+                for (lane, (x, y)) in group.lane_samples().into_iter().enumerate() {
+                    let (x, y) = (x as usize, (y - row) as usize);
+                    if x < width && y * width + x < pixels.len() {
+                        pixels[y * width + x] = colors[lane];
+                    }
+                }
             }
-        }
-    }
+            counts
+        })
+        .reduce(RayCounts::default, |a, b| a + b);
     (frame, counts)
 }
 

@@ -6,10 +6,12 @@
 //! only on the packet it was traced in, so callers that need bit-exact
 //! repeats (the reuse algorithms) always trace the same groups of samples.
 
-use glam::Vec3;
+use glam::{Affine3A, Mat3A, Vec3};
 
 use crate::accel::Intersector;
-use crate::geometry::{plane_axes, transform_normal, Placement, Shape};
+use crate::geometry::{
+    normal_matrix, plane_axes, transform_normal, Object, Placement, Shape, TriangleMesh,
+};
 use crate::ray::{lanes, offset_origin, Hit, LaneMask, Ray, RayPacket, PACKET_WIDTH};
 use crate::scene::{Material, Scene};
 
@@ -62,7 +64,11 @@ pub trait RayObserver {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum RayKind {
     Primary,
-    Shadow,
+    /// Toward light number `light`; `blocked` lanes found an occluder.
+    Shadow {
+        light: usize,
+        blocked: LaneMask,
+    },
     Reflection,
 }
 
@@ -87,16 +93,100 @@ pub struct Surface {
 }
 
 impl Surface {
+    /// The surface `ray` met at `hit`. Shading itself goes through a
+    /// [`Shader`], which prepares every object's world-space data once.
     pub fn from_hit(scene: &Scene, ray: &Ray, hit: &Hit) -> Surface {
         let object = &scene.objects[hit.object as usize];
+        WorldShape::new(object).surface(ray, hit, object.material)
+    }
+}
+
+/// An object's shape as shading sees it: in world space, with everything
+/// that does not depend on the hit (instance transforms and their inverse
+/// transpose, sphere centres and radii, plane axes) worked out once.
+///
+/// The arithmetic per hit is the same, operation for operation, as working
+/// from the object's own description each time, so a surface comes out bit
+/// for bit the same either way.
+enum WorldShape<'a> {
+    Mesh {
+        mesh: &'a TriangleMesh,
+        transform: Option<Affine3A>,
+        /// Inverse transpose of the transform's linear part (for normals).
+        normal_matrix: Mat3A,
+    },
+    Sphere {
+        center: Vec3,
+        radius: f32,
+        /// Magnitude the hit point is computed from (for `offset_origin`).
+        scale: f32,
+    },
+    Plane {
+        origin: Vec3,
+        normal: Vec3,
+        u_axis: Vec3,
+        v_axis: Vec3,
+        /// `origin.abs().max_element()`.
+        origin_scale: f32,
+    },
+}
+
+impl<'a> WorldShape<'a> {
+    fn new(object: &'a Object) -> WorldShape<'a> {
         let transform = match object.placement {
             Placement::World => None,
             Placement::Instance(xf) => Some(xf),
         };
         let to_world = |p: Vec3| transform.map_or(p, |xf| xf.transform_point3(p));
-        let (point, normal, shading, scale, plane_uv) = match &object.shape {
-            Shape::Mesh(mesh) => {
-                let [a, b, c] = mesh.vertices(hit.prim).map(to_world);
+        match &object.shape {
+            Shape::Mesh(mesh) => WorldShape::Mesh {
+                mesh,
+                transform,
+                normal_matrix: transform.map_or(Mat3A::IDENTITY, |xf| normal_matrix(&xf)),
+            },
+            Shape::Sphere(sphere) => {
+                let center = to_world(sphere.center);
+                let radius = match transform {
+                    Some(xf) => sphere.radius * xf.matrix3.x_axis.length(),
+                    None => sphere.radius,
+                };
+                WorldShape::Sphere {
+                    center,
+                    radius,
+                    scale: center.abs().max_element() + radius,
+                }
+            }
+            Shape::Plane(plane) => {
+                let (origin, normal) = match transform {
+                    Some(xf) => (
+                        xf.transform_point3(plane.point),
+                        transform_normal(&xf, plane.normal),
+                    ),
+                    None => (plane.point, plane.normal),
+                };
+                let (u_axis, v_axis) = plane_axes(normal);
+                WorldShape::Plane {
+                    origin,
+                    normal,
+                    u_axis,
+                    v_axis,
+                    origin_scale: origin.abs().max_element(),
+                }
+            }
+        }
+    }
+
+    #[inline]
+    fn surface(&self, ray: &Ray, hit: &Hit, material: usize) -> Surface {
+        let (point, normal, shading, scale, plane_uv) = match self {
+            WorldShape::Mesh {
+                mesh,
+                transform,
+                normal_matrix,
+            } => {
+                let [a, b, c] = mesh
+                    .vertices(hit.prim)
+                    .map(|p| transform.map_or(p, |xf| xf.transform_point3(p)));
                 let (u, v) = (hit.u, hit.v);
                 let point = a * (1.0 - u - v) + b * u + c * v;
                 let normal = (b - a).cross(c - a).normalize();
@@ -108,7 +198,7 @@ impl Surface {
                         + mesh.normals[j as usize] * u
                         + mesh.normals[k as usize] * v;
                     let n = match transform {
-                        Some(xf) => transform_normal(&xf, n),
+                        Some(_) => normal_matrix.mul_vec3(n).normalize_or_zero(),
                         None => n,
                     };
                     let n = n.normalize_or_zero();
@@ -123,33 +213,26 @@ impl Surface {
                 let scale = a.abs().max(b.abs()).max(c.abs()).max_element();
                 (point, normal, shading, scale, None)
             }
-            Shape::Sphere(sphere) => {
-                let center = to_world(sphere.center);
-                let radius = match transform {
-                    Some(xf) => sphere.radius * xf.matrix3.x_axis.length(),
-                    None => sphere.radius,
-                };
+            &WorldShape::Sphere {
+                center,
+                radius,
+                scale,
+            } => {
                 let outward = (ray.at(hit.t) - center).normalize();
                 let point = center + outward * radius;
-                let scale = center.abs().max_element() + radius;
                 (point, outward, outward, scale, None)
             }
-            Shape::Plane(plane) => {
-                let (origin, normal) = match transform {
-                    Some(xf) => (
-                        xf.transform_point3(plane.point),
-                        transform_normal(&xf, plane.normal),
-                    ),
-                    None => (plane.point, plane.normal),
-                };
+            &WorldShape::Plane {
+                origin,
+                normal,
+                u_axis,
+                v_axis,
+                origin_scale,
+            } => {
                 let rough = ray.at(hit.t);
                 let point = rough - normal * normal.dot(rough - origin);
-                let (u_axis, v_axis) = plane_axes(normal);
                 let local = point - origin;
-                let scale = origin
-                    .abs()
-                    .max_element()
-                    .max(ray.origin.abs().max_element());
+                let scale = origin_scale.max(ray.origin.abs().max_element());
                 (
                     point,
                     normal,
@@ -166,12 +249,13 @@ impl Surface {
             geometric_normal,
             shading_normal: shading * facing,
             spawn_point: offset_origin(point, geometric_normal, scale),
-            material: object.material,
+            material,
             plane_uv,
         }
     }
 }
 
+#[inline]
 fn albedo(material: &Material, surface: &Surface) -> Vec3 {
     let Some(checker) = &material.checker else {
         return material.diffuse;
@@ -186,24 +270,41 @@ fn albedo(material: &Material, surface: &Surface) -> Vec3 {
     checker.colors[(parity & 1) as usize]
 }
 
-fn reflect(d: Vec3, n: Vec3) -> Vec3 {
-    d - n * (2.0 * d.dot(n))
-}
-
 /// Traces and shades packets for one scene through one intersector.
 pub struct Shader<'a> {
     scene: &'a Scene,
     intersector: &'a dyn Intersector,
+    /// Per object: its world-space shape for surface reconstruction.
+    shapes: Vec<WorldShape<'a>>,
     /// Per material: R.V below which its highlight is negligible.
     highlight_cutoffs: Vec<f32>,
     /// Per material: the Phong exponent when it is a whole number, so the
-    /// highlight is a few multiplications (powi) instead of a powf.
-    whole_exponents: Vec<Option<i32>>,
+    /// highlight is a few multiplications instead of a powf.
+    whole_exponents: Vec<Option<u32>>,
 }
 
-fn phong(r_dot_v: f32, shininess: f32, whole: Option<i32>) -> f32 {
+/// `x` to the power `n` by repeated squaring, the same multiplications in
+/// the same order as `f32::powi` (compiler-rt's `__powisf2`), so results
+/// are bit for bit those of `powi`; inlined here, where `powi` with an
+/// exponent only known at run time is an out-of-line call per highlight.
+#[inline]
+fn powi(mut x: f32, mut n: u32) -> f32 {
+    let mut result = if n & 1 != 0 { x } else { 1.0 };
+    n >>= 1;
+    while n != 0 {
+        x *= x;
+        if n & 1 != 0 {
+            result *= x;
+        }
+        n >>= 1;
+    }
+    result
+}
+
+#[inline]
+fn phong(r_dot_v: f32, shininess: f32, whole: Option<u32>) -> f32 {
     match whole {
-        Some(n) => r_dot_v.powi(n),
+        Some(n) => powi(r_dot_v, n),
         None => r_dot_v.powf(shininess),
     }
 }
@@ -213,6 +314,7 @@ impl<'a> Shader<'a> {
         Shader {
             scene,
             intersector,
+            shapes: scene.objects.iter().map(WorldShape::new).collect(),
             highlight_cutoffs: scene
                 .materials
                 .iter()
@@ -222,8 +324,8 @@ impl<'a> Shader<'a> {
                 .materials
                 .iter()
                 .map(|m| {
-                    (m.shininess.fract() == 0.0 && m.shininess <= 65_536.0)
-                        .then_some(m.shininess as i32)
+                    (m.shininess.fract() == 0.0 && (0.0..=65_536.0).contains(&m.shininess))
+                        .then_some(m.shininess as u32)
                 })
                 .collect(),
         }
@@ -231,6 +333,12 @@ impl<'a> Shader<'a> {
 
     /// Colours of the rays in `mask`; other lanes come back black. `depth`
     /// is the number of reflections so far (0 for primary rays).
+    ///
+    /// Surfaces are reconstructed lane by lane (each lane may hit a
+    /// different kind of object); lighting and reflection directions then
+    /// run on all eight lanes at once, by coordinate ([`Vec3Lanes`]), with
+    /// the lane masks choosing which results are kept. Per lane that is the
+    /// same arithmetic, in the same order, as shading one ray at a time.
     pub fn shade(
         &self,
         rays: &RayPacket,
@@ -240,9 +348,8 @@ impl<'a> Shader<'a> {
         mut observer: Option<&mut dyn RayObserver>,
     ) -> [Vec3; PACKET_WIDTH] {
         let scene = self.scene;
-        let mut colors = [Vec3::ZERO; PACKET_WIDTH];
         if mask == 0 {
-            return colors;
+            return [Vec3::ZERO; PACKET_WIDTH];
         }
         let traced = u64::from(mask.count_ones());
         if depth == 0 {
@@ -262,97 +369,260 @@ impl<'a> Shader<'a> {
             observer.traced(kind, rays, mask, &ends);
         }
 
-        let mut surfaces: [Option<Surface>; PACKET_WIDTH] = [None; PACKET_WIDTH];
+        let mut colors = Vec3Lanes::default();
+        let mut lanes_hit = HitLanes::default();
         let mut hit_mask: LaneMask = 0;
         for lane in lanes(mask) {
             match &hits[lane] {
-                None => colors[lane] = scene.background,
+                None => colors.set(lane, scene.background),
                 Some(hit) => {
-                    let surface = Surface::from_hit(scene, &rays[lane], hit);
-                    let material = &scene.materials[surface.material];
-                    colors[lane] = scene.ambient * albedo(material, &surface);
-                    surfaces[lane] = Some(surface);
+                    let object = hit.object as usize;
+                    let material = scene.objects[object].material;
+                    let surface = self.shapes[object].surface(&rays[lane], hit, material);
+                    let albedo = albedo(&scene.materials[material], &surface);
+                    colors.set(lane, scene.ambient * albedo);
+                    lanes_hit.set(lane, &surface, albedo, rays[lane].dir.normalize());
+                    lanes_hit.cutoff[lane] = self.highlight_cutoffs[material];
+                    lanes_hit.reflectivity[lane] = scene.materials[material].reflectivity;
                     hit_mask |= 1 << lane;
                 }
             }
         }
         if hit_mask == 0 {
-            return colors;
+            // All misses (common for reflections): the colours straight
+            // from registers. Read back from `colors`, whose lanes were just
+            // stored one by one, they would wait on store forwarding.
+            return std::array::from_fn(|lane| {
+                if mask & (1 << lane) != 0 {
+                    scene.background
+                } else {
+                    Vec3::ZERO
+                }
+            });
         }
 
-        for light in &scene.lights {
-            let mut shadow_rays = [Ray::INACTIVE; PACKET_WIDTH];
-            let mut lit_mask: LaneMask = 0;
-            for lane in lanes(hit_mask) {
-                let surface = surfaces[lane].as_ref().expect("hit lanes have surfaces");
-                let to_light = light.position - surface.point;
-                // A light behind the surface cannot light it: no ray needed.
-                if to_light.dot(surface.geometric_normal) <= 0.0 {
-                    continue;
-                }
-                let origin = surface.spawn_point;
-                // The segment ends at the light: dir spans it, so t < 1.
-                shadow_rays[lane] = Ray::segment(origin, light.position - origin, 1.0);
-                lit_mask |= 1 << lane;
-            }
+        for (light_index, light) in scene.lights.iter().enumerate() {
+            let h = &lanes_hit;
+            // A light behind the surface cannot light it: no ray needed.
+            let facing = h
+                .geometric_normal
+                .dot(&Vec3Lanes::splat(light.position).sub(&h.point));
+            let lit_mask = hit_mask & lanes_where(|lane| facing[lane] > 0.0);
             if lit_mask == 0 {
                 continue;
+            }
+            // The segment ends at the light: dir spans it, so t < 1.
+            let to_light = Vec3Lanes::splat(light.position).sub(&h.spawn_point);
+            let mut shadow_rays = [Ray::INACTIVE; PACKET_WIDTH];
+            for lane in lanes(lit_mask) {
+                shadow_rays[lane] = Ray::segment(h.spawn_point.get(lane), to_light.get(lane), 1.0);
             }
             counts.shadow += u64::from(lit_mask.count_ones());
             let blocked = self.intersector.occluded8(&shadow_rays, lit_mask);
             if let Some(observer) = observer.as_deref_mut() {
                 let ends = std::array::from_fn(|lane| shadow_rays[lane].tmax);
-                observer.traced(RayKind::Shadow, &shadow_rays, lit_mask, &ends);
-            }
-            for lane in lanes(lit_mask & !blocked) {
-                let surface = surfaces[lane].as_ref().expect("lit lanes have surfaces");
-                let material = &scene.materials[surface.material];
-                let n = surface.shading_normal;
-                let l = shadow_rays[lane].dir.normalize();
-                let n_dot_l = n.dot(l).max(0.0);
-                let view = -rays[lane].dir.normalize();
-                let r_dot_v = reflect(-l, n).dot(view);
-                // Below the cutoff the highlight is under 1e-5: skip the powf.
-                let specular = if r_dot_v > self.highlight_cutoffs[surface.material] {
-                    material.specular
-                        * phong(
-                            r_dot_v,
-                            material.shininess,
-                            self.whole_exponents[surface.material],
-                        )
-                } else {
-                    Vec3::ZERO
+                let kind = RayKind::Shadow {
+                    light: light_index,
+                    blocked,
                 };
-                colors[lane] += light.power * (albedo(material, surface) * n_dot_l + specular);
+                observer.traced(kind, &shadow_rays, lit_mask, &ends);
             }
+            let shaded = lit_mask & !blocked;
+            if shaded == 0 {
+                continue;
+            }
+            let n = &h.shading_normal;
+            let l = to_light.normalize();
+            let n_dot_l = n.dot(&l).map(|c| c.max(0.0));
+            let view = h.direction.neg();
+            let r_dot_v = reflect_lanes(&l.neg(), n).dot(&view);
+            // Below the cutoff the highlight is under 1e-5: skip the powf.
+            let mut specular = Vec3Lanes::default();
+            for lane in lanes(shaded & lanes_where(|lane| r_dot_v[lane] > h.cutoff[lane])) {
+                let material = h.material[lane] as usize;
+                specular.set(
+                    lane,
+                    scene.materials[material].specular
+                        * phong(
+                            r_dot_v[lane],
+                            scene.materials[material].shininess,
+                            self.whole_exponents[material],
+                        ),
+                );
+            }
+            let power = light.power;
+            let add = |color: &mut Lanes, power: f32, albedo: &Lanes, specular: &Lanes| {
+                *color = std::array::from_fn(|lane| {
+                    let term = power * (albedo[lane] * n_dot_l[lane] + specular[lane]);
+                    if shaded & (1 << lane) != 0 {
+                        color[lane] + term
+                    } else {
+                        color[lane]
+                    }
+                });
+            };
+            add(&mut colors.x, power.x, &h.albedo.x, &specular.x);
+            add(&mut colors.y, power.y, &h.albedo.y, &specular.y);
+            add(&mut colors.z, power.z, &h.albedo.z, &specular.z);
         }
 
+        let mut colors = colors.vectors();
         if depth < scene.max_depth {
-            let mut reflected = [Ray::INACTIVE; PACKET_WIDTH];
-            let mut mirror_mask: LaneMask = 0;
-            for lane in lanes(hit_mask) {
-                let surface = surfaces[lane].as_ref().expect("hit lanes have surfaces");
-                if scene.materials[surface.material].reflectivity <= 0.0 {
-                    continue;
-                }
-                let d = rays[lane].dir.normalize();
-                let mut r = reflect(d, surface.shading_normal);
-                // Interpolated normals can bend a reflection into the surface.
-                if r.dot(surface.geometric_normal) <= 0.0 {
-                    r = reflect(d, surface.geometric_normal);
-                }
-                reflected[lane] = Ray::new(surface.spawn_point, r);
-                mirror_mask |= 1 << lane;
-            }
+            let h = &lanes_hit;
+            // Scene numbers are finite (a `Scene` promise), so no NaN to exclude.
+            let mirror_mask = hit_mask & lanes_where(|lane| h.reflectivity[lane] > 0.0);
             if mirror_mask != 0 {
+                let d = &h.direction;
+                let by_shading = reflect_lanes(d, &h.shading_normal);
+                let by_geometry = reflect_lanes(d, &h.geometric_normal);
+                // Interpolated normals can bend a reflection into the surface.
+                let bent = by_shading.dot(&h.geometric_normal);
+                let mut reflected = [Ray::INACTIVE; PACKET_WIDTH];
+                for lane in lanes(mirror_mask) {
+                    let r = if bent[lane] <= 0.0 {
+                        by_geometry.get(lane)
+                    } else {
+                        by_shading.get(lane)
+                    };
+                    reflected[lane] = Ray::new(h.spawn_point.get(lane), r);
+                }
                 let mirrored = self.shade(&reflected, mirror_mask, depth + 1, counts, observer);
                 for lane in lanes(mirror_mask) {
-                    let surface = surfaces[lane].as_ref().expect("mirror lanes have surfaces");
-                    let k = scene.materials[surface.material].reflectivity;
+                    let k = h.reflectivity[lane];
                     colors[lane] = colors[lane] * (1.0 - k) + mirrored[lane] * k;
                 }
             }
         }
         colors
+    }
+}
+
+type Lanes = [f32; PACKET_WIDTH];
+
+/// The mask of lanes where `test` holds.
+#[inline]
+fn lanes_where(test: impl Fn(usize) -> bool) -> LaneMask {
+    (0..PACKET_WIDTH).fold(0, |acc, lane| acc | (u8::from(test(lane)) << lane))
+}
+
+/// Eight vectors stored by coordinate, so arithmetic on all lanes at once
+/// vectorizes. Each operation is glam's, lane by lane, with the same
+/// operations in the same order (a dot product is `x*x' + y*y' + z*z'`, a
+/// normalization multiplies by `1 / sqrt(dot)`), so results are bit for bit
+/// those of [`Vec3`].
+#[derive(Clone, Copy, Default)]
+struct Vec3Lanes {
+    x: Lanes,
+    y: Lanes,
+    z: Lanes,
+}
+
+impl Vec3Lanes {
+    #[inline]
+    fn splat(v: Vec3) -> Vec3Lanes {
+        Vec3Lanes {
+            x: [v.x; PACKET_WIDTH],
+            y: [v.y; PACKET_WIDTH],
+            z: [v.z; PACKET_WIDTH],
+        }
+    }
+
+    #[inline]
+    fn get(&self, lane: usize) -> Vec3 {
+        Vec3::new(self.x[lane], self.y[lane], self.z[lane])
+    }
+
+    #[inline]
+    fn set(&mut self, lane: usize, v: Vec3) {
+        self.x[lane] = v.x;
+        self.y[lane] = v.y;
+        self.z[lane] = v.z;
+    }
+
+    #[inline]
+    fn vectors(&self) -> [Vec3; PACKET_WIDTH] {
+        std::array::from_fn(|lane| self.get(lane))
+    }
+
+    #[inline]
+    fn zip(&self, other: &Vec3Lanes, f: impl Fn(f32, f32) -> f32) -> Vec3Lanes {
+        Vec3Lanes {
+            x: std::array::from_fn(|i| f(self.x[i], other.x[i])),
+            y: std::array::from_fn(|i| f(self.y[i], other.y[i])),
+            z: std::array::from_fn(|i| f(self.z[i], other.z[i])),
+        }
+    }
+
+    #[inline]
+    fn sub(&self, other: &Vec3Lanes) -> Vec3Lanes {
+        self.zip(other, |a, b| a - b)
+    }
+
+    #[inline]
+    fn neg(&self) -> Vec3Lanes {
+        Vec3Lanes {
+            x: self.x.map(|c| -c),
+            y: self.y.map(|c| -c),
+            z: self.z.map(|c| -c),
+        }
+    }
+
+    /// Each lane times its own scalar.
+    #[inline]
+    fn scale(&self, s: &Lanes) -> Vec3Lanes {
+        Vec3Lanes {
+            x: std::array::from_fn(|i| self.x[i] * s[i]),
+            y: std::array::from_fn(|i| self.y[i] * s[i]),
+            z: std::array::from_fn(|i| self.z[i] * s[i]),
+        }
+    }
+
+    #[inline]
+    fn dot(&self, other: &Vec3Lanes) -> Lanes {
+        std::array::from_fn(|i| {
+            (self.x[i] * other.x[i]) + (self.y[i] * other.y[i]) + (self.z[i] * other.z[i])
+        })
+    }
+
+    #[inline]
+    fn normalize(&self) -> Vec3Lanes {
+        let recip = self.dot(self).map(|d| 1.0 / d.sqrt());
+        self.scale(&recip)
+    }
+}
+
+/// `d` mirrored about `n`, lane by lane: `d - n * (2 (d.n))`.
+#[inline]
+fn reflect_lanes(d: &Vec3Lanes, n: &Vec3Lanes) -> Vec3Lanes {
+    let twice = d.dot(n).map(|c| 2.0 * c);
+    d.sub(&n.scale(&twice))
+}
+
+/// What lighting and reflection need of each lane's hit, by coordinate.
+#[derive(Default)]
+struct HitLanes {
+    point: Vec3Lanes,
+    geometric_normal: Vec3Lanes,
+    shading_normal: Vec3Lanes,
+    spawn_point: Vec3Lanes,
+    albedo: Vec3Lanes,
+    /// The incoming ray's unit direction.
+    direction: Vec3Lanes,
+    material: [u32; PACKET_WIDTH],
+    /// The material's highlight cutoff and reflectivity.
+    cutoff: Lanes,
+    reflectivity: Lanes,
+}
+
+impl HitLanes {
+    #[inline]
+    fn set(&mut self, lane: usize, surface: &Surface, albedo: Vec3, direction: Vec3) {
+        self.point.set(lane, surface.point);
+        self.geometric_normal.set(lane, surface.geometric_normal);
+        self.shading_normal.set(lane, surface.shading_normal);
+        self.spawn_point.set(lane, surface.spawn_point);
+        self.albedo.set(lane, albedo);
+        self.direction.set(lane, direction);
+        self.material[lane] = surface.material as u32;
     }
 }

@@ -5,7 +5,7 @@ use std::path::Path;
 use std::process::Command;
 
 use retrace::accel::Accelerator;
-use retrace::anim::{count_differences, Animator, Techniques};
+use retrace::anim::{Animator, Techniques};
 use retrace::scene::{paper_scene, parse_scene_str, Scene, SceneOverrides};
 
 mod common;
@@ -28,35 +28,17 @@ fn key(frame: u32, fields: &str) -> String {
 }
 
 /// Renders every frame with `techniques`, checks each against a full render
-/// bit for bit, and returns the samples traced.
+/// bit for bit, and returns the samples traced and each frame's mode.
 fn run_exact(
     scene: &Scene,
     backend: retrace::accel::BackendKind,
     techniques: Techniques,
 ) -> (u64, Vec<String>) {
-    let mut accel = Accelerator::build(backend, &scene.objects).unwrap();
-    let frames = scene.animation.as_ref().unwrap().frames;
-    let mut animator = Animator::new(scene, &mut accel, techniques, 0..frames);
-    let mut traced = 0;
-    let mut modes = Vec::new();
-    for frame in 0..frames {
-        let (image, rgb, stats) = animator.render(frame);
-        let image = image.unwrap();
-        let (reference, _) = animator.render_full(frame);
-        assert_eq!(
-            count_differences(&image, &reference),
-            0,
-            "frame {frame} differs from its full render"
-        );
-        assert_eq!(
-            rgb,
-            reference.to_rgb8(),
-            "frame {frame}: 8-bit output differs"
-        );
-        traced += stats.samples_traced;
-        modes.push(stats.mode.to_string());
-    }
-    (traced, modes)
+    let stats = common::run_exact(scene, backend, techniques);
+    (
+        stats.iter().map(|s| s.samples_traced).sum(),
+        stats.iter().map(|s| s.mode.to_string()).collect(),
+    )
 }
 
 on_every_backend! {

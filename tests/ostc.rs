@@ -5,8 +5,8 @@
 use std::path::Path;
 
 use proptest::prelude::*;
-use retrace::accel::{Accelerator, BackendKind};
-use retrace::anim::{count_differences, Animator, FrameStats, Techniques};
+use retrace::accel::BackendKind;
+use retrace::anim::{FrameStats, Techniques};
 use retrace::camera::Projection;
 use retrace::scene::{parse_scene_str, Scene, SceneOverrides};
 
@@ -40,28 +40,7 @@ radius = 0.5
 material = "bouncer"
 "#;
 
-/// Renders every frame with `techniques`, checks each against a full
-/// render bit for bit (linear colour and 8-bit output), returns the stats.
-fn run_exact(scene: &Scene, backend: BackendKind, techniques: Techniques) -> Vec<FrameStats> {
-    let mut accel = Accelerator::build(backend, &scene.objects).unwrap();
-    let frames = scene.animation.as_ref().unwrap().frames;
-    let mut animator = Animator::new(scene, &mut accel, techniques, 0..frames);
-    let mut all = Vec::new();
-    for frame in 0..frames {
-        let (image, rgb, stats) = animator.render(frame);
-        let image = image.unwrap();
-        let (reference, _) = animator.render_full(frame);
-        assert_eq!(
-            count_differences(&image, &reference),
-            0,
-            "frame {frame} ({}) differs from its full render",
-            stats.mode
-        );
-        assert_eq!(rgb, reference.to_rgb8(), "frame {frame}: 8-bit output");
-        all.push(stats);
-    }
-    all
-}
+use common::run_exact;
 
 fn traced(stats: &[FrameStats]) -> u64 {
     stats.iter().map(|s| s.samples_traced).sum()
@@ -95,6 +74,21 @@ on_every_backend! {
         // The sky above the horizon keeps its samples.
         assert!(stats[1..].iter().all(|s| s.samples_traced < 64 * 48), "{:?}", stats.iter().map(|s| s.samples_traced).collect::<Vec<_>>());
         assert!(stats[1..].iter().all(|s| s.dirty_regions > 0));
+    }
+
+    a_recoloured_light_retraces_only_what_it_lit(backend) {
+        // Light 1 below the ground plane: every shadow ray toward it is
+        // blocked, so it lights nothing in view.
+        let light = |change: &str| paper_with(
+            &format!("[animation]\nframes = 3\n[[animation.light]]\nlight = 1\nframe = 0\nposition = [2.0, -5.0, 3.0]\n[[animation.light]]\nlight = 1\nframe = 2\n{change}\n"),
+            64,
+            48,
+        );
+        let recoloured = run_exact(&light("color = [1.0, 0.2, 0.2]"), backend, Techniques::AUTO);
+        assert_eq!(traced(&recoloured[1..]), 0, "a light that lit nothing re-traced samples");
+        let moved = run_exact(&light("position = [3.0, -4.0, 2.0]"), backend, Techniques::AUTO);
+        // A moved light may now light anything it could face.
+        assert!(moved[1..].iter().all(|s| s.dirty_regions > 0));
     }
 
     pan_and_motion_together_stay_exact(backend) {

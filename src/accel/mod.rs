@@ -10,7 +10,7 @@ pub mod grid;
 use std::fmt;
 use std::str::FromStr;
 
-use crate::geometry::{intersect_plane, transform_normal, Object, Placement, Plane, Shape};
+use crate::geometry::{plane_distance, transform_normal, Object, Placement, Plane, Shape};
 use crate::ray::{lanes, Hit, HitPacket, LaneMask, Ray, RayPacket, PACKET_WIDTH};
 
 /// Closest-hit and any-hit queries, one ray or an 8-wide packet at a time.
@@ -94,7 +94,7 @@ impl Backend {
 /// A backend plus the scene's infinite planes: what the renderer traces.
 pub struct Accelerator {
     bounded: Backend,
-    planes: Vec<(u32, Plane)>,
+    planes: Vec<PlaneTest>,
     kind: BackendKind,
 }
 
@@ -129,6 +129,11 @@ impl Accelerator {
                     },
                 )),
                 _ => None,
+            })
+            .map(|(object, plane)| PlaneTest {
+                object,
+                plane,
+                axis: plane.axis(),
             })
             .collect();
         Ok(Accelerator {
@@ -165,12 +170,12 @@ impl Accelerator {
 
     fn nearest_plane(&self, ray: &Ray, tmax: f32) -> Option<Hit> {
         let mut best: Option<Hit> = None;
-        for &(object, ref plane) in &self.planes {
+        for plane in &self.planes {
             let limit = best.map_or(tmax, |h| h.t);
-            if let Some(t) = intersect_plane(plane, ray.origin, ray.dir, ray.tmin, limit) {
+            if let Some(t) = plane.intersect(ray, limit) {
                 best = Some(Hit {
                     t,
-                    object,
+                    object: plane.object,
                     prim: 0,
                     u: 0.0,
                     v: 0.0,
@@ -179,28 +184,117 @@ impl Accelerator {
         }
         best
     }
+}
 
-    /// For each plane, its hit distance in every lane (infinity where it
-    /// misses), computed lane-parallel so the compiler can vectorize it.
-    /// Same arithmetic as [`intersect_plane`], so single rays and packets
-    /// agree bit for bit.
-    fn plane_distances(
-        plane: &Plane,
+/// An infinite plane of the scene, ready for ray tests.
+struct PlaneTest {
+    object: u32,
+    plane: Plane,
+    /// [`Plane::axis`], found once.
+    axis: Option<usize>,
+}
+
+impl PlaneTest {
+    fn intersect(&self, ray: &Ray, tmax: f32) -> Option<f32> {
+        let t = plane_distance(&self.plane, self.axis, ray.origin, ray.dir);
+        (t > ray.tmin && t < tmax).then_some(t)
+    }
+
+    /// The plane's hit distance in every lane (infinity where it misses),
+    /// with the arithmetic of [`plane_distance`] operation for operation,
+    /// so single rays and packets agree bit for bit. Planes along an axis
+    /// read one coordinate per lane; others work lane-parallel on the
+    /// packet's columns, gathered on first need into `columns`.
+    #[inline]
+    fn distances(
+        &self,
         rays: &RayPacket,
+        columns: &mut Option<PacketColumns>,
         tmax: &[f32; PACKET_WIDTH],
     ) -> [f32; PACKET_WIDTH] {
-        std::array::from_fn(|lane| {
-            let ray = &rays[lane];
-            let denom = plane.normal.dot(ray.dir);
-            let t = plane.normal.dot(plane.point - ray.origin) / denom;
-            let valid = denom != 0.0 && denom.is_finite() && t > ray.tmin && t < tmax[lane];
-            if valid {
-                t
-            } else {
-                f32::INFINITY
+        let point = self.plane.point;
+        match self.axis {
+            Some(0) => axis_distances::<0>(point.x, rays, tmax),
+            Some(1) => axis_distances::<1>(point.y, rays, tmax),
+            Some(_) => axis_distances::<2>(point.z, rays, tmax),
+            None => {
+                let columns = columns.get_or_insert_with(|| PacketColumns::new(rays));
+                let n = self.plane.normal;
+                std::array::from_fn(|lane| {
+                    let denom = n.x * columns.dir[0][lane]
+                        + n.y * columns.dir[1][lane]
+                        + n.z * columns.dir[2][lane];
+                    let t = (n.x * (point.x - columns.origin[0][lane])
+                        + n.y * (point.y - columns.origin[1][lane])
+                        + n.z * (point.z - columns.origin[2][lane]))
+                        / denom;
+                    in_range(denom, t, columns.tmin[lane], tmax[lane])
+                })
             }
-        })
+        }
     }
+}
+
+/// `t` if the denominator it came from is usable and `t` lies in the
+/// ray's range, infinity otherwise.
+#[inline]
+fn in_range(denom: f32, t: f32, tmin: f32, tmax: f32) -> f32 {
+    // `&`, not `&&`: one select instead of four unpredictable branches.
+    if (denom != 0.0) & denom.is_finite() & (t > tmin) & (t < tmax) {
+        t
+    } else {
+        f32::INFINITY
+    }
+}
+
+/// Distances to the plane `coordinate K == point` in every lane.
+#[inline]
+fn axis_distances<const K: usize>(
+    point: f32,
+    rays: &RayPacket,
+    tmax: &[f32; PACKET_WIDTH],
+) -> [f32; PACKET_WIDTH] {
+    std::array::from_fn(|lane| {
+        let ray = &rays[lane];
+        let denom = ray.dir[K];
+        let t = (point - ray.origin[K]) / denom;
+        in_range(denom, t, ray.tmin, tmax[lane])
+    })
+}
+
+/// A packet's origins, directions and `tmin` by coordinate (one array of
+/// eight lanes each), the layout lane-parallel arithmetic wants.
+struct PacketColumns {
+    origin: [[f32; PACKET_WIDTH]; 3],
+    dir: [[f32; PACKET_WIDTH]; 3],
+    tmin: [f32; PACKET_WIDTH],
+}
+
+impl PacketColumns {
+    #[inline]
+    fn new(rays: &RayPacket) -> PacketColumns {
+        PacketColumns {
+            origin: [
+                rays.map(|r| r.origin.x),
+                rays.map(|r| r.origin.y),
+                rays.map(|r| r.origin.z),
+            ],
+            dir: [
+                rays.map(|r| r.dir.x),
+                rays.map(|r| r.dir.y),
+                rays.map(|r| r.dir.z),
+            ],
+            tmin: rays.map(|r| r.tmin),
+        }
+    }
+}
+
+/// Lanes whose distance is finite, as a mask.
+#[inline]
+fn finite_lanes(distances: &[f32; PACKET_WIDTH]) -> LaneMask {
+    distances.iter().enumerate().fold(0, |acc, (lane, t)| {
+        acc | (u8::from(*t < f32::INFINITY) << lane)
+    })
 }
 
 impl Intersector for Accelerator {
@@ -211,39 +305,43 @@ impl Intersector for Accelerator {
     }
 
     fn occluded(&self, ray: &Ray) -> bool {
-        let blocked_by_plane = self.planes.iter().any(|(_, plane)| {
-            intersect_plane(plane, ray.origin, ray.dir, ray.tmin, ray.tmax).is_some()
-        });
+        let blocked_by_plane = self
+            .planes
+            .iter()
+            .any(|plane| plane.intersect(ray, ray.tmax).is_some());
         blocked_by_plane || self.bounded.intersector().occluded(ray)
     }
 
     fn intersect8(&self, rays: &RayPacket, mask: LaneMask, hits: &mut HitPacket) {
         self.bounded.intersector().intersect8(rays, mask, hits);
-        for &(object, ref plane) in &self.planes {
-            let limits: [f32; PACKET_WIDTH] =
-                std::array::from_fn(|lane| hits[lane].map_or(rays[lane].tmax, |h| h.t));
-            let distances = Self::plane_distances(plane, rays, &limits);
-            for lane in lanes(mask) {
-                if distances[lane] < f32::INFINITY {
-                    hits[lane] = Some(Hit {
-                        t: distances[lane],
-                        object,
-                        prim: 0,
-                        u: 0.0,
-                        v: 0.0,
-                    });
-                }
+        if self.planes.is_empty() {
+            return;
+        }
+        let mut columns = None;
+        let mut limits: [f32; PACKET_WIDTH] =
+            std::array::from_fn(|lane| hits[lane].map_or(rays[lane].tmax, |h| h.t));
+        for plane in &self.planes {
+            let distances = plane.distances(rays, &mut columns, &limits);
+            for lane in lanes(mask & finite_lanes(&distances)) {
+                limits[lane] = distances[lane];
+                hits[lane] = Some(Hit {
+                    t: distances[lane],
+                    object: plane.object,
+                    prim: 0,
+                    u: 0.0,
+                    v: 0.0,
+                });
             }
         }
     }
 
     fn occluded8(&self, rays: &RayPacket, mask: LaneMask) -> LaneMask {
-        let tmax: [f32; PACKET_WIDTH] = std::array::from_fn(|lane| rays[lane].tmax);
         let mut by_planes: LaneMask = 0;
-        for (_, plane) in &self.planes {
-            let distances = Self::plane_distances(plane, rays, &tmax);
-            for (lane, t) in distances.iter().enumerate() {
-                by_planes |= u8::from(*t < f32::INFINITY) << lane;
+        if !self.planes.is_empty() {
+            let mut columns = None;
+            let tmax: [f32; PACKET_WIDTH] = rays.map(|r| r.tmax);
+            for plane in &self.planes {
+                by_planes |= finite_lanes(&plane.distances(rays, &mut columns, &tmax));
             }
         }
         let by_planes = by_planes & mask;

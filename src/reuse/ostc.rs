@@ -21,10 +21,13 @@
 //! - Nothing is built that the timeline does not need: no voxel grid when
 //!   no object moves, no per-region light bookkeeping when no light moves.
 //!
-//! A moved light dirties every region with a sample whose primary ray hit a
-//! surface: without attenuation any lit or unlit surface may change when a
-//! point light moves (N.L <= 0 included, since a surface can turn toward
-//! it), so only the background is safe.
+//! A light that moves dirties every region with a sample whose primary ray
+//! hit a surface: without attenuation any lit or unlit surface may change
+//! when a point light moves (N.L <= 0 included, since a surface can turn
+//! toward it), so only the background is safe. A light that only changes
+//! colour or intensity dirties just the regions where one of its shadow
+//! rays got through (kept per animated light): a sample it did not light
+//! before, it does not light now.
 
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Instant;
@@ -176,32 +179,30 @@ struct VoxelBits {
 }
 
 impl VoxelBits {
-    /// False only if the segment surely misses the grid: a slab test in
-    /// f64 against the grid's box grown by far more than f64's rounding,
-    /// so most rays that never come near the moving objects cost this
-    /// alone.
+    /// False only if the segment surely misses the grid's box: a slab
+    /// test in f32 that rejects only when the gap between entry and exit
+    /// is far beyond the few ulps of rounding each `t` carries. Most rays
+    /// never come near the moving objects and cost this alone.
     fn may_cross(&self, origin: Vec3, dir: Vec3, t0: f32, t1: f32) -> bool {
-        let (o, d) = (origin.as_dvec3(), dir.as_dvec3());
-        let b = &self.spec.bounds;
-        let (lo, hi) = (b.min.as_dvec3(), b.max.as_dvec3());
-        let magnitude = lo.abs().max(hi.abs()).max(o.abs()).max_element();
-        let pad = 1e-9 * (magnitude + (hi - lo).max_element()) + 1e-30;
-        let (lo, hi) = (lo - pad, hi + pad);
-        let (mut enter, mut exit) = (f64::from(t0), f64::from(t1));
+        let (lo, hi) = (self.spec.bounds.min, self.spec.bounds.max);
+        let (mut enter, mut exit) = (t0, t1);
         for axis in 0..3 {
-            if d[axis] == 0.0 {
-                if o[axis] < lo[axis] || o[axis] > hi[axis] {
+            let (o, d) = (origin[axis], dir[axis]);
+            let inv = 1.0 / d;
+            if !inv.is_finite() {
+                // Parallel to the slabs (a zero or subnormal component).
+                if o < lo[axis] || o > hi[axis] {
                     return false;
                 }
                 continue;
             }
-            let inv = 1.0 / d[axis];
-            let (a, z) = ((lo[axis] - o[axis]) * inv, (hi[axis] - o[axis]) * inv);
+            let (a, z) = ((lo[axis] - o) * inv, (hi[axis] - o) * inv);
             enter = enter.max(a.min(z));
             exit = exit.min(a.max(z));
         }
-        // NaN (from a NaN ray) is unordered: walk it and let the walk decide.
-        enter.partial_cmp(&exit) != Some(std::cmp::Ordering::Greater)
+        let margin = (enter.abs() + exit.abs()) * 1e-5 + f32::MIN_POSITIVE;
+        // NaN is unordered: walk it and let the walk decide.
+        enter.partial_cmp(&(exit + margin)) != Some(std::cmp::Ordering::Greater)
     }
 }
 
@@ -214,8 +215,11 @@ pub struct Ostc {
     layout: RegionLayout,
     voxels: Option<VoxelBits>,
     /// Regions with a sample whose primary ray hit something; kept only
-    /// when a light moves.
-    lit: Option<Vec<AtomicU64>>,
+    /// when a light is animated.
+    hit: Option<Vec<AtomicU64>>,
+    /// Per light, for animated lights only: regions with a sample one of
+    /// whose shadow rays to that light got through.
+    lit_by: Vec<Option<Vec<AtomicU64>>>,
     voxels_walked: AtomicU64,
     record_nanos: AtomicU64,
 }
@@ -228,9 +232,15 @@ pub const DEFAULT_VOXELS: u32 = 4096;
 impl Ostc {
     /// Bookkeeping for a buffer tiled by `layout`: a grid of about `voxels`
     /// voxels over `swept` (the bounds every animated object passes through
-    /// over the whole animation; None when no object moves), and the lit
-    /// regions when `lights_move`.
-    pub fn new(layout: RegionLayout, swept: Option<Aabb>, voxels: u32, lights_move: bool) -> Ostc {
+    /// over the whole animation; None when no object moves), and the light
+    /// bookkeeping for the lights flagged in `animated_lights` (one flag
+    /// per scene light).
+    pub fn new(
+        layout: RegionLayout,
+        swept: Option<Aabb>,
+        voxels: u32,
+        animated_lights: &[bool],
+    ) -> Ostc {
         let words = layout.count().div_ceil(64);
         let voxels = swept
             .filter(|b| !b.is_empty() && b.is_finite())
@@ -247,7 +257,11 @@ impl Ostc {
         Ostc {
             layout,
             voxels,
-            lit: lights_move.then(|| (0..words).map(|_| AtomicU64::new(0)).collect()),
+            hit: animated_lights.contains(&true).then(|| atomic_words(words)),
+            lit_by: animated_lights
+                .iter()
+                .map(|&animated| animated.then(|| atomic_words(words)))
+                .collect(),
             voxels_walked: AtomicU64::new(0),
             record_nanos: AtomicU64::new(0),
         }
@@ -302,11 +316,18 @@ impl Ostc {
         dirty
     }
 
-    /// Regions a moved light can change (see the module notes).
-    pub fn dirty_for_lights(&self) -> RegionSet {
+    /// Regions light number `light` can change: if it `moved`, every
+    /// region with a surface hit, else (a new colour or intensity) the
+    /// regions it lit (see the module notes).
+    pub fn dirty_for_light(&self, light: usize, moved: bool) -> RegionSet {
         let mut dirty = RegionSet::empty(self.layout.count());
-        match &self.lit {
-            Some(lit) => dirty.union_atomic(lit),
+        let tracked = if moved {
+            self.hit.as_ref()
+        } else {
+            self.lit_by.get(light).and_then(Option::as_ref)
+        };
+        match tracked {
+            Some(words) => dirty.union_atomic(words),
             // Not tracked: every region may change.
             None => (0..self.layout.count()).for_each(|r| dirty.insert(r)),
         }
@@ -327,8 +348,9 @@ impl Ostc {
                 }
             }
         }
-        if let Some(lit) = &mut self.lit {
-            for (bits, keep) in lit.iter_mut().zip(&keep) {
+        let light_sets = self.lit_by.iter_mut().flatten();
+        for set in self.hit.iter_mut().chain(light_sets) {
+            for (bits, keep) in set.iter_mut().zip(&keep) {
                 *bits.get_mut() &= keep;
             }
         }
@@ -378,6 +400,10 @@ impl Footprint {
     }
 }
 
+fn atomic_words(count: usize) -> Vec<AtomicU64> {
+    (0..count).map(|_| AtomicU64::new(0)).collect()
+}
+
 /// Grows a box by a little relative to its size and position: covers the
 /// rounding of transformed bounds.
 fn padded_outward(b: Aabb) -> Aabb {
@@ -413,10 +439,22 @@ impl RayObserver for RegionMarker<'_> {
     ) {
         let word = self.region / 64;
         let bit = 1u64 << (self.region % 64);
-        if let (RayKind::Primary, Some(lit)) = (kind, &self.ostc.lit) {
-            if lanes(mask).any(|lane| ends[lane] < rays[lane].tmax) {
-                lit[word].fetch_or(bit, Ordering::Relaxed);
+        match kind {
+            RayKind::Primary => {
+                if let Some(hit) = &self.ostc.hit {
+                    if lanes(mask).any(|lane| ends[lane] < rays[lane].tmax) {
+                        hit[word].fetch_or(bit, Ordering::Relaxed);
+                    }
+                }
             }
+            RayKind::Shadow { light, blocked } => {
+                if let Some(Some(lit)) = self.ostc.lit_by.get(light) {
+                    if mask & !blocked != 0 {
+                        lit[word].fetch_or(bit, Ordering::Relaxed);
+                    }
+                }
+            }
+            RayKind::Reflection => {}
         }
         let Some(voxels) = &self.ostc.voxels else {
             return;
@@ -472,6 +510,7 @@ impl Drop for RegionMarker<'_> {
 mod tests {
     use super::*;
     use crate::ray::Ray;
+    use proptest::prelude::{prop_oneof, Just};
 
     fn layout() -> RegionLayout {
         RegionLayout::new(RegionGrid(16).region_size(640, 480), 2304, 10, 482)
@@ -512,7 +551,7 @@ mod tests {
             min: Vec3::new(-1.0, 0.0, -1.0),
             max: Vec3::new(1.0, 2.0, 1.0),
         };
-        let mut ostc = Ostc::new(layout(), Some(swept), 4096, false);
+        let mut ostc = Ostc::new(layout(), Some(swept), 4096, &[false]);
         let group = SampleGroup { col: 44, row: 40 };
         let region = ostc.layout().region_of(44, 40);
         {
@@ -563,26 +602,65 @@ mod tests {
         assert!(ostc.dirty_for(&[near(-0.5)]).is_empty());
     }
 
+    proptest::proptest! {
+        /// The cheap box test never rejects a segment the walk would mark
+        /// a voxel for.
+        #[test]
+        fn box_test_rejects_only_segments_that_miss(
+            origin in proptest::array::uniform3(-6.0f32..6.0),
+            target in proptest::array::uniform3(-3.0f32..3.0),
+            axis_zero in 0usize..4,
+            t1 in prop_oneof![0.1f32..3.0, Just(f32::INFINITY)],
+        ) {
+            let bounds = Aabb { min: Vec3::new(-1.0, 0.0, -1.0), max: Vec3::new(1.0, 2.0, 1.0) };
+            let ostc = Ostc::new(layout(), Some(bounds), 512, &[]);
+            let voxels = ostc.voxels.as_ref().unwrap();
+            let origin = Vec3::from(origin);
+            let mut dir = Vec3::from(target) - origin;
+            if axis_zero < 3 {
+                dir[axis_zero] = 0.0;
+            }
+            let walked = voxels.spec.walk(origin, dir, 0.0, t1).next().is_some();
+            proptest::prop_assert!(!walked || voxels.may_cross(origin, dir, 0.0, t1));
+        }
+    }
+
     #[test]
-    fn lights_dirty_the_regions_with_hits_only_when_tracked() {
-        let ostc = Ostc::new(layout(), None, 4096, true);
+    fn lights_dirty_hit_regions_when_moved_and_lit_regions_when_recoloured() {
+        // Two lights, the second animated.
+        let ostc = Ostc::new(layout(), None, 4096, &[false, true]);
         assert!(ostc.grid().is_none(), "no moving object: no voxel grid");
         let mut rays = [Ray::INACTIVE; PACKET_WIDTH];
         rays[0] = Ray::new(Vec3::ZERO, Vec3::X);
-        let hit = {
-            let mut ends = [f32::INFINITY; PACKET_WIDTH];
-            ends[0] = 3.0;
-            ends
-        };
-        ostc.marker(SampleGroup { col: 0, row: 10 })
-            .traced(RayKind::Primary, &rays, 1, &hit);
-        ostc.marker(SampleGroup { col: 40, row: 10 }).traced(
+        rays[1] = Ray::new(Vec3::ZERO, Vec3::Y);
+        let mut hit = [f32::INFINITY; PACKET_WIDTH];
+        hit[0] = 3.0;
+        let to_light = [1.0; PACKET_WIDTH];
+        let region = |col| ostc.layout().region_of(col, 10);
+        // Region of column 0: a hit, its shadow ray to light 1 gets through.
+        let mut marker = ostc.marker(SampleGroup { col: 0, row: 10 });
+        marker.traced(RayKind::Primary, &rays, 1, &hit);
+        let shadow = |blocked| RayKind::Shadow { light: 1, blocked };
+        marker.traced(shadow(0b10), &rays, 0b11, &to_light);
+        // Column 40: a hit whose shadow rays are all blocked.
+        let mut marker = ostc.marker(SampleGroup { col: 40, row: 10 });
+        marker.traced(RayKind::Primary, &rays, 1, &hit);
+        marker.traced(shadow(0b01), &rays, 0b01, &to_light);
+        // Column 80: nothing hit (sky).
+        ostc.marker(SampleGroup { col: 80, row: 10 }).traced(
             RayKind::Primary,
             &rays,
             1,
             &[f32::INFINITY; PACKET_WIDTH],
         );
-        let dirty = ostc.dirty_for_lights();
-        assert_eq!(dirty.iter().collect::<Vec<_>>(), vec![0]);
+        let moved = ostc.dirty_for_light(1, true);
+        assert_eq!(
+            moved.iter().collect::<Vec<_>>(),
+            vec![region(0), region(40)]
+        );
+        let recoloured = ostc.dirty_for_light(1, false);
+        assert_eq!(recoloured.iter().collect::<Vec<_>>(), vec![region(0)]);
+        // Light 0 is not tracked: a change to it dirties everything.
+        assert_eq!(ostc.dirty_for_light(0, false).len(), ostc.layout().count());
     }
 }

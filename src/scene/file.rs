@@ -772,18 +772,7 @@ fn convert_animation(
     for (i, key) in def.camera.iter().enumerate() {
         let k = key.get_ref();
         let field = |f: &str| format!("animation.camera[{i}].{f}");
-        if let Some(previous) = keys.last() {
-            if k.frame <= previous.frame {
-                return Err(ctx.error(
-                    key.span(),
-                    field("frame"),
-                    format!(
-                        "keyframes must be in increasing frame order: frame {} follows frame {}",
-                        k.frame, previous.frame
-                    ),
-                ));
-            }
-        }
+        check_key_order(ctx, key, field("frame"), "", keys.last().map(|p| p.frame))?;
         // Unset values carry over from the previous key (or the camera).
         let previous = keys.last().copied().unwrap_or(CameraKey {
             frame: 0,
@@ -821,6 +810,50 @@ fn convert_animation(
         keys.push(resolved);
     }
     Ok(Animation::camera_only(def.frames, def.fps, keys))
+}
+
+/// Keys with a `frame`, for [`check_key_order`].
+trait Keyed {
+    fn frame(&self) -> u32;
+}
+
+impl Keyed for CameraKeyDef {
+    fn frame(&self) -> u32 {
+        self.frame
+    }
+}
+
+impl Keyed for ObjectKeyDef {
+    fn frame(&self) -> u32 {
+        self.frame
+    }
+}
+
+impl Keyed for LightKeyDef {
+    fn frame(&self) -> u32 {
+        self.frame
+    }
+}
+
+/// Keyframes of one track must come in increasing frame order.
+fn check_key_order<K: Keyed>(
+    ctx: &Ctx,
+    key: &Spanned<K>,
+    field: String,
+    of: &str,
+    previous: Option<u32>,
+) -> Result<(), SceneError> {
+    let frame = key.get_ref().frame();
+    match previous {
+        Some(previous) if frame <= previous => Err(ctx.error(
+            key.span(),
+            field,
+            format!(
+                "keyframes {of}must be in increasing frame order: frame {frame} follows frame {previous}"
+            ),
+        )),
+        _ => Ok(()),
+    }
 }
 
 /// The objects a track's name moves: the object of that name and, for a
@@ -890,18 +923,8 @@ fn convert_object_tracks(
         let index = track_for(&mut tracks, &k.object, key.span(), field("object"))?;
         let track = &mut tracks[index];
         let previous = track.keys.last().copied();
-        if let Some(previous) = previous {
-            if k.frame <= previous.frame {
-                return Err(ctx.error(
-                    key.span(),
-                    field("frame"),
-                    format!(
-                        "keyframes of '{}' must be in increasing frame order: frame {} follows frame {}",
-                        k.object, k.frame, previous.frame
-                    ),
-                ));
-            }
-        }
+        let of = format!("of '{}' ", k.object);
+        check_key_order(ctx, key, field("frame"), &of, previous.map(|p| p.frame))?;
         let carried = previous.unwrap_or(ObjectKey {
             frame: 0,
             translate: Vec3::ZERO,
@@ -988,18 +1011,8 @@ fn convert_light_tracks(
         };
         let track = &mut tracks[index];
         let previous = track.keys.last().copied();
-        if let Some(previous) = previous {
-            if k.frame <= previous.frame {
-                return Err(ctx.error(
-                    key.span(),
-                    field("frame"),
-                    format!(
-                        "keyframes of light {} must be in increasing frame order: frame {} follows frame {}",
-                        k.light, k.frame, previous.frame
-                    ),
-                ));
-            }
-        }
+        let of = format!("of light {} ", k.light);
+        check_key_order(ctx, key, field("frame"), &of, previous.map(|p| p.frame))?;
         // The scene's light is the starting point: power = colour x intensity,
         // so an unset colour or intensity carries over as a whole.
         let carried = previous.unwrap_or(LightKey {

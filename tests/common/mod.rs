@@ -1,4 +1,34 @@
-//! Shared by the integration tests: run a test body on every backend.
+//! Shared by the integration tests: run a test body on every backend, and
+//! check accelerated frames against full renders.
+
+use retrace::accel::{Accelerator, BackendKind};
+use retrace::anim::{count_differences, Animator, FrameStats, Techniques};
+use retrace::scene::Scene;
+
+/// Renders every frame of `scene`'s timeline with `techniques`, checks each
+/// against a full render of the same frame bit for bit (linear colour and
+/// 8-bit output), and returns the frames' stats.
+#[allow(dead_code)] // not every test file uses it
+pub fn run_exact(scene: &Scene, backend: BackendKind, techniques: Techniques) -> Vec<FrameStats> {
+    let mut accel = Accelerator::build(backend, &scene.objects).unwrap();
+    let frames = scene.animation.as_ref().unwrap().frames;
+    let mut animator = Animator::new(scene, &mut accel, techniques, 0..frames);
+    let mut all = Vec::new();
+    for frame in 0..frames {
+        let (image, rgb, stats) = animator.render(frame);
+        let image = image.unwrap();
+        let (reference, _) = animator.render_full(frame);
+        assert_eq!(
+            count_differences(&image, &reference),
+            0,
+            "frame {frame} ({}) differs from its full render",
+            stats.mode
+        );
+        assert_eq!(rgb, reference.to_rgb8(), "frame {frame}: 8-bit output");
+        all.push(stats);
+    }
+    all
+}
 
 /// Runs each test body once per backend, as `embree::name` and `grid::name`,
 /// with `$backend` bound to the backend's `BackendKind`.
