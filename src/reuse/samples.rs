@@ -683,7 +683,7 @@ impl Hasher for TileHasher {
     }
     fn write(&mut self, bytes: &[u8]) {
         for &b in bytes {
-            self.0 = (self.0.rotate_left(5) ^ u64::from(b)).wrapping_mul(0x51_7cc1_b727_220a_95);
+            self.0 = (self.0.rotate_left(5) ^ u64::from(b)).wrapping_mul(0x517c_c1b7_2722_0a95);
         }
     }
     fn write_i64(&mut self, v: i64) {
@@ -755,6 +755,9 @@ pub struct ViewportFrame {
     /// Finest and coarsest pyramid level the viewport read.
     pub levels: (u32, u32),
 }
+
+/// One band of regions from pass 1: their levels and missing groups.
+type BandResult = (Vec<u32>, Vec<(u32, SampleGroup)>);
 
 /// Pass 1's result for one viewport.
 struct Mapped {
@@ -889,7 +892,7 @@ impl SampleBuffer {
         let lattice = &self.lattice;
         let band_len = w as usize * REGION as usize;
         let mut coords = vec![(f64::NAN, f64::NAN); w as usize * h as usize];
-        let results: Vec<(Vec<u32>, Vec<(u32, SampleGroup)>)> = coords
+        let results: Vec<BandResult> = coords
             .par_chunks_mut(band_len)
             .enumerate()
             .map(|(band, out)| {
@@ -1206,7 +1209,7 @@ impl SampleBuffer {
             });
         let image =
             image::RgbImage::from_raw(w as u32, h as u32, bytes).expect("three bytes per pixel");
-        let frame = linear.then(|| Frame {
+        let frame = linear.then_some(Frame {
             width: w as u32,
             height: h as u32,
             pixels,
