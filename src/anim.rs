@@ -517,6 +517,8 @@ pub struct Animator<'a> {
     /// Whether to keep, per frame, the image with re-traced samples black.
     keep_traced_image: bool,
     traced_image: Option<image::RgbImage>,
+    /// Whether the camera changes at all over the run's frames.
+    camera_moves: bool,
     samples: Option<SampleBuffer>,
     knobs: RsvpKnobs,
 }
@@ -537,7 +539,7 @@ impl<'a> Animator<'a> {
         techniques: Techniques,
         frames: std::ops::Range<u32>,
     ) -> Animator<'a> {
-        Animator {
+        let mut animator = Animator {
             base: scene,
             scene: scene.clone(),
             posed_frame: None,
@@ -552,7 +554,14 @@ impl<'a> Animator<'a> {
             traced_image: None,
             samples: None,
             knobs: RsvpKnobs::default(),
-        }
+            camera_moves: false,
+        };
+        let first = animator.camera_at(animator.frame_range.start);
+        animator.camera_moves = animator
+            .frame_range
+            .clone()
+            .any(|frame| animator.camera_at(frame) != first);
+        animator
     }
 
     pub fn set_rsvp_knobs(&mut self, knobs: RsvpKnobs) {
@@ -781,7 +790,7 @@ impl<'a> Animator<'a> {
         self.pose(frame);
         let camera = self.camera_at(frame);
         let shader = Shader::new(&self.scene, self.accel);
-        if camera.projection == Projection::EqualAngle {
+        if self.pans(&camera) {
             let lattice = EqualAngleLattice::for_camera(&camera);
             let window = lattice.window(&camera);
             return render_window(&shader, &lattice, &window);
@@ -796,22 +805,30 @@ impl<'a> Animator<'a> {
         render_view(&self.scene, &self.camera_at(frame), self.accel)
     }
 
+    /// Whether frames of `camera` live on the pan lattice: an equal-angle
+    /// camera that pans during the run. A camera that stands still keeps
+    /// its own image instead: its exact view, with no snapping to the
+    /// lattice.
+    fn pans(&self, camera: &Camera) -> bool {
+        self.techniques.pan && camera.projection == Projection::EqualAngle && self.camera_moves
+    }
+
     /// Why `camera` cannot use a sample buffer, if it cannot.
     fn buffer_refusal(&self, camera: &Camera, frame: u32) -> Option<String> {
         if !self.techniques.buffered() {
             return Some(String::new());
         }
-        if camera.projection == Projection::EqualAngle {
+        if self.pans(camera) {
             return None;
         }
-        if !self.techniques.ostc {
+        if !self.techniques.ostc && camera.projection != Projection::EqualAngle {
             return Some(format!(
                 "pan needs an equal-angle camera, not {}",
                 camera.projection
             ));
         }
-        // Other cameras keep their own image, which holds only while they
-        // stand still.
+        // Without panning a camera keeps its own image, which holds only
+        // while it stands still.
         let moves = |other: u32| self.camera_at(other) != *camera;
         let still = (frame == 0 || !moves(frame - 1)) && !moves(frame + 1);
         (!still).then(|| {
@@ -826,7 +843,7 @@ impl<'a> Animator<'a> {
     /// window of this run that shares it, for equal-angle cameras; the
     /// camera's own image otherwise.
     fn new_store(&self, camera: &Camera) -> Store {
-        if camera.projection != Projection::EqualAngle {
+        if !self.pans(camera) {
             let table = RayTable::new(camera);
             let rows = table.rows();
             return Store::Image(PanBuffer::new(table, 0..rows));

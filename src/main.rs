@@ -1004,7 +1004,7 @@ fn animate(args: AnimateArgs) -> Result<()> {
             );
         }
         if animator.is_exact() {
-            say!("verify: every frame equals its full render (of the snapped view) bit for bit");
+            say!("verify: every frame equals its full render bit for bit (a pan: of the snapped view)");
         }
         {
             let errors: Vec<_> = all_stats.iter().filter_map(|s| s.error).collect();

@@ -397,11 +397,60 @@ fn assemble(text: &str, path: &Path, depth: usize) -> Result<Source, SceneError>
         // Keeps this file's line numbers.
         own.push_str("# (include)\n");
     }
+    included.text = without_overridden(&included.text, &own);
     let first = line_of(&included.text, included.text.len());
     let count = own.lines().count();
     included.text.push_str(&own);
     included.pieces.push((path.to_path_buf(), first, count));
     Ok(included)
+}
+
+/// The table name of a TOML header line (`[a.b]` or `[[a.b]]`), and
+/// whether it is an array of tables; None for other lines (including rows
+/// of a multi-line array value, whose first character is not a letter).
+fn table_header(line: &str) -> Option<(String, bool)> {
+    let line = line.split('#').next()?.trim();
+    let (inner, array) = match line.strip_prefix("[[") {
+        Some(rest) => (rest.strip_suffix("]]")?, true),
+        None => (line.strip_prefix('[')?.strip_suffix(']')?, false),
+    };
+    let name: String = inner
+        .split('.')
+        .map(str::trim)
+        .collect::<Vec<_>>()
+        .join(".");
+    let starts_like_a_key = name
+        .chars()
+        .next()
+        .is_some_and(|c| c.is_ascii_alphabetic() || c == '"' || c == '_');
+    starts_like_a_key.then_some((name, array))
+}
+
+/// `included` with every table that `own` defines again (a `[name]`
+/// header) taken out, with its sub-tables, so the including file overrides
+/// it. Removed lines become comments: line numbers stay where they were.
+fn without_overridden(included: &str, own: &str) -> String {
+    let overridden: Vec<String> = own
+        .lines()
+        .filter_map(table_header)
+        .filter(|(_, array)| !array)
+        .map(|(name, _)| name)
+        .collect();
+    if overridden.is_empty() {
+        return included.to_string();
+    }
+    let mut out = String::with_capacity(included.len());
+    let mut skipping = false;
+    for line in included.lines() {
+        if let Some((name, _)) = table_header(line) {
+            skipping = overridden
+                .iter()
+                .any(|o| name == *o || name.starts_with(&format!("{o}.")));
+        }
+        out.push_str(if skipping { "# (overridden)" } else { line });
+        out.push('\n');
+    }
+    out
 }
 
 struct Ctx<'a> {
@@ -1394,6 +1443,35 @@ mod tests {
         ))
         .unwrap_err();
         assert!(err.message.contains("centre"), "{err}");
+    }
+
+    #[test]
+    fn an_including_file_overrides_whole_tables() {
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::write(
+            dir.path().join("base.toml"),
+            "[render]\nwidth = 320\nheight = 200\n[camera]\nposition = [0, 1, 5]\nfov = 60\n[material.red]\ndiffuse = [1, 0, 0]\nvertices = [\n  [0, 0, 0],\n]\n[[object]]\ntype = \"sphere\"\ncenter = [0, 0, 0]\nradius = 1\nmaterial = \"red\"\n",
+        )
+        .unwrap();
+        let top = dir.path().join("top.toml");
+        let text = "include = \"base.toml\"\n[camera]\nprojection = \"equal-angle\"\nposition = [0, 2, 5]\nfov = 90\n[material.red]\ndiffuse = [0.5, 0, 0]\n[[object]]\ntype = \"sphere\"\ncenter = [3, 0, 0]\nradius = 1\nmaterial = \"red\"\n";
+        std::fs::write(&top, text).unwrap();
+        let scene = super::super::load_scene(&top, &SceneOverrides::default()).unwrap();
+        assert_eq!(scene.camera.projection, Projection::EqualAngle);
+        assert_eq!(scene.camera.position.y, 2.0);
+        // Untouched tables stay; arrays of tables add up.
+        assert_eq!(scene.camera.width, 320);
+        assert_eq!(scene.objects.len(), 2);
+        let red = scene.materials.iter().find(|m| m.name == "red").unwrap();
+        assert_eq!(red.diffuse.x, 0.5);
+        // Errors still name the file and line they come from.
+        std::fs::write(&top, text.replace("fov = 90", "fov = 400")).unwrap();
+        let err = super::super::load_scene(&top, &SceneOverrides::default()).unwrap_err();
+        assert_eq!(
+            (err.file.clone(), err.line),
+            (top.clone(), Some(2)),
+            "{err}"
+        );
     }
 
     #[test]
