@@ -18,6 +18,7 @@ use crate::reuse::ostc::{Footprint, Ostc, RegionGrid, DEFAULT_VOXELS};
 use crate::reuse::pan::{
     image_window, render_window, EqualAngleLattice, Lattice, PanBuffer, Window,
 };
+use crate::reuse::samples::{render_direct, RsvpKnobs, SampleBuffer, SampleLattice, ViewportPose};
 use crate::scene::{Light, Scene};
 use crate::shade::{RayCounts, Shader};
 
@@ -32,7 +33,7 @@ pub enum Ease {
 }
 
 impl Ease {
-    fn apply(self, t: f64) -> f64 {
+    pub fn apply(self, t: f64) -> f64 {
         match self {
             Ease::Linear => t,
             Ease::EaseInOut => t * t * (3.0 - 2.0 * t),
@@ -293,21 +294,26 @@ impl std::str::FromStr for FractionalPan {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Techniques {
     pub pan: bool,
+    /// RSVP: viewports resample the lazily traced camera sample buffer.
+    pub rsvp: bool,
     pub ostc: bool,
 }
 
 impl Techniques {
     pub const FULL: Techniques = Techniques {
         pan: false,
+        rsvp: false,
         ostc: false,
     };
     /// Everything the timeline allows.
     pub const AUTO: Techniques = Techniques {
         pan: true,
+        rsvp: true,
         ostc: true,
     };
 
-    /// Parses `full`, `auto`, or a comma list of techniques (`pan`, `ostc`).
+    /// Parses `full`, `auto`, or a comma list of techniques (`pan`, `rsvp`,
+    /// `ostc`).
     pub fn parse(text: &str) -> Result<Techniques, String> {
         let mut techniques = Techniques::FULL;
         for word in text.split(',').map(str::trim) {
@@ -316,15 +322,11 @@ impl Techniques {
                 "auto" => techniques = Techniques::AUTO,
                 "pan" => techniques.pan = true,
                 "ostc" => techniques.ostc = true,
-                "rsvp" => {
-                    return Err(format!(
-                        "mode '{word}' is not implemented yet (available: full, auto, pan, ostc)"
-                    ))
-                }
+                "rsvp" => techniques.rsvp = true,
                 other => {
                     return Err(format!(
-                    "unknown mode '{other}' (expected full, auto, or a comma list of: pan, ostc)"
-                ))
+                        "unknown mode '{other}' (expected full, auto, or a comma list of: pan, rsvp, ostc)"
+                    ))
                 }
             }
         }
@@ -379,6 +381,11 @@ pub struct FrameStats {
     /// With verification: the frame's error against the camera's own,
     /// unsnapped rays (what snapping or resampling costs).
     pub error: Option<ImageError>,
+    /// RSVP: the viewport this row is about (empty: the camera's image).
+    pub viewport: String,
+    /// RSVP: finest and coarsest pyramid level the viewport read.
+    pub finest_level: Option<u32>,
+    pub coarsest_level: Option<u32>,
 }
 
 impl FrameStats {
@@ -512,6 +519,17 @@ pub struct Animator<'a> {
     traced_image: Option<image::RgbImage>,
     /// Whether the camera changes at all over the run's frames.
     camera_moves: bool,
+    samples: Option<SampleBuffer>,
+    knobs: RsvpKnobs,
+}
+
+/// One viewport's image of a frame, and what it cost.
+pub struct ViewportOutput {
+    pub name: String,
+    /// Linear colour, unless turned off.
+    pub frame: Option<Frame>,
+    pub image: image::RgbImage,
+    pub stats: FrameStats,
 }
 
 impl<'a> Animator<'a> {
@@ -534,6 +552,8 @@ impl<'a> Animator<'a> {
             ostc_settings: OstcSettings::default(),
             keep_traced_image: false,
             traced_image: None,
+            samples: None,
+            knobs: RsvpKnobs::default(),
             camera_moves: false,
         };
         let first = animator.camera_at(animator.frame_range.start);
@@ -542,6 +562,143 @@ impl<'a> Animator<'a> {
             .clone()
             .any(|frame| animator.camera_at(frame) != first);
         animator
+    }
+
+    pub fn set_rsvp_knobs(&mut self, knobs: RsvpKnobs) {
+        self.knobs = knobs;
+    }
+
+    /// Whether the scene's output is its viewports (RSVP) rather than the
+    /// camera's image.
+    pub fn has_viewports(&self) -> bool {
+        !self.scene.viewports.is_empty()
+    }
+
+    /// Every viewport at `frame`.
+    pub fn viewport_poses(&self, frame: u32) -> Vec<ViewportPose> {
+        let camera = self.camera_at(frame);
+        self.scene
+            .viewports
+            .iter()
+            .map(|track| track.pose_at(&camera, frame))
+            .collect()
+    }
+
+    /// Viewport `index` at `frame`, traced through its own rays: the
+    /// reference RSVP frames are measured against.
+    pub fn render_viewport_direct(&mut self, frame: u32, index: usize) -> (Frame, RayCounts) {
+        self.pose(frame);
+        let pose = self.scene.viewports[index].pose_at(&self.camera_at(frame), frame);
+        render_direct(&Shader::new(&self.scene, self.accel), &pose)
+    }
+
+    /// The camera's sample buffer around the view at `frame`: traced samples
+    /// in colour, never-traced ones black (None before RSVP ran).
+    pub fn buffer_image(&self, frame: u32) -> Option<image::RgbImage> {
+        let camera = self.camera_at(frame);
+        let buffer = self.samples.as_ref()?;
+        Some(buffer.buffer_image(&camera, self.scene.camera.width, self.scene.camera.height))
+    }
+
+    /// Renders every viewport of `frame`: with RSVP from the sample buffer
+    /// (tracing, in one batch, the null samples they touch), otherwise
+    /// each through its own rays.
+    pub fn render_viewports(&mut self, frame: u32) -> Vec<ViewportOutput> {
+        let start = Instant::now();
+        let camera = self.camera_at(frame);
+        let poses = self.viewport_poses(frame);
+        let scene_moves = self.animation().is_some_and(|a| a.moves_scene());
+        let moved = scene_moves && self.posed_frame != Some(frame);
+        self.pose(frame);
+        let shader = Shader::new(&self.scene, self.accel);
+        let names = self.scene.viewports.iter().map(|t| t.viewport.name.clone());
+        let pixels =
+            |pose: &ViewportPose| u64::from(pose.camera.width) * u64::from(pose.camera.height);
+        if !self.techniques.rsvp {
+            self.samples = None;
+            return poses
+                .iter()
+                .zip(names)
+                .map(|(pose, name)| {
+                    let start = Instant::now();
+                    let (image, rays) = render_direct(&shader, pose);
+                    let rgb = image.to_rgb8();
+                    let ms = start.elapsed().as_secs_f64() * 1e3;
+                    let mut stats = FrameStats {
+                        frame,
+                        mode: "full",
+                        pixels: pixels(pose),
+                        samples_traced: rays.primary,
+                        trace_ms: ms,
+                        total_ms: ms,
+                        viewport: name.clone(),
+                        ..FrameStats::default()
+                    };
+                    stats.count_rays(rays);
+                    ViewportOutput {
+                        name,
+                        frame: Some(image),
+                        image: rgb,
+                        stats,
+                    }
+                })
+                .collect();
+        }
+        let mut reason = String::new();
+        let lattice = SampleLattice::for_camera(&self.scene.camera);
+        let restart = match &self.samples {
+            None => Some("first frame"),
+            // Keeping samples across object or light motion needs OSTC's
+            // dirty regions, which do not reach the sample buffer yet.
+            Some(_) if moved => Some("objects or lights moved: sample buffer restarted"),
+            Some(buffer) if buffer.lattice().position != camera.position => {
+                Some("eye moved: sample buffer restarted")
+            }
+            Some(buffer) if buffer.lattice().columns_per_turn != lattice.columns_per_turn => {
+                Some("buffer resolution changed: restarted")
+            }
+            Some(_) => None,
+        };
+        if let Some(why) = restart {
+            self.samples = Some(SampleBuffer::new(SampleLattice::new(
+                camera.position,
+                lattice.columns_per_turn,
+            )));
+            reason = why.to_string();
+        }
+        let buffer = self.samples.as_mut().expect("sample buffer just ensured");
+        let setup_ms = start.elapsed().as_secs_f64() * 1e3;
+        let views = buffer.render(&shader, &poses, &self.knobs, self.linear_output);
+        let count = views.len().max(1) as f64;
+        views
+            .into_iter()
+            .zip(poses.iter().zip(names))
+            .map(|(view, (pose, name))| {
+                let total = setup_ms / count + view.map_ms + view.trace_ms + view.gather_ms;
+                let mut stats = FrameStats {
+                    frame,
+                    mode: "rsvp",
+                    reason: reason.clone(),
+                    pixels: pixels(pose),
+                    pixels_reused: pixels(pose).saturating_sub(view.samples_traced),
+                    samples_traced: view.samples_traced,
+                    trace_ms: view.trace_ms,
+                    copy_ms: total - view.trace_ms,
+                    total_ms: total,
+                    viewport: name.clone(),
+                    finest_level: Some(view.levels.0),
+                    coarsest_level: Some(view.levels.1),
+                    ..FrameStats::default()
+                };
+                stats.count_rays(view.rays);
+                ViewportOutput {
+                    name,
+                    frame: view.frame,
+                    image: view.image,
+                    stats,
+                }
+            })
+            .collect()
     }
 
     /// Keep, for each frame, its image with every re-traced sample black
@@ -1053,10 +1210,19 @@ mod tests {
             Techniques::parse("pan"),
             Ok(Techniques {
                 pan: true,
+                rsvp: false,
                 ostc: false
             })
         );
-        assert_eq!(Techniques::parse("pan,ostc"), Ok(Techniques::AUTO));
+        assert_eq!(
+            Techniques::parse("rsvp,pan"),
+            Ok(Techniques {
+                pan: true,
+                rsvp: true,
+                ostc: false
+            })
+        );
+        assert_eq!(Techniques::parse("pan,ostc,rsvp"), Ok(Techniques::AUTO));
         assert!(Techniques::parse("zoom").is_err());
     }
 }

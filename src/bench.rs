@@ -489,3 +489,171 @@ pub fn e1_scene(mut scene: Scene) -> Scene {
     ));
     scene
 }
+
+/// A viewport sequence (RSVP) against direct renders of the same viewport
+/// frames, with the resampling error measured on an untimed pass.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct ViewportSequenceBench {
+    pub frames: u32,
+    pub viewports: usize,
+    pub pixels_per_frame: u64,
+    /// The whole sequence of direct renders (each viewport's own rays),
+    /// converted to 8 bits, not written.
+    pub full_ms: f64,
+    /// The RSVP sequence: frame 0, mapping, tracing, resampling, 8 bits.
+    pub rsvp_ms: f64,
+    pub speedup: f64,
+    pub samples_traced: u64,
+    pub knobs: crate::reuse::samples::RsvpKnobs,
+    /// Against the direct renders, over every frame and viewport.
+    pub worst_psnr_db: f64,
+    pub mean_psnr_db: f64,
+    pub max_abs: f32,
+    pub mean_abs: f64,
+    pub differing_share: f64,
+    pub threads: usize,
+}
+
+/// Renders the viewports of `frames` directly and with RSVP (one run each,
+/// timed), then measures the RSVP frames' error against the direct ones
+/// (untimed; skipped with `measure_error` off).
+pub fn bench_viewport_sequence(
+    scene: &Scene,
+    accel: &mut Accelerator,
+    frames: std::ops::Range<u32>,
+    knobs: crate::reuse::samples::RsvpKnobs,
+    measure_error: bool,
+    mut progress: impl FnMut(),
+) -> ViewportSequenceBench {
+    use crate::anim::{image_error, Animator, Techniques};
+    let rsvp_only = Techniques {
+        rsvp: true,
+        ..Techniques::FULL
+    };
+    let views = scene.viewports.len();
+    let mut pixels_per_frame = 0;
+    let mut full = Animator::new(scene, accel, Techniques::FULL, frames.clone());
+    let mut full_ms = 0.0;
+    for frame in frames.clone() {
+        let start = Instant::now();
+        for index in 0..views {
+            let (image, _) = full.render_viewport_direct(frame, index);
+            std::hint::black_box(image.to_rgb8());
+        }
+        full_ms += start.elapsed().as_secs_f64() * 1e3;
+        progress();
+    }
+    drop(full);
+    let mut fast = Animator::new(scene, accel, rsvp_only, frames.clone());
+    fast.set_linear_output(false);
+    fast.set_rsvp_knobs(knobs);
+    let mut rsvp_ms = 0.0;
+    let mut samples_traced = 0;
+    for frame in frames.clone() {
+        let start = Instant::now();
+        let outputs = fast.render_viewports(frame);
+        rsvp_ms += start.elapsed().as_secs_f64() * 1e3;
+        pixels_per_frame = outputs.iter().map(|o| o.stats.pixels).sum();
+        samples_traced += outputs.iter().map(|o| o.stats.samples_traced).sum::<u64>();
+        std::hint::black_box(outputs);
+        progress();
+    }
+    drop(fast);
+    let mut errors = Vec::new();
+    if measure_error {
+        let mut check = Animator::new(scene, accel, rsvp_only, frames.clone());
+        check.set_rsvp_knobs(knobs);
+        for frame in frames.clone() {
+            for (index, output) in check.render_viewports(frame).into_iter().enumerate() {
+                let (reference, _) = check.render_viewport_direct(frame, index);
+                let image = output.frame.expect("linear output is on");
+                errors.push(image_error(&image, &reference));
+            }
+            progress();
+        }
+    }
+    let count = errors.len().max(1) as f64;
+    ViewportSequenceBench {
+        frames: frames.end - frames.start,
+        viewports: views,
+        pixels_per_frame,
+        full_ms,
+        rsvp_ms,
+        speedup: full_ms / rsvp_ms,
+        samples_traced,
+        knobs,
+        worst_psnr_db: errors
+            .iter()
+            .map(|e| e.psnr_db)
+            .fold(f64::INFINITY, f64::min),
+        mean_psnr_db: errors.iter().map(|e| e.psnr_db.min(100.0)).sum::<f64>() / count,
+        max_abs: errors.iter().map(|e| e.max_abs).fold(0.0, f32::max),
+        mean_abs: errors.iter().map(|e| e.mean_abs).sum::<f64>() / count,
+        differing_share: errors.iter().map(|e| e.differing_share).sum::<f64>() / count,
+        threads: rayon::current_num_threads(),
+    }
+}
+
+/// Which way experiment E2 zooms.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ZoomDirection {
+    /// 100 -> 50 degrees.
+    In,
+    /// 50 -> 100 degrees.
+    Out,
+}
+
+/// Zoom that narrows a 100-degree perspective view to 50 degrees (the
+/// paper's 2:1 in angle).
+pub const E2_ZOOM: f64 = 2.555_723_8;
+
+/// Experiment E2 of the paper: one 640x480 perspective viewport, 100 deg
+/// wide at zoom 1, zooming between 100 and 50 degrees over 100 frames (a
+/// steady rate) on the paper scene's camera buffer; with `pan_deg_per_frame`
+/// the camera also yaws (E4 without the moving ball).
+pub fn e2_scene(mut scene: Scene, direction: ZoomDirection, pan_deg_per_frame: f64) -> Scene {
+    use crate::anim::{Animation, CameraKey, Ease};
+    use crate::reuse::samples::{ViewTransform, Viewport, ViewportKey, ViewportTrack};
+    let (from, to) = match direction {
+        ZoomDirection::In => (1.0, E2_ZOOM),
+        ZoomDirection::Out => (E2_ZOOM, 1.0),
+    };
+    let key = |frame: u32, zoom: f64| ViewportKey {
+        frame,
+        transform: ViewTransform {
+            zoom,
+            ..ViewTransform::default()
+        },
+        ease: Ease::Linear,
+    };
+    scene.viewports = vec![ViewportTrack {
+        viewport: Viewport {
+            name: "zoom".into(),
+            width: 640,
+            height: 480,
+            projection: crate::camera::Projection::Perspective,
+            fov: 100f64.to_radians(),
+            yaw: 0.0,
+            pitch: 0.0,
+            transform: ViewTransform::default(),
+        },
+        keys: vec![key(0, from), key(99, to)],
+    }];
+    let camera = &scene.camera;
+    let camera_key = |frame: u32| CameraKey {
+        frame,
+        yaw: camera.yaw + (pan_deg_per_frame * f64::from(frame)).to_radians(),
+        pitch: camera.pitch,
+        fov: camera.fov,
+        position: camera.position,
+        ease: Ease::Linear,
+    };
+    scene.animation = Some(Animation {
+        frames: 100,
+        fps: 25.0,
+        camera_keys: vec![camera_key(0), camera_key(100)],
+        objects: Vec::new(),
+        lights: Vec::new(),
+    });
+    scene
+}

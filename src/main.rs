@@ -160,10 +160,27 @@ struct AnimateArgs {
     /// Frames to render: A-B (inclusive) or A; default: the whole animation.
     #[arg(long)]
     frames: Option<String>,
-    /// Frame files (.png or .tga); a run of # becomes the zero-padded frame number.
+    /// Frame files (.png or .tga); a run of # becomes the zero-padded frame
+    /// number. A scene with RSVP viewports writes one file per viewport,
+    /// its name added before the extension: out/frame_0007_zoomed.png.
     #[arg(short, long, default_value = "out/frame_####.png")]
     output: String,
-    /// Also write the frames as an animated GIF here.
+    /// RSVP: also write the camera's sample buffer per frame (e.g.
+    /// out/buffer_####.png), never-traced samples black (paper, figure 5a).
+    #[arg(long)]
+    buffer_image: Option<String>,
+    /// RSVP reconstruction filter: nearest, bilinear or box.
+    #[arg(long, default_value = "bilinear")]
+    filter: retrace::reuse::samples::Filter,
+    /// RSVP: buffer samples per viewport pixel (per side) the pyramid level
+    /// is chosen for, at least.
+    #[arg(long, default_value_t = 1.0)]
+    oversample: f64,
+    /// RSVP: pyramid levels added to the chosen one (negative: coarser).
+    #[arg(long, default_value_t = 0, allow_negative_numbers = true)]
+    level_bias: i32,
+    /// Also write the frames as an animated GIF here (with RSVP viewports:
+    /// the first viewport's frames).
     #[arg(long)]
     gif: Option<PathBuf>,
     /// Per-frame statistics: .csv or .json.
@@ -175,7 +192,9 @@ struct AnimateArgs {
     dirty_image: Option<String>,
     /// full (no reuse), auto (every technique the timeline allows), or a
     /// comma list of techniques: pan (camera pans shift the image), ostc
-    /// (moving objects and lights re-trace only their regions).
+    /// (moving objects and lights re-trace only their regions), rsvp
+    /// (viewports resample the camera's lazily traced sample buffer; with
+    /// viewports, full traces each viewport's own rays).
     #[arg(long, default_value = "auto", value_parser = Techniques::parse)]
     mode: Techniques,
     #[command(flatten)]
@@ -186,7 +205,8 @@ struct AnimateArgs {
     #[arg(long, default_value = "snap")]
     fractional_pan: retrace::anim::FractionalPan,
     /// Also render every frame in full: exact (snapped) frames must equal
-    /// it bit for bit; resampled frames report their error against it.
+    /// it bit for bit; resampled frames (and RSVP viewports) report their
+    /// error against it.
     #[arg(long)]
     verify: bool,
     /// Leave frames whose file already exists (to resume a run).
@@ -222,8 +242,10 @@ struct BenchArgs {
     #[command(flatten)]
     backend: BackendArg,
     /// Which measurement: `frame` (a full frame against bare Embree on the
-    /// same ray packets) or `backends` (the grid against Embree on the same
-    /// ray packets).
+    /// same ray packets), `backends` (the grid against Embree on the same
+    /// ray packets), `E1` (pan), `E2` (RSVP zoom in and out),
+    /// `E4nomotion` (pan 3.6 deg/frame and zoom together) or `knobs` (RSVP
+    /// filter, oversampling and level bias: cost and error).
     #[arg(long, default_value = "frame")]
     only: String,
     /// Timed repetitions (the median is reported).
@@ -315,10 +337,13 @@ fn bench(args: BenchArgs) -> Result<()> {
         "frame" => bench_frame(&args, &scene, bar),
         "backends" => bench_backends(&args, &scene, bar),
         "E1" | "e1" => bench_e1(&args, scene, bar),
+        "E2" | "e2" => bench_e2(&args, scene, bar, 0.0),
         "E3" | "e3" => bench_e3(&args, bar),
+        "E4nomotion" | "e4nomotion" => bench_e2(&args, scene, bar, 3.6),
+        "knobs" => bench_knobs(&args, scene, bar),
         other => {
             anyhow::bail!(
-                "unknown measurement '{other}' for --only (available: frame, backends, E1, E3)"
+                "unknown measurement '{other}' for --only (available: frame, backends, E1, E2, E3, E4nomotion, knobs)"
             )
         }
     }
@@ -475,6 +500,128 @@ fn bench_experiment(
     }
     if !result.exact {
         anyhow::bail!("{title}: accelerated frames differ from full renders");
+    }
+    Ok(())
+}
+
+fn print_viewport_bench(label: &str, r: &retrace::bench::ViewportSequenceBench) {
+    println!(
+        "{label}: full {:8.1} ms ({:6.2} ms/frame)  RSVP {:7.1} ms ({:5.2} ms/frame)  speedup {:6.2}x  \
+         PSNR worst {:5.2} dB mean {:5.2} dB  max abs {:.3}  mean abs {:.5}  differ {:5.2}%  traced {}",
+        r.full_ms,
+        r.full_ms / f64::from(r.frames),
+        r.rsvp_ms,
+        r.rsvp_ms / f64::from(r.frames),
+        r.speedup,
+        r.worst_psnr_db,
+        r.mean_psnr_db,
+        r.max_abs,
+        r.mean_abs,
+        r.differing_share * 100.0,
+        r.samples_traced,
+    );
+}
+
+/// E2 (zoom 100 <-> 50 degrees over 100 frames, both directions), or with
+/// a pan E4 without the moving ball.
+fn bench_e2(
+    args: &BenchArgs,
+    scene: Scene,
+    bar: indicatif::ProgressBar,
+    pan_deg_per_frame: f64,
+) -> Result<()> {
+    use retrace::bench::{bench_viewport_sequence, e2_scene, ZoomDirection};
+    let mut accel = args.backend.build(&scene)?;
+    bar.set_length(2 * 300);
+    let mut results = Vec::new();
+    for (label, direction) in [
+        ("zoom in ", ZoomDirection::In),
+        ("zoom out", ZoomDirection::Out),
+    ] {
+        bar.set_message(label);
+        let scene = e2_scene(scene.clone(), direction, pan_deg_per_frame);
+        let result = bench_viewport_sequence(
+            &scene,
+            &mut accel,
+            0..100,
+            retrace::reuse::samples::RsvpKnobs::default(),
+            true,
+            || bar.inc(1),
+        );
+        results.push((label, result));
+    }
+    bar.finish_and_clear();
+    println!(
+        "{} (perspective viewport 640x480, 100 <-> 50 deg over 100 frames{}), {} threads, one run, release",
+        if pan_deg_per_frame == 0.0 { "E2" } else { "E4 without motion" },
+        if pan_deg_per_frame == 0.0 {
+            String::new()
+        } else {
+            format!(", camera yaw {pan_deg_per_frame} deg/frame")
+        },
+        rayon::current_num_threads()
+    );
+    for (label, result) in &results {
+        print_viewport_bench(label, result);
+    }
+    if let Some(path) = &args.json {
+        let list: Vec<_> = results.iter().map(|(_, r)| r).collect();
+        write_json(path, &list)?;
+    }
+    Ok(())
+}
+
+/// RSVP knobs on E2's zoom in: each filter, oversampling and level bias,
+/// with its time and its error against direct renders.
+fn bench_knobs(args: &BenchArgs, scene: Scene, bar: indicatif::ProgressBar) -> Result<()> {
+    use retrace::bench::{bench_viewport_sequence, e2_scene, ZoomDirection};
+    use retrace::reuse::samples::{Filter, RsvpKnobs};
+    let mut accel = args.backend.build(&scene)?;
+    let scene = e2_scene(scene, ZoomDirection::In, 0.0);
+    let default = RsvpKnobs::default();
+    let mut settings = vec![default];
+    for filter in [Filter::Nearest, Filter::Box] {
+        settings.push(RsvpKnobs { filter, ..default });
+    }
+    for oversample in [0.5, 0.71, 1.41, 2.0] {
+        settings.push(RsvpKnobs {
+            oversample,
+            ..default
+        });
+    }
+    for level_bias in [-1, 1] {
+        settings.push(RsvpKnobs {
+            level_bias,
+            ..default
+        });
+    }
+    bar.set_length((settings.len() * 300) as u64);
+    let mut results = Vec::new();
+    for knobs in settings {
+        bar.set_message(format!(
+            "{} x{} {:+}",
+            knobs.filter, knobs.oversample, knobs.level_bias
+        ));
+        let result =
+            bench_viewport_sequence(&scene, &mut accel, 0..100, knobs, true, || bar.inc(1));
+        results.push(result);
+    }
+    bar.finish_and_clear();
+    println!(
+        "RSVP knobs on E2 zoom in (100 frames, 640x480), {} threads",
+        rayon::current_num_threads()
+    );
+    for r in &results {
+        let label = format!(
+            "{:8} oversample {:4.2} bias {:+}",
+            r.knobs.filter.to_string(),
+            r.knobs.oversample,
+            r.knobs.level_bias
+        );
+        print_viewport_bench(&label, r);
+    }
+    if let Some(path) = &args.json {
+        write_json(path, &results)?;
     }
     Ok(())
 }
@@ -733,6 +880,21 @@ fn animate(args: AnimateArgs) -> Result<()> {
     animator.set_fractional_pan(args.fractional_pan);
     animator.set_ostc(args.ostc.settings());
     animator.set_traced_image(dirty_path.is_some());
+    if animator.has_viewports() {
+        let knobs = retrace::reuse::samples::RsvpKnobs {
+            filter: args.filter,
+            oversample: args.oversample,
+            level_bias: args.level_bias,
+        };
+        if !(knobs.oversample.is_finite() && (0.01..=64.0).contains(&knobs.oversample)) {
+            anyhow::bail!("--oversample {}: must be within 0.01..64", knobs.oversample);
+        }
+        animator.set_rsvp_knobs(knobs);
+        return animate_viewports(&args, &scene, animator, range, gif);
+    }
+    if args.buffer_image.is_some() {
+        anyhow::bail!("--buffer-image needs a scene with [[viewport]] tables (RSVP)");
+    }
 
     let bar = indicatif::ProgressBar::new(u64::from(range.end() - range.start() + 1)).with_style(
         indicatif::ProgressStyle::with_template(
@@ -858,6 +1020,150 @@ fn animate(args: AnimateArgs) -> Result<()> {
                 "verify ({}, against the camera's own unsnapped rays): worst PSNR {worst_psnr:.2} dB, \
                  max abs error {max_abs:.4}, mean abs error {mean:.5}, {:.2}% of pixels differ in 8 bits",
                 if animator.is_exact() { "snapped" } else { "resampled" },
+                share * 100.0
+            );
+        }
+    }
+    Ok(())
+}
+
+/// `pattern`'s file for `frame` and viewport `name`: the name goes before
+/// the extension (out/frame_####.png -> out/frame_0007_zoomed.png).
+fn viewport_path(pattern: &(String, usize, String), frame: u32, name: &str) -> PathBuf {
+    let (prefix, digits, suffix) = pattern;
+    let (stem, ext) = match suffix.rfind('.') {
+        Some(dot) if !suffix[dot..].contains('/') => suffix.split_at(dot),
+        _ => (suffix.as_str(), ""),
+    };
+    PathBuf::from(format!("{prefix}{frame:0digits$}{stem}_{name}{ext}"))
+}
+
+/// The frame loop for a scene whose output is its RSVP viewports: one file
+/// per viewport per frame, the buffer image on request, per-viewport stats
+/// and, with --verify, each viewport's error against its own rays.
+fn animate_viewports(
+    args: &AnimateArgs,
+    scene: &Scene,
+    mut animator: Animator,
+    range: std::ops::RangeInclusive<u32>,
+    mut gif: Option<GifWriter>,
+) -> Result<()> {
+    let pattern = frame_pattern(&args.output)?;
+    let buffer_pattern = args
+        .buffer_image
+        .as_deref()
+        .map(frame_pattern)
+        .transpose()?;
+    if let Some((prefix, digits, suffix)) = &buffer_pattern {
+        retrace::output::format_for(Path::new(&format!("{prefix}{:0digits$}{suffix}", 0)))?;
+    }
+    let names: Vec<String> = scene
+        .viewports
+        .iter()
+        .map(|t| t.viewport.name.clone())
+        .collect();
+    let bar = indicatif::ProgressBar::new(u64::from(range.end() - range.start() + 1)).with_style(
+        indicatif::ProgressStyle::with_template(
+            "{bar:30} {pos}/{len} frames {msg} [{elapsed} < {eta}]",
+        )
+        .expect("static template"),
+    );
+    let mut all_stats = Vec::new();
+    let mut write_ms = 0.0;
+    for frame in range.clone() {
+        if args.skip_existing
+            && names
+                .iter()
+                .all(|n| viewport_path(&pattern, frame, n).exists())
+        {
+            bar.inc(1);
+            continue;
+        }
+        let outputs = animator.render_viewports(frame);
+        let mut frame_ms = 0.0;
+        for (index, mut output) in outputs.into_iter().enumerate() {
+            if args.verify {
+                let start = Instant::now();
+                let (reference, _) = animator.render_viewport_direct(frame, index);
+                let full_ms = start.elapsed().as_secs_f64() * 1e3;
+                let image = output
+                    .frame
+                    .as_ref()
+                    .expect("verification keeps linear colour");
+                output.stats.full_ms = Some(full_ms);
+                output.stats.speedup = Some(full_ms / output.stats.total_ms);
+                output.stats.differing_pixels =
+                    Some(retrace::anim::count_differences(image, &reference));
+                output.stats.error = Some(retrace::anim::image_error(image, &reference));
+            }
+            let write_start = Instant::now();
+            save_image(&viewport_path(&pattern, frame, &output.name), &output.image)?;
+            if index == 0 {
+                if let Some(gif) = &mut gif {
+                    gif.add(&output.image)?;
+                }
+            }
+            write_ms += write_start.elapsed().as_secs_f64() * 1e3;
+            frame_ms += output.stats.total_ms;
+            all_stats.push(output.stats);
+        }
+        if let Some((prefix, digits, suffix)) = &buffer_pattern {
+            if let Some(image) = animator.buffer_image(frame) {
+                let write_start = Instant::now();
+                save_image(
+                    Path::new(&format!("{prefix}{frame:0digits$}{suffix}")),
+                    &image,
+                )?;
+                write_ms += write_start.elapsed().as_secs_f64() * 1e3;
+            }
+        }
+        bar.set_message(format!("{frame_ms:.0} ms"));
+        bar.inc(1);
+    }
+    bar.finish_and_clear();
+    if let Some(gif) = gif {
+        gif.finish()?;
+    }
+    if let Some(path) = &args.stats {
+        write_stats(path, &all_stats)?;
+    }
+    let total: f64 = all_stats.iter().map(|s| s.total_ms).sum();
+    let traced: u64 = all_stats.iter().map(|s| s.samples_traced).sum();
+    let pixels: u64 = all_stats.iter().map(|s| s.pixels).sum();
+    println!(
+        "{}: {} frames x {} viewports ({}) in {:.1} ms rendering ({:.1} ms writing); traced {traced} samples for {pixels} pixels ({:.1}%)",
+        scene_name(&args.scene),
+        range.end() - range.start() + 1,
+        names.len(),
+        names.join(", "),
+        total,
+        write_ms,
+        100.0 * traced as f64 / pixels.max(1) as f64
+    );
+    if args.verify {
+        let full: f64 = all_stats.iter().filter_map(|s| s.full_ms).sum();
+        println!(
+            "verify: direct renders {full:.1} ms, speedup {:.2}x",
+            full / total.max(1e-9)
+        );
+        for name in &names {
+            let errors: Vec<_> = all_stats
+                .iter()
+                .filter(|s| &s.viewport == name)
+                .filter_map(|s| s.error)
+                .collect();
+            let count = errors.len().max(1) as f64;
+            let worst_psnr = errors
+                .iter()
+                .map(|e| e.psnr_db)
+                .fold(f64::INFINITY, f64::min);
+            let mean_psnr = errors.iter().map(|e| e.psnr_db.min(100.0)).sum::<f64>() / count;
+            let max_abs = errors.iter().map(|e| e.max_abs).fold(0.0f32, f32::max);
+            let mean = errors.iter().map(|e| e.mean_abs).sum::<f64>() / count;
+            let share = errors.iter().map(|e| e.differing_share).sum::<f64>() / count;
+            println!(
+                "verify {name} (against its own rays): PSNR worst {worst_psnr:.2} dB, mean {mean_psnr:.2} dB; \
+                 max abs error {max_abs:.4}, mean abs error {mean:.5}, {:.2}% of pixels differ in 8 bits",
                 share * 100.0
             );
         }

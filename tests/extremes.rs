@@ -284,6 +284,7 @@ on_every_backend! {
                 max_depth: 0,
                 warnings: Vec::new(),
                 animation: None,
+                viewports: Vec::new(),
             };
             let accel = build(backend, &scene.objects);
             let table = RayTable::new(&scene.camera);

@@ -124,7 +124,10 @@ on_every_backend! {
             32,
             24,
         );
-        let pan_only = Techniques { pan: true, ostc: false };
+        let pan_only = Techniques {
+            pan: true,
+            ..Techniques::FULL
+        };
         let stats = run_exact(&scene, backend, pan_only);
         assert!(stats[1..].iter().all(|s| s.samples_traced >= 32 * 24));
         assert!(stats[1].reason.contains("ostc is off"), "{}", stats[1].reason);

@@ -4,3 +4,4 @@
 
 pub mod ostc;
 pub mod pan;
+pub mod samples;

@@ -17,6 +17,7 @@ use crate::anim::{
 };
 use crate::camera::{yaw_pitch_toward, Camera, Projection};
 use crate::geometry::{Object, Placement, Plane, Shape, Sphere, TriangleMesh};
+use crate::reuse::samples::{ViewTransform, Viewport, ViewportKey, ViewportTrack};
 
 /// Settings from the command line that replace the file's.
 #[derive(Clone, Debug, Default)]
@@ -41,6 +42,8 @@ struct SceneFile {
     #[serde(default)]
     object: Vec<Spanned<ObjectDef>>,
     animation: Option<AnimationDef>,
+    #[serde(default)]
+    viewport: Vec<Spanned<ViewportDef>>,
 }
 
 #[derive(Deserialize)]
@@ -57,6 +60,45 @@ struct AnimationDef {
     bounce: Vec<Spanned<BounceDef>>,
     #[serde(default)]
     light: Vec<Spanned<LightKeyDef>>,
+    #[serde(default)]
+    viewport: Vec<Spanned<ViewportKeyDef>>,
+}
+
+/// An RSVP viewport onto the camera's sample buffer.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ViewportDef {
+    name: Option<String>,
+    width: i64,
+    height: i64,
+    #[serde(default = "default_projection")]
+    projection: Projection,
+    /// Degrees; the camera's if unset.
+    fov: Option<f64>,
+    /// Degrees, added to the camera's.
+    #[serde(default)]
+    yaw: f64,
+    #[serde(default)]
+    pitch: f64,
+    zoom: Option<f64>,
+    /// Degrees, counter-clockwise.
+    rotate: Option<f64>,
+    shear: Option<[f64; 2]>,
+    translate: Option<[f64; 2]>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ViewportKeyDef {
+    frame: u32,
+    /// Name or index of the viewport; the first if unset.
+    viewport: Option<toml::Value>,
+    zoom: Option<f64>,
+    rotate: Option<f64>,
+    shear: Option<[f64; 2]>,
+    translate: Option<[f64; 2]>,
+    #[serde(default)]
+    ease: Ease,
 }
 
 #[derive(Deserialize)]
@@ -589,13 +631,17 @@ pub fn parse_scene_str(
             max_depth: 0,
             warnings: Vec::new(),
             animation: None,
+            viewports: Vec::new(),
         };
         animation.pose(&mut posed, 0);
         (objects, lights) = (posed.objects, posed.lights);
     }
 
+    let viewports = convert_viewports(&ctx, &file, &camera)?;
+
     Ok(Scene {
         camera,
+        viewports,
         objects,
         materials,
         lights,
@@ -605,6 +651,150 @@ pub fn parse_scene_str(
         warnings,
         animation,
     })
+}
+
+fn transform_error(
+    ctx: &Ctx,
+    span: std::ops::Range<usize>,
+    prefix: &str,
+    err: crate::reuse::samples::TransformError,
+) -> SceneError {
+    ctx.error(span, format!("{prefix}.{}", err.field), err.message)
+}
+
+fn convert_viewports(
+    ctx: &Ctx,
+    file: &SceneFile,
+    camera: &Camera,
+) -> Result<Vec<ViewportTrack>, SceneError> {
+    let mut tracks: Vec<ViewportTrack> = Vec::with_capacity(file.viewport.len());
+    for (i, def) in file.viewport.iter().enumerate() {
+        let v = def.get_ref();
+        let field = format!("viewport[{i}]");
+        let name = v.name.clone().unwrap_or_else(|| format!("view{i}"));
+        if name.is_empty()
+            || !name
+                .chars()
+                .all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_')
+        {
+            return Err(ctx.error(
+                def.span(),
+                format!("{field}.name"),
+                format!("'{name}': use letters, digits, - and _ (it goes into file names)"),
+            ));
+        }
+        if tracks.iter().any(|t| t.viewport.name == name) {
+            return Err(ctx.error(
+                def.span(),
+                format!("{field}.name"),
+                format!("'{name}' names two viewports"),
+            ));
+        }
+        let size = |value: i64, which: &str| {
+            u32::try_from(value).ok().filter(|&s| s > 0).ok_or_else(|| {
+                ctx.error(
+                    def.span(),
+                    format!("{field}.{which}"),
+                    format!("must be at least 1, got {value}"),
+                )
+            })
+        };
+        let t = v;
+        let viewport = Viewport {
+            name,
+            width: size(v.width, "width")?,
+            height: size(v.height, "height")?,
+            projection: v.projection,
+            fov: v.fov.map_or(camera.fov, f64::to_radians),
+            yaw: v.yaw.to_radians(),
+            pitch: v.pitch.to_radians(),
+            transform: ViewTransform {
+                zoom: t.zoom.unwrap_or(1.0),
+                rotate: t.rotate.unwrap_or(0.0).to_radians(),
+                shear: t.shear.unwrap_or([0.0; 2]),
+                translate: t.translate.unwrap_or([0.0; 2]),
+            },
+        };
+        viewport
+            .validate(camera)
+            .map_err(|err| transform_error(ctx, def.span(), &field, err))?;
+        tracks.push(ViewportTrack {
+            viewport,
+            keys: Vec::new(),
+        });
+    }
+    let keys = file.animation.as_ref().map_or(&[][..], |a| &a.viewport[..]);
+    for (i, key) in keys.iter().enumerate() {
+        let k = key.get_ref();
+        let field = format!("animation.viewport[{i}]");
+        let index = match &k.viewport {
+            None => 0,
+            Some(toml::Value::Integer(n)) => usize::try_from(*n).unwrap_or(usize::MAX),
+            Some(toml::Value::String(name)) => tracks
+                .iter()
+                .position(|t| t.viewport.name == *name)
+                .unwrap_or(usize::MAX),
+            Some(other) => {
+                return Err(ctx.error(
+                    key.span(),
+                    format!("{field}.viewport"),
+                    format!("expected a viewport name or index, got {other}"),
+                ))
+            }
+        };
+        let Some(track) = tracks.get_mut(index) else {
+            let names: Vec<String> = tracks.iter().map(|t| t.viewport.name.clone()).collect();
+            return Err(ctx.error(
+                key.span(),
+                format!("{field}.viewport"),
+                format!(
+                    "no such viewport{} (defined: {})",
+                    k.viewport
+                        .as_ref()
+                        .map_or(String::new(), |v| format!(" {v}")),
+                    if names.is_empty() {
+                        "none".to_string()
+                    } else {
+                        names.join(", ")
+                    }
+                ),
+            ));
+        };
+        let previous = track.keys.last();
+        if let Some(previous) = previous {
+            if k.frame <= previous.frame {
+                return Err(ctx.error(
+                    key.span(),
+                    format!("{field}.frame"),
+                    format!(
+                        "keyframes of viewport '{}' must be in increasing frame order: frame {} follows frame {}",
+                        track.viewport.name, k.frame, previous.frame
+                    ),
+                ));
+            }
+        }
+        let carried = previous.map_or(track.viewport.transform, |p| p.transform);
+        let transform = ViewTransform {
+            zoom: k.zoom.unwrap_or(carried.zoom),
+            rotate: k.rotate.map_or(carried.rotate, f64::to_radians),
+            shear: k.shear.unwrap_or(carried.shear),
+            translate: k.translate.unwrap_or(carried.translate),
+        };
+        transform.validate().map_err(|err| {
+            transform_error(
+                ctx,
+                key.span(),
+                &format!("{field} (viewport '{}')", track.viewport.name),
+                err,
+            )
+        })?;
+        track.keys.push(ViewportKey {
+            frame: k.frame,
+            transform,
+            ease: k.ease,
+        });
+    }
+    Ok(tracks)
 }
 
 fn convert_animation(

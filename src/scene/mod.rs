@@ -87,6 +87,9 @@ pub struct Scene {
     pub warnings: Vec<String>,
     /// The timeline, for scenes that animate.
     pub animation: Option<crate::anim::Animation>,
+    /// RSVP viewports onto the camera's sample buffer (none: the camera's
+    /// own image is the output).
+    pub viewports: Vec<crate::reuse::samples::ViewportTrack>,
 }
 
 impl Scene {

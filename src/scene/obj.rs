@@ -321,6 +321,7 @@ pub(super) fn scene_around_obj(
         max_depth: 3,
         warnings,
         animation: None,
+        viewports: Vec::new(),
     })
 }
 

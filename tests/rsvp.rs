@@ -1,0 +1,316 @@
+//! RSVP: the lazily traced sample buffer and its viewports, on every
+//! backend; scene-file errors for bad viewports; the CLI's Figure 5.
+
+use std::path::Path;
+use std::process::Command;
+
+use glam::DVec3;
+use retrace::accel::Accelerator;
+use retrace::anim::{image_error, Animator, Techniques};
+use retrace::camera::{Camera, Projection};
+use retrace::render::trace_groups;
+use retrace::render::SampleGroup;
+use retrace::reuse::samples::{
+    Filter, LevelRays, RsvpKnobs, SampleBuffer, SampleLattice, ViewTransform, ViewportPose,
+};
+use retrace::scene::{parse_scene_str, Scene, SceneOverrides};
+use retrace::shade::Shader;
+
+mod common;
+
+fn paper_text() -> String {
+    std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/paper.toml")).unwrap()
+}
+
+/// The paper scene (camera 64x48, so the buffer's level 0 is coarse) with
+/// `extra` tables appended.
+fn paper_with(extra: &str) -> Result<Scene, retrace::scene::SceneError> {
+    let text = format!("{}\n{extra}", paper_text());
+    let overrides = SceneOverrides {
+        width: Some(64),
+        height: Some(48),
+        ..SceneOverrides::default()
+    };
+    parse_scene_str(&text, Path::new("scenes/paper.toml"), &overrides)
+}
+
+fn lattice_for(scene: &Scene) -> SampleLattice {
+    SampleLattice::for_camera(&scene.camera)
+}
+
+/// A 64x48 viewport looking like the scene camera, with `transform`.
+fn pose(scene: &Scene, projection: Projection, transform: ViewTransform) -> ViewportPose {
+    ViewportPose::new(
+        Camera {
+            projection,
+            width: 64,
+            height: 48,
+            ..scene.camera.clone()
+        },
+        transform,
+    )
+}
+
+fn bits(v: glam::Vec3) -> [u32; 3] {
+    v.to_array().map(f32::to_bits)
+}
+
+on_every_backend! {
+    null_samples_are_traced_once_and_kept(backend) {
+        let scene = paper_with("").unwrap();
+        let accel = Accelerator::build(backend, &scene.objects).unwrap();
+        let shader = Shader::new(&scene, &accel);
+        let mut buffer = SampleBuffer::new(lattice_for(&scene));
+        let knobs = RsvpKnobs::default();
+        let zoomed = ViewTransform { zoom: 3.0, rotate: 0.5, ..ViewTransform::default() };
+        let poses = [pose(&scene, Projection::Perspective, zoomed)];
+        let first = buffer.render(&shader, &poses, &knobs, true);
+        assert!(first[0].samples_traced > 0);
+        assert_eq!(buffer.samples_traced(), first[0].samples_traced);
+        // The same frame again traces nothing and gives the same picture.
+        let again = buffer.render(&shader, &poses, &knobs, true);
+        assert_eq!(again[0].samples_traced, 0);
+        assert_eq!(again[0].rays.total(), 0);
+        assert_eq!(again[0].frame, first[0].frame);
+        // A second viewport over the same area shares the samples.
+        let both = [poses[0].clone(), poses[0].clone()];
+        let shared = buffer.render(&shader, &both, &knobs, true);
+        assert_eq!(shared[0].samples_traced + shared[1].samples_traced, 0);
+    }
+
+    buffer_samples_equal_a_fresh_trace_of_their_group(backend) {
+        let scene = paper_with("").unwrap();
+        let accel = Accelerator::build(backend, &scene.objects).unwrap();
+        let shader = Shader::new(&scene, &accel);
+        let lattice = lattice_for(&scene);
+        let mut buffer = SampleBuffer::new(lattice.clone());
+        // Wide and zoomed views: levels 0 to 3 or so.
+        let poses = [
+            pose(&scene, Projection::Perspective, ViewTransform::default()),
+            pose(&scene, Projection::Perspective, ViewTransform { zoom: 6.0, ..ViewTransform::default() }),
+        ];
+        buffer.render(&shader, &poses, &RsvpKnobs::default(), false);
+        let mut checked = 0;
+        for level in 0..=4u32 {
+            // Samples around the view centre at this level.
+            let centre = poses[0].lattice_coords(&lattice, glam::DVec2::new(32.0, 24.0)).unwrap();
+            let (c0, r0) = ((centre.0 * f64::from(1u32 << level)) as i64, (centre.1 * f64::from(1u32 << level)) as i64);
+            for (dc, dr) in [(0, 0), (1, 0), (0, 1), (1, 1), (3, 2), (-5, 4)] {
+                let (col, row) = (c0 + dc, r0 + dr);
+                let Some(stored) = buffer.sample(level, col, row) else { continue };
+                let (owner, oc, or) = lattice.owner(level, col, row);
+                let group = SampleGroup::containing(oc, or);
+                let (colors, _) = trace_groups(&shader, &LevelRays { lattice: &lattice, level: owner }, &[group]);
+                let lane = group.lane_samples().iter().position(|&s| s == (oc, or)).unwrap();
+                assert_eq!(bits(stored), bits(colors[0][lane]), "level {level} ({col}, {row})");
+                checked += 1;
+            }
+        }
+        assert!(checked >= 10, "only {checked} samples were traced to check");
+    }
+
+    identity_equal_angle_viewport_reproduces_the_buffer(backend) {
+        let scene = paper_with("").unwrap();
+        let accel = Accelerator::build(backend, &scene.objects).unwrap();
+        let shader = Shader::new(&scene, &accel);
+        let lattice = lattice_for(&scene);
+        let step = lattice.step;
+        // Same angle per pixel as level 0, pixel centres on samples.
+        let camera = Camera {
+            projection: Projection::EqualAngle,
+            position: scene.camera.position,
+            yaw: 40.5 * step,
+            pitch: -9.5 * step,
+            fov: 64.0 * step,
+            width: 64,
+            height: 48,
+        };
+        let pose = ViewportPose::new(camera, ViewTransform::default());
+        for filter in [Filter::Bilinear, Filter::Nearest] {
+            let mut buffer = SampleBuffer::new(lattice.clone());
+            let knobs = RsvpKnobs { filter, ..RsvpKnobs::default() };
+            let view = buffer.render(&shader, std::slice::from_ref(&pose), &knobs, true);
+            assert_eq!(view[0].levels, (0, 0));
+            let frame = view[0].frame.as_ref().unwrap();
+            for y in 0..48u32 {
+                for x in 0..64u32 {
+                    let (col, row) = pose.lattice_coords(&lattice, glam::DVec2::new(f64::from(x) + 0.5, f64::from(y) + 0.5)).unwrap();
+                    let (col, row) = (col.round() as i64, row.round() as i64);
+                    let sample = buffer.sample(0, col, row).expect("traced");
+                    assert_eq!(bits(frame.get(x, y)), bits(sample), "{filter} ({x}, {y})");
+                }
+            }
+        }
+    }
+
+    zoom_extremes_render(backend) {
+        let scene = paper_with("").unwrap();
+        let accel = Accelerator::build(backend, &scene.objects).unwrap();
+        let shader = Shader::new(&scene, &accel);
+        let mut buffer = SampleBuffer::new(lattice_for(&scene));
+        for zoom in [1e-3, 1e3] {
+            let p = pose(&scene, Projection::Perspective, ViewTransform { zoom, rotate: 0.3, ..ViewTransform::default() });
+            let view = buffer.render(&shader, std::slice::from_ref(&p), &RsvpKnobs::default(), true);
+            let frame = view[0].frame.as_ref().unwrap();
+            assert!(frame.pixels.iter().all(|c| c.is_finite()), "zoom {zoom}");
+            let (direct, _) = retrace::reuse::samples::render_direct(&shader, &p);
+            let error = image_error(frame, &direct);
+            if zoom > 1.0 {
+                // Far finer than level 0: the pyramid, not an upscale.
+                assert!(view[0].levels.0 >= 8, "{:?}", view[0].levels);
+                assert!(error.psnr_db > 25.0, "zoom {zoom}: {error:?}");
+            }
+        }
+    }
+
+    zoom_sequence_stays_close_to_direct_renders(backend) {
+        let scene = paper_with(
+            "[animation]\nframes = 6\n\
+             [[viewport]]\nname = \"z\"\nwidth = 64\nheight = 48\n\
+             [[animation.viewport]]\nframe = 0\nzoom = 1.0\n\
+             [[animation.viewport]]\nframe = 5\nzoom = 2.0\nrotate = 20.0\n",
+        )
+        .unwrap();
+        let mut accel = Accelerator::build(backend, &scene.objects).unwrap();
+        let mut animator = Animator::new(&scene, &mut accel, Techniques::AUTO, 0..6);
+        let mut traced = 0;
+        for frame in 0..6 {
+            let outputs = animator.render_viewports(frame);
+            assert_eq!(outputs.len(), 1);
+            assert_eq!(outputs[0].stats.mode, "rsvp");
+            traced += outputs[0].stats.samples_traced;
+            let (direct, _) = animator.render_viewport_direct(frame, 0);
+            let error = image_error(outputs[0].frame.as_ref().unwrap(), &direct);
+            assert!(error.psnr_db > 15.0, "frame {frame}: {error:?}");
+        }
+        // Zooming in re-uses: far fewer samples than six full frames.
+        assert!(traced < 6 * 64 * 48, "{traced}");
+        let buffer = animator.buffer_image(5).unwrap();
+        assert_eq!(buffer.dimensions(), (64, 48));
+        // Full mode traces the viewport's own rays.
+        let mut full = Animator::new(&scene, &mut accel, Techniques::FULL, 0..6);
+        let outputs = full.render_viewports(3);
+        let (direct, _) = full.render_viewport_direct(3, 0);
+        assert_eq!(outputs[0].frame.as_ref().unwrap(), &direct);
+    }
+}
+
+fn scene_error(extra: &str) -> String {
+    match paper_with(extra) {
+        Ok(_) => panic!("accepted: {extra}"),
+        Err(err) => err.to_string(),
+    }
+}
+
+fn assert_names(message: &str, line: usize, field: &str) {
+    assert!(
+        message.starts_with(&format!("scenes/paper.toml:{line}: {field}")),
+        "{message}"
+    );
+}
+
+/// Line of the first appended table in [`paper_with`]'s text.
+fn first_extra_line() -> usize {
+    paper_text().lines().count() + 2
+}
+
+#[test]
+fn bad_viewports_name_file_line_and_field() {
+    let line = first_extra_line();
+    let view = |fields: &str| format!("[[viewport]]\nname = \"v\"\n{fields}\n");
+    let e = scene_error(&view("width = 0\nheight = 10"));
+    assert_names(&e, line, "viewport[0].width");
+    let e = scene_error(&view("width = 10\nheight = -4"));
+    assert_names(&e, line, "viewport[0].height");
+    let e = scene_error(&view("width = 10\nheight = 10\nzoom = 0.0"));
+    assert_names(&e, line, "viewport[0].zoom");
+    assert!(e.contains("1/1000..1000"), "{e}");
+    let e = scene_error(&view("width = 10\nheight = 10\nzoom = 1500.0"));
+    assert_names(&e, line, "viewport[0].zoom");
+    let e = scene_error(&view("width = 10\nheight = 10\nshear = [2.0, 0.5]"));
+    assert_names(&e, line, "viewport[0].shear");
+    assert!(e.contains("singular"), "{e}");
+    // The paper camera looks 9 degrees down: 85 more is beyond -90.
+    let e = scene_error(&view("width = 10\nheight = 10\npitch = -85.0"));
+    assert_names(&e, line, "viewport[0].pitch");
+    let e = scene_error(&view(
+        "width = 10\nheight = 10\nprojection = \"perspective\"\nfov = 180.0",
+    ));
+    assert_names(&e, line, "viewport[0].fov");
+    // Keyframes: their own line, the viewport named.
+    let keys = format!(
+        "{}[animation]\nframes = 10\n[[animation.viewport]]\nframe = 0\nviewport = \"v\"\nzoom = 0.0001\n",
+        view("width = 10\nheight = 10")
+    );
+    let e = scene_error(&keys);
+    assert_names(&e, line + 6, "animation.viewport[0] (viewport 'v').zoom");
+    let e = scene_error(&keys.replace("viewport = \"v\"", "viewport = \"w\""));
+    assert_names(&e, line + 6, "animation.viewport[0].viewport");
+    assert!(e.contains("defined: v"), "{e}");
+    let e = scene_error(&keys.replace("zoom = 0.0001", "shear = [1.0, 1.0]"));
+    assert_names(&e, line + 6, "animation.viewport[0] (viewport 'v').shear");
+    // Zoom 1/1000 and 1000 are accepted.
+    paper_with(&view("width = 10\nheight = 10\nzoom = 0.001")).unwrap();
+    paper_with(&view("width = 10\nheight = 10\nzoom = 1000.0")).unwrap();
+}
+
+#[test]
+fn figure_5_writes_the_buffer_and_both_viewports() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/paper-viewports.toml");
+    let out = Command::new(env!("CARGO_BIN_EXE_retrace"))
+        .args([
+            "animate",
+            scene,
+            "-o",
+            "out/f_####.png",
+            "--buffer-image",
+            "out/buffer_####.png",
+            "--stats",
+            "out/stats.csv",
+            "--verify",
+        ])
+        .current_dir(dir.path())
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(stdout.contains("verify zoomed"), "{stdout}");
+    let size = |name: &str| image::image_dimensions(dir.path().join("out").join(name)).unwrap();
+    assert_eq!(size("f_0000_zoomed.png"), (320, 200));
+    assert_eq!(size("f_0000_rotated.png"), (320, 200));
+    assert_eq!(size("buffer_0000.png"), (640, 480));
+    // The buffer shows black where no viewport looked.
+    let buffer = image::open(dir.path().join("out/buffer_0000.png"))
+        .unwrap()
+        .to_rgb8();
+    let black = buffer.pixels().filter(|p| p.0 == [0, 0, 0]).count();
+    assert!(black > 640 * 480 / 10, "{black} black pixels");
+    assert!(black < 640 * 480 * 9 / 10, "{black} black pixels");
+    let stats = std::fs::read_to_string(dir.path().join("out/stats.csv")).unwrap();
+    assert_eq!(stats.lines().count(), 3, "{stats}");
+    assert!(stats.lines().nth(1).unwrap().contains("zoomed"), "{stats}");
+}
+
+#[test]
+fn eye_moves_restart_the_buffer() {
+    let scene = paper_with(
+        "[animation]\nframes = 2\n\
+         [[animation.camera]]\nframe = 0\n\
+         [[animation.camera]]\nframe = 1\nposition = [0.0, 3.2, 13.0]\n\
+         [[viewport]]\nwidth = 16\nheight = 8\n",
+    )
+    .unwrap();
+    let mut accel = Accelerator::build(retrace::accel::BackendKind::Grid, &scene.objects).unwrap();
+    let mut animator = Animator::new(&scene, &mut accel, Techniques::AUTO, 0..2);
+    animator.render_viewports(0);
+    let outputs = animator.render_viewports(1);
+    assert!(outputs[0].stats.reason.contains("eye moved"));
+    let (direct, _) = animator.render_viewport_direct(1, 0);
+    assert!(image_error(outputs[0].frame.as_ref().unwrap(), &direct).psnr_db > 15.0);
+    let _ = DVec3::ZERO;
+}
