@@ -14,7 +14,7 @@ use crate::camera::RayTable;
 use crate::camera::{Camera, Projection};
 use crate::geometry::Placement;
 use crate::render::{render_view, Frame};
-use crate::reuse::ostc::{Footprint, Ostc, RegionGrid, DEFAULT_VOXELS};
+use crate::reuse::ostc::{Footprint, Ostc, RegionGrid, RegionLayout, RegionSet, DEFAULT_VOXELS};
 use crate::reuse::pan::{
     image_window, render_window, EqualAngleLattice, Lattice, PanBuffer, Window,
 };
@@ -520,6 +520,8 @@ pub struct Animator<'a> {
     /// Whether the camera changes at all over the run's frames.
     camera_moves: bool,
     samples: Option<SampleBuffer>,
+    /// The scene as it was when the sample buffer's samples were traced.
+    samples_pose: Option<ScenePose>,
     knobs: RsvpKnobs,
 }
 
@@ -553,6 +555,7 @@ impl<'a> Animator<'a> {
             keep_traced_image: false,
             traced_image: None,
             samples: None,
+            samples_pose: None,
             knobs: RsvpKnobs::default(),
             camera_moves: false,
         };
@@ -600,6 +603,15 @@ impl<'a> Animator<'a> {
         Some(buffer.buffer_image(&camera, self.scene.camera.width, self.scene.camera.height))
     }
 
+    /// With RSVP, re-traces every sample the buffer keeps (the scene posed
+    /// at the last frame rendered) and compares bit for bit: (samples
+    /// compared, samples that differ); None without a sample buffer.
+    pub fn verify_sample_buffer(&self) -> Option<(u64, u64)> {
+        let buffer = self.samples.as_ref()?;
+        let shader = Shader::new(&self.scene, self.accel);
+        Some(buffer.verify(&shader))
+    }
+
     /// Renders every viewport of `frame`: with RSVP from the sample buffer
     /// (tracing, in one batch, the null samples they touch), otherwise
     /// each through its own rays.
@@ -607,9 +619,12 @@ impl<'a> Animator<'a> {
         let start = Instant::now();
         let camera = self.camera_at(frame);
         let poses = self.viewport_poses(frame);
-        let scene_moves = self.animation().is_some_and(|a| a.moves_scene());
-        let moved = scene_moves && self.posed_frame != Some(frame);
         self.pose(frame);
+        let scene_pose = ScenePose::of(&self.scene, self.animation());
+        let moved = self
+            .samples_pose
+            .as_ref()
+            .is_some_and(|traced| *traced != scene_pose);
         let shader = Shader::new(&self.scene, self.accel);
         let names = self.scene.viewports.iter().map(|t| t.viewport.name.clone());
         let pixels =
@@ -648,9 +663,9 @@ impl<'a> Animator<'a> {
         let lattice = SampleLattice::for_camera(&self.scene.camera);
         let restart = match &self.samples {
             None => Some("first frame"),
-            // Keeping samples across object or light motion needs OSTC's
-            // dirty regions, which do not reach the sample buffer yet.
-            Some(_) if moved => Some("objects or lights moved: sample buffer restarted"),
+            Some(buffer) if moved && buffer.ostc().is_none() => {
+                Some("objects or lights moved and ostc is off: sample buffer restarted")
+            }
             Some(buffer) if buffer.lattice().position != camera.position => {
                 Some("eye moved: sample buffer restarted")
             }
@@ -659,31 +674,65 @@ impl<'a> Animator<'a> {
             }
             Some(_) => None,
         };
+        let (mut dirty_count, mut erased, mut book_ms) = (0u64, 0u64, 0.0);
         if let Some(why) = restart {
-            self.samples = Some(SampleBuffer::new(SampleLattice::new(
+            let mut buffer = SampleBuffer::new(SampleLattice::new(
                 camera.position,
                 lattice.columns_per_turn,
-            )));
+            ));
+            buffer.set_ostc(self.new_ostc(|size| buffer.regions(size)));
+            self.samples = Some(buffer);
             reason = why.to_string();
+        } else if moved {
+            // OSTC: erase what the motion can change; viewports trace it
+            // again when they read it.
+            let book_start = Instant::now();
+            let buffer = self.samples.as_mut().expect("kept buffer");
+            let old = self
+                .samples_pose
+                .as_ref()
+                .expect("a kept buffer has a pose");
+            let ostc = buffer.ostc().expect("restarted unless ostc is on");
+            let dirty = dirty_regions(ostc, old, &scene_pose);
+            dirty_count = dirty.len() as u64;
+            erased = buffer.erase(&dirty)
+                * u64::from(crate::render::GROUP_WIDTH * crate::render::GROUP_HEIGHT);
+            buffer.ostc_mut().expect("just used").forget(&dirty);
+            book_ms = book_start.elapsed().as_secs_f64() * 1e3;
         }
+        self.samples_pose = Some(scene_pose);
         let buffer = self.samples.as_mut().expect("sample buffer just ensured");
-        let setup_ms = start.elapsed().as_secs_f64() * 1e3;
+        let setup_ms = start.elapsed().as_secs_f64() * 1e3 - book_ms;
         let views = buffer.render(&shader, &poses, &self.knobs, self.linear_output);
         let count = views.len().max(1) as f64;
+        let (walked, record_ms) = buffer.ostc().map_or((0, 0.0), Ostc::take_counters);
+        // Recording ran on every worker thread: its share of the elapsed time.
+        let record_share = record_ms / rayon::current_num_threads() as f64;
+        let mode = if buffer.ostc().is_some() {
+            "rsvp+ostc"
+        } else {
+            "rsvp"
+        };
         views
             .into_iter()
             .zip(poses.iter().zip(names))
             .map(|(view, (pose, name))| {
-                let total = setup_ms / count + view.map_ms + view.trace_ms + view.gather_ms;
+                let total =
+                    (setup_ms + book_ms) / count + view.map_ms + view.trace_ms + view.gather_ms;
                 let mut stats = FrameStats {
                     frame,
-                    mode: "rsvp",
+                    mode,
+                    // Frame-wide OSTC figures, shared out over the viewports.
+                    dirty_regions: dirty_count,
+                    samples_nulled: erased,
+                    voxels_walked: walked,
+                    bookkeeping_ms: (book_ms + record_share) / count,
                     reason: reason.clone(),
                     pixels: pixels(pose),
                     pixels_reused: pixels(pose).saturating_sub(view.samples_traced),
                     samples_traced: view.samples_traced,
-                    trace_ms: view.trace_ms,
-                    copy_ms: total - view.trace_ms,
+                    trace_ms: (view.trace_ms - record_share / count).max(0.0),
+                    copy_ms: total - view.trace_ms - book_ms / count,
                     total_ms: total,
                     viewport: name.clone(),
                     finest_level: Some(view.levels.0),
@@ -868,12 +917,14 @@ impl<'a> Animator<'a> {
     /// OSTC bookkeeping for `store`, when it is on and the timeline moves
     /// something (no grid when no object moves, no light bookkeeping when
     /// no light moves).
-    fn new_ostc(&self, store: &Store, camera: &Camera) -> Option<Ostc> {
+    fn new_ostc(&self, regions: impl FnOnce((i64, i64)) -> RegionLayout) -> Option<Ostc> {
         let animation = self.animation()?;
         if !self.techniques.ostc || !animation.moves_scene() {
             return None;
         }
         let swept = (!animation.objects.is_empty()).then(|| swept_bounds(self.base, animation));
+        // Regions are cut from the scene camera's screen, whatever views it.
+        let camera = &self.base.camera;
         let size = self
             .ostc_settings
             .regions
@@ -883,7 +934,7 @@ impl<'a> Animator<'a> {
             animated_lights[track.light] = true;
         }
         Some(Ostc::new(
-            store.regions(size),
+            regions(size),
             swept,
             self.ostc_settings.voxels,
             &animated_lights,
@@ -968,18 +1019,7 @@ impl<'a> Animator<'a> {
             .as_mut()
             .expect("buffers restart on changes unless ostc is on");
         let book_start = Instant::now();
-        let mut dirty = crate::reuse::ostc::RegionSet::empty(ostc.layout().count());
-        for (old, new) in buffered.pose.places.iter().zip(&pose.places) {
-            if old != new {
-                dirty.union_with(&ostc.dirty_for(&[*old, *new]));
-            }
-        }
-        for (index, (old, new)) in buffered.pose.lights.iter().zip(&pose.lights).enumerate() {
-            if old != new {
-                let moved = old.position != new.position;
-                dirty.union_with(&ostc.dirty_for_light(index, moved));
-            }
-        }
+        let dirty = dirty_regions(ostc, &buffered.pose, &pose);
         stats.dirty_regions = dirty.len() as u64;
         stats.samples_nulled = buffered.store.erase(ostc.layout(), &dirty);
         ostc.forget(&dirty);
@@ -995,7 +1035,7 @@ impl<'a> Animator<'a> {
         let pose = ScenePose::of(&self.scene, self.animation());
         if let Some(reason) = self.restart_reason(camera, &pose) {
             let store = self.new_store(camera);
-            let ostc = self.new_ostc(&store, camera);
+            let ostc = self.new_ostc(|size| store.regions(size));
             let window = store.window(camera);
             self.buffer = Some(Buffered {
                 store,
@@ -1066,6 +1106,23 @@ impl<'a> Animator<'a> {
         stats.count_rays(pan.rays);
         (image, rgb)
     }
+}
+
+/// The regions whose samples the change from `old` to `new` can alter.
+fn dirty_regions(ostc: &Ostc, old: &ScenePose, new: &ScenePose) -> RegionSet {
+    let mut dirty = RegionSet::empty(ostc.layout().count());
+    for (was, is) in old.places.iter().zip(&new.places) {
+        if was != is {
+            dirty.union_with(&ostc.dirty_for(&[*was, *is]));
+        }
+    }
+    for (index, (was, is)) in old.lights.iter().zip(&new.lights).enumerate() {
+        if was != is {
+            let moved = was.position != is.position;
+            dirty.union_with(&ostc.dirty_for_light(index, moved));
+        }
+    }
+    dirty
 }
 
 /// Everything the animated objects of `scene` cover over the whole

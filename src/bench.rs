@@ -523,11 +523,13 @@ pub fn bench_viewport_sequence(
     frames: std::ops::Range<u32>,
     knobs: crate::reuse::samples::RsvpKnobs,
     measure_error: bool,
+    ostc: bool,
     mut progress: impl FnMut(),
 ) -> ViewportSequenceBench {
     use crate::anim::{image_error, Animator, Techniques};
     let rsvp_only = Techniques {
         rsvp: true,
+        ostc,
         ..Techniques::FULL
     };
     let views = scene.viewports.len();

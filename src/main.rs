@@ -243,9 +243,10 @@ struct BenchArgs {
     backend: BackendArg,
     /// Which measurement: `frame` (a full frame against bare Embree on the
     /// same ray packets), `backends` (the grid against Embree on the same
-    /// ray packets), `E1` (pan), `E2` (RSVP zoom in and out),
-    /// `E4nomotion` (pan 3.6 deg/frame and zoom together) or `knobs` (RSVP
-    /// filter, oversampling and level bias: cost and error).
+    /// ray packets), `E1` (pan), `E2` (RSVP zoom in and out), `E3` (OSTC:
+    /// a bouncing ball), `E4` (pan, zoom and the ball), `E4nomotion` (pan
+    /// 3.6 deg/frame and zoom together) or `knobs` (RSVP filter,
+    /// oversampling and level bias: cost and error).
     #[arg(long, default_value = "frame")]
     only: String,
     /// Timed repetitions (the median is reported).
@@ -340,10 +341,11 @@ fn bench(args: BenchArgs) -> Result<()> {
         "E2" | "e2" => bench_e2(&args, scene, bar, 0.0),
         "E3" | "e3" => bench_e3(&args, bar),
         "E4nomotion" | "e4nomotion" => bench_e2(&args, scene, bar, 3.6),
+        "E4" | "e4" => bench_e4(&args, bar),
         "knobs" => bench_knobs(&args, scene, bar),
         other => {
             anyhow::bail!(
-                "unknown measurement '{other}' for --only (available: frame, backends, E1, E2, E3, E4nomotion, knobs)"
+                "unknown measurement '{other}' for --only (available: frame, backends, E1, E2, E3, E4, E4nomotion, knobs)"
             )
         }
     }
@@ -505,7 +507,7 @@ fn bench_experiment(
 }
 
 fn print_viewport_bench(label: &str, r: &retrace::bench::ViewportSequenceBench) {
-    println!(
+    say!(
         "{label}: full {:8.1} ms ({:6.2} ms/frame)  RSVP {:7.1} ms ({:5.2} ms/frame)  speedup {:6.2}x  \
          PSNR worst {:5.2} dB mean {:5.2} dB  max abs {:.3}  mean abs {:.5}  differ {:5.2}%  traced {}",
         r.full_ms,
@@ -520,6 +522,53 @@ fn print_viewport_bench(label: &str, r: &retrace::bench::ViewportSequenceBench) 
         r.differing_share * 100.0,
         r.samples_traced,
     );
+}
+
+/// E4: pan, zoom and a bouncing ball at once (scenes/paper-all.toml unless
+/// a scene is given): direct renders of the viewport against RSVP with
+/// OSTC erasing what the ball changes.
+fn bench_e4(args: &BenchArgs, bar: indicatif::ProgressBar) -> Result<()> {
+    let scene = match &args.scene.scene {
+        Some(_) => load(&args.scene)?,
+        None => {
+            let path = Path::new("scenes/paper-all.toml");
+            if !path.exists() {
+                anyhow::bail!(
+                    "E4 needs scenes/paper-all.toml (run from the repository) or a scene file"
+                );
+            }
+            load(&SceneArgs {
+                scene: Some(path.to_path_buf()),
+                ..args.scene.clone()
+            })?
+        }
+    };
+    if scene.viewports.is_empty() {
+        anyhow::bail!("E4 needs a scene with a [[viewport]]");
+    }
+    let frames = scene.animation.as_ref().map_or(1, |a| a.frames);
+    let mut accel = args.backend.build(&scene)?;
+    bar.set_length(u64::from(frames) * 3);
+    bar.set_message("E4: direct vs RSVP + OSTC");
+    let result = retrace::bench::bench_viewport_sequence(
+        &scene,
+        &mut accel,
+        0..frames,
+        retrace::reuse::samples::RsvpKnobs::default(),
+        true,
+        true,
+        || bar.inc(1),
+    );
+    bar.finish_and_clear();
+    say!(
+        "E4 (pan 3.6 deg/frame + zoom 100 -> 50 deg + bouncing ball, {frames} frames), {} threads, one run, release",
+        rayon::current_num_threads()
+    );
+    print_viewport_bench("all", &result);
+    if let Some(path) = &args.json {
+        write_json(path, &result)?;
+    }
+    Ok(())
 }
 
 /// E2 (zoom 100 <-> 50 degrees over 100 frames, both directions), or with
@@ -546,12 +595,13 @@ fn bench_e2(
             0..100,
             retrace::reuse::samples::RsvpKnobs::default(),
             true,
+            false,
             || bar.inc(1),
         );
         results.push((label, result));
     }
     bar.finish_and_clear();
-    println!(
+    say!(
         "{} (perspective viewport 640x480, 100 <-> 50 deg over 100 frames{}), {} threads, one run, release",
         if pan_deg_per_frame == 0.0 { "E2" } else { "E4 without motion" },
         if pan_deg_per_frame == 0.0 {
@@ -603,11 +653,13 @@ fn bench_knobs(args: &BenchArgs, scene: Scene, bar: indicatif::ProgressBar) -> R
             knobs.filter, knobs.oversample, knobs.level_bias
         ));
         let result =
-            bench_viewport_sequence(&scene, &mut accel, 0..100, knobs, true, || bar.inc(1));
+            bench_viewport_sequence(&scene, &mut accel, 0..100, knobs, true, false, || {
+                bar.inc(1)
+            });
         results.push(result);
     }
     bar.finish_and_clear();
-    println!(
+    say!(
         "RSVP knobs on E2 zoom in (100 frames, 640x480), {} threads",
         rayon::current_num_threads()
     );
@@ -1070,6 +1122,8 @@ fn animate_viewports(
     );
     let mut all_stats = Vec::new();
     let mut write_ms = 0.0;
+    // (frames checked, samples compared, samples differing)
+    let mut buffer_check = (0u32, 0u64, 0u64);
     for frame in range.clone() {
         if args.skip_existing
             && names
@@ -1117,6 +1171,17 @@ fn animate_viewports(
                 write_ms += write_start.elapsed().as_secs_f64() * 1e3;
             }
         }
+        // The buffer's samples must be exactly what a fresh trace gives,
+        // however objects moved: re-trace them all (every 10th frame and
+        // the last, as it costs a full trace of the buffer).
+        let checkpoint = (frame - range.start()) % 10 == 9 || frame == *range.end();
+        if args.verify && checkpoint {
+            if let Some((compared, differing)) = animator.verify_sample_buffer() {
+                buffer_check.0 += 1;
+                buffer_check.1 += compared;
+                buffer_check.2 += differing;
+            }
+        }
         bar.set_message(format!("{frame_ms:.0} ms"));
         bar.inc(1);
     }
@@ -1127,10 +1192,24 @@ fn animate_viewports(
     if let Some(path) = &args.stats {
         write_stats(path, &all_stats)?;
     }
+    if buffer_check.0 > 0 {
+        say!(
+            "verify: buffer samples re-traced at {} frame(s): {} compared, {} differ",
+            buffer_check.0,
+            buffer_check.1,
+            buffer_check.2
+        );
+        if buffer_check.2 > 0 {
+            anyhow::bail!(
+                "verification failed: {} buffer samples differ from a fresh trace",
+                buffer_check.2
+            );
+        }
+    }
     let total: f64 = all_stats.iter().map(|s| s.total_ms).sum();
     let traced: u64 = all_stats.iter().map(|s| s.samples_traced).sum();
     let pixels: u64 = all_stats.iter().map(|s| s.pixels).sum();
-    println!(
+    say!(
         "{}: {} frames x {} viewports ({}) in {:.1} ms rendering ({:.1} ms writing); traced {traced} samples for {pixels} pixels ({:.1}%)",
         scene_name(&args.scene),
         range.end() - range.start() + 1,
@@ -1142,7 +1221,7 @@ fn animate_viewports(
     );
     if args.verify {
         let full: f64 = all_stats.iter().filter_map(|s| s.full_ms).sum();
-        println!(
+        say!(
             "verify: direct renders {full:.1} ms, speedup {:.2}x",
             full / total.max(1e-9)
         );
@@ -1161,7 +1240,7 @@ fn animate_viewports(
             let max_abs = errors.iter().map(|e| e.max_abs).fold(0.0f32, f32::max);
             let mean = errors.iter().map(|e| e.mean_abs).sum::<f64>() / count;
             let share = errors.iter().map(|e| e.differing_share).sum::<f64>() / count;
-            println!(
+            say!(
                 "verify {name} (against its own rays): PSNR worst {worst_psnr:.2} dB, mean {mean_psnr:.2} dB; \
                  max abs error {max_abs:.4}, mean abs error {mean:.5}, {:.2}% of pixels differ in 8 bits",
                 share * 100.0

@@ -103,6 +103,36 @@ on_every_backend! {
         assert!(traced(&stats) < 6 * 64 * 48);
     }
 
+    viewports_keep_an_exact_buffer_while_the_ball_moves(backend) {
+        // E4 in small: pan, zoom and a bouncing ball, seen by a viewport.
+        let extra = format!(
+            "{BALL}\n[[viewport]]\nname = \"v\"\nwidth = 48\nheight = 32\nfov = 70.0\n[animation]\nframes = 6\n[[animation.camera]]\nframe = 0\nyaw = -10.0\n[[animation.camera]]\nframe = 5\nyaw = 10.0\n[[animation.viewport]]\nframe = 0\nzoom = 1.0\n[[animation.viewport]]\nframe = 5\nzoom = 1.6\n[[animation.bounce]]\nobject = \"ball\"\nheight = 2.0\nperiod = 6\n"
+        );
+        let scene = paper_with(&extra, 64, 48);
+        let mut accel = retrace::accel::Accelerator::build(backend, &scene.objects).unwrap();
+        let mut animator = retrace::anim::Animator::new(&scene, &mut accel, Techniques::AUTO, 0..6);
+        let mut traced = 0;
+        for frame in 0..6 {
+            let outputs = animator.render_viewports(frame);
+            let stats = &outputs[0].stats;
+            assert_eq!(stats.mode, "rsvp+ostc", "frame {frame}: {}", stats.reason);
+            if frame > 0 {
+                assert!(stats.dirty_regions > 0, "frame {frame}");
+                traced += stats.samples_traced;
+            }
+            let (compared, differing) = animator.verify_sample_buffer().unwrap();
+            assert!(compared > 0);
+            assert_eq!(differing, 0, "frame {frame}: buffer samples differ from a fresh trace");
+        }
+        // Kept samples: later frames trace far less than the first.
+        let first = {
+            let mut accel = retrace::accel::Accelerator::build(backend, &scene.objects).unwrap();
+            let mut fresh = retrace::anim::Animator::new(&scene, &mut accel, Techniques::AUTO, 0..6);
+            fresh.render_viewports(0)[0].stats.samples_traced
+        };
+        assert!(traced < 5 * first, "traced {traced} after a first frame of {first}");
+    }
+
     still_cameras_of_any_projection_use_ostc(backend) {
         for projection in [Projection::Perspective, Projection::Fisheye] {
             let mut scene = paper_with(

@@ -277,9 +277,18 @@ impl Ostc {
 
     /// What a group's rays are recorded through.
     pub fn marker(&self, group: SampleGroup) -> RegionMarker<'_> {
+        self.marker_in(self.layout.region_of(group.col, group.row))
+    }
+
+    /// What the rays of samples in `region` are recorded through.
+    pub fn marker_in(&self, region: usize) -> RegionMarker<'_> {
+        assert!(
+            region < self.layout.count(),
+            "region {region} outside the layout"
+        );
         RegionMarker {
             ostc: self,
-            region: self.layout.region_of(group.col, group.row),
+            region,
             walked: 0,
             nanos: 0,
             recent: [0; RECENT_SLOTS],

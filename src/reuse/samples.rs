@@ -36,8 +36,10 @@ use rayon::prelude::*;
 use crate::camera::{Camera, Projection};
 use crate::ray::Ray;
 use crate::render::{
-    srgb_table, trace_groups, Frame, PrimaryRays, SampleGroup, GROUP_HEIGHT, GROUP_WIDTH,
+    srgb_table, trace_groups, trace_groups_observed, Frame, PrimaryRays, SampleGroup, GROUP_HEIGHT,
+    GROUP_WIDTH,
 };
+use crate::reuse::ostc::{Ostc, RegionLayout, RegionSet};
 use crate::shade::{RayCounts, Shader};
 
 /// Finest pyramid level: 2^16 times the camera's angular resolution, enough
@@ -775,6 +777,9 @@ pub struct SampleBuffer {
     lattice: SampleLattice,
     levels: Vec<Level>,
     samples_traced: u64,
+    /// OSTC bookkeeping of the samples, when objects or lights move: every
+    /// batch's rays are recorded into it (see [`SampleBuffer::erase`]).
+    ostc: Option<Ostc>,
 }
 
 impl SampleBuffer {
@@ -783,7 +788,124 @@ impl SampleBuffer {
             lattice,
             levels: (0..=MAX_LEVEL).map(|_| Level::default()).collect(),
             samples_traced: 0,
+            ostc: None,
         }
+    }
+
+    /// Regions of `size` level-0 samples tiling the whole buffer (a whole
+    /// turn, pole to pole). A finer level's group lies in the region of
+    /// its position on level 0: regions are whole groups wide and tall at
+    /// every level (40 * 2^k is a multiple of 4), so no group straddles two.
+    pub fn regions(&self, size: (i64, i64)) -> RegionLayout {
+        RegionLayout::new(
+            size,
+            self.lattice.columns(0),
+            0,
+            self.lattice.last_row(0) + 1,
+        )
+    }
+
+    /// Records every ray traced from now on into `ostc` (built over
+    /// [`SampleBuffer::regions`]).
+    pub fn set_ostc(&mut self, ostc: Option<Ostc>) {
+        self.ostc = ostc;
+    }
+
+    pub fn ostc(&self) -> Option<&Ostc> {
+        self.ostc.as_ref()
+    }
+
+    pub fn ostc_mut(&mut self) -> Option<&mut Ostc> {
+        self.ostc.as_mut()
+    }
+
+    /// The region (of `layout`) of a group of `level`.
+    fn region_of(
+        lattice: &SampleLattice,
+        layout: &RegionLayout,
+        level: u32,
+        group: SampleGroup,
+    ) -> usize {
+        let col = lattice.wrap_column(level, group.col) >> level;
+        let row = (group.row >> level).clamp(0, lattice.last_row(0));
+        layout.region_of(col, row)
+    }
+
+    /// Re-traces every traced group, in its owning level's aligned group as
+    /// it was traced, and compares the kept samples with the fresh ones bit
+    /// for bit: (samples compared, samples that differ). What `--verify`
+    /// checks when objects move and OSTC keeps the buffer.
+    pub fn verify(&self, shader: &Shader) -> (u64, u64) {
+        let (mut compared, mut differing) = (0u64, 0u64);
+        for (level, store) in self.levels.iter().enumerate() {
+            let level = level as u32;
+            let mut groups = Vec::new();
+            let mut slots = Vec::new();
+            for (&(tile_col, tile_row), &tile) in &store.tiles {
+                let mut rest = store.traced[tile as usize];
+                while rest != 0 {
+                    let bit = rest.trailing_zeros();
+                    rest &= rest - 1;
+                    groups.push(SampleGroup {
+                        col: (tile_col << TILE_COL_SHIFT) + i64::from(bit) * i64::from(GROUP_WIDTH),
+                        row: tile_row << TILE_ROW_SHIFT,
+                    });
+                    slots.push(tile as usize);
+                }
+            }
+            let source = LevelRays {
+                lattice: &self.lattice,
+                level,
+            };
+            let (fresh, _) = trace_groups(shader, &source, &groups);
+            for ((group, tile), colors) in groups.iter().zip(&slots).zip(&fresh) {
+                for (lane, (col, row)) in group.lane_samples().into_iter().enumerate() {
+                    if self.lattice.owner(level, col, row).0 != level
+                        || self.lattice.direction(level, col, row).is_none()
+                    {
+                        continue;
+                    }
+                    let (_, sample, _) = tile_key(col, row);
+                    let kept = store.colors[tile * TILE_SAMPLES + sample];
+                    compared += 1;
+                    let same = kept.to_array().map(f32::to_bits)
+                        == colors[lane].to_array().map(f32::to_bits);
+                    differing += u64::from(!same);
+                }
+            }
+        }
+        (compared, differing)
+    }
+
+    /// Nulls, at every level, the samples lying in `regions` (of the OSTC
+    /// layout); returns how many groups were erased. They are traced again
+    /// when a viewport next reads them.
+    pub fn erase(&mut self, regions: &RegionSet) -> u64 {
+        let Some(ostc) = &self.ostc else {
+            return 0;
+        };
+        let layout = *ostc.layout();
+        let mut erased = 0;
+        for (level, store) in self.levels.iter_mut().enumerate() {
+            let level = level as u32;
+            for (&(tile_col, tile_row), &tile) in &store.tiles {
+                let traced = &mut store.traced[tile as usize];
+                let mut rest = *traced;
+                while rest != 0 {
+                    let bit = rest.trailing_zeros();
+                    rest &= rest - 1;
+                    let group = SampleGroup {
+                        col: (tile_col << TILE_COL_SHIFT) + i64::from(bit) * i64::from(GROUP_WIDTH),
+                        row: tile_row << TILE_ROW_SHIFT,
+                    };
+                    if regions.contains(Self::region_of(&self.lattice, &layout, level, group)) {
+                        *traced &= !(1u64 << bit);
+                        erased += 1;
+                    }
+                }
+            }
+        }
+        erased
     }
 
     pub fn lattice(&self) -> &SampleLattice {
@@ -1097,7 +1219,11 @@ impl SampleBuffer {
                 lattice: &self.lattice,
                 level,
             };
-            let (colors, rays) = trace_groups(shader, &source, &groups);
+            let ostc = self.ostc.as_ref();
+            let lattice = &self.lattice;
+            let (colors, rays) = trace_groups_observed(shader, &source, &groups, |group| {
+                ostc.map(|o| o.marker_in(Self::region_of(lattice, o.layout(), level, group)))
+            });
             let ms = start.elapsed().as_secs_f64() * 1e3;
             let per_group = ms / groups.len() as f64;
             let lattice = self.lattice.clone();
