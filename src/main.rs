@@ -397,24 +397,26 @@ fn bench_e1(args: &BenchArgs, scene: Scene, bar: indicatif::ProgressBar) -> Resu
     )
 }
 
+/// The scene given on the command line, else the experiment's own file
+/// (found from the repository's root).
+fn experiment_scene(args: &BenchArgs, experiment: &str, default: &str) -> Result<Scene> {
+    if args.scene.scene.is_some() {
+        return load(&args.scene);
+    }
+    let path = Path::new(default);
+    if !path.exists() {
+        anyhow::bail!("{experiment} needs {default} (run from the repository) or a scene file");
+    }
+    load(&SceneArgs {
+        scene: Some(path.to_path_buf()),
+        ..args.scene.clone()
+    })
+}
+
 /// E3: a small ball bouncing before the still camera (scenes/paper-bounce.toml
 /// unless a scene is given).
 fn bench_e3(args: &BenchArgs, bar: indicatif::ProgressBar) -> Result<()> {
-    let scene = match &args.scene.scene {
-        Some(_) => load(&args.scene)?,
-        None => {
-            let path = Path::new("scenes/paper-bounce.toml");
-            if !path.exists() {
-                anyhow::bail!(
-                    "E3 needs scenes/paper-bounce.toml (run from the repository) or a scene file"
-                );
-            }
-            load(&SceneArgs {
-                scene: Some(path.to_path_buf()),
-                ..args.scene.clone()
-            })?
-        }
-    };
+    let scene = experiment_scene(args, "E3", "scenes/paper-bounce.toml")?;
     if !matches!(&scene.animation, Some(a) if a.moves_scene()) {
         anyhow::bail!("E3 needs a scene whose timeline moves objects or lights");
     }
@@ -528,21 +530,7 @@ fn print_viewport_bench(label: &str, r: &retrace::bench::ViewportSequenceBench) 
 /// a scene is given): direct renders of the viewport against RSVP with
 /// OSTC erasing what the ball changes.
 fn bench_e4(args: &BenchArgs, bar: indicatif::ProgressBar) -> Result<()> {
-    let scene = match &args.scene.scene {
-        Some(_) => load(&args.scene)?,
-        None => {
-            let path = Path::new("scenes/paper-all.toml");
-            if !path.exists() {
-                anyhow::bail!(
-                    "E4 needs scenes/paper-all.toml (run from the repository) or a scene file"
-                );
-            }
-            load(&SceneArgs {
-                scene: Some(path.to_path_buf()),
-                ..args.scene.clone()
-            })?
-        }
-    };
+    let scene = experiment_scene(args, "E4", "scenes/paper-all.toml")?;
     if scene.viewports.is_empty() {
         anyhow::bail!("E4 needs a scene with a [[viewport]]");
     }
