@@ -839,7 +839,7 @@ impl<'a> Animator<'a> {
         self.pose(frame);
         let camera = self.camera_at(frame);
         let shader = Shader::new(&self.scene, self.accel);
-        if self.pans(&camera) {
+        if self.on_lattice(&camera) {
             let lattice = EqualAngleLattice::for_camera(&camera);
             let window = lattice.window(&camera);
             return render_window(&shader, &lattice, &window);
@@ -859,7 +859,14 @@ impl<'a> Animator<'a> {
     /// its own image instead: its exact view, with no snapping to the
     /// lattice.
     fn pans(&self, camera: &Camera) -> bool {
-        self.techniques.pan && camera.projection == Projection::EqualAngle && self.camera_moves
+        self.techniques.pan && self.on_lattice(camera)
+    }
+
+    /// Whether a full render of `camera` is taken on the pan lattice, so
+    /// that a pan (by any animator of this timeline) compares with it bit
+    /// for bit: equal-angle cameras that move during the run.
+    fn on_lattice(&self, camera: &Camera) -> bool {
+        camera.projection == Projection::EqualAngle && self.camera_moves
     }
 
     /// Why `camera` cannot use a sample buffer, if it cannot.

@@ -73,6 +73,27 @@ on_every_backend! {
 }
 
 #[test]
+fn full_renders_are_the_same_reference_whatever_the_mode() {
+    // The benches render the full side with reuse off: its frames must be
+    // the very frames a pan is checked against.
+    let scene = paper_with_keys(&(key(0, "yaw = 0.0") + &key(3, "yaw = 30.0")), 4);
+    let mut accel =
+        Accelerator::build(retrace::accel::BackendKind::Embree, &scene.objects).unwrap();
+    let mut auto = Animator::new(&scene, &mut accel, Techniques::AUTO, 0..4);
+    let panned: Vec<_> = (0..4).map(|f| auto.render(f).0.unwrap()).collect();
+    drop(auto);
+    let mut full = Animator::new(&scene, &mut accel, Techniques::FULL, 0..4);
+    for (frame, panned) in panned.iter().enumerate() {
+        let (reference, _) = full.render_full(frame as u32);
+        assert_eq!(
+            retrace::anim::count_differences(panned, &reference),
+            0,
+            "frame {frame}"
+        );
+    }
+}
+
+#[test]
 fn non_equal_angle_cameras_fall_back_with_a_reason() {
     let mut scene = paper_with_keys(&(key(0, "yaw = 0.0") + &key(2, "yaw = 10.0")), 3);
     scene.camera.projection = retrace::camera::Projection::Perspective;
