@@ -1016,23 +1016,14 @@ fn animate(args: AnimateArgs) -> Result<()> {
     for reason in refusals {
         eprintln!("warning: rendered in full: {reason}");
     }
-    let rendered = all_stats.len();
-    let total: f64 = all_stats.iter().map(|s| s.total_ms).sum();
-    let traced: u64 = all_stats.iter().map(|s| s.samples_traced).sum();
-    let pixels: u64 = all_stats.iter().map(|s| s.pixels).sum();
+    let what = format!("{} frames", all_stats.len());
     say!(
-        "{}: {rendered} frames in {:.1} ms rendering ({:.1} ms writing); traced {traced} samples for {pixels} pixels ({:.1}%)",
+        "{}: {what} {}",
         scene_name(&args.scene),
-        total,
-        write_ms,
-        100.0 * traced as f64 / pixels.max(1) as f64
+        run_summary(&all_stats, write_ms)
     );
     if args.verify {
-        let full: f64 = all_stats.iter().filter_map(|s| s.full_ms).sum();
-        say!(
-            "verify: full renders {full:.1} ms, speedup {:.2}x",
-            full / total.max(1e-9)
-        );
+        say!("verify: full renders {}", verify_timing(&all_stats));
         if !failed_frames.is_empty() {
             let list: Vec<String> = failed_frames
                 .iter()
@@ -1046,23 +1037,15 @@ fn animate(args: AnimateArgs) -> Result<()> {
         if animator.is_exact() {
             say!("verify: every frame equals its full render bit for bit (a pan: of the snapped view)");
         }
-        {
-            let errors: Vec<_> = all_stats.iter().filter_map(|s| s.error).collect();
-            let count = errors.len().max(1) as f64;
-            let worst_psnr = errors
-                .iter()
-                .map(|e| e.psnr_db)
-                .fold(f64::INFINITY, f64::min);
-            let max_abs = errors.iter().map(|e| e.max_abs).fold(0.0f32, f32::max);
-            let mean = errors.iter().map(|e| e.mean_abs).sum::<f64>() / count;
-            let share = errors.iter().map(|e| e.differing_share).sum::<f64>() / count;
-            say!(
-                "verify ({}, against the camera's own unsnapped rays): worst PSNR {worst_psnr:.2} dB, \
-                 max abs error {max_abs:.4}, mean abs error {mean:.5}, {:.2}% of pixels differ in 8 bits",
-                if animator.is_exact() { "snapped" } else { "resampled" },
-                share * 100.0
-            );
-        }
+        say!(
+            "verify ({}, against the camera's own unsnapped rays): {}",
+            if animator.is_exact() {
+                "snapped"
+            } else {
+                "resampled"
+            },
+            error_summary(all_stats.iter())
+        );
     }
     Ok(())
 }
@@ -1194,48 +1177,67 @@ fn animate_viewports(
             );
         }
     }
-    let total: f64 = all_stats.iter().map(|s| s.total_ms).sum();
-    let traced: u64 = all_stats.iter().map(|s| s.samples_traced).sum();
-    let pixels: u64 = all_stats.iter().map(|s| s.pixels).sum();
-    say!(
-        "{}: {} frames x {} viewports ({}) in {:.1} ms rendering ({:.1} ms writing); traced {traced} samples for {pixels} pixels ({:.1}%)",
-        scene_name(&args.scene),
+    let what = format!(
+        "{} frames x {} viewports ({})",
         range.end() - range.start() + 1,
         names.len(),
-        names.join(", "),
-        total,
-        write_ms,
-        100.0 * traced as f64 / pixels.max(1) as f64
+        names.join(", ")
+    );
+    say!(
+        "{}: {what} {}",
+        scene_name(&args.scene),
+        run_summary(&all_stats, write_ms)
     );
     if args.verify {
-        let full: f64 = all_stats.iter().filter_map(|s| s.full_ms).sum();
-        say!(
-            "verify: direct renders {full:.1} ms, speedup {:.2}x",
-            full / total.max(1e-9)
-        );
+        say!("verify: direct renders {}", verify_timing(&all_stats));
         for name in &names {
-            let errors: Vec<_> = all_stats
-                .iter()
-                .filter(|s| &s.viewport == name)
-                .filter_map(|s| s.error)
-                .collect();
-            let count = errors.len().max(1) as f64;
-            let worst_psnr = errors
-                .iter()
-                .map(|e| e.psnr_db)
-                .fold(f64::INFINITY, f64::min);
-            let mean_psnr = errors.iter().map(|e| e.psnr_db.min(100.0)).sum::<f64>() / count;
-            let max_abs = errors.iter().map(|e| e.max_abs).fold(0.0f32, f32::max);
-            let mean = errors.iter().map(|e| e.mean_abs).sum::<f64>() / count;
-            let share = errors.iter().map(|e| e.differing_share).sum::<f64>() / count;
+            let rows = all_stats.iter().filter(|s| &s.viewport == name);
             say!(
-                "verify {name} (against its own rays): PSNR worst {worst_psnr:.2} dB, mean {mean_psnr:.2} dB; \
-                 max abs error {max_abs:.4}, mean abs error {mean:.5}, {:.2}% of pixels differ in 8 bits",
-                share * 100.0
+                "verify {name} (against its own rays): {}",
+                error_summary(rows)
             );
         }
     }
     Ok(())
+}
+
+/// Time spent, and samples traced against pixels shown, over a run.
+fn run_summary(stats: &[retrace::anim::FrameStats], write_ms: f64) -> String {
+    let total: f64 = stats.iter().map(|s| s.total_ms).sum();
+    let traced: u64 = stats.iter().map(|s| s.samples_traced).sum();
+    let pixels: u64 = stats.iter().map(|s| s.pixels).sum();
+    format!(
+        "in {total:.1} ms rendering ({write_ms:.1} ms writing); traced {traced} samples for {pixels} pixels ({:.1}%)",
+        100.0 * traced as f64 / pixels.max(1) as f64
+    )
+}
+
+/// The reference renders' time and the speedup against them.
+fn verify_timing(stats: &[retrace::anim::FrameStats]) -> String {
+    let total: f64 = stats.iter().map(|s| s.total_ms).sum();
+    let full: f64 = stats.iter().filter_map(|s| s.full_ms).sum();
+    format!("{full:.1} ms, speedup {:.2}x", full / total.max(1e-9))
+}
+
+/// Worst and mean PSNR, largest and mean absolute error and share of
+/// differing pixels over the rows that measured an error.
+fn error_summary<'a>(rows: impl Iterator<Item = &'a retrace::anim::FrameStats>) -> String {
+    let errors: Vec<_> = rows.filter_map(|s| s.error).collect();
+    let count = errors.len().max(1) as f64;
+    let worst_psnr = errors
+        .iter()
+        .map(|e| e.psnr_db)
+        .fold(f64::INFINITY, f64::min);
+    // Identical frames have infinite PSNR: cap them so the mean stays finite.
+    let mean_psnr = errors.iter().map(|e| e.psnr_db.min(100.0)).sum::<f64>() / count;
+    let max_abs = errors.iter().map(|e| e.max_abs).fold(0.0f32, f32::max);
+    let mean = errors.iter().map(|e| e.mean_abs).sum::<f64>() / count;
+    let share = errors.iter().map(|e| e.differing_share).sum::<f64>() / count;
+    format!(
+        "PSNR worst {worst_psnr:.2} dB, mean {mean_psnr:.2} dB; max abs error {max_abs:.4}, \
+         mean abs error {mean:.5}, {:.2}% of pixels differ in 8 bits",
+        share * 100.0
+    )
 }
 
 fn write_json(path: &Path, value: &impl serde::Serialize) -> Result<()> {

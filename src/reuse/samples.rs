@@ -1607,16 +1607,21 @@ fn snap_fraction(f: f64) -> f64 {
 mod tests {
     use super::*;
 
-    fn lattice() -> SampleLattice {
-        SampleLattice::for_camera(&Camera {
-            projection: Projection::EqualAngle,
+    /// The paper camera's size and field of view, level, one unit up.
+    fn camera(projection: Projection) -> Camera {
+        Camera {
+            projection,
             position: DVec3::new(0.0, 1.0, 0.0),
             yaw: 0.0,
             pitch: 0.0,
             fov: 100f64.to_radians(),
             width: 640,
             height: 480,
-        })
+        }
+    }
+
+    fn lattice() -> SampleLattice {
+        SampleLattice::for_camera(&camera(Projection::EqualAngle))
     }
 
     #[test]
@@ -1764,18 +1769,7 @@ mod tests {
     fn a_wide_perspective_viewport_needs_finer_levels_at_its_edges() {
         let lattice = lattice();
         let buffer = SampleBuffer::new(lattice);
-        let pose = ViewportPose::new(
-            Camera {
-                projection: Projection::Perspective,
-                position: DVec3::new(0.0, 1.0, 0.0),
-                yaw: 0.0,
-                pitch: 0.0,
-                fov: 100f64.to_radians(),
-                width: 640,
-                height: 480,
-            },
-            ViewTransform::default(),
-        );
+        let pose = ViewportPose::new(camera(Projection::Perspective), ViewTransform::default());
         let knobs = RsvpKnobs::default();
         let map = PixelMap::new(&pose);
         assert_eq!(buffer.region_level(&pose, &map, &knobs, 312, 232), 0);
