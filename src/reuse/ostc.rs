@@ -179,30 +179,52 @@ struct VoxelBits {
 }
 
 impl VoxelBits {
-    /// False only if the segment surely misses the grid's box: a slab
-    /// test in f32 that rejects only when the gap between entry and exit
-    /// is far beyond the few ulps of rounding each `t` carries. Most rays
-    /// never come near the moving objects and cost this alone.
-    fn may_cross(&self, origin: Vec3, dir: Vec3, t0: f32, t1: f32) -> bool {
+    /// The lanes of `mask` whose segment (`tmin` to `ends`) may cross the
+    /// grid's box: a slab test in f32 that rejects a lane only when the gap
+    /// between entry and exit is far beyond the few ulps of rounding each
+    /// `t` carries. Most rays never come near the moving objects and cost
+    /// this alone, so it runs on all eight lanes at once (plain selects
+    /// instead of `f32::min`, whose NaN rules block vectorizing).
+    fn crossing_lanes(
+        &self,
+        rays: &RayPacket,
+        mask: LaneMask,
+        ends: &[f32; PACKET_WIDTH],
+    ) -> LaneMask {
         let (lo, hi) = (self.spec.bounds.min, self.spec.bounds.max);
-        let (mut enter, mut exit) = (t0, t1);
+        let mut enter: [f32; PACKET_WIDTH] = std::array::from_fn(|lane| rays[lane].tmin);
+        let mut exit = *ends;
         for axis in 0..3 {
-            let (o, d) = (origin[axis], dir[axis]);
-            let inv = 1.0 / d;
-            if !inv.is_finite() {
-                // Parallel to the slabs (a zero or subnormal component).
-                if o < lo[axis] || o > hi[axis] {
-                    return false;
+            for lane in 0..PACKET_WIDTH {
+                let (o, d) = (rays[lane].origin[axis], rays[lane].dir[axis]);
+                let inv = 1.0 / d;
+                let (mut a, mut z) = ((lo[axis] - o) * inv, (hi[axis] - o) * inv);
+                if !inv.is_finite() {
+                    // Parallel to the slabs (a zero or subnormal component):
+                    // no limit inside them, nothing outside.
+                    let inside = o >= lo[axis] && o <= hi[axis];
+                    a = if inside {
+                        f32::NEG_INFINITY
+                    } else {
+                        f32::INFINITY
+                    };
+                    z = -a;
                 }
-                continue;
+                let (near, far) = if a < z { (a, z) } else { (z, a) };
+                enter[lane] = if near > enter[lane] {
+                    near
+                } else {
+                    enter[lane]
+                };
+                exit[lane] = if far < exit[lane] { far } else { exit[lane] };
             }
-            let (a, z) = ((lo[axis] - o) * inv, (hi[axis] - o) * inv);
-            enter = enter.max(a.min(z));
-            exit = exit.min(a.max(z));
         }
-        let margin = (enter.abs() + exit.abs()) * 1e-5 + f32::MIN_POSITIVE;
-        // NaN is unordered: walk it and let the walk decide.
-        enter.partial_cmp(&(exit + margin)) != Some(std::cmp::Ordering::Greater)
+        (0..PACKET_WIDTH).fold(0, |crossing, lane| {
+            let margin = (enter[lane].abs() + exit[lane].abs()) * 1e-5 + f32::MIN_POSITIVE;
+            // NaN is unordered: walk it and let the walk decide.
+            let misses = enter[lane] > exit[lane] + margin;
+            crossing | (LaneMask::from(!misses) << lane)
+        }) & mask
     }
 }
 
@@ -472,12 +494,7 @@ impl RayObserver for RegionMarker<'_> {
         // moving objects): it is not timed, the walks and marks are.
         let ends: [f32; PACKET_WIDTH] =
             std::array::from_fn(|lane| ends[lane] + ends[lane].abs() * WALK_END_SLACK);
-        let crossing = lanes(mask)
-            .filter(|&lane| {
-                let ray = &rays[lane];
-                voxels.may_cross(ray.origin, ray.dir, ray.tmin, ends[lane])
-            })
-            .fold(0 as LaneMask, |m, lane| m | (1 << lane));
+        let crossing = voxels.crossing_lanes(rays, mask, &ends);
         if crossing == 0 {
             return;
         }
@@ -485,12 +502,13 @@ impl RayObserver for RegionMarker<'_> {
         let plane = &voxels.bits[word * voxels.voxel_count..(word + 1) * voxels.voxel_count];
         for lane in lanes(crossing) {
             let ray = &rays[lane];
-            for voxel in voxels.spec.walk(ray.origin, ray.dir, ray.tmin, ends[lane]) {
+            let walk = voxels.spec.walk(ray.origin, ray.dir, ray.tmin, ends[lane]);
+            walk.for_each_voxel(|voxel| {
                 self.walked += 1;
                 let index = voxels.spec.linear_index(voxel);
                 let slot = index % RECENT_SLOTS;
                 if self.recent[slot] == index as u32 + 1 {
-                    continue;
+                    return;
                 }
                 self.recent[slot] = index as u32 + 1;
                 // Most voxels are marked already: a load is cheaper than a
@@ -498,7 +516,7 @@ impl RayObserver for RegionMarker<'_> {
                 if plane[index].load(Ordering::Relaxed) & bit == 0 {
                     plane[index].fetch_or(bit, Ordering::Relaxed);
                 }
-            }
+            });
         }
         self.nanos += start.elapsed().as_nanos() as u64;
     }
@@ -630,7 +648,10 @@ mod tests {
                 dir[axis_zero] = 0.0;
             }
             let walked = voxels.spec.walk(origin, dir, 0.0, t1).next().is_some();
-            proptest::prop_assert!(!walked || voxels.may_cross(origin, dir, 0.0, t1));
+            let mut rays = [Ray::INACTIVE; PACKET_WIDTH];
+            rays[3] = Ray { origin, dir, tmin: 0.0, tmax: t1 };
+            let crossing = voxels.crossing_lanes(&rays, 1 << 3, &[t1; PACKET_WIDTH]);
+            proptest::prop_assert!(!walked || crossing == 1 << 3);
         }
     }
 

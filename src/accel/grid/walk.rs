@@ -174,6 +174,9 @@ pub struct VoxelWalk {
     /// Origin and direction in voxel units.
     g0: [f64; 3],
     d: [f64; 3],
+    /// `1 / d` (unused on axes where `d` is zero). A product instead of a
+    /// quotient adds an ulp or so to each `t`, far inside `eps`.
+    inv_d: [f64; 3],
     eps: f64,
     /// The axis of each nesting level, outermost first: axes the segment
     /// moves along come before axes it does not, so voxels met at the same
@@ -249,6 +252,7 @@ impl VoxelWalk {
             grid,
             g0,
             d,
+            inv_d: d.map(|x| 1.0 / x),
             eps: 0.0,
             axes: [0, 1, 2],
             loops: [AxisLoop::default(); 3],
@@ -314,8 +318,8 @@ impl VoxelWalk {
             }
             span
         } else {
-            let ta = (lo - self.g0[axis]) / d;
-            let tb = (hi - self.g0[axis]) / d;
+            let ta = (lo - self.g0[axis]) * self.inv_d[axis];
+            let tb = (hi - self.g0[axis]) * self.inv_d[axis];
             (span.0.max(ta.min(tb)), span.1.min(ta.max(tb)))
         };
         (a <= b).then_some((a, b))
@@ -345,6 +349,47 @@ impl VoxelWalk {
 
     fn voxel_span(&self, axis: usize, i: i64, span: (f64, f64)) -> Option<(f64, f64)> {
         self.slab_interval(axis, i as f64 - self.eps, (i + 1) as f64 + self.eps, span)
+    }
+}
+
+impl VoxelWalk {
+    /// Visits the same voxels as iterating, but in no particular order:
+    /// straight nested loops without the iterator's resumable state, for
+    /// callers (OSTC's marking) that only need the set.
+    pub fn for_each_voxel(self, mut visit: impl FnMut([u32; 3])) {
+        if self.done {
+            return;
+        }
+        let [outer, middle, inner] = self.axes;
+        let mut voxel = [0u32; 3];
+        let mut outer_loop = self.loops[0];
+        while let Some(i) = outer_loop.take() {
+            let Some(outer_span) = self.voxel_span(outer, i, self.spans[0]) else {
+                continue;
+            };
+            let Some(mut middle_loop) = self.axis_loop(middle, outer_span) else {
+                continue;
+            };
+            voxel[outer] = i as u32;
+            while let Some(j) = middle_loop.take() {
+                let Some(middle_span) = self.voxel_span(middle, j, outer_span) else {
+                    continue;
+                };
+                let Some(inner_loop) = self.axis_loop(inner, middle_span) else {
+                    continue;
+                };
+                voxel[middle] = j as u32;
+                let (first, last) = if inner_loop.step < 0 {
+                    (inner_loop.last, inner_loop.next)
+                } else {
+                    (inner_loop.next, inner_loop.last)
+                };
+                for k in first..=last {
+                    voxel[inner] = k as u32;
+                    visit(voxel);
+                }
+            }
+        }
     }
 }
 
@@ -455,6 +500,16 @@ mod tests {
         let got = set(&walked);
         if got.len() != walked.len() {
             return Err(format!("a voxel repeats: {walked:?}"));
+        }
+        let mut visited = Vec::new();
+        spec.walk(o, d, t0, t1).for_each_voxel(|v| visited.push(v));
+        visited.sort_unstable();
+        let mut iterated = walked.clone();
+        iterated.sort_unstable();
+        if visited != iterated {
+            return Err(format!(
+                "for_each_voxel visits {visited:?}, the iterator {iterated:?}"
+            ));
         }
         let must = touched(spec, o, d, t0, t1, 0.0);
         if let Some(v) = must.difference(&got).next() {
