@@ -797,14 +797,16 @@ impl<'a> Animator<'a> {
                     .flat_map(|track| track.objects.iter().copied())
                     .collect(),
             };
-            for object in moved {
-                let Placement::Instance(transform) = self.scene.objects[object].placement else {
-                    unreachable!("animated objects are instances");
-                };
-                self.accel
-                    .set_object_transform(object as u32, &transform)
-                    .unwrap_or_else(|err| panic!("moving object {object}: {err}"));
-            }
+            let moves: Vec<(u32, Affine3A)> = moved
+                .into_iter()
+                .map(|object| match self.scene.objects[object].placement {
+                    Placement::Instance(transform) => (object as u32, transform),
+                    Placement::World => unreachable!("animated objects are instances"),
+                })
+                .collect();
+            self.accel
+                .move_objects(&moves)
+                .unwrap_or_else(|err| panic!("moving objects: {err}"));
         }
         self.posed_frame = Some(frame);
     }

@@ -6,7 +6,9 @@
 //! lists the primitives that overlap it (CSR: `cell_start` offsets into one
 //! flat `cell_items` array), built in parallel from sorted (cell, primitive)
 //! pairs. Spheres and the triangles of small world-placed meshes are
-//! primitives of the world grid. An instanced object, or a world mesh of
+//! primitives of the world grid, and so is a sphere placed by a transform,
+//! as the world-space sphere [`super::placed_sphere`] gives (a move rewrites
+//! it and re-bins). Any other instanced object, or a world mesh of
 //! [`NESTED_MESH_TRIANGLES`] triangles or more, is one primitive there,
 //! covering the cells its world box overlaps, and carries its own grid fitted
 //! to it (so a detailed mesh in a big, sparse scene keeps a fine grid: the
@@ -45,7 +47,7 @@ use rayon::prelude::*;
 pub use primitives::{intersect_sphere, TriangleHit, WatertightRay};
 pub use walk::{walk_segment, GridSpec, VoxelWalk, MAX_RESOLUTION, WALK_SLACK_VOXELS};
 
-use super::Intersector;
+use super::{placed_sphere, Intersector};
 use crate::geometry::{Aabb, Object, Placement, Shape, Sphere};
 use crate::ray::{Hit, Ray};
 
@@ -70,6 +72,15 @@ const BIN_SLACK_CELLS: f32 = 1e-4;
 pub struct GridIntersector {
     world: Level,
     resolution: Option<[u32; 3]>,
+    placed_spheres: Vec<PlacedSphere>,
+}
+
+/// A sphere placed by a transform: its own description, and where its
+/// world-space copy sits in the world level's spheres.
+struct PlacedSphere {
+    object: u32,
+    local: Sphere,
+    slot: usize,
 }
 
 impl GridIntersector {
@@ -78,33 +89,74 @@ impl GridIntersector {
     /// [`CELLS_PER_PRIMITIVE`] cells per primitive, near-cubic.
     pub fn build(objects: &[Object], resolution: Option<[u32; 3]>) -> GridIntersector {
         let mut prims = Prims::default();
+        let mut placed_spheres = Vec::new();
         for (id, object) in objects.iter().enumerate() {
             let id = id as u32;
-            match &object.placement {
-                Placement::World => match &object.shape {
-                    Shape::Mesh(mesh) if mesh.triangles.len() >= NESTED_MESH_TRIANGLES => {
-                        prims.nested.extend(Nested::new(id, &object.shape, None));
+            match (&object.placement, &object.shape) {
+                (Placement::World, Shape::Mesh(mesh))
+                    if mesh.triangles.len() >= NESTED_MESH_TRIANGLES =>
+                {
+                    prims.nested.extend(Nested::new(id, &object.shape, None));
+                }
+                (Placement::World, shape) => prims.add_shape(id, shape),
+                (Placement::Instance(xf), Shape::Sphere(sphere)) => {
+                    // A transform that would not keep the sphere round is
+                    // left out, like a non-invertible one.
+                    if let Some(placed) = placed_sphere(sphere, xf) {
+                        placed_spheres.push(PlacedSphere {
+                            object: id,
+                            local: *sphere,
+                            slot: prims.spheres.len(),
+                        });
+                        prims.spheres.push((placed, id));
                     }
-                    shape => prims.add_shape(id, shape),
-                },
-                Placement::Instance(xf) => {
-                    prims
-                        .nested
-                        .extend(Nested::new(id, &object.shape, Some(xf)));
+                }
+                (Placement::Instance(xf), shape) => {
+                    prims.nested.extend(Nested::new(id, shape, Some(xf)));
                 }
             }
         }
         GridIntersector {
             world: Level::build(prims, resolution),
             resolution,
+            placed_spheres,
         }
     }
 
-    /// Moves instanced object `object` (its index in the objects the grid
-    /// was built from) to `transform`, and re-bins the world grid. Returns
-    /// false, changing nothing, if `object` was not built as an instance
-    /// (or had nothing to hit) or `transform` cannot be inverted.
+    /// Moves object `object` (its index in the objects the grid was built
+    /// from), built with a transform, to `transform`, and re-bins the world
+    /// grid. Returns false, changing nothing, if `object` was not built with
+    /// a transform (or had nothing to hit), or `transform` cannot be inverted
+    /// (or, for a sphere, would not keep it round).
     pub fn set_instance_transform(&mut self, object: u32, transform: &Affine3A) -> bool {
+        self.move_objects(&[(object, *transform)])
+    }
+
+    /// Several moves as [`GridIntersector::set_instance_transform`], with one
+    /// re-bin. Returns false if any move was refused; the others are made.
+    pub fn move_objects(&mut self, moves: &[(u32, Affine3A)]) -> bool {
+        let mut all_made = true;
+        let mut any_made = false;
+        for (object, transform) in moves {
+            let made = self.place(*object, transform);
+            all_made &= made;
+            any_made |= made;
+        }
+        if any_made {
+            self.world.rebin(self.resolution);
+        }
+        all_made
+    }
+
+    /// Moves one object without re-binning.
+    fn place(&mut self, object: u32, transform: &Affine3A) -> bool {
+        if let Some(placed) = self.placed_spheres.iter().find(|p| p.object == object) {
+            let Some(sphere) = placed_sphere(&placed.local, transform) else {
+                return false;
+            };
+            self.world.prims.spheres[placed.slot].0 = sphere;
+            return true;
+        }
         let Some(inverse) = invert(transform) else {
             return false;
         };
@@ -119,7 +171,6 @@ impl GridIntersector {
         };
         nested.world_to_object = Some(inverse);
         nested.bounds = nested.local_bounds.transformed(transform);
-        self.world.rebin(self.resolution);
         true
     }
 

@@ -3,6 +3,11 @@
 //!
 //! Backends see bounded shapes only. Infinite planes are tested here, once,
 //! for every backend ([`Accelerator`]), so both give the same answer for them.
+//!
+//! A sphere placed by a transform (an animated ball) is traced by both
+//! backends as a plain world-space sphere, [`placed_sphere`]: the centre
+//! moved, the radius scaled, exactly as shading places it. A move rewrites
+//! that sphere; only meshes are traced through their transform.
 
 pub mod embree;
 pub mod grid;
@@ -10,7 +15,9 @@ pub mod grid;
 use std::fmt;
 use std::str::FromStr;
 
-use crate::geometry::{plane_distance, transform_normal, Object, Placement, Plane, Shape};
+use glam::Affine3A;
+
+use crate::geometry::{plane_distance, transform_normal, Object, Placement, Plane, Shape, Sphere};
 use crate::ray::{lanes, Hit, HitPacket, LaneMask, Ray, RayPacket, PACKET_WIDTH};
 
 /// Closest-hit and any-hit queries, one ray or an 8-wide packet at a time.
@@ -73,6 +80,41 @@ pub enum AccelError {
     Embree(#[from] embree::EmbreeError),
     #[error("backend '{0}' is not available in this build")]
     Unavailable(BackendKind),
+    #[error(
+        "object {object}: a sphere can only be moved, rotated and scaled uniformly \
+         (its transform would make it an ellipsoid, or is not finite)"
+    )]
+    SphereNotRound { object: u32 },
+}
+
+/// How far a sphere's transform may be from a similarity (relative, on the
+/// columns' lengths and angles) and still count as one: a rotation built
+/// from a quaternion in f32 is off by a few ULPs.
+const SIMILARITY_TOLERANCE: f32 = 1e-4;
+
+/// Where `sphere` is once placed by `transform`: its centre moved, its
+/// radius scaled by the length of the transform's first column, the same
+/// two operations shading and OSTC use, so every part of the renderer sees
+/// the same sphere. `None` unless the transform keeps spheres round (a
+/// rotation or reflection times a uniform, non-zero scale) and everything
+/// is finite.
+pub fn placed_sphere(sphere: &Sphere, transform: &Affine3A) -> Option<Sphere> {
+    let m = transform.matrix3;
+    let [x, y, z] = [m.x_axis, m.y_axis, m.z_axis];
+    let scale = x.length();
+    let tolerance = SIMILARITY_TOLERANCE * scale;
+    let square_tolerance = SIMILARITY_TOLERANCE * scale * scale;
+    let similar = scale > 0.0
+        && (y.length() - scale).abs() <= tolerance
+        && (z.length() - scale).abs() <= tolerance
+        && x.dot(y).abs() <= square_tolerance
+        && y.dot(z).abs() <= square_tolerance
+        && z.dot(x).abs() <= square_tolerance;
+    let placed = Sphere {
+        center: transform.transform_point3(sphere.center),
+        radius: sphere.radius * scale,
+    };
+    (similar && placed.center.is_finite() && placed.radius.is_finite()).then_some(placed)
 }
 
 /// The backend behind an [`Accelerator`], kept concrete so instanced
@@ -96,6 +138,9 @@ pub struct Accelerator {
     bounded: Backend,
     planes: Vec<PlaneTest>,
     kind: BackendKind,
+    /// Objects that are spheres placed by a transform: a move must keep
+    /// them round.
+    placed_spheres: Vec<(u32, Sphere)>,
 }
 
 impl Accelerator {
@@ -110,6 +155,23 @@ impl Accelerator {
         objects: &[Object],
         grid_resolution: Option<[u32; 3]>,
     ) -> Result<Accelerator, AccelError> {
+        let placed_spheres: Vec<(u32, Sphere)> = objects
+            .iter()
+            .enumerate()
+            .filter_map(|(id, object)| match (&object.shape, &object.placement) {
+                (Shape::Sphere(sphere), Placement::Instance(_)) => Some((id as u32, *sphere)),
+                _ => None,
+            })
+            .collect();
+        for (id, object) in objects.iter().enumerate() {
+            if let (Shape::Sphere(sphere), Placement::Instance(xf)) =
+                (&object.shape, &object.placement)
+            {
+                if placed_sphere(sphere, xf).is_none() {
+                    return Err(AccelError::SphereNotRound { object: id as u32 });
+                }
+            }
+        }
         let bounded = match kind {
             BackendKind::Embree => Backend::Embree(embree::EmbreeIntersector::build(objects)?),
             BackendKind::Grid => {
@@ -140,6 +202,7 @@ impl Accelerator {
             bounded,
             planes,
             kind,
+            placed_spheres,
         })
     }
 
@@ -147,22 +210,35 @@ impl Accelerator {
         self.kind
     }
 
-    /// Moves object `object`, which must have been built as an instance
-    /// (not a plane), to `transform`; only the top level is rebuilt.
+    /// Moves object `object`, which must have been built with a transform
+    /// (not a plane), to `transform`. Static geometry is not rebuilt.
     pub fn set_object_transform(
         &mut self,
         object: u32,
-        transform: &glam::Affine3A,
+        transform: &Affine3A,
     ) -> Result<(), AccelError> {
+        self.move_objects(&[(object, *transform)])
+    }
+
+    /// Moves several objects at once (each as [`Accelerator::set_object_transform`]),
+    /// paying for one re-commit or re-bin. Nothing moves if a sphere's new
+    /// transform would not keep it round.
+    pub fn move_objects(&mut self, moves: &[(u32, Affine3A)]) -> Result<(), AccelError> {
+        for (object, transform) in moves {
+            let sphere = self.placed_spheres.iter().find(|(id, _)| id == object);
+            if let Some((_, sphere)) = sphere {
+                if placed_sphere(sphere, transform).is_none() {
+                    return Err(AccelError::SphereNotRound { object: *object });
+                }
+            }
+        }
         match &mut self.bounded {
-            Backend::Embree(embree) => Ok(embree
-                .scene_mut()
-                .set_instance_transform(object, transform)?),
+            Backend::Embree(embree) => Ok(embree.move_objects(moves)?),
             Backend::Grid(grid) => {
-                // False means the grid holds nothing of the object (an empty
-                // mesh): nothing to move. Motion transforms are rigid, so
-                // always invertible.
-                grid.set_instance_transform(object, transform);
+                // False means the grid holds nothing of some object (an
+                // empty mesh): nothing to move. Motion transforms are rigid,
+                // so always invertible.
+                grid.move_objects(moves);
                 Ok(())
             }
         }

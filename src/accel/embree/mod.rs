@@ -6,8 +6,13 @@
 //!   slot is read after building calls, never per ray.
 //! - Rays are traced only on a [`CommittedScene`]; a scene keeps its device
 //!   alive (Embree reference counts), so nothing dangles.
-//! - Moving an instance (`set_instance_transform`) needs `&mut`, so no ray is
-//!   in flight while the scene is re-committed; static geometry is not rebuilt.
+//! - Moving geometry ([`CommittedScene::edit`]) needs `&mut`, so no ray is in
+//!   flight while the scene is re-committed. A sphere moves by rewriting its
+//!   one vertex in place (it stays a plain sphere of the top-level scene:
+//!   an instance, even of one small sphere, nearly doubled the cost of every
+//!   ray of the paper scene); meshes move as instances, so their triangles
+//!   are never rebuilt. An edit re-commits the scene once, however many
+//!   objects it moved.
 
 mod sys;
 
@@ -16,8 +21,8 @@ use std::sync::Mutex;
 
 use glam::{Affine3A, Vec3};
 
-use super::Intersector;
-use crate::geometry::{Object, Placement, Shape};
+use super::{placed_sphere, Intersector};
+use crate::geometry::{Object, Placement, Shape, Sphere};
 use crate::ray::{lanes, Hit, HitPacket, LaneMask, Ray, RayPacket, PACKET_WIDTH};
 
 const INVALID_ID: u32 = u32::MAX;
@@ -163,7 +168,16 @@ pub struct SceneBuilder {
     raw: sys::RTCScene,
     device: Device,
     children: Vec<CommittedScene>,
-    instance_ids: Vec<u32>,
+    movable: MovableIds,
+}
+
+/// The ids of a scene's geometries that can move after commit, checked
+/// before Embree is asked (Debian's Embree asserts, aborting the process,
+/// on an unknown id).
+#[derive(Default)]
+struct MovableIds {
+    instances: Vec<u32>,
+    spheres: Vec<u32>,
 }
 
 impl SceneBuilder {
@@ -189,7 +203,7 @@ impl SceneBuilder {
             raw,
             device: device.clone(),
             children: Vec::new(),
-            instance_ids: Vec::new(),
+            movable: MovableIds::default(),
         })
     }
 
@@ -273,9 +287,11 @@ impl SceneBuilder {
             geometry,
             sys::RTCBufferType::RTC_BUFFER_TYPE_VERTEX,
             sys::RTCFormat::RTC_FORMAT_FLOAT4,
-            &[[center.x, center.y, center.z, radius]],
+            &[sphere_vertex(center, radius)],
         )?;
-        self.attach(geometry, id)
+        self.attach(geometry, id)?;
+        self.movable.spheres.push(id);
+        Ok(())
     }
 
     /// Places `child` into this scene through `transform`; hits on it report
@@ -292,8 +308,9 @@ impl SceneBuilder {
         unsafe { sys::rtcSetGeometryInstancedScene(geometry, child.raw) };
         set_transform(geometry, transform);
         self.children.push(child);
-        self.instance_ids.push(id);
-        self.attach(geometry, id)
+        self.attach(geometry, id)?;
+        self.movable.instances.push(id);
+        Ok(())
     }
 
     pub fn commit(self) -> Result<CommittedScene, EmbreeError> {
@@ -304,18 +321,18 @@ impl SceneBuilder {
         let this = std::mem::ManuallyDrop::new(self);
         // SAFETY: moving fields out of a ManuallyDrop that is never used again,
         // so the scene is released exactly once (by CommittedScene).
-        let (device, children, instance_ids) = unsafe {
+        let (device, children, movable) = unsafe {
             (
                 std::ptr::read(&this.device),
                 std::ptr::read(&this.children),
-                std::ptr::read(&this.instance_ids),
+                std::ptr::read(&this.movable),
             )
         };
         Ok(CommittedScene {
             raw: this.raw,
             device,
             _children: children,
-            instance_ids,
+            movable,
         })
     }
 }
@@ -325,6 +342,11 @@ impl Drop for SceneBuilder {
         // SAFETY: a builder dropped before commit owns its scene reference.
         unsafe { sys::rtcReleaseScene(self.raw) };
     }
+}
+
+/// A sphere point's vertex: centre and radius (RTC_FORMAT_FLOAT4).
+fn sphere_vertex(center: Vec3, radius: f32) -> [f32; 4] {
+    [center.x, center.y, center.z, radius]
 }
 
 fn set_transform(geometry: sys::RTCGeometry, transform: &Affine3A) {
@@ -351,11 +373,11 @@ pub struct CommittedScene {
     raw: sys::RTCScene,
     device: Device,
     _children: Vec<CommittedScene>,
-    instance_ids: Vec<u32>,
+    movable: MovableIds,
 }
 
 // SAFETY: Embree allows concurrent rtcIntersect*/rtcOccluded* calls on a
-// committed scene; mutation (`set_instance_transform`) takes `&mut self`.
+// committed scene; mutation (`edit`) takes `&mut self`.
 unsafe impl Sync for CommittedScene {}
 // SAFETY: the scene handle may be used and released from any thread.
 unsafe impl Send for CommittedScene {}
@@ -426,28 +448,24 @@ impl CommittedScene {
         &self.device
     }
 
+    /// Starts moving geometry; [`SceneEdit::commit`] re-commits the scene
+    /// once for every move made through the edit.
+    pub fn edit(&mut self) -> SceneEdit<'_> {
+        SceneEdit {
+            scene: self,
+            committed: false,
+        }
+    }
+
     /// Moves instance `id` and re-commits; only the top level is rebuilt.
     pub fn set_instance_transform(
         &mut self,
         id: u32,
         transform: &Affine3A,
     ) -> Result<(), EmbreeError> {
-        // Debian's Embree asserts (aborts) on an unknown id, so check first.
-        if !self.instance_ids.contains(&id) {
-            return Err(EmbreeError {
-                code: "invalid argument",
-                message: format!("no instance with id {id}"),
-            });
-        }
-        // SAFETY: `&mut self` guarantees no concurrent tracing; `id` names an
-        // attached instance, whose handle the scene keeps alive.
-        unsafe {
-            let geometry = sys::rtcGetGeometry(self.raw, id);
-            set_transform(geometry, transform);
-            sys::rtcCommitGeometry(geometry);
-            sys::rtcCommitScene(self.raw);
-        }
-        self.device.take_error()
+        let mut edit = self.edit();
+        edit.set_instance_transform(id, transform)?;
+        edit.commit()
     }
 
     pub fn intersect1(&self, ray: &Ray) -> Option<Hit> {
@@ -573,34 +591,154 @@ impl CommittedScene {
     }
 }
 
+/// Moves geometry of a committed scene. Rays cannot be traced meanwhile (the
+/// edit borrows the scene mutably); [`SceneEdit::commit`] makes the moves
+/// visible. An edit dropped without `commit` still commits, so the scene is
+/// never left half updated; an error there surfaces at the next call that
+/// checks for errors.
+pub struct SceneEdit<'a> {
+    scene: &'a mut CommittedScene,
+    committed: bool,
+}
+
+impl SceneEdit<'_> {
+    fn unknown(kind: &str, id: u32) -> EmbreeError {
+        EmbreeError {
+            code: "invalid argument",
+            message: format!("no {kind} with id {id}"),
+        }
+    }
+
+    /// Places instance `id` by `transform`.
+    pub fn set_instance_transform(
+        &mut self,
+        id: u32,
+        transform: &Affine3A,
+    ) -> Result<(), EmbreeError> {
+        if !self.scene.movable.instances.contains(&id) {
+            return Err(Self::unknown("instance", id));
+        }
+        // SAFETY: the edit borrows the scene mutably, so no ray is in flight;
+        // `id` names an attached instance, which the scene keeps alive.
+        unsafe {
+            let geometry = sys::rtcGetGeometry(self.scene.raw, id);
+            set_transform(geometry, transform);
+            sys::rtcCommitGeometry(geometry);
+        }
+        self.scene.device.take_error()
+    }
+
+    /// Gives sphere `id` (attached with [`SceneBuilder::attach_sphere`]) a
+    /// new centre and radius, written into its vertex buffer in place.
+    pub fn move_sphere(&mut self, id: u32, center: Vec3, radius: f32) -> Result<(), EmbreeError> {
+        if !self.scene.movable.spheres.contains(&id) {
+            return Err(Self::unknown("sphere", id));
+        }
+        let vertex_buffer = sys::RTCBufferType::RTC_BUFFER_TYPE_VERTEX;
+        // SAFETY: as above; `id` names a sphere geometry whose vertex buffer
+        // Embree allocated in `attach_sphere` with one FLOAT4 element.
+        let data = unsafe {
+            let geometry = sys::rtcGetGeometry(self.scene.raw, id);
+            (
+                geometry,
+                sys::rtcGetGeometryBufferData(geometry, vertex_buffer, 0),
+            )
+        };
+        self.scene.device.take_error()?;
+        let (geometry, vertex) = data;
+        if vertex.is_null() {
+            return Err(Self::unknown("sphere vertex buffer for", id));
+        }
+        // SAFETY: `vertex` points to that one element (16 bytes, aligned by
+        // Embree to 16); nothing reads it until the commit below and the
+        // scene's, both after this write.
+        unsafe {
+            std::ptr::write(vertex as *mut [f32; 4], sphere_vertex(center, radius));
+            sys::rtcUpdateGeometryBuffer(geometry, vertex_buffer, 0);
+            sys::rtcCommitGeometry(geometry);
+        }
+        self.scene.device.take_error()
+    }
+
+    /// Re-commits the scene: the moves take effect.
+    pub fn commit(mut self) -> Result<(), EmbreeError> {
+        self.committed = true;
+        commit_scene(self.scene)
+    }
+}
+
+impl Drop for SceneEdit<'_> {
+    fn drop(&mut self) {
+        if !self.committed {
+            // SAFETY: as in `commit_scene`. An error stays in the device's
+            // slot for the next check.
+            unsafe { sys::rtcCommitScene(self.scene.raw) };
+        }
+    }
+}
+
+fn commit_scene(scene: &mut CommittedScene) -> Result<(), EmbreeError> {
+    // SAFETY: `&mut` guarantees no concurrent tracing on the scene.
+    unsafe { sys::rtcCommitScene(scene.raw) };
+    scene.device.take_error()
+}
+
 /// The Embree backend: one geometry per scene object, attached under the
-/// object's index so a hit names its object directly. Instanced objects get
-/// a child scene of their own, placed by an instance transform.
+/// object's index so a hit names its object directly. A sphere placed by a
+/// transform is attached as the world-space sphere [`placed_sphere`] gives;
+/// other objects placed by a transform get a child scene of their own,
+/// placed by an instance transform.
 pub struct EmbreeIntersector {
     scene: CommittedScene,
+    /// Spheres placed by a transform, in their own space: where a move
+    /// places them from.
+    placed_spheres: Vec<(u32, Sphere)>,
 }
 
 impl EmbreeIntersector {
     pub fn build(objects: &[Object]) -> Result<EmbreeIntersector, EmbreeError> {
         let device = Device::new()?;
         let mut top = SceneBuilder::new(&device)?;
+        let mut placed_spheres = Vec::new();
         for (id, object) in objects.iter().enumerate() {
             let id = id as u32;
-            match object.placement {
-                Placement::World => attach_shape(&mut top, id, &object.shape)?,
-                Placement::Instance(transform) => {
-                    if matches!(object.shape, Shape::Plane(_)) {
-                        continue;
-                    }
+            match (&object.placement, &object.shape) {
+                (Placement::World, shape) => attach_shape(&mut top, id, shape)?,
+                (Placement::Instance(_), Shape::Plane(_)) => {}
+                (Placement::Instance(transform), Shape::Sphere(sphere)) => {
+                    let placed =
+                        placed_sphere(sphere, transform).ok_or_else(|| not_round(id, transform))?;
+                    top.attach_sphere(id, placed.center, placed.radius)?;
+                    placed_spheres.push((id, *sphere));
+                }
+                (Placement::Instance(transform), shape) => {
                     let mut child = SceneBuilder::new(&device)?;
-                    attach_shape(&mut child, 0, &object.shape)?;
-                    top.attach_instance(id, child.commit()?, &transform)?;
+                    attach_shape(&mut child, 0, shape)?;
+                    top.attach_instance(id, child.commit()?, transform)?;
                 }
             }
         }
         Ok(EmbreeIntersector {
             scene: top.commit()?,
+            placed_spheres,
         })
+    }
+
+    /// Places each object of `moves` (built with a transform) by its new
+    /// transform, then re-commits the scene once.
+    pub fn move_objects(&mut self, moves: &[(u32, Affine3A)]) -> Result<(), EmbreeError> {
+        let mut edit = self.scene.edit();
+        for (object, transform) in moves {
+            match self.placed_spheres.iter().find(|(id, _)| id == object) {
+                Some((_, sphere)) => {
+                    let placed = placed_sphere(sphere, transform)
+                        .ok_or_else(|| not_round(*object, transform))?;
+                    edit.move_sphere(*object, placed.center, placed.radius)?;
+                }
+                None => edit.set_instance_transform(*object, transform)?,
+            }
+        }
+        edit.commit()
     }
 
     pub fn scene_mut(&mut self) -> &mut CommittedScene {
@@ -609,6 +747,13 @@ impl EmbreeIntersector {
 
     pub fn device(&self) -> &Device {
         self.scene.device()
+    }
+}
+
+fn not_round(object: u32, transform: &Affine3A) -> EmbreeError {
+    EmbreeError {
+        code: "invalid argument",
+        message: format!("object {object}: a sphere's transform must keep it round: {transform:?}"),
     }
 }
 
@@ -741,6 +886,35 @@ mod tests {
             .set_instance_transform(7, &Affine3A::from_translation(Vec3::new(5.0, 0.0, -4.0)))
             .unwrap();
         assert!(scene.intersect1(&ray).is_none());
+    }
+
+    #[test]
+    fn spheres_move_in_place_and_one_edit_commits_every_move() {
+        let device = Device::new().unwrap();
+        let mut scene = unit_triangle_scene(&device);
+        let ray = Ray::new(Vec3::new(4.0, 0.0, 2.0), -Vec3::Z);
+        assert!(scene.intersect1(&ray).is_none());
+        let mut edit = scene.edit();
+        edit.move_sphere(5, Vec3::new(4.0, 0.0, -1.0), 0.5).unwrap();
+        // Not a sphere, and not a geometry at all: refused before Embree.
+        assert_eq!(
+            edit.move_sphere(3, Vec3::ZERO, 1.0).unwrap_err().code,
+            "invalid argument"
+        );
+        assert!(edit.move_sphere(42, Vec3::ZERO, 1.0).is_err());
+        edit.commit().unwrap();
+        let hit = scene.intersect1(&ray).unwrap();
+        assert_eq!((hit.object, hit.prim), (5, 0));
+        assert!((hit.t - 2.5).abs() < 1e-5, "{hit:?}");
+        // Gone from where it was.
+        let old = Ray::new(Vec3::new(0.0, 0.0, -1.0), -Vec3::Z);
+        assert!(scene.intersect1(&old).is_none() && !scene.occluded1(&old));
+        // An edit dropped early (as by `?`) still commits what it moved.
+        {
+            let mut edit = scene.edit();
+            edit.move_sphere(5, Vec3::new(4.0, 0.0, -3.0), 0.5).unwrap();
+        }
+        assert!((scene.intersect1(&ray).unwrap().t - 4.5).abs() < 1e-5);
     }
 
     /// The bindings come from the Embree 4 headers, so the library must be

@@ -213,7 +213,15 @@ fn brute_force(objects: &[Object], ray: &Ray) -> Option<Hit> {
                 }
             }
             Shape::Sphere(s) => {
-                if let Some(t) = intersect_sphere(s, o, d, ray.tmin, tmax) {
+                // Placed spheres are traced in the world, where they are
+                // placed (or not at all, when the transform is not round).
+                let placed = match &obj.placement {
+                    Placement::World => Some(*s),
+                    Placement::Instance(xf) => crate::accel::placed_sphere(s, xf),
+                };
+                let hit =
+                    placed.and_then(|s| intersect_sphere(&s, ray.origin, ray.dir, ray.tmin, tmax));
+                if let Some(t) = hit {
                     best = Some(Hit {
                         t,
                         object: id as u32,
