@@ -36,8 +36,13 @@ const PALETTE: [RGBColor; 8] = [
     RGBColor(23, 190, 207),
 ];
 
-/// The colour of the `index`th series or group, as charts draw it.
-pub fn series_color(index: usize) -> RGBColor {
+/// The colour (RGB) of the `index`th series or group, as charts draw it.
+pub fn series_color(index: usize) -> [u8; 3] {
+    let RGBColor(r, g, b) = palette_color(index);
+    [r, g, b]
+}
+
+fn palette_color(index: usize) -> RGBColor {
     PALETTE[index % PALETTE.len()]
 }
 
@@ -91,7 +96,7 @@ pub fn line_chart(
     draw_png(path, |root| {
         let mut chart = cartesian(root, title, x_label, y_label, x_range, y_range)?;
         for (index, (series, points)) in series.iter().zip(finite).enumerate() {
-            let color = series_color(index);
+            let color = palette_color(index);
             chart
                 .draw_series(LineSeries::new(points, color.stroke_width(2)))?
                 .label(series.label.as_str())
@@ -119,21 +124,91 @@ pub fn scatter_chart(
     let (x_range, y_range) = axis_ranges(finite.iter().flatten().map(|p| (p.x, p.y)), groups.len());
     draw_png(path, |root| {
         let mut chart = cartesian(root, title, x_label, y_label, x_range, y_range)?;
-        let label_font = (FONT_FAMILY, 13).into_font();
+        let mut labels = Vec::new();
         for (index, (group, points)) in groups.iter().zip(finite).enumerate() {
-            let color = series_color(index);
-            let label_style = label_font.clone().color(&color);
+            let color = palette_color(index);
             chart
-                .draw_series(points.into_iter().map(|point| {
-                    EmptyElement::at((point.x, point.y))
-                        + Circle::new((0, 0), 5, color.filled())
-                        + Text::new(point.label.clone(), (7, -16), label_style.clone())
-                }))?
+                .draw_series(
+                    points
+                        .iter()
+                        .map(|p| Circle::new((p.x, p.y), DOT_RADIUS, color.filled())),
+                )?
                 .label(group.label.as_str())
-                .legend(move |(x, y)| Circle::new((x + 10, y), 5, color.filled()));
+                .legend(move |(x, y)| Circle::new((x + 10, y), DOT_RADIUS, color.filled()));
+            for point in points {
+                let at = chart.backend_coord(&(point.x, point.y));
+                labels.push((at, point.label.as_str(), color));
+            }
         }
+        let plot_area = chart.plotting_area().get_pixel_range();
+        draw_point_labels(root, plot_area, &labels)?;
         draw_legend(&mut chart, groups.len())
     })
+}
+
+const DOT_RADIUS: i32 = 5;
+
+/// Pixel rectangle: left, top, right, bottom.
+type PixelRect = (i32, i32, i32, i32);
+
+/// Whether two rectangles come closer than a few pixels (text estimates
+/// are not exact, and touching labels read as one).
+fn overlaps(a: &PixelRect, b: &PixelRect) -> bool {
+    const CLEARANCE: i32 = 4;
+    a.0 < b.2 + CLEARANCE && b.0 < a.2 + CLEARANCE && a.1 < b.3 + CLEARANCE && b.1 < a.3 + CLEARANCE
+}
+
+/// Writes each label beside its dot, at the first of a few places around
+/// it that stays inside the plotting area and clear of every dot and
+/// label already placed (settings often land close together, e.g. exact
+/// ones all at zero error).
+fn draw_point_labels<'b>(
+    root: &DrawingArea<BitMapBackend<'b>, Shift>,
+    (x_range, y_range): (Range<i32>, Range<i32>),
+    labels: &[((i32, i32), &str, RGBColor)],
+) -> DrawResult<(), BitMapBackend<'b>> {
+    let font = (FONT_FAMILY, 13).into_font();
+    let mut taken: Vec<PixelRect> = labels
+        .iter()
+        .map(|&((x, y), _, _)| {
+            let r = DOT_RADIUS + 1;
+            (x - r, y - r, x + r, y + r)
+        })
+        .collect();
+    for &((x, y), text, color) in labels {
+        if text.is_empty() {
+            continue;
+        }
+        let style = font.clone().color(&color);
+        let (w, h) = root.estimate_text_size(text, &style)?;
+        let (w, h) = (w as i32, h as i32);
+        let gap = DOT_RADIUS + 3;
+        let candidates = [
+            (x + gap, y - h - 2),
+            (x + gap, y + 2),
+            (x - gap - w, y - h - 2),
+            (x - gap - w, y + 2),
+            (x - w / 2, y - h - gap),
+            (x - w / 2, y + gap),
+            (x + gap, y - 2 * h - 4),
+            (x + gap, y + h + 4),
+            (x - gap - w, y - 2 * h - 4),
+            (x - gap - w, y + h + 4),
+        ];
+        let rect = |(left, top): (i32, i32)| (left, top, left + w, top + h);
+        let inside = |r: &PixelRect| {
+            r.0 >= x_range.start && r.2 <= x_range.end && r.1 >= y_range.start && r.3 <= y_range.end
+        };
+        let place = candidates
+            .iter()
+            .map(|&c| rect(c))
+            .find(|r| inside(r) && !taken.iter().any(|t| overlaps(r, t)))
+            .or_else(|| candidates.iter().map(|&c| rect(c)).find(inside))
+            .unwrap_or_else(|| rect(candidates[0]));
+        root.draw(&Text::new(text.to_string(), (place.0, place.1), style))?;
+        taken.push(place);
+    }
+    Ok(())
 }
 
 type Chart<'a, 'b> =
@@ -293,9 +368,8 @@ mod tests {
         image::open(path).unwrap().to_rgb8()
     }
 
-    fn pixels_of(image: &image::RgbImage, color: RGBColor) -> usize {
-        let RGBColor(r, g, b) = color;
-        image.pixels().filter(|p| p.0 == [r, g, b]).count()
+    fn pixels_of(image: &image::RgbImage, color: [u8; 3]) -> usize {
+        image.pixels().filter(|p| p.0 == color).count()
     }
 
     fn non_white_share(image: &image::RgbImage) -> f64 {
