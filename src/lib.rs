@@ -17,4 +17,5 @@ pub mod reuse;
 pub mod rng;
 pub mod scene;
 pub mod shade;
+pub mod tradeoff;
 pub mod validate;
