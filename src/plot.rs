@@ -168,6 +168,7 @@ fn draw_point_labels<'b>(
     labels: &[((i32, i32), &str, RGBColor)],
 ) -> DrawResult<(), BitMapBackend<'b>> {
     let font = (FONT_FAMILY, 13).into_font();
+    // The dots first, in the order of `labels`; placed labels follow.
     let mut taken: Vec<PixelRect> = labels
         .iter()
         .map(|&((x, y), _, _)| {
@@ -175,7 +176,7 @@ fn draw_point_labels<'b>(
             (x - r, y - r, x + r, y + r)
         })
         .collect();
-    for &((x, y), text, color) in labels {
+    for (own_dot, &((x, y), text, color)) in labels.iter().enumerate() {
         if text.is_empty() {
             continue;
         }
@@ -183,28 +184,55 @@ fn draw_point_labels<'b>(
         let (w, h) = root.estimate_text_size(text, &style)?;
         let (w, h) = (w as i32, h as i32);
         let gap = DOT_RADIUS + 3;
-        let candidates = [
+        let mut candidates = vec![
             (x + gap, y - h - 2),
             (x + gap, y + 2),
             (x - gap - w, y - h - 2),
             (x - gap - w, y + 2),
             (x - w / 2, y - h - gap),
             (x - w / 2, y + gap),
-            (x + gap, y - 2 * h - 4),
-            (x + gap, y + h + 4),
-            (x - gap - w, y - 2 * h - 4),
-            (x - gap - w, y + h + 4),
         ];
+        // Farther out, above and below in steps of a line, on either side:
+        // these get a leader line back to their dot.
+        let near = candidates.len();
+        for step in 1..12 {
+            let dy = step * (h + 4);
+            for left in [x + gap, x - gap - w] {
+                candidates.push((left, y - h - 2 - dy));
+                candidates.push((left, y + 2 + dy));
+            }
+        }
         let rect = |(left, top): (i32, i32)| (left, top, left + w, top + h);
         let inside = |r: &PixelRect| {
             r.0 >= x_range.start && r.2 <= x_range.end && r.1 >= y_range.start && r.3 <= y_range.end
         };
-        let place = candidates
+        let (index, place) = candidates
             .iter()
             .map(|&c| rect(c))
-            .find(|r| inside(r) && !taken.iter().any(|t| overlaps(r, t)))
-            .or_else(|| candidates.iter().map(|&c| rect(c)).find(inside))
-            .unwrap_or_else(|| rect(candidates[0]));
+            .enumerate()
+            .find(|(_, r)| {
+                let clear = taken
+                    .iter()
+                    .enumerate()
+                    .all(|(i, t)| i == own_dot || !overlaps(r, t));
+                inside(r) && clear
+            })
+            .or_else(|| {
+                candidates
+                    .iter()
+                    .map(|&c| rect(c))
+                    .enumerate()
+                    .find(|(_, r)| inside(r))
+            })
+            .unwrap_or_else(|| (0, rect(candidates[0])));
+        if index >= near {
+            let anchor_x = if place.0 > x { place.0 } else { place.2 };
+            let anchor_y = (place.1 + place.3) / 2;
+            root.draw(&PathElement::new(
+                vec![(x, y), (anchor_x, anchor_y)],
+                color.mix(0.6).stroke_width(1),
+            ))?;
+        }
         root.draw(&Text::new(text.to_string(), (place.0, place.1), style))?;
         taken.push(place);
     }
