@@ -56,8 +56,10 @@ enum Command {
     /// oversampling and level bias; OSTC region and voxel grids) and report
     /// its speedup against its error versus the exact reference (direct
     /// tracing of the output's own rays). Writes tradeoff.csv and
-    /// tradeoff.png (error against speedup). All 100 frames take about 2
-    /// minutes on a quiet 2-core machine (release build).
+    /// tradeoff.png (error against speedup). All 100 frames take about 5
+    /// CPU-minutes (roughly 3 minutes on a quiet 2-core machine, release
+    /// build); `--frames 0-49` takes half that, with frame 0's full trace
+    /// weighing more in each speedup.
     Tradeoff(TradeoffArgs),
 }
 
