@@ -1,15 +1,18 @@
 //! Hot paths of the reuse algorithms: the pan shift (a frame assembled
-//! from an already traced buffer), OSTC's recording of rays into voxel
-//! bits, and the merging of dirty regions when an object moves.
+//! from an already traced buffer), RSVP's batch tracing of scattered null
+//! samples, the bare voxel walk, OSTC's recording of rays into voxel bits
+//! (walk plus marking), and the merging of dirty regions when an object
+//! moves.
 
-use criterion::{criterion_group, criterion_main, Criterion};
+use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use glam::Vec3;
 use retrace::accel::{Accelerator, BackendKind};
 use retrace::geometry::Aabb;
 use retrace::ray::{Ray, PACKET_WIDTH};
-use retrace::render::SampleGroup;
+use retrace::render::{trace_groups, SampleGroup};
 use retrace::reuse::ostc::{Footprint, Ostc, RegionGrid, RegionSet, DEFAULT_VOXELS};
 use retrace::reuse::pan::{EqualAngleLattice, PanBuffer};
+use retrace::reuse::samples::{LevelRays, SampleLattice, ViewTransform, ViewportPose};
 use retrace::rng::SplitMix64;
 use retrace::scene::{paper_scene, SceneOverrides};
 use retrace::shade::{RayKind, RayObserver, Shader};
@@ -103,5 +106,95 @@ fn ostc_recording(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, pan_shift, ostc_recording);
+/// The level-0 sample groups of the RSVP buffer that the paper camera's
+/// 640x480 view covers.
+fn groups_in_view(scene: &retrace::scene::Scene, lattice: &SampleLattice) -> Vec<SampleGroup> {
+    let pose = ViewportPose::new(scene.camera.clone(), ViewTransform::default());
+    let (w, h) = (
+        f64::from(scene.camera.width),
+        f64::from(scene.camera.height),
+    );
+    let (mut cols, mut rows) = ((f64::MAX, f64::MIN), (f64::MAX, f64::MIN));
+    for (x, y) in [
+        (0.0, 0.0),
+        (w, 0.0),
+        (0.0, h),
+        (w, h),
+        (w / 2.0, 0.0),
+        (w / 2.0, h),
+    ] {
+        let (col, row) = pose
+            .lattice_coords(lattice, glam::DVec2::new(x, y))
+            .expect("the view's corners look somewhere");
+        cols = (cols.0.min(col), cols.1.max(col));
+        rows = (rows.0.min(row), rows.1.max(row));
+    }
+    SampleGroup::covering(
+        cols.0.floor() as i64..cols.1.ceil() as i64,
+        rows.0.floor() as i64..rows.1.ceil() as i64,
+    )
+}
+
+/// RSVP traces the null samples viewports touch in one parallel batch.
+/// After OSTC erasures or a zoom, those are scattered over the view. A
+/// random 5% of the view's groups is a fair sample of its content, so its
+/// rate (groups per second) against the whole view's shows what the
+/// scattering costs in coherence and batch overhead.
+fn rsvp_null_batches(c: &mut Criterion) {
+    let scene = paper_scene(&SceneOverrides::default()).expect("built-in scene loads");
+    let accel = Accelerator::build(BackendKind::Embree, &scene.objects).expect("backend builds");
+    let shader = Shader::new(&scene, &accel);
+    let lattice = SampleLattice::for_camera(&scene.camera);
+    let source = LevelRays {
+        lattice: &lattice,
+        level: 0,
+    };
+    let view = groups_in_view(&scene, &lattice);
+    // In the order the buffer traces a batch: by row, then column.
+    let mut rng = SplitMix64(11);
+    let scattered: Vec<SampleGroup> = view
+        .iter()
+        .copied()
+        .filter(|_| rng.next_u64() % 20 == 0)
+        .collect();
+    let mut group = c.benchmark_group("rsvp batch of null groups, paper 640x480 view");
+    group.throughput(Throughput::Elements(scattered.len() as u64));
+    group.bench_function(format!("{} scattered (5%)", scattered.len()), |b| {
+        b.iter(|| trace_groups(&shader, &source, &scattered))
+    });
+    group.throughput(Throughput::Elements(view.len() as u64));
+    group.sample_size(20);
+    group.bench_function(format!("{} (the whole view)", view.len()), |b| {
+        b.iter(|| trace_groups(&shader, &source, &view))
+    });
+    group.finish();
+}
+
+/// The supercover walk alone over the packets `ostc_recording` records:
+/// the difference between the two is the marking.
+fn voxel_walk(c: &mut Criterion) {
+    let (ostc, packets) = ostc_fixture();
+    let spec = *ostc.grid().expect("the fixture has a moving object");
+    let mut group = c.benchmark_group("ostc");
+    group.bench_function("walk 4096 packets (8 rays, to the exit), no marking", |b| {
+        b.iter(|| {
+            let mut voxels = 0usize;
+            for packet in &packets {
+                for ray in packet {
+                    voxels += spec.walk(ray.origin, ray.dir, 0.0, f32::INFINITY).count();
+                }
+            }
+            voxels
+        })
+    });
+    group.finish();
+}
+
+criterion_group!(
+    benches,
+    pan_shift,
+    rsvp_null_batches,
+    voxel_walk,
+    ostc_recording
+);
 criterion_main!(benches);

@@ -52,6 +52,33 @@ enum Command {
     /// those, at most 0.5% of pixels differing by more than 1/255, mean
     /// colour difference 1e-3.
     Validate(ValidateArgs),
+    /// Sweep each approximation knob (pan snap vs resample; RSVP filter,
+    /// oversampling and level bias; OSTC region and voxel grids) and report
+    /// its speedup against its error versus the exact reference (direct
+    /// tracing of the output's own rays). Writes tradeoff.csv and
+    /// tradeoff.png (error against speedup). All 100 frames take about 5
+    /// CPU-minutes (roughly 3 minutes on a quiet 2-core machine, release
+    /// build); `--frames 0-49` takes half that, with frame 0's full trace
+    /// weighing more in each speedup.
+    Tradeoff(TradeoffArgs),
+}
+
+#[derive(Args)]
+struct TradeoffArgs {
+    /// The base scene: the pan (E1) and zoom (E2) timelines are put on it;
+    /// the OSTC knobs run on its own timeline if that moves objects or
+    /// lights (skipped otherwise). Without it: the built-in paper scene,
+    /// and the built-in bouncing ball (E3) for OSTC.
+    #[command(flatten)]
+    scene: SceneArgs,
+    #[command(flatten)]
+    backend: BackendArg,
+    /// Folder for tradeoff.csv and tradeoff.png.
+    #[arg(long, default_value = "out/tradeoff")]
+    out: PathBuf,
+    /// Frames of each experiment: A-B (inclusive) or A; default: all 100.
+    #[arg(long)]
+    frames: Option<String>,
 }
 
 #[derive(Args)]
@@ -613,40 +640,12 @@ fn bench_e2(
 /// RSVP knobs on E2's zoom in: each filter, oversampling and level bias,
 /// with its time and its error against direct renders.
 fn bench_knobs(args: &BenchArgs, scene: Scene, bar: indicatif::ProgressBar) -> Result<()> {
-    use retrace::bench::{bench_viewport_sequence, e2_scene, ZoomDirection};
-    use retrace::reuse::samples::{Filter, RsvpKnobs};
+    use retrace::bench::{e2_scene, ZoomDirection};
     let mut accel = args.backend.build(&scene)?;
     let scene = e2_scene(scene, ZoomDirection::In, 0.0);
-    let default = RsvpKnobs::default();
-    let mut settings = vec![default];
-    for filter in [Filter::Nearest, Filter::Box] {
-        settings.push(RsvpKnobs { filter, ..default });
-    }
-    for oversample in [0.5, 0.71, 1.41, 2.0] {
-        settings.push(RsvpKnobs {
-            oversample,
-            ..default
-        });
-    }
-    for level_bias in [-1, 1] {
-        settings.push(RsvpKnobs {
-            level_bias,
-            ..default
-        });
-    }
+    let settings = retrace::tradeoff::rsvp_knob_settings();
     bar.set_length((settings.len() * 300) as u64);
-    let mut results = Vec::new();
-    for knobs in settings {
-        bar.set_message(format!(
-            "{} x{} {:+}",
-            knobs.filter, knobs.oversample, knobs.level_bias
-        ));
-        let result =
-            bench_viewport_sequence(&scene, &mut accel, 0..100, knobs, true, false, || {
-                bar.inc(1)
-            });
-        results.push(result);
-    }
+    let results = retrace::tradeoff::sweep_rsvp_knobs(&scene, &mut accel, 0..100, || bar.inc(1));
     bar.finish_and_clear();
     say!(
         "RSVP knobs on E2 zoom in (100 frames, 640x480), {} threads",
@@ -1320,6 +1319,66 @@ fn validate(args: ValidateArgs) -> Result<()> {
     }
 }
 
+fn tradeoff(args: TradeoffArgs) -> Result<()> {
+    use retrace::tradeoff::{bouncing_ball_scene, TradeoffScenes};
+    if cfg!(debug_assertions) {
+        eprintln!(
+            "warning: this is a debug build; timings mean little (use `cargo run --release`)"
+        );
+    }
+    let base = load(&args.scene)?;
+    let objects = match &args.scene.scene {
+        None => Some(bouncing_ball_scene(&SceneOverrides {
+            width: args.scene.width,
+            height: args.scene.height,
+            projection: args.scene.camera,
+            fov: args.scene.fov,
+        })?),
+        Some(_) if base.animation.as_ref().is_some_and(|a| a.moves_scene()) => Some(base.clone()),
+        Some(path) => {
+            eprintln!(
+                "note: OSTC knobs skipped: the timeline of {} moves no object or light",
+                path.display()
+            );
+            None
+        }
+    };
+    let scenes = TradeoffScenes::new(base, objects);
+    let frames = parse_frame_range(args.frames.as_deref(), scenes.frame_count())?;
+    check_writable(&args.out)?;
+    let frames = *frames.start()..*frames.end() + 1;
+    let bar = indicatif::ProgressBar::new(scenes.progress_steps(frames.len() as u32)).with_style(
+        indicatif::ProgressStyle::with_template("{msg:28} {bar:30} {pos}/{len} {elapsed}")
+            .expect("static template"),
+    );
+    let rows = retrace::tradeoff::sweep(
+        &scenes,
+        args.backend.backend,
+        args.backend.grid_resolution,
+        frames.clone(),
+        |what| {
+            bar.set_message(what.to_string());
+            bar.inc(1);
+        },
+    )?;
+    bar.finish_and_clear();
+    say!(
+        "{}: frames {}-{}, {} backend, {} threads, one run each; errors against direct renders of each output's own rays",
+        scene_name(&args.scene),
+        frames.start,
+        frames.end - 1,
+        args.backend.backend,
+        rayon::current_num_threads()
+    );
+    say!("{}", retrace::tradeoff::table(&rows).trim_end());
+    let csv = args.out.join("tradeoff.csv");
+    retrace::output::save_text(&csv, &retrace::tradeoff::csv(&rows))?;
+    let png = args.out.join("tradeoff.png");
+    retrace::tradeoff::plot(&png, &rows)?;
+    say!("wrote {} and {}", csv.display(), png.display());
+    Ok(())
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
     if let Some(threads) = cli.threads {
@@ -1336,6 +1395,7 @@ fn main() -> ExitCode {
         Command::Animate(args) => animate(args),
         Command::Bench(args) => bench(args),
         Command::Validate(args) => validate(args),
+        Command::Tradeoff(args) => tradeoff(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

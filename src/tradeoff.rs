@@ -1,0 +1,616 @@
+//! `retrace tradeoff`: what each approximation knob buys in speed and costs
+//! in accuracy (DESIGN section 5).
+//!
+//! Every setting is timed against full renders of the same frames in the
+//! same run, and its frames are compared with the exact reference: direct
+//! tracing of the output image's own rays (the camera's unsnapped view, or
+//! the viewport's own rays). Knobs, one changed at a time from the default:
+//! - pan: snap to whole lattice samples vs bilinear resampling at the true
+//!   yaw (E1's pan);
+//! - RSVP filter, buffer oversampling and pyramid level bias (E2's zoom in);
+//! - OSTC region grid and voxel grid resolution (E3's bouncing ball): exact,
+//!   so only their speed varies.
+//!
+//! Accelerated sides are timed with 8-bit output only; errors come from a
+//! second, untimed pass that keeps linear colour.
+
+use std::ops::Range;
+use std::path::Path;
+use std::time::Instant;
+
+use crate::accel::{AccelError, Accelerator, BackendKind};
+use crate::anim::{count_differences, image_error, Animator, FractionalPan, ImageError};
+use crate::anim::{OstcSettings, Techniques};
+use crate::bench::{bench_viewport_sequence, ViewportSequenceBench};
+use crate::plot::{LabelledPoint, PlotError, ScatterGroup};
+use crate::render::Frame;
+use crate::reuse::ostc::{RegionGrid, DEFAULT_VOXELS};
+use crate::reuse::samples::{Filter, RsvpKnobs};
+use crate::scene::{parse_scene_str, Scene, SceneError, SceneOverrides, PAPER_SCENE_TOML};
+
+/// One knob at one setting, against the exact reference.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct TradeoffRow {
+    pub knob: &'static str,
+    pub setting: String,
+    pub frames: u32,
+    /// Full renders of the sequence's frames, per frame.
+    pub full_ms_per_frame: f64,
+    /// The accelerated sequence (frame 0 included), per frame.
+    pub accelerated_ms_per_frame: f64,
+    pub speedup: f64,
+    /// Over every frame, on colours clamped to [0, 1].
+    pub max_abs_error: f32,
+    /// Mean over frames of each frame's mean absolute error.
+    pub mean_abs_error: f64,
+    /// The worst frame's PSNR (infinite when every frame is exact).
+    pub worst_psnr_db: f64,
+    /// Mean over frames of the share of pixels whose 8-bit value differs.
+    pub differing_share: f64,
+    /// Every frame equal to its reference bit for bit; None where the
+    /// check does not apply (RSVP resamples, so it is measured only).
+    pub bit_exact: Option<bool>,
+}
+
+/// The animations the knobs are swept on, all built on one base scene.
+pub struct TradeoffScenes {
+    /// E1: a whole turn of yaw, 3.6 degrees per frame.
+    pub pan: Scene,
+    /// E2: a perspective viewport zooming in from 100 to 50 degrees.
+    pub zoom: Scene,
+    /// Something that moves objects or lights before a still camera (E3),
+    /// for the OSTC knobs; None skips them.
+    pub objects: Option<Scene>,
+}
+
+impl TradeoffScenes {
+    pub fn new(base: Scene, objects: Option<Scene>) -> TradeoffScenes {
+        TradeoffScenes {
+            pan: crate::bench::e1_scene(base.clone()),
+            zoom: crate::bench::e2_scene(base, crate::bench::ZoomDirection::In, 0.0),
+            objects,
+        }
+    }
+
+    /// Frames every swept animation has: the valid frame numbers are
+    /// `0..frame_count()`.
+    pub fn frame_count(&self) -> u32 {
+        [Some(&self.pan), Some(&self.zoom), self.objects.as_ref()]
+            .into_iter()
+            .flatten()
+            .map(|scene| scene.animation.as_ref().map_or(1, |a| a.frames))
+            .min()
+            .unwrap_or(1)
+    }
+
+    /// How many times [`sweep`] calls its progress callback for `frames` frames.
+    pub fn progress_steps(&self, frames: u32) -> u64 {
+        let frames = u64::from(frames);
+        let pan = frames * (1 + 2 * PAN_SETTINGS.len() as u64);
+        let rsvp = frames * 3 * rsvp_knob_settings().len() as u64;
+        let ostc = self.objects.as_ref().map_or(0, |_| {
+            frames * (1 + 2 * unique_ostc_settings().len() as u64)
+        });
+        pan + rsvp + ostc
+    }
+}
+
+/// The E3 experiment on the built-in paper scene: `scenes/paper-bounce.toml`
+/// (compiled in, like the paper scene) laid over it, so the OSTC knobs need
+/// no files on disk.
+pub fn bouncing_ball_scene(overrides: &SceneOverrides) -> Result<Scene, SceneError> {
+    const BOUNCE: &str = include_str!("../scenes/paper-bounce.toml");
+    let own: String = BOUNCE
+        .lines()
+        .filter(|line| !line.trim_start().starts_with("include"))
+        .map(|line| format!("{line}\n"))
+        .collect();
+    let text = format!("{PAPER_SCENE_TOML}\n{own}");
+    parse_scene_str(&text, Path::new("scenes/paper-bounce.toml"), overrides)
+}
+
+const PAN_SETTINGS: [FractionalPan; 2] = [FractionalPan::Snap, FractionalPan::Resample];
+
+/// The RSVP settings swept: the default first, then one knob changed at a
+/// time (filter, oversampling, level bias).
+pub fn rsvp_knob_settings() -> Vec<RsvpKnobs> {
+    let default = RsvpKnobs::default();
+    let mut settings = vec![default];
+    for filter in [Filter::Nearest, Filter::Box] {
+        settings.push(RsvpKnobs { filter, ..default });
+    }
+    for oversample in [1.5, 2.0] {
+        settings.push(RsvpKnobs {
+            oversample,
+            ..default
+        });
+    }
+    for level_bias in [-1, 1] {
+        settings.push(RsvpKnobs {
+            level_bias,
+            ..default
+        });
+    }
+    settings
+}
+
+/// Each RSVP setting of [`rsvp_knob_settings`] on `scene`'s viewports:
+/// direct renders against RSVP, with the error against the direct renders.
+/// `progress` is called three times per frame and setting.
+pub fn sweep_rsvp_knobs(
+    scene: &Scene,
+    accel: &mut Accelerator,
+    frames: Range<u32>,
+    mut progress: impl FnMut(),
+) -> Vec<ViewportSequenceBench> {
+    rsvp_knob_settings()
+        .into_iter()
+        .map(|knobs| {
+            bench_viewport_sequence(
+                scene,
+                accel,
+                frames.clone(),
+                knobs,
+                true,
+                false,
+                &mut progress,
+            )
+        })
+        .collect()
+}
+
+/// OSTC settings: the region grids, then the voxel grids (each with the
+/// other knob at its default).
+fn ostc_settings() -> Vec<(&'static str, String, OstcSettings)> {
+    let default = OstcSettings::default();
+    let mut settings = Vec::new();
+    for n in [8, 16, 32] {
+        let regions = RegionGrid(n);
+        settings.push((
+            "OSTC region grid",
+            format!("{n}x{n}"),
+            OstcSettings { regions, ..default },
+        ));
+    }
+    for voxels in [512, DEFAULT_VOXELS, 32_768] {
+        settings.push((
+            "OSTC voxel grid",
+            format!("{voxels} voxels"),
+            OstcSettings { voxels, ..default },
+        ));
+    }
+    settings
+}
+
+/// The distinct settings of [`ostc_settings`] (the default appears in both
+/// groups but runs once).
+fn unique_ostc_settings() -> Vec<OstcSettings> {
+    let mut unique: Vec<OstcSettings> = Vec::new();
+    for (_, _, setting) in ostc_settings() {
+        if !unique.contains(&setting) {
+            unique.push(setting);
+        }
+    }
+    unique
+}
+
+/// Sweeps every knob on `scenes` over `frames` (which must lie within
+/// [`TradeoffScenes::frame_count`]); `progress` gets what is running.
+pub fn sweep(
+    scenes: &TradeoffScenes,
+    backend: BackendKind,
+    grid_resolution: Option<[u32; 3]>,
+    frames: Range<u32>,
+    mut progress: impl FnMut(&str),
+) -> Result<Vec<TradeoffRow>, AccelError> {
+    let count = frames.end - frames.start;
+    let mut rows = Vec::new();
+
+    let mut accel = Accelerator::build_with(backend, &scenes.pan.objects, grid_resolution)?;
+    let pan_settings: Vec<_> = PAN_SETTINGS
+        .iter()
+        .map(|&fractional| CameraSetting {
+            fractional,
+            ostc: OstcSettings::default(),
+        })
+        .collect();
+    let pan = measure_camera_settings(
+        &scenes.pan,
+        &mut accel,
+        frames.clone(),
+        &pan_settings,
+        |what| progress(&format!("pan: {what}")),
+    );
+    for (fractional, measured) in PAN_SETTINGS.iter().zip(pan) {
+        let setting = match fractional {
+            FractionalPan::Snap => "snap to lattice",
+            FractionalPan::Resample => "resample true yaw",
+        };
+        rows.push(measured.row("pan", setting.to_string(), count));
+    }
+
+    let mut accel = Accelerator::build_with(backend, &scenes.zoom.objects, grid_resolution)?;
+    let rsvp = sweep_rsvp_knobs(&scenes.zoom, &mut accel, frames.clone(), || {
+        progress("RSVP knobs")
+    });
+    let measured: Vec<(RsvpKnobs, Measured)> = rsvp
+        .iter()
+        .map(|result| {
+            let error = SequenceError {
+                max_abs: result.max_abs,
+                mean_abs: result.mean_abs,
+                worst_psnr_db: result.worst_psnr_db,
+                differing_share: result.differing_share,
+                bit_exact: None,
+            };
+            let times = Measured {
+                full_ms: result.full_ms,
+                accelerated_ms: result.rsvp_ms,
+                error,
+            };
+            (result.knobs, times)
+        })
+        .collect();
+    // Each knob's rows: the settings that differ from the default in that
+    // knob alone, the default among them (the point each knob moves from).
+    for knob in [
+        RsvpKnob::Filter,
+        RsvpKnob::Oversampling,
+        RsvpKnob::LevelBias,
+    ] {
+        for (settings, result) in &measured {
+            if knob.alone_varied(settings) {
+                rows.push(result.row(knob.name(), knob.setting(settings), count));
+            }
+        }
+    }
+
+    if let Some(scene) = &scenes.objects {
+        let mut accel = Accelerator::build_with(backend, &scene.objects, grid_resolution)?;
+        let unique = unique_ostc_settings();
+        let settings: Vec<_> = unique
+            .iter()
+            .map(|&ostc| CameraSetting {
+                fractional: FractionalPan::Snap,
+                ostc,
+            })
+            .collect();
+        let measured =
+            measure_camera_settings(scene, &mut accel, frames.clone(), &settings, |what| {
+                progress(&format!("OSTC: {what}"))
+            });
+        for (knob, setting, ostc) in ostc_settings() {
+            let index = unique.iter().position(|u| *u == ostc).expect("listed");
+            rows.push(measured[index].row(knob, setting, count));
+        }
+    }
+    Ok(rows)
+}
+
+#[derive(Clone, Copy)]
+enum RsvpKnob {
+    Filter,
+    Oversampling,
+    LevelBias,
+}
+
+impl RsvpKnob {
+    fn name(self) -> &'static str {
+        match self {
+            RsvpKnob::Filter => "RSVP filter",
+            RsvpKnob::Oversampling => "RSVP oversampling",
+            RsvpKnob::LevelBias => "RSVP level bias",
+        }
+    }
+
+    fn setting(self, knobs: &RsvpKnobs) -> String {
+        match self {
+            RsvpKnob::Filter => knobs.filter.to_string(),
+            RsvpKnob::Oversampling => format!("{}x", knobs.oversample),
+            RsvpKnob::LevelBias => format!("{:+}", knobs.level_bias),
+        }
+    }
+
+    /// Whether `knobs` differ from the default in this knob at most.
+    fn alone_varied(self, knobs: &RsvpKnobs) -> bool {
+        let default = RsvpKnobs::default();
+        let same_filter = knobs.filter == default.filter;
+        let same_oversample = knobs.oversample == default.oversample;
+        let same_bias = knobs.level_bias == default.level_bias;
+        match self {
+            RsvpKnob::Filter => same_oversample && same_bias,
+            RsvpKnob::Oversampling => same_filter && same_bias,
+            RsvpKnob::LevelBias => same_filter && same_oversample,
+        }
+    }
+}
+
+#[derive(Clone, Copy)]
+struct CameraSetting {
+    fractional: FractionalPan,
+    ostc: OstcSettings,
+}
+
+#[derive(Clone, Copy, Debug)]
+struct SequenceError {
+    max_abs: f32,
+    mean_abs: f64,
+    worst_psnr_db: f64,
+    differing_share: f64,
+    bit_exact: Option<bool>,
+}
+
+impl SequenceError {
+    fn of(errors: &[ImageError], bit_exact: Option<bool>) -> SequenceError {
+        let count = errors.len().max(1) as f64;
+        SequenceError {
+            max_abs: errors.iter().map(|e| e.max_abs).fold(0.0, f32::max),
+            mean_abs: errors.iter().map(|e| e.mean_abs).sum::<f64>() / count,
+            worst_psnr_db: errors
+                .iter()
+                .map(|e| e.psnr_db)
+                .fold(f64::INFINITY, f64::min),
+            differing_share: errors.iter().map(|e| e.differing_share).sum::<f64>() / count,
+            bit_exact,
+        }
+    }
+}
+
+/// Whole-sequence times (ms) and the error of one setting.
+#[derive(Clone, Copy, Debug)]
+struct Measured {
+    full_ms: f64,
+    accelerated_ms: f64,
+    error: SequenceError,
+}
+
+impl Measured {
+    fn row(&self, knob: &'static str, setting: String, frames: u32) -> TradeoffRow {
+        let per_frame = f64::from(frames.max(1));
+        TradeoffRow {
+            knob,
+            setting,
+            frames,
+            full_ms_per_frame: self.full_ms / per_frame,
+            accelerated_ms_per_frame: self.accelerated_ms / per_frame,
+            speedup: self.full_ms / self.accelerated_ms,
+            max_abs_error: self.error.max_abs,
+            mean_abs_error: self.error.mean_abs,
+            worst_psnr_db: self.error.worst_psnr_db,
+            differing_share: self.error.differing_share,
+            bit_exact: self.error.bit_exact,
+        }
+    }
+}
+
+/// The camera's image of `scene` over `frames`: the exact reference (its
+/// own rays, timed once, kept for the error) against every technique the
+/// timeline allows at each of `settings`.
+fn measure_camera_settings(
+    scene: &Scene,
+    accel: &mut Accelerator,
+    frames: Range<u32>,
+    settings: &[CameraSetting],
+    mut progress: impl FnMut(&str),
+) -> Vec<Measured> {
+    let mut references: Vec<Frame> = Vec::new();
+    let mut full_ms = 0.0;
+    let mut full = Animator::new(scene, accel, Techniques::FULL, frames.clone());
+    for frame in frames.clone() {
+        let start = Instant::now();
+        let (image, _) = full.render_true_view(frame);
+        std::hint::black_box(image.to_rgb8());
+        full_ms += start.elapsed().as_secs_f64() * 1e3;
+        references.push(image);
+        progress("full renders");
+    }
+    drop(full);
+    fn animator<'a>(
+        scene: &'a Scene,
+        accel: &'a mut Accelerator,
+        frames: Range<u32>,
+        setting: &CameraSetting,
+        linear: bool,
+    ) -> Animator<'a> {
+        let mut animator = Animator::new(scene, accel, Techniques::AUTO, frames);
+        animator.set_fractional_pan(setting.fractional);
+        animator.set_ostc(setting.ostc);
+        animator.set_linear_output(linear);
+        animator
+    }
+    let mut results = Vec::new();
+    for setting in settings {
+        let mut fast = animator(scene, accel, frames.clone(), setting, false);
+        let mut accelerated_ms = 0.0;
+        for frame in frames.clone() {
+            let start = Instant::now();
+            let (_, rgb, _) = fast.render(frame);
+            std::hint::black_box(rgb);
+            accelerated_ms += start.elapsed().as_secs_f64() * 1e3;
+            progress("accelerated");
+        }
+        drop(fast);
+        let mut check = animator(scene, accel, frames.clone(), setting, true);
+        let mut errors = Vec::new();
+        let mut bit_exact = true;
+        for (frame, reference) in frames.clone().zip(&references) {
+            let image = check.render(frame).0.expect("linear output is on");
+            errors.push(image_error(&image, reference));
+            bit_exact &= count_differences(&image, reference) == 0;
+            progress("error");
+        }
+        results.push(Measured {
+            full_ms,
+            accelerated_ms,
+            error: SequenceError::of(&errors, Some(bit_exact)),
+        });
+    }
+    results
+}
+
+fn psnr_text(db: f64) -> String {
+    if db.is_infinite() {
+        "inf".to_string()
+    } else {
+        format!("{db:.2}")
+    }
+}
+
+/// The rows as CSV, one line per knob setting, with a header.
+pub fn csv(rows: &[TradeoffRow]) -> String {
+    let mut text = String::from(
+        "knob,setting,frames,full_ms_per_frame,accelerated_ms_per_frame,speedup,\
+         max_abs_error,mean_abs_error,worst_psnr_db,differing_share,bit_exact\n",
+    );
+    for r in rows {
+        text.push_str(&format!(
+            "{},{},{},{:.4},{:.4},{:.4},{},{},{},{},{}\n",
+            r.knob,
+            r.setting,
+            r.frames,
+            r.full_ms_per_frame,
+            r.accelerated_ms_per_frame,
+            r.speedup,
+            r.max_abs_error,
+            r.mean_abs_error,
+            psnr_text(r.worst_psnr_db),
+            r.differing_share,
+            r.bit_exact.map_or(String::new(), |b| b.to_string()),
+        ));
+    }
+    text
+}
+
+/// The rows as a table for a terminal.
+pub fn table(rows: &[TradeoffRow]) -> String {
+    let mut text = format!(
+        "{:<18} {:<18} {:>9} {:>9} {:>8} {:>9} {:>10} {:>9} {:>8} {:>5}\n",
+        "knob",
+        "setting",
+        "full ms",
+        "accel ms",
+        "speedup",
+        "max abs",
+        "mean abs",
+        "PSNR dB",
+        "differ",
+        "exact"
+    );
+    for r in rows {
+        text.push_str(&format!(
+            "{:<18} {:<18} {:>9.2} {:>9.2} {:>7.2}x {:>9.4} {:>10.6} {:>9} {:>7.2}% {:>5}\n",
+            r.knob,
+            r.setting,
+            r.full_ms_per_frame,
+            r.accelerated_ms_per_frame,
+            r.speedup,
+            r.max_abs_error,
+            r.mean_abs_error,
+            psnr_text(r.worst_psnr_db),
+            r.differing_share * 100.0,
+            r.bit_exact.map_or("-", |b| if b { "yes" } else { "NO" }),
+        ));
+    }
+    text
+}
+
+/// Mean absolute error against speedup, one colour per knob, each point
+/// labelled with its setting.
+pub fn plot(path: &Path, rows: &[TradeoffRow]) -> Result<(), PlotError> {
+    let mut groups: Vec<ScatterGroup> = Vec::new();
+    for row in rows {
+        let (x, y) = (row.speedup, row.mean_abs_error);
+        // A default setting belongs to several knobs but is one
+        // measurement: one dot, named after each knob's setting.
+        let same = groups
+            .iter_mut()
+            .flat_map(|g| g.points.iter_mut())
+            .find(|p| p.x == x && p.y == y);
+        if let Some(point) = same {
+            point.label = format!("{} = {}", point.label, row.setting);
+            continue;
+        }
+        let point = LabelledPoint {
+            x,
+            y,
+            label: row.setting.clone(),
+        };
+        match groups.iter_mut().find(|g| g.label == row.knob) {
+            Some(group) => group.points.push(point),
+            None => groups.push(ScatterGroup {
+                label: row.knob.to_string(),
+                points: vec![point],
+            }),
+        }
+    }
+    crate::plot::scatter_chart(
+        path,
+        "Error against speedup, per knob setting",
+        "speedup over full renders",
+        "mean abs error (linear colour, 0-1)",
+        &groups,
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn row(knob: &'static str, setting: &str, bit_exact: Option<bool>) -> TradeoffRow {
+        TradeoffRow {
+            knob,
+            setting: setting.into(),
+            frames: 3,
+            full_ms_per_frame: 30.0,
+            accelerated_ms_per_frame: 3.0,
+            speedup: 10.0,
+            max_abs_error: 0.5,
+            mean_abs_error: 0.01,
+            worst_psnr_db: 31.5,
+            differing_share: 0.2,
+            bit_exact,
+        }
+    }
+
+    #[test]
+    fn csv_has_one_line_per_row_and_a_column_per_field() {
+        let rows = [
+            row("pan", "snap to lattice", Some(false)),
+            TradeoffRow {
+                worst_psnr_db: f64::INFINITY,
+                ..row("OSTC region grid", "8x8", Some(true))
+            },
+            row("RSVP filter", "box", None),
+        ];
+        let text = csv(&rows);
+        let lines: Vec<&str> = text.lines().collect();
+        assert_eq!(lines.len(), 4);
+        let columns = lines[0].split(',').count();
+        assert!(lines.iter().all(|l| l.split(',').count() == columns));
+        assert!(lines[2].contains(",inf,"), "{}", lines[2]);
+        assert!(lines[2].ends_with(",true"));
+        assert!(lines[3].ends_with(','), "no exactness claim for RSVP");
+    }
+
+    #[test]
+    fn every_ostc_setting_is_in_its_group_and_runs_once() {
+        let settings = ostc_settings();
+        assert_eq!(settings.len(), 6);
+        assert_eq!(unique_ostc_settings().len(), 5);
+        let rsvp = rsvp_knob_settings();
+        assert_eq!(rsvp[0], RsvpKnobs::default());
+        assert!(rsvp.iter().any(|k| k.filter == Filter::Nearest));
+        assert!(rsvp.iter().any(|k| k.filter == Filter::Box));
+        assert!(rsvp.iter().any(|k| k.level_bias == -1));
+    }
+
+    #[test]
+    fn the_embedded_bounce_scene_moves_a_ball() {
+        let scene = bouncing_ball_scene(&SceneOverrides::default()).unwrap();
+        let animation = scene.animation.as_ref().unwrap();
+        assert!(animation.moves_scene());
+        assert_eq!(animation.frames, 100);
+        let paper = crate::scene::paper_scene(&SceneOverrides::default()).unwrap();
+        assert_eq!(scene.objects.len(), paper.objects.len() + 1);
+    }
+}
