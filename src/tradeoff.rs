@@ -164,7 +164,7 @@ pub fn sweep_rsvp_knobs(
 fn ostc_settings() -> Vec<(&'static str, String, OstcSettings)> {
     let default = OstcSettings::default();
     let mut settings = Vec::new();
-    for n in [8, 16, 32] {
+    for n in [8, 16, 32, 64] {
         let regions = RegionGrid(n);
         settings.push((
             "OSTC region grid",
