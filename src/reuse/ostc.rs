@@ -206,8 +206,12 @@ impl VoxelBits {
         let mut enter: [f32; PACKET_WIDTH] = std::array::from_fn(|lane| rays[lane].tmin);
         let mut exit = *ends;
         for axis in 0..3 {
+            // Coordinates gathered lane by lane first, so the arithmetic
+            // below runs on whole vectors.
+            let origin: [f32; PACKET_WIDTH] = std::array::from_fn(|lane| rays[lane].origin[axis]);
+            let dir: [f32; PACKET_WIDTH] = std::array::from_fn(|lane| rays[lane].dir[axis]);
             for lane in 0..PACKET_WIDTH {
-                let (o, d) = (rays[lane].origin[axis], rays[lane].dir[axis]);
+                let (o, d) = (origin[lane], dir[lane]);
                 let inv = 1.0 / d;
                 let (mut a, mut z) = ((lo[axis] - o) * inv, (hi[axis] - o) * inv);
                 if !inv.is_finite() {
