@@ -595,8 +595,9 @@ mod tests {
     #[test]
     fn every_ostc_setting_is_in_its_group_and_runs_once() {
         let settings = ostc_settings();
-        assert_eq!(settings.len(), 6);
-        assert_eq!(unique_ostc_settings().len(), 5);
+        assert_eq!(settings.len(), 7);
+        // The default is both a region grid and a voxel grid setting.
+        assert_eq!(unique_ostc_settings().len(), 6);
         let rsvp = rsvp_knob_settings();
         assert_eq!(rsvp[0], RsvpKnobs::default());
         assert!(rsvp.iter().any(|k| k.filter == Filter::Nearest));
