@@ -155,14 +155,7 @@ impl Accelerator {
         objects: &[Object],
         grid_resolution: Option<[u32; 3]>,
     ) -> Result<Accelerator, AccelError> {
-        let placed_spheres: Vec<(u32, Sphere)> = objects
-            .iter()
-            .enumerate()
-            .filter_map(|(id, object)| match (&object.shape, &object.placement) {
-                (Shape::Sphere(sphere), Placement::Instance(_)) => Some((id as u32, *sphere)),
-                _ => None,
-            })
-            .collect();
+        let mut placed_spheres = Vec::new();
         for (id, object) in objects.iter().enumerate() {
             if let (Shape::Sphere(sphere), Placement::Instance(xf)) =
                 (&object.shape, &object.placement)
@@ -170,6 +163,7 @@ impl Accelerator {
                 if placed_sphere(sphere, xf).is_none() {
                     return Err(AccelError::SphereNotRound { object: id as u32 });
                 }
+                placed_spheres.push((id as u32, *sphere));
             }
         }
         let bounded = match kind {
@@ -211,7 +205,8 @@ impl Accelerator {
     }
 
     /// Moves object `object`, which must have been built with a transform
-    /// (not a plane), to `transform`. Static geometry is not rebuilt.
+    /// (not a plane), to `transform`. Instanced meshes are not rebuilt; see
+    /// [`embree`] for what a move costs there.
     pub fn set_object_transform(
         &mut self,
         object: u32,
