@@ -205,8 +205,9 @@ impl Frame {
 /// the table gives exactly the same bytes.
 pub struct SrgbTable {
     /// `thresholds[b]`: least f32 (as bits; positive floats order like
-    /// their bits) that encodes to byte b or more.
-    thresholds: [u32; 256],
+    /// their bits) that encodes to byte b or more; `thresholds[256]` is
+    /// out of reach.
+    thresholds: [u32; 257],
     /// For each bucket of the f32 bit pattern, the byte at its low end.
     buckets: Vec<u8>,
 }
@@ -217,8 +218,9 @@ const SRGB_BUCKET_SHIFT: u32 = 13;
 
 impl SrgbTable {
     fn new() -> SrgbTable {
-        let mut thresholds = [0u32; 256];
-        for (byte, threshold) in thresholds.iter_mut().enumerate().skip(1) {
+        let mut thresholds = [u32::MAX; 257];
+        thresholds[0] = 0;
+        for (byte, threshold) in thresholds.iter_mut().enumerate().take(256).skip(1) {
             // Bisect on the bit pattern of [0, 1].
             let (mut lo, mut hi) = (0u32, 1.0f32.to_bits());
             while lo < hi {
@@ -248,11 +250,10 @@ impl SrgbTable {
         // NaN and negatives to 0, above 1 to 255.
         let c = if linear > 0.0 { linear.min(1.0) } else { 0.0 };
         let bits = c.to_bits();
-        let mut byte = self.buckets[(bits >> SRGB_BUCKET_SHIFT) as usize];
-        while byte < 255 && bits >= self.thresholds[usize::from(byte) + 1] {
-            byte += 1;
-        }
-        byte
+        // A bucket spans less than one byte step (tested), so one compare
+        // settles it, without a loop in the per-pixel path.
+        let byte = self.buckets[(bits >> SRGB_BUCKET_SHIFT) as usize];
+        byte + u8::from(bits >= self.thresholds[usize::from(byte) + 1])
     }
 }
 
@@ -356,6 +357,19 @@ mod tests {
     }
 
     #[test]
+    fn srgb_buckets_span_at_most_one_byte_step() {
+        let table = srgb_table();
+        for (bucket, &byte) in table.buckets.iter().enumerate() {
+            let high = (((bucket as u32 + 1) << SRGB_BUCKET_SHIFT) - 1).min(1.0f32.to_bits());
+            let last = encode_srgb(f32::from_bits(high));
+            assert!(
+                u16::from(last) <= u16::from(byte) + 1,
+                "bucket {bucket}: {byte}..{last}"
+            );
+        }
+    }
+
+    #[test]
     fn srgb_table_matches_the_formula_everywhere() {
         let table = srgb_table();
         // Every 97th bit pattern in [0, 1] plus values around each threshold.
@@ -363,7 +377,7 @@ mod tests {
             .step_by(97)
             .map(f32::from_bits)
             .collect();
-        for &t in &table.thresholds {
+        for &t in &table.thresholds[..256] {
             values.extend([
                 f32::from_bits(t.saturating_sub(1)),
                 f32::from_bits(t),
