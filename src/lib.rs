@@ -10,6 +10,7 @@ pub mod bench;
 pub mod camera;
 pub mod geometry;
 pub mod output;
+pub mod plot;
 pub mod ray;
 pub mod render;
 pub mod reuse;
