@@ -9,6 +9,10 @@
 //!
 //! `backends`: the grid against Embree on the packet calls of one frame
 //! (planes included on both sides, as the renderer traces them).
+//!
+//! Experiments (E1-E4): a sequence rendered in full and accelerated in one
+//! run, with a per-frame profile of both sides and the oracle (the least
+//! tracing any reuse could do); [`crate::report`] turns them into the table.
 
 mod viewport_oracle;
 
