@@ -57,6 +57,14 @@ pub struct BenchRow {
     pub exactness: String,
 }
 
+impl BenchRow {
+    /// speedup / region_oracle_speedup: how close OSTC comes to the best
+    /// any method tracing whole regions could do.
+    pub fn region_efficiency(&self) -> Option<f64> {
+        self.region_oracle_speedup.map(|r| self.speedup / r)
+    }
+}
+
 /// An experiment's row and its per-frame profile.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ExperimentResult {
@@ -187,7 +195,7 @@ const TABLE_HEADER: [&str; 11] = [
     "full ms/frame",
     "accel ms/frame",
     "speedup",
-    "oracle",
+    "oracle (sample / region)",
     "efficiency",
     "bookkeeping",
     "exactness / error",
@@ -204,8 +212,14 @@ fn cells(row: &BenchRow) -> [String; 11] {
         format!("{:.2}", row.full_ms_per_frame),
         format!("{:.2}", row.accelerated_ms_per_frame),
         format!("{:.2}x", row.speedup),
-        or_na(row.oracle_speedup, |o| format!("{o:.2}x")),
-        or_na(row.efficiency, |e| format!("{:.0}%", e * 100.0)),
+        match (row.oracle_speedup, row.region_oracle_speedup) {
+            (Some(o), Some(r)) => format!("{o:.2}x / {r:.2}x"),
+            (o, _) => or_na(o, |o| format!("{o:.2}x")),
+        },
+        match (row.efficiency, row.region_efficiency()) {
+            (Some(e), Some(r)) => format!("{:.0}% / {:.0}%", e * 100.0, r * 100.0),
+            (e, _) => or_na(e, |e| format!("{:.0}%", e * 100.0)),
+        },
         row.bookkeeping_share
             .map_or_else(|| "none".to_string(), |b| format!("{:.1}%", b * 100.0)),
         row.exactness.clone(),
@@ -279,7 +293,7 @@ fn opt<T: ToString>(value: Option<T>) -> String {
 }
 
 /// The columns of `bench.csv`.
-pub const ROW_COLUMNS: [&str; 22] = [
+pub const ROW_COLUMNS: [&str; 23] = [
     "experiment",
     "what",
     "technique",
@@ -295,6 +309,7 @@ pub const ROW_COLUMNS: [&str; 22] = [
     "oracle_speedup",
     "region_oracle_speedup",
     "efficiency",
+    "region_efficiency",
     "bookkeeping_share",
     "samples_traced",
     "oracle_samples",
@@ -326,6 +341,7 @@ pub fn rows_csv(rows: &[BenchRow]) -> String {
             opt(row.oracle_speedup),
             opt(row.region_oracle_speedup),
             opt(row.efficiency),
+            opt(row.region_efficiency()),
             opt(row.bookkeeping_share),
             row.samples_traced.to_string(),
             opt(row.oracle_samples),
@@ -657,10 +673,13 @@ traces each viewport pixel's own ray.
 - **accel ms/frame**: the same for the accelerated sequence; it pays for everything it does: \
 frame 0, buffers, recording, merging, copies, resampling, scene updates.
 - **speedup**: full time over accelerated time, whole sequences.
-- **oracle**: the speedup of the least tracing any reuse could get away with (below): output \
-pixels of all frames over the samples that had to be traced. `n/a` where it was not measured.
-- **efficiency**: speedup / oracle: how close the reuse comes to the limit, its overheads \
-included. It can pass 100% only when tracing is not all a frame costs on the full side.
+- **oracle (sample / region)**: the speedup of the least tracing any reuse could get away \
+with (below): output pixels of all frames over the samples that had to be traced. The second \
+figure, for camera sequences, traces every OSTC region holding such a sample whole: the best a \
+method working in whole regions (as OSTC does) could do. `n/a` where it was not measured.
+- **efficiency**: speedup / oracle (per sample / per region): how close the reuse comes to the \
+limit, its overheads included. It can pass 100% where the oracle counts only tracing and the \
+full side pays for more than tracing, or where the region oracle is coarser than the reuse.
 - **bookkeeping**: OSTC's recording of rays into voxels and merging of dirty regions, per frame, \
 as a share of a full frame's time; `none` where the experiment runs no OSTC.
 - **exactness / error**: `bit-exact`: every accelerated frame equals its full render bit for \
@@ -761,6 +780,11 @@ mod tests {
         assert_eq!(end_of(lines[2], "20.00x"), end_of(lines[3], "20.00x"));
         assert_eq!(end_of(lines[0], "speedup"), end_of(lines[2], "20.00x"));
         assert!(lines[2].contains("25.00x") && lines[2].contains("80%"));
+        let mut with_regions = row("E3", Some(40.0));
+        with_regions.region_oracle_speedup = Some(8.0);
+        let text = table(&[with_regions]);
+        assert!(text.contains("40.00x / 8.00x"), "{text}");
+        assert!(text.contains("50% / 250%"), "{text}");
         assert!(lines[3].contains("n/a"));
         assert!(lines[2].contains("paper (1,234,567 tris)"));
         assert!(lines[2].contains("none"), "no OSTC: no bookkeeping");
@@ -782,7 +806,7 @@ mod tests {
         );
         assert!(lines[1].ends_with(",e1-frames.csv"));
         // Not measured: an empty cell, not a made-up number.
-        assert!(lines[2].contains(",20,,,"), "{}", lines[2]);
+        assert!(lines[2].contains(",20,,,,,"), "{}", lines[2]);
         assert!(lines[2].ends_with(",e2-in-frames.csv"));
     }
 

@@ -266,6 +266,69 @@ pub fn viewport_oracle(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::accel::BackendKind;
+    use crate::bench::{e2_scene, ZoomDirection};
+    use crate::scene::{load_scene, paper_scene, SceneOverrides};
+
+    const SMALL: SceneOverrides = SceneOverrides {
+        width: Some(32),
+        height: Some(24),
+        projection: None,
+        fov: None,
+    };
+
+    fn oracle(scene: &Scene, frames: std::ops::Range<u32>) -> Vec<u64> {
+        let mut accel = Accelerator::build(BackendKind::Embree, &scene.objects).unwrap();
+        viewport_oracle(scene, &mut accel, frames, || {})
+    }
+
+    /// E2's viewport held at the zoom of its first key.
+    fn still(mut scene: Scene) -> Scene {
+        let track = &mut scene.viewports[0];
+        let first = track.keys[0];
+        for key in &mut track.keys {
+            key.transform = first.transform;
+        }
+        scene
+    }
+
+    #[test]
+    fn a_still_view_of_a_still_scene_traces_only_its_first_frame() {
+        let scene = still(e2_scene(
+            paper_scene(&SMALL).unwrap(),
+            ZoomDirection::In,
+            0.0,
+        ));
+        let counts = oracle(&scene, 0..4);
+        // At most one sample per pixel, and not fewer than half: a pixel's
+        // footprint spans at most about two samples here.
+        assert!((32 * 24 / 2..=32 * 24).contains(&counts[0]), "{counts:?}");
+        assert_eq!(counts[1..], [0, 0, 0]);
+    }
+
+    #[test]
+    fn zooming_in_needs_finer_samples() {
+        let scene = e2_scene(paper_scene(&SMALL).unwrap(), ZoomDirection::In, 0.0);
+        let counts = oracle(&scene, 0..100);
+        let later: u64 = counts[1..].iter().sum();
+        // A 2.5x zoom needs more than a frame's pixels again at the finer
+        // level, yet far less than tracing every frame.
+        assert!(later > counts[0] && later < 20 * counts[0], "{counts:?}");
+    }
+
+    #[test]
+    fn a_moving_ball_retraces_only_what_it_changes() {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/paper-all.toml");
+        let mut scene = still(load_scene(&path, &SMALL).unwrap());
+        scene.viewports[0].viewport.width = 32;
+        scene.viewports[0].viewport.height = 24;
+        // The camera stands still too: only the ball changes samples.
+        scene.animation.as_mut().unwrap().camera_keys.truncate(1);
+        let counts = oracle(&scene, 0..8);
+        let pixels = 32 * 24;
+        assert!(counts[1..].iter().any(|&n| n > 0), "{counts:?}");
+        assert!(counts[1..].iter().all(|&n| n < pixels / 4), "{counts:?}");
+    }
 
     #[test]
     fn a_footprint_of_one_sample_or_more_stays_on_level_zero() {
