@@ -42,11 +42,11 @@ test: lint
 test-embree4:
 	bash .ci/embree4.sh
 
+# The paper's table with the scaling rows, into out/bench (report.md).
 bench: build
 	$(RETRACE) bench --only frame
 	$(RETRACE) bench --only frame scenes/bunny.toml
-	$(RETRACE) bench --only E1
-	$(RETRACE) bench --only E3
+	$(RETRACE) bench --scaling --out out/bench
 
 clean:
 	cargo clean

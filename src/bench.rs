@@ -9,6 +9,14 @@
 //!
 //! `backends`: the grid against Embree on the packet calls of one frame
 //! (planes included on both sides, as the renderer traces them).
+//!
+//! Experiments (E1-E4): a sequence rendered in full and accelerated in one
+//! run, with a per-frame profile of both sides and the oracle (the least
+//! tracing any reuse could do); [`crate::report`] turns them into the table.
+
+mod viewport_oracle;
+
+pub use viewport_oracle::viewport_oracle;
 
 use std::sync::Mutex;
 use std::time::Instant;
@@ -248,6 +256,32 @@ pub fn bench_backends(
     })
 }
 
+/// One frame of an experiment, both sides: where the time and the rays go.
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
+pub struct FrameProfile {
+    pub frame: u32,
+    /// The full render (every viewport, for RSVP), 8-bit conversion included.
+    pub full_ms: f64,
+    pub accelerated_ms: f64,
+    pub full_rays: RayCounts,
+    pub accelerated_rays: RayCounts,
+    /// Samples (primary rays) the accelerated side traced.
+    pub samples_traced: u64,
+    /// OSTC: regions found dirty and samples erased for them.
+    pub dirty_regions: u64,
+    pub samples_nulled: u64,
+    /// OSTC: recording and merging.
+    pub bookkeeping_ms: f64,
+    /// Samples the oracle says this frame could not avoid tracing.
+    pub oracle_samples: Option<u64>,
+    /// The same with every region that holds one traced whole.
+    pub oracle_region_samples: Option<u64>,
+    /// RSVP: the worst viewport's PSNR against its direct render.
+    pub psnr_db: Option<f64>,
+    /// Camera sequences: the accelerated frame equals the full one bit for bit.
+    pub exact: Option<bool>,
+}
+
 /// One experiment's sequence, rendered in full and with reuse in one run.
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct SequenceBench {
@@ -277,6 +311,8 @@ pub struct SequenceBench {
     pub max_yaw_error_deg: f64,
     pub rounds: usize,
     pub threads: usize,
+    /// Per frame: times are medians over the rounds.
+    pub profile: Vec<FrameProfile>,
 }
 
 /// FNV-1a over a frame's bits: full and accelerated frames compare without
@@ -321,14 +357,17 @@ impl Oracle {
         }
     }
 
-    fn add(&mut self, camera: &crate::camera::Camera, frame: &crate::render::Frame) {
+    /// Counts what `frame` (seen by `camera`) must trace: (samples,
+    /// samples of whole regions).
+    fn add(&mut self, camera: &crate::camera::Camera, frame: &crate::render::Frame) -> (u64, u64) {
         use crate::reuse::pan::EqualAngleLattice;
         let pixels = frame.pixels.len() as u64;
         if camera.projection != crate::camera::Projection::EqualAngle {
             self.samples += pixels;
             self.region_samples += pixels;
-            return;
+            return (pixels, pixels);
         }
+        let before = (self.samples, self.region_samples);
         let fits = self.lattice.as_ref().is_some_and(|l| l.fits(camera));
         if !fits {
             let lattice = EqualAngleLattice::for_camera(camera);
@@ -373,6 +412,7 @@ impl Oracle {
             .iter()
             .filter(|r| dirty_regions.contains(r))
             .count() as u64;
+        (self.samples - before.0, self.region_samples - before.1)
     }
 }
 
@@ -399,18 +439,38 @@ pub fn bench_sequence(
     let mut pixels_per_frame = 0;
     let mut bookkeeping_ms = 0.0;
     let mut oracle = Oracle::new(region_size);
+    let mut profile: Vec<FrameProfile> = frames
+        .clone()
+        .map(|frame| FrameProfile {
+            frame,
+            ..FrameProfile::default()
+        })
+        .collect();
+    // Per frame and round, for per-frame medians.
+    let mut full_frame_ms = vec![Vec::new(); profile.len()];
+    let mut fast_frame_ms = vec![Vec::new(); profile.len()];
+    // Untimed: the first render of a process pays for page faults and
+    // rayon's threads, which neither side should.
+    std::hint::black_box(
+        Animator::new(scene, accel, Techniques::FULL, frames.clone()).render_full(frames.start),
+    );
     for round in 0..rounds {
         let mut full = Animator::new(scene, accel, Techniques::FULL, frames.clone());
         let mut hashes = Vec::new();
         let mut elapsed = 0.0;
-        for frame in frames.clone() {
+        for (row, frame) in profile.iter_mut().zip(frames.clone()) {
             let start = Instant::now();
-            let (image, _) = full.render_full(frame);
+            let (image, rays) = full.render_full(frame);
             std::hint::black_box(image.to_rgb8());
-            elapsed += start.elapsed().as_secs_f64() * 1e3;
+            let ms = start.elapsed().as_secs_f64() * 1e3;
+            elapsed += ms;
+            full_frame_ms[(frame - frames.start) as usize].push(ms);
             hashes.push(frame_hash(&image));
             if round == 0 {
-                oracle.add(&full.camera_at(frame), &image);
+                let (samples, region_samples) = oracle.add(&full.camera_at(frame), &image);
+                row.oracle_samples = Some(samples);
+                row.oracle_region_samples = Some(region_samples);
+                row.full_rays = rays;
             }
             progress();
         }
@@ -422,26 +482,43 @@ pub fn bench_sequence(
         samples_traced = 0;
         bookkeeping_ms = 0.0;
         let mut elapsed = 0.0;
-        for frame in frames.clone() {
+        for (row, frame) in profile.iter_mut().zip(frames.clone()) {
             let start = Instant::now();
             let (_, rgb, stats) = fast.render(frame);
             std::hint::black_box(rgb);
-            elapsed += start.elapsed().as_secs_f64() * 1e3;
+            let ms = start.elapsed().as_secs_f64() * 1e3;
+            elapsed += ms;
+            fast_frame_ms[(frame - frames.start) as usize].push(ms);
             samples_traced += stats.samples_traced;
             bookkeeping_ms += stats.bookkeeping_ms;
             max_yaw_error = max_yaw_error.max(stats.yaw_error_deg.abs());
             pixels_per_frame = stats.pixels;
+            // The last round's counts (they are the same every round).
+            row.accelerated_rays = RayCounts {
+                primary: stats.primary_rays,
+                shadow: stats.shadow_rays,
+                reflection: stats.reflection_rays,
+            };
+            row.samples_traced = stats.samples_traced;
+            row.dirty_regions = stats.dirty_regions;
+            row.samples_nulled = stats.samples_nulled;
+            row.bookkeeping_ms = stats.bookkeeping_ms;
             progress();
         }
         fast_times.push(elapsed);
         // Exactness on a separate, untimed pass that keeps linear colour.
         let mut check = Animator::new(scene, accel, techniques, frames.clone());
         check.set_ostc(ostc);
-        let fast_hashes: Vec<u64> = frames
-            .clone()
-            .map(|frame| frame_hash(&check.render(frame).0.expect("linear output is on")))
-            .collect();
-        exact &= hashes == fast_hashes;
+        for ((row, frame), full_hash) in profile.iter_mut().zip(frames.clone()).zip(&hashes) {
+            let same =
+                frame_hash(&check.render(frame).0.expect("linear output is on")) == *full_hash;
+            row.exact = Some(row.exact.unwrap_or(true) && same);
+            exact &= same;
+        }
+    }
+    for ((row, full), fast) in profile.iter_mut().zip(full_frame_ms).zip(fast_frame_ms) {
+        row.full_ms = median(full);
+        row.accelerated_ms = median(fast);
     }
     let frame_count = frames.end - frames.start;
     let (full_ms, accelerated_ms) = (median(full_times), median(fast_times));
@@ -466,6 +543,7 @@ pub fn bench_sequence(
         max_yaw_error_deg: max_yaw_error,
         rounds,
         threads: rayon::current_num_threads(),
+        profile,
     }
 }
 
@@ -512,7 +590,18 @@ pub struct ViewportSequenceBench {
     pub mean_abs: f64,
     pub differing_share: f64,
     pub threads: usize,
+    /// With OSTC and the error measured: the kept buffer samples re-traced
+    /// and compared bit for bit at checkpoints (samples compared, differing).
+    pub buffer_check: Option<(u64, u64)>,
+    /// Bookkeeping (OSTC recording and merging) over the whole sequence.
+    pub bookkeeping_ms: f64,
+    pub profile: Vec<FrameProfile>,
 }
+
+/// How often (in frames) the E4 check re-traces the whole sample buffer:
+/// a stale sample shows up at the next checkpoint unless erased again
+/// before it, and every checkpoint costs a retrace of all kept samples.
+const BUFFER_CHECK_EVERY: u32 = 20;
 
 /// Renders the viewports of `frames` directly and with RSVP (one run each,
 /// timed), then measures the RSVP frames' error against the direct ones
@@ -534,15 +623,28 @@ pub fn bench_viewport_sequence(
     };
     let views = scene.viewports.len();
     let mut pixels_per_frame = 0;
+    let mut profile: Vec<FrameProfile> = frames
+        .clone()
+        .map(|frame| FrameProfile {
+            frame,
+            ..FrameProfile::default()
+        })
+        .collect();
     let mut full = Animator::new(scene, accel, Techniques::FULL, frames.clone());
+    // Untimed: see bench_sequence.
+    if views > 0 {
+        std::hint::black_box(full.render_viewport_direct(frames.start, 0));
+    }
     let mut full_ms = 0.0;
-    for frame in frames.clone() {
+    for (row, frame) in profile.iter_mut().zip(frames.clone()) {
         let start = Instant::now();
         for index in 0..views {
-            let (image, _) = full.render_viewport_direct(frame, index);
+            let (image, rays) = full.render_viewport_direct(frame, index);
             std::hint::black_box(image.to_rgb8());
+            row.full_rays += rays;
         }
-        full_ms += start.elapsed().as_secs_f64() * 1e3;
+        row.full_ms = start.elapsed().as_secs_f64() * 1e3;
+        full_ms += row.full_ms;
         progress();
     }
     drop(full);
@@ -551,25 +653,55 @@ pub fn bench_viewport_sequence(
     fast.set_rsvp_knobs(knobs);
     let mut rsvp_ms = 0.0;
     let mut samples_traced = 0;
-    for frame in frames.clone() {
+    let mut bookkeeping_ms = 0.0;
+    for (row, frame) in profile.iter_mut().zip(frames.clone()) {
         let start = Instant::now();
         let outputs = fast.render_viewports(frame);
-        rsvp_ms += start.elapsed().as_secs_f64() * 1e3;
+        row.accelerated_ms = start.elapsed().as_secs_f64() * 1e3;
+        rsvp_ms += row.accelerated_ms;
         pixels_per_frame = outputs.iter().map(|o| o.stats.pixels).sum();
-        samples_traced += outputs.iter().map(|o| o.stats.samples_traced).sum::<u64>();
+        for output in &outputs {
+            let stats = &output.stats;
+            row.accelerated_rays += RayCounts {
+                primary: stats.primary_rays,
+                shadow: stats.shadow_rays,
+                reflection: stats.reflection_rays,
+            };
+            row.samples_traced += stats.samples_traced;
+            row.bookkeeping_ms += stats.bookkeeping_ms;
+        }
+        // Frame-wide OSTC figures repeat on every viewport's stats.
+        if let Some(first) = outputs.first() {
+            row.dirty_regions = first.stats.dirty_regions;
+            row.samples_nulled = first.stats.samples_nulled;
+        }
+        samples_traced += row.samples_traced;
+        bookkeeping_ms += row.bookkeeping_ms;
         std::hint::black_box(outputs);
         progress();
     }
     drop(fast);
     let mut errors = Vec::new();
+    let mut buffer_check = None;
     if measure_error {
         let mut check = Animator::new(scene, accel, rsvp_only, frames.clone());
         check.set_rsvp_knobs(knobs);
-        for frame in frames.clone() {
+        for (row, frame) in profile.iter_mut().zip(frames.clone()) {
+            let mut worst = f64::INFINITY;
             for (index, output) in check.render_viewports(frame).into_iter().enumerate() {
                 let (reference, _) = check.render_viewport_direct(frame, index);
                 let image = output.frame.expect("linear output is on");
-                errors.push(image_error(&image, &reference));
+                let error = image_error(&image, &reference);
+                worst = worst.min(error.psnr_db);
+                errors.push(error);
+            }
+            row.psnr_db = Some(worst);
+            let last = frame + 1 == frames.end;
+            if ostc && (last || (frame - frames.start + 1) % BUFFER_CHECK_EVERY == 0) {
+                if let Some((compared, differing)) = check.verify_sample_buffer() {
+                    let (c, d) = buffer_check.unwrap_or((0, 0));
+                    buffer_check = Some((c + compared, d + differing));
+                }
             }
             progress();
         }
@@ -593,6 +725,9 @@ pub fn bench_viewport_sequence(
         mean_abs: errors.iter().map(|e| e.mean_abs).sum::<f64>() / count,
         differing_share: errors.iter().map(|e| e.differing_share).sum::<f64>() / count,
         threads: rayon::current_num_threads(),
+        buffer_check,
+        bookkeeping_ms,
+        profile,
     }
 }
 
@@ -609,7 +744,8 @@ pub enum ZoomDirection {
 /// paper's 2:1 in angle).
 pub const E2_ZOOM: f64 = 2.555_723_8;
 
-/// Experiment E2 of the paper: one 640x480 perspective viewport, 100 deg
+/// Experiment E2 of the paper: one perspective viewport of the camera's
+/// size (640x480 in the paper scene), 100 deg
 /// wide at zoom 1, zooming between 100 and 50 degrees over 100 frames (a
 /// steady rate) on the paper scene's camera buffer; with `pan_deg_per_frame`
 /// the camera also yaws (E4 without the moving ball).
@@ -631,8 +767,8 @@ pub fn e2_scene(mut scene: Scene, direction: ZoomDirection, pan_deg_per_frame: f
     scene.viewports = vec![ViewportTrack {
         viewport: Viewport {
             name: "zoom".into(),
-            width: 640,
-            height: 480,
+            width: scene.camera.width,
+            height: scene.camera.height,
             projection: crate::camera::Projection::Perspective,
             fov: 100f64.to_radians(),
             yaw: 0.0,

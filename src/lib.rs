@@ -13,6 +13,7 @@ pub mod output;
 pub mod plot;
 pub mod ray;
 pub mod render;
+pub mod report;
 pub mod reuse;
 pub mod rng;
 pub mod scene;

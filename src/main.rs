@@ -269,22 +269,42 @@ struct BenchArgs {
     scene: SceneArgs,
     #[command(flatten)]
     backend: BackendArg,
-    /// Which measurement: `frame` (a full frame against bare Embree on the
-    /// same ray packets), `backends` (the grid against Embree on the same
-    /// ray packets), `E1` (pan), `E2` (RSVP zoom in and out), `E3` (OSTC:
-    /// a bouncing ball), `E4` (pan, zoom and the ball), `E4nomotion` (pan
-    /// 3.6 deg/frame and zoom together) or `knobs` (RSVP filter,
-    /// oversampling and level bias: cost and error).
-    #[arg(long, default_value = "frame")]
+    /// What to measure: `all` (the paper's table: E1, E2 in and out, E3,
+    /// E4), one experiment of it (`E1`, `E2`, `E3`, `E4`), `scaling` (the
+    /// experiments on a larger scene and at 1280x960), `frame` (a full
+    /// frame against bare Embree on the same ray packets), `backends` (the
+    /// grid against Embree on the same ray packets), `E4nomotion` (pan 3.6
+    /// deg/frame and zoom together) or `knobs` (RSVP filter, oversampling
+    /// and level bias: cost and error).
+    #[arg(long, default_value = "all")]
     only: String,
-    /// Timed repetitions (the median is reported).
-    #[arg(long, default_value_t = 15)]
-    repeats: usize,
-    /// Also write the result as JSON here.
+    /// Frames of every experiment, `A-B` or `A` (default: all 100).
+    #[arg(long)]
+    frames: Option<String>,
+    /// Also run the scaling rows (a scene of about a million triangles,
+    /// and 1280x960) after the paper's table.
+    #[arg(long)]
+    scaling: bool,
+    /// Folder for the table (bench.csv, bench.json), per-frame CSVs, plots
+    /// and report.md.
+    #[arg(long, default_value = "out/bench")]
+    out: PathBuf,
+    /// Timed repetitions, the median reported (default: 15 for `frame`
+    /// and `backends`, one run of each sequence for the experiments).
+    #[arg(long, value_parser = clap::value_parser!(u64).range(1..=1000))]
+    repeats: Option<u64>,
+    /// Also write the result as JSON here (`frame`, `backends`, `E4nomotion`, `knobs`).
     #[arg(long)]
     json: Option<PathBuf>,
     #[command(flatten)]
     ostc: OstcArgs,
+}
+
+impl BenchArgs {
+    /// Repetitions of a single-frame measurement.
+    fn frame_repeats(&self) -> usize {
+        self.repeats.unwrap_or(15) as usize
+    }
 }
 
 fn load(args: &SceneArgs) -> Result<Scene> {
@@ -357,26 +377,353 @@ fn bench(args: BenchArgs) -> Result<()> {
             "warning: this is a debug build; timings mean little (use `cargo run --release`)"
         );
     }
-    let scene = load(&args.scene)?;
-    let bar = indicatif::ProgressBar::new(args.repeats.max(1) as u64).with_style(
-        indicatif::ProgressStyle::with_template("{msg} {bar:30} {pos}/{len}")
+    let bar = indicatif::ProgressBar::new(args.frame_repeats() as u64).with_style(
+        indicatif::ProgressStyle::with_template("{msg} {bar:30} {pos}/{len} {elapsed}")
             .expect("static template"),
     );
-    match args.only.as_str() {
-        "frame" => bench_frame(&args, &scene, bar),
-        "backends" => bench_backends(&args, &scene, bar),
-        "E1" | "e1" => bench_e1(&args, scene, bar),
-        "E2" | "e2" => bench_e2(&args, scene, bar, 0.0),
-        "E3" | "e3" => bench_e3(&args, bar),
-        "E4nomotion" | "e4nomotion" => bench_e2(&args, scene, bar, 3.6),
-        "E4" | "e4" => bench_e4(&args, bar),
-        "knobs" => bench_knobs(&args, scene, bar),
-        other => {
+    let paper = [
+        Experiment::E1,
+        Experiment::E2In,
+        Experiment::E2Out,
+        Experiment::E3,
+        Experiment::E4,
+    ];
+    let mut suite = match args.only.to_ascii_lowercase().as_str() {
+        "all" => paper.to_vec(),
+        "e1" => vec![Experiment::E1],
+        "e2" => vec![Experiment::E2In, Experiment::E2Out],
+        "e3" => vec![Experiment::E3],
+        "e4" => vec![Experiment::E4],
+        "scaling" => Vec::new(),
+        "frame" => return bench_frame(&args, &load(&args.scene)?, bar),
+        "backends" => return bench_backends(&args, &load(&args.scene)?, bar),
+        "e4nomotion" => return bench_e2(&args, load(&args.scene)?, bar, 3.6),
+        "knobs" => return bench_knobs(&args, load(&args.scene)?, bar),
+        _ => {
             anyhow::bail!(
-                "unknown measurement '{other}' for --only (available: frame, backends, E1, E2, E3, E4, E4nomotion, knobs)"
+                "unknown measurement '{}' for --only (available: all, E1, E2, E3, E4, scaling, frame, backends, E4nomotion, knobs)",
+                args.only
             )
         }
+    };
+    let scaling = args.scaling || args.only.eq_ignore_ascii_case("scaling");
+    let mut planned = Vec::new();
+    for experiment in suite.drain(..) {
+        planned.push(plan_experiment(&args, experiment, None)?);
     }
+    if scaling {
+        for (experiment, variant) in SCALING_ROWS {
+            planned.push(plan_experiment(&args, experiment, Some(variant))?);
+        }
+    }
+    bench_suite(&args, planned, bar)
+}
+
+/// The experiments of the paper's table.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Experiment {
+    E1,
+    E2In,
+    E2Out,
+    E3,
+    E4,
+}
+
+/// Where a scaling row runs instead of the paper scene at its own size.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum ScalingVariant {
+    /// scenes/bunnies.toml: the bouncing-ball scene among 256 bunnies.
+    Bunnies,
+    /// The paper's scenes at 1280x960.
+    Large,
+}
+
+/// The rows `--scaling` adds: the camera experiments on a million
+/// triangles, and the paper's table at four times the pixels (E2 out
+/// behaves as E2 in does, so once is enough there).
+const SCALING_ROWS: [(Experiment, ScalingVariant); 6] = [
+    (Experiment::E1, ScalingVariant::Bunnies),
+    (Experiment::E3, ScalingVariant::Bunnies),
+    (Experiment::E1, ScalingVariant::Large),
+    (Experiment::E2In, ScalingVariant::Large),
+    (Experiment::E3, ScalingVariant::Large),
+    (Experiment::E4, ScalingVariant::Large),
+];
+
+/// An experiment ready to run: its scene, frames and row heading.
+struct PlannedExperiment {
+    experiment: Experiment,
+    info: retrace::report::ExperimentInfo,
+    scene: Scene,
+    frames: std::ops::Range<u32>,
+}
+
+impl PlannedExperiment {
+    /// Progress steps: both sides of a camera sequence; for viewports both
+    /// sides, the error pass and the oracle pass.
+    fn steps(&self) -> u64 {
+        let frames = u64::from(self.frames.end - self.frames.start);
+        match self.experiment {
+            Experiment::E1 | Experiment::E3 => 2 * frames,
+            _ => 4 * frames,
+        }
+    }
+}
+
+/// Loads and checks an experiment's scene and frames before anything runs,
+/// so bad input costs no measuring time.
+fn plan_experiment(
+    args: &BenchArgs,
+    experiment: Experiment,
+    variant: Option<ScalingVariant>,
+) -> Result<PlannedExperiment> {
+    use retrace::bench::{e1_scene, e2_scene, ZoomDirection};
+    let mut scene_args = args.scene.clone();
+    let mut label = None;
+    match variant {
+        Some(ScalingVariant::Bunnies) => {
+            scene_args.scene = Some(PathBuf::from("scenes/bunnies.toml"));
+            label = Some("bunnies".to_string());
+        }
+        Some(ScalingVariant::Large) => {
+            scene_args.width = Some(1280);
+            scene_args.height = Some(960);
+        }
+        None => {}
+    }
+    let resized = scene_args.width.is_some() || scene_args.height.is_some();
+    let own = |file: &str| -> Result<Scene> {
+        if scene_args.scene.is_some() {
+            return load(&scene_args);
+        }
+        let path = Path::new(file);
+        if !path.exists() {
+            anyhow::bail!("{experiment:?} needs {file} (run from the repository) or a scene file");
+        }
+        load(&SceneArgs {
+            scene: Some(path.to_path_buf()),
+            ..scene_args.clone()
+        })
+    };
+    let (id, what, technique, paper, mut scene) = match experiment {
+        Experiment::E1 => (
+            "E1",
+            "pan 3.6 deg/frame, a whole turn",
+            "Panimation",
+            "~10x",
+            e1_scene(load(&scene_args)?),
+        ),
+        Experiment::E2In | Experiment::E2Out => {
+            let (id, what, direction) = if experiment == Experiment::E2In {
+                ("E2 in", "zoom in 100 -> 50 deg", ZoomDirection::In)
+            } else {
+                ("E2 out", "zoom out 50 -> 100 deg", ZoomDirection::Out)
+            };
+            (
+                id,
+                what,
+                "RSVP",
+                "~10x",
+                e2_scene(load(&scene_args)?, direction, 0.0),
+            )
+        }
+        Experiment::E3 => {
+            let scene = own("scenes/paper-bounce.toml")?;
+            if !matches!(&scene.animation, Some(a) if a.moves_scene()) {
+                anyhow::bail!("E3 needs a scene whose timeline moves objects or lights");
+            }
+            (
+                "E3",
+                "a small ball bounces, camera still",
+                "OSTC",
+                "~2x",
+                scene,
+            )
+        }
+        Experiment::E4 => {
+            let scene = own("scenes/paper-all.toml")?;
+            if scene.viewports.is_empty() {
+                anyhow::bail!("E4 needs a scene with a [[viewport]]");
+            }
+            (
+                "E4",
+                "pan + zoom in + bouncing ball, viewport",
+                "RSVP+OSTC",
+                "~2x",
+                scene,
+            )
+        }
+    };
+    if resized {
+        // The viewport takes the size asked for, as the camera does.
+        for track in &mut scene.viewports {
+            track.viewport.width = scene.camera.width;
+            track.viewport.height = scene.camera.height;
+        }
+    }
+    let count = scene.animation.as_ref().map_or(1, |a| a.frames);
+    let frames = parse_frame_range(args.frames.as_deref(), count)
+        .map_err(|err| anyhow::anyhow!("{id}: {err}"))?;
+    let (width, height) = scene
+        .viewports
+        .first()
+        .map_or((scene.camera.width, scene.camera.height), |track| {
+            (track.viewport.width, track.viewport.height)
+        });
+    let scene_label = label.unwrap_or_else(|| match &scene_args.scene {
+        Some(path) => path
+            .file_stem()
+            .map_or("scene".to_string(), |s| s.to_string_lossy().into_owned()),
+        None if experiment == Experiment::E3 => "paper-bounce".to_string(),
+        None if experiment == Experiment::E4 => "paper-all".to_string(),
+        None => "paper".to_string(),
+    });
+    let mut id = id.to_string();
+    if variant.is_some() {
+        id = format!("{id} {scene_label} {width}x{height}");
+    }
+    Ok(PlannedExperiment {
+        experiment,
+        info: retrace::report::ExperimentInfo {
+            id,
+            what: what.to_string(),
+            technique: technique.to_string(),
+            paper_speedup: paper.to_string(),
+            scene: scene_label,
+            triangles: retrace::report::triangles(&scene),
+            width,
+            height,
+        },
+        frames: *frames.start()..*frames.end() + 1,
+        scene,
+    })
+}
+
+/// Runs the planned experiments, prints the table and writes the bench
+/// folder; fails (after writing) when an exact experiment was not.
+fn bench_suite(
+    args: &BenchArgs,
+    planned: Vec<PlannedExperiment>,
+    bar: indicatif::ProgressBar,
+) -> Result<()> {
+    let load_at_start = load_average();
+    check_writable(&args.out)?;
+    bar.set_length(planned.iter().map(PlannedExperiment::steps).sum());
+    bar.set_position(0);
+    let mut results = Vec::new();
+    for plan in planned {
+        bar.set_message(format!("{} ({})", plan.info.id, plan.info.technique));
+        results.push(run_experiment(args, plan, &bar)?);
+    }
+    bar.finish_and_clear();
+    let rows: Vec<_> = results.iter().map(|r| r.row.clone()).collect();
+    say!(
+        "retrace bench: {} backend, {} threads, one run of each sequence{}",
+        args.backend.backend,
+        rayon::current_num_threads(),
+        if cfg!(debug_assertions) {
+            " (DEBUG BUILD)"
+        } else {
+            ""
+        }
+    );
+    say!("{}", retrace::report::table(&rows));
+    let run = retrace::report::RunInfo {
+        command: std::env::args()
+            .map(|a| if a.contains(' ') { format!("'{a}'") } else { a })
+            .collect::<Vec<_>>()
+            .join(" "),
+        backend: args.backend.backend.to_string(),
+        threads: rayon::current_num_threads(),
+        load: load_at_start.zip(load_average()),
+        release: !cfg!(debug_assertions),
+    };
+    let written = retrace::report::write_bench(&args.out, &run, &results, draw_chart)?;
+    say!(
+        "wrote {} files to {} (open {})",
+        written.len(),
+        args.out.display(),
+        args.out.join("report.md").display()
+    );
+    let inexact: Vec<&str> = rows
+        .iter()
+        .filter(|r| r.exact == Some(false))
+        .map(|r| r.info.id.as_str())
+        .collect();
+    if !inexact.is_empty() {
+        anyhow::bail!(
+            "{}: accelerated output differs from full renders",
+            inexact.join(", ")
+        );
+    }
+    Ok(())
+}
+
+/// Draws one of the bench's charts as a PNG.
+fn draw_chart(path: &Path, chart: &retrace::report::ChartSpec) -> Result<()> {
+    let series: Vec<retrace::plot::Series> = chart
+        .lines
+        .iter()
+        .map(|(label, points)| retrace::plot::Series {
+            label: label.clone(),
+            points: points.clone(),
+        })
+        .collect();
+    retrace::plot::line_chart(path, &chart.title, "frame", &chart.y_label, &series)?;
+    Ok(())
+}
+
+/// The one-minute load average, where the system tells it.
+fn load_average() -> Option<f64> {
+    std::fs::read_to_string("/proc/loadavg")
+        .ok()?
+        .split_whitespace()
+        .next()?
+        .parse()
+        .ok()
+}
+
+fn run_experiment(
+    args: &BenchArgs,
+    plan: PlannedExperiment,
+    bar: &indicatif::ProgressBar,
+) -> Result<retrace::report::ExperimentResult> {
+    use retrace::report::ExperimentResult;
+    let PlannedExperiment {
+        experiment,
+        info,
+        scene,
+        frames,
+    } = plan;
+    let mut accel = args.backend.build(&scene)?;
+    let tick = || bar.inc(1);
+    Ok(match experiment {
+        Experiment::E1 | Experiment::E3 => {
+            let result = retrace::bench::bench_sequence(
+                &scene,
+                &mut accel,
+                Techniques::AUTO,
+                args.ostc.settings(),
+                frames,
+                args.repeats.unwrap_or(1) as usize,
+                tick,
+            );
+            ExperimentResult::from_sequence(info, result, experiment == Experiment::E3)
+        }
+        Experiment::E2In | Experiment::E2Out | Experiment::E4 => {
+            let result = retrace::bench::bench_viewport_sequence(
+                &scene,
+                &mut accel,
+                frames.clone(),
+                retrace::reuse::samples::RsvpKnobs::default(),
+                true,
+                experiment == Experiment::E4,
+                tick,
+            );
+            let oracle = retrace::bench::viewport_oracle(&scene, &mut accel, frames, tick);
+            ExperimentResult::from_viewports(info, result, Some(oracle))
+        }
+    })
 }
 
 fn print_packets(args: &BenchArgs, run: &retrace::bench::PacketRun) {
@@ -397,7 +744,7 @@ fn print_packets(args: &BenchArgs, run: &retrace::bench::PacketRun) {
 fn bench_frame(args: &BenchArgs, scene: &Scene, bar: indicatif::ProgressBar) -> Result<()> {
     let accel = args.backend.build(scene)?;
     bar.set_message("frame vs bare Embree");
-    let result = retrace::bench::bench_frame(scene, &accel, args.repeats, || bar.inc(1))?;
+    let result = retrace::bench::bench_frame(scene, &accel, args.frame_repeats(), || bar.inc(1))?;
     bar.finish_and_clear();
     print_packets(args, &result.run);
     say!(
@@ -409,129 +756,6 @@ fn bench_frame(args: &BenchArgs, scene: &Scene, bar: indicatif::ProgressBar) -> 
     say!("ratio:                     {:8.3}x", result.ratio);
     if let Some(path) = &args.json {
         write_json(path, &result)?;
-    }
-    Ok(())
-}
-
-fn bench_e1(args: &BenchArgs, scene: Scene, bar: indicatif::ProgressBar) -> Result<()> {
-    let scene = retrace::bench::e1_scene(scene);
-    bench_experiment(
-        args,
-        &scene,
-        "E1 (pan 3.6 deg/frame, 100 frames)",
-        "Panimation",
-        "~10x",
-        bar,
-    )
-}
-
-/// The scene given on the command line, else the experiment's own file
-/// (found from the repository's root).
-fn experiment_scene(args: &BenchArgs, experiment: &str, default: &str) -> Result<Scene> {
-    if args.scene.scene.is_some() {
-        return load(&args.scene);
-    }
-    let path = Path::new(default);
-    if !path.exists() {
-        anyhow::bail!("{experiment} needs {default} (run from the repository) or a scene file");
-    }
-    load(&SceneArgs {
-        scene: Some(path.to_path_buf()),
-        ..args.scene.clone()
-    })
-}
-
-/// E3: a small ball bouncing before the still camera (scenes/paper-bounce.toml
-/// unless a scene is given).
-fn bench_e3(args: &BenchArgs, bar: indicatif::ProgressBar) -> Result<()> {
-    let scene = experiment_scene(args, "E3", "scenes/paper-bounce.toml")?;
-    if !matches!(&scene.animation, Some(a) if a.moves_scene()) {
-        anyhow::bail!("E3 needs a scene whose timeline moves objects or lights");
-    }
-    bench_experiment(
-        args,
-        &scene,
-        "E3 (bouncing ball, still camera)",
-        "OSTC",
-        "~2x",
-        bar,
-    )
-}
-
-/// Renders a scene's whole timeline in full and with every reuse the
-/// timeline allows, in one run, and prints the comparison.
-fn bench_experiment(
-    args: &BenchArgs,
-    scene: &Scene,
-    title: &str,
-    technique: &str,
-    paper: &str,
-    bar: indicatif::ProgressBar,
-) -> Result<()> {
-    let mut accel = args.backend.build(scene)?;
-    let frames = scene.animation.as_ref().map_or(1, |a| a.frames);
-    let rounds = args.repeats.clamp(1, 5);
-    bar.set_length(u64::from(frames) * 3 * rounds as u64);
-    bar.set_message(format!("{title}: full vs {technique}"));
-    let result = retrace::bench::bench_sequence(
-        scene,
-        &mut accel,
-        Techniques::AUTO,
-        args.ostc.settings(),
-        0..frames,
-        rounds,
-        || bar.inc(1),
-    );
-    bar.finish_and_clear();
-    say!(
-        "{title}, {}x{}, {frames} frames, {} threads, median of {} rounds",
-        scene.camera.width,
-        scene.camera.height,
-        result.threads,
-        result.rounds
-    );
-    let per_frame = f64::from(frames.max(1));
-    say!(
-        "full renders:      {:9.1} ms ({:.2} ms/frame)",
-        result.full_ms,
-        result.full_ms / per_frame
-    );
-    say!(
-        "{:<18} {:9.1} ms ({:.2} ms/frame)",
-        format!("{technique}:"),
-        result.accelerated_ms,
-        result.accelerated_ms / per_frame
-    );
-    say!(
-        "speedup:           {:9.2}x (paper: {paper})",
-        result.speedup
-    );
-    say!(
-        "oracle speedup:    {:9.2}x per sample, {:.2}x per region; efficiency {:.0}% / {:.0}%",
-        result.oracle_speedup,
-        result.region_oracle_speedup,
-        result.efficiency * 100.0,
-        result.speedup / result.region_oracle_speedup * 100.0
-    );
-    say!("samples traced:    {:9}", result.samples_traced);
-    say!(
-        "bookkeeping:       {:9.1}% of a full frame's time per frame",
-        result.bookkeeping_share * 100.0
-    );
-    say!(
-        "exact:             {} (max yaw snap {:.4} deg)",
-        if result.exact {
-            "every frame bit-identical to its full render"
-        } else {
-            "FRAMES DIFFER"
-        },
-        result.max_yaw_error_deg
-    );
-    if let Some(path) = &args.json {
-        write_json(path, &result)?;
-    }
-    if !result.exact {
-        anyhow::bail!("{title}: accelerated frames differ from full renders");
     }
     Ok(())
 }
@@ -552,39 +776,6 @@ fn print_viewport_bench(label: &str, r: &retrace::bench::ViewportSequenceBench) 
         r.differing_share * 100.0,
         r.samples_traced,
     );
-}
-
-/// E4: pan, zoom and a bouncing ball at once (scenes/paper-all.toml unless
-/// a scene is given): direct renders of the viewport against RSVP with
-/// OSTC erasing what the ball changes.
-fn bench_e4(args: &BenchArgs, bar: indicatif::ProgressBar) -> Result<()> {
-    let scene = experiment_scene(args, "E4", "scenes/paper-all.toml")?;
-    if scene.viewports.is_empty() {
-        anyhow::bail!("E4 needs a scene with a [[viewport]]");
-    }
-    let frames = scene.animation.as_ref().map_or(1, |a| a.frames);
-    let mut accel = args.backend.build(&scene)?;
-    bar.set_length(u64::from(frames) * 3);
-    bar.set_message("E4: direct vs RSVP + OSTC");
-    let result = retrace::bench::bench_viewport_sequence(
-        &scene,
-        &mut accel,
-        0..frames,
-        retrace::reuse::samples::RsvpKnobs::default(),
-        true,
-        true,
-        || bar.inc(1),
-    );
-    bar.finish_and_clear();
-    say!(
-        "E4 (pan 3.6 deg/frame + zoom 100 -> 50 deg + bouncing ball, {frames} frames), {} threads, one run, release",
-        rayon::current_num_threads()
-    );
-    print_viewport_bench("all", &result);
-    if let Some(path) = &args.json {
-        write_json(path, &result)?;
-    }
-    Ok(())
 }
 
 /// E2 (zoom 100 <-> 50 degrees over 100 frames, both directions), or with
@@ -668,7 +859,7 @@ fn bench_knobs(args: &BenchArgs, scene: Scene, bar: indicatif::ProgressBar) -> R
 
 fn bench_backends(args: &BenchArgs, scene: &Scene, bar: indicatif::ProgressBar) -> Result<()> {
     bar.set_message("grid vs Embree");
-    let result = retrace::bench::bench_backends(scene, args.repeats, || bar.inc(1))?;
+    let result = retrace::bench::bench_backends(scene, args.frame_repeats(), || bar.inc(1))?;
     bar.finish_and_clear();
     print_packets(args, &result.run);
     say!("Embree, recorded packets: {:8.2} ms", result.embree_ms);

@@ -309,3 +309,116 @@ fn help_is_available_everywhere() {
         assert!(String::from_utf8_lossy(&out.stdout).contains("Usage"));
     }
 }
+
+/// The bench from the repository (it reads the experiment scenes there),
+/// tiny and short, into `out`.
+fn bench(out: &Path, extra: &[&str]) -> Output {
+    let mut args = vec!["bench", "--width", "64", "--height", "48", "--out"];
+    let out = out.to_str().expect("temporary paths are UTF-8");
+    args.push(out);
+    args.extend_from_slice(extra);
+    retrace(&args, Path::new(env!("CARGO_MANIFEST_DIR")))
+}
+
+#[test]
+fn bench_writes_the_table_profiles_plots_and_report() {
+    let dir = tempfile::tempdir().unwrap();
+    let out_dir = dir.path().join("bench");
+    let out = bench(&out_dir, &["--frames", "2-4"]);
+    assert!(out.status.success(), "stderr: {}", stderr(&out));
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let ids = ["E1", "E2 in", "E2 out", "E3", "E4"];
+    for id in ids {
+        assert!(
+            stdout.contains(&format!("{id} (")),
+            "{id} missing: {stdout}"
+        );
+    }
+    assert!(stdout.contains("oracle") && stdout.contains("efficiency"));
+
+    let csv = std::fs::read_to_string(out_dir.join("bench.csv")).unwrap();
+    let lines: Vec<&str> = csv.lines().collect();
+    let header: Vec<&str> = lines[0].split(',').collect();
+    for column in [
+        "experiment",
+        "paper_speedup",
+        "full_ms_per_frame",
+        "accelerated_ms_per_frame",
+        "speedup",
+        "oracle_speedup",
+        "efficiency",
+        "bookkeeping_share",
+        "exactness",
+    ] {
+        assert!(header.contains(&column), "no {column} in {header:?}");
+    }
+    assert_eq!(lines.len(), 1 + ids.len(), "{csv}");
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out_dir.join("bench.json")).unwrap())
+            .unwrap();
+    let rows = json.as_array().expect("a list of rows");
+    assert_eq!(rows.len(), ids.len());
+    for (row, id) in rows.iter().zip(ids) {
+        assert_eq!(row["id"], id);
+        assert_eq!(row["frames"], 3);
+        assert!(row["speedup"].as_f64().unwrap() > 0.0);
+        // Every experiment has its oracle, and tracing less than it is
+        // impossible: the accelerated side traced at least what it says.
+        let oracle = row["oracle_samples"].as_u64().expect("oracle measured");
+        assert!(oracle > 0 && oracle <= 3 * 64 * 48, "{id}: {oracle}");
+    }
+    // The camera experiments are exact; E4 checks its buffer bit for bit.
+    for i in [0, 3, 4] {
+        assert_eq!(rows[i]["exact"], true, "{}", rows[i]);
+    }
+
+    let report = std::fs::read_to_string(out_dir.join("report.md")).unwrap();
+    for id in ids {
+        let stem = id.to_lowercase().replace(' ', "-");
+        let frames = std::fs::read_to_string(out_dir.join(format!("{stem}-frames.csv"))).unwrap();
+        let frame_numbers: Vec<&str> = frames
+            .lines()
+            .skip(1)
+            .map(|l| l.split(',').next().unwrap())
+            .collect();
+        assert_eq!(frame_numbers, ["2", "3", "4"], "{stem}");
+        assert!(frames.starts_with("frame,full_ms,accelerated_ms,"));
+        for plot in [format!("{stem}-time.png"), format!("{stem}-rays.png")] {
+            let image = image::open(out_dir.join(&plot)).unwrap();
+            assert!(image.width() > 100 && image.height() > 100);
+            assert!(report.contains(&format!("]({plot})")), "{plot} not linked");
+        }
+    }
+    // Nothing half-written is left behind.
+    for entry in std::fs::read_dir(&out_dir).unwrap() {
+        let name = entry.unwrap().file_name().to_string_lossy().into_owned();
+        assert!(!name.ends_with(".tmp"), "left over: {name}");
+    }
+}
+
+#[test]
+fn bench_rejects_bad_frames_before_any_work() {
+    let dir = tempfile::tempdir().unwrap();
+    let out_dir = dir.path().join("bench");
+    for (frames, needle) in [
+        ("5-2", "first frame comes after the last"),
+        ("0-100", "frames 0-99"),
+        ("x", "'x' is not a frame number"),
+    ] {
+        let out = bench(&out_dir, &["--frames", frames]);
+        let err = stderr(&out);
+        assert_eq!(out.status.code(), Some(1), "{frames}: {err}");
+        assert!(
+            err.contains(needle),
+            "{frames}: expected '{needle}' in {err}"
+        );
+        assert!(!err.contains("panicked"), "{err}");
+        assert!(
+            !out_dir.exists(),
+            "{frames}: output written before the check"
+        );
+    }
+    let out = bench(&out_dir, &["--only", "E9"]);
+    assert_eq!(out.status.code(), Some(1));
+    assert!(stderr(&out).contains("unknown measurement 'E9'"));
+}
