@@ -282,6 +282,18 @@ pub struct FrameProfile {
     pub exact: Option<bool>,
 }
 
+impl FrameProfile {
+    /// One empty profile per frame of `frames`.
+    fn empty(frames: std::ops::Range<u32>) -> Vec<FrameProfile> {
+        frames
+            .map(|frame| FrameProfile {
+                frame,
+                ..FrameProfile::default()
+            })
+            .collect()
+    }
+}
+
 /// One experiment's sequence, rendered in full and with reuse in one run.
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct SequenceBench {
@@ -439,13 +451,7 @@ pub fn bench_sequence(
     let mut pixels_per_frame = 0;
     let mut bookkeeping_ms = 0.0;
     let mut oracle = Oracle::new(region_size);
-    let mut profile: Vec<FrameProfile> = frames
-        .clone()
-        .map(|frame| FrameProfile {
-            frame,
-            ..FrameProfile::default()
-        })
-        .collect();
+    let mut profile = FrameProfile::empty(frames.clone());
     // Per frame and round, for per-frame medians.
     let mut full_frame_ms = vec![Vec::new(); profile.len()];
     let mut fast_frame_ms = vec![Vec::new(); profile.len()];
@@ -623,13 +629,7 @@ pub fn bench_viewport_sequence(
     };
     let views = scene.viewports.len();
     let mut pixels_per_frame = 0;
-    let mut profile: Vec<FrameProfile> = frames
-        .clone()
-        .map(|frame| FrameProfile {
-            frame,
-            ..FrameProfile::default()
-        })
-        .collect();
+    let mut profile = FrameProfile::empty(frames.clone());
     let mut full = Animator::new(scene, accel, Techniques::FULL, frames.clone());
     // Untimed: see bench_sequence.
     if views > 0 {

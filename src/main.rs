@@ -991,6 +991,21 @@ impl Drop for GifWriter {
     }
 }
 
+/// Closes what an animation run writes besides its frames.
+fn finish_outputs(
+    gif: Option<GifWriter>,
+    stats_path: Option<&Path>,
+    stats: &[retrace::anim::FrameStats],
+) -> Result<()> {
+    if let Some(gif) = gif {
+        gif.finish()?;
+    }
+    if let Some(path) = stats_path {
+        write_stats(path, stats)?;
+    }
+    Ok(())
+}
+
 fn write_stats(path: &Path, stats: &[retrace::anim::FrameStats]) -> Result<()> {
     let is_json = path
         .extension()
@@ -1191,12 +1206,7 @@ fn animate(args: AnimateArgs) -> Result<()> {
         bar.inc(1);
     }
     bar.finish_and_clear();
-    if let Some(gif) = gif {
-        gif.finish()?;
-    }
-    if let Some(path) = &args.stats {
-        write_stats(path, &all_stats)?;
-    }
+    finish_outputs(gif, args.stats.as_deref(), &all_stats)?;
     // Reuse that was asked for but could not apply is worth a word.
     let mut refusals: Vec<&str> = all_stats
         .iter()
@@ -1348,12 +1358,7 @@ fn animate_viewports(
         bar.inc(1);
     }
     bar.finish_and_clear();
-    if let Some(gif) = gif {
-        gif.finish()?;
-    }
-    if let Some(path) = &args.stats {
-        write_stats(path, &all_stats)?;
-    }
+    finish_outputs(gif, args.stats.as_deref(), &all_stats)?;
     if buffer_check.0 > 0 {
         say!(
             "verify: buffer samples re-traced at {} frame(s): {} compared, {} differ",
