@@ -2,13 +2,13 @@
 //! bit, on every backend, and the CLI's animate command.
 
 use std::path::Path;
-use std::process::Command;
 
 use retrace::accel::Accelerator;
 use retrace::anim::{Animator, Techniques};
 use retrace::scene::{paper_scene, parse_scene_str, Scene, SceneOverrides};
 
 mod common;
+use common::retrace;
 
 /// The paper scene, small, with the given camera keyframes appended.
 fn paper_with_keys(keys: &str, frames: u32) -> Scene {
@@ -111,14 +111,6 @@ fn built_in_paper_scene_is_still_single_frame() {
         .unwrap()
         .animation
         .is_none());
-}
-
-fn retrace(args: &[&str], dir: &Path) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_retrace"))
-        .args(args)
-        .current_dir(dir)
-        .output()
-        .unwrap()
 }
 
 fn stderr(out: &std::process::Output) -> String {

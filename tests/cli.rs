@@ -2,16 +2,11 @@
 //! clear message naming file, line and field, a non-zero exit, no panic and
 //! no output file.
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+mod common;
+use common::retrace;
 
-fn retrace(args: &[&str], dir: &Path) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_retrace"))
-        .args(args)
-        .current_dir(dir)
-        .output()
-        .expect("run retrace")
-}
+use std::path::{Path, PathBuf};
+use std::process::Output;
 
 fn stderr(out: &Output) -> String {
     String::from_utf8_lossy(&out.stderr).into_owned()

@@ -317,8 +317,8 @@ fn animate_writes_dirty_images_and_ostc_stats() {
     for name in ["paper.toml", "paper-bounce.toml"] {
         std::fs::copy(format!("{scenes}/{name}"), dir.path().join(name)).unwrap();
     }
-    let out = std::process::Command::new(env!("CARGO_BIN_EXE_retrace"))
-        .args([
+    common::retrace_ok(
+        &[
             "animate",
             "paper-bounce.toml",
             "--frames",
@@ -334,14 +334,8 @@ fn animate_writes_dirty_images_and_ostc_stats() {
             "--stats",
             "out/s.csv",
             "--verify",
-        ])
-        .current_dir(dir.path())
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
+        ],
+        dir.path(),
     );
     let black = |name: &str| {
         let image = image::open(dir.path().join("out").join(name))

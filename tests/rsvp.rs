@@ -2,7 +2,6 @@
 //! backend; scene-file errors for bad viewports; the CLI's Figure 5.
 
 use std::path::Path;
-use std::process::Command;
 
 use glam::DVec3;
 use retrace::accel::Accelerator;
@@ -258,8 +257,8 @@ fn bad_viewports_name_file_line_and_field() {
 fn figure_5_writes_the_buffer_and_both_viewports() {
     let dir = tempfile::tempdir().unwrap();
     let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/paper-viewports.toml");
-    let out = Command::new(env!("CARGO_BIN_EXE_retrace"))
-        .args([
+    let out = common::retrace_ok(
+        &[
             "animate",
             scene,
             "-o",
@@ -269,14 +268,8 @@ fn figure_5_writes_the_buffer_and_both_viewports() {
             "--stats",
             "out/stats.csv",
             "--verify",
-        ])
-        .current_dir(dir.path())
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
+        ],
+        dir.path(),
     );
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(stdout.contains("verify zoomed"), "{stdout}");

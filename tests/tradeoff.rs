@@ -2,17 +2,11 @@
 //! the CSV and the plot, exact knobs measure no error, approximations do,
 //! and a bad frame range fails cleanly before any work.
 
+mod common;
+use common::retrace;
+
 use std::collections::HashMap;
 use std::path::Path;
-use std::process::{Command, Output};
-
-fn retrace(args: &[&str], dir: &Path) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_retrace"))
-        .args(args)
-        .current_dir(dir)
-        .output()
-        .expect("run retrace")
-}
 
 /// The CSV as one map per row, keyed by column name.
 fn read_csv(path: &Path) -> Vec<HashMap<String, String>> {

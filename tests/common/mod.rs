@@ -1,5 +1,8 @@
-//! Shared by the integration tests: run a test body on every backend, and
-//! check accelerated frames against full renders.
+//! Shared by the integration tests: run a test body on every backend,
+//! check accelerated frames against full renders, run the binary.
+
+use std::path::Path;
+use std::process::{Command, Output};
 
 use retrace::accel::{Accelerator, BackendKind};
 use retrace::anim::{count_differences, Animator, FrameStats, Techniques};
@@ -44,4 +47,28 @@ macro_rules! on_every_backend {
             $(#[test] fn $name() { let $backend = retrace::accel::BackendKind::Grid; $body })*
         }
     };
+}
+
+/// Runs the `retrace` binary with `args` in `dir`.
+#[allow(dead_code)] // not every test file uses it
+pub fn retrace(args: &[&str], dir: &Path) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_retrace"))
+        .args(args)
+        .current_dir(dir)
+        .output()
+        .expect("run retrace")
+}
+
+/// [`retrace`], failing the test (with the program's stderr) unless it
+/// succeeded.
+#[allow(dead_code)] // not every test file uses it
+pub fn retrace_ok(args: &[&str], dir: &Path) -> Output {
+    let out = retrace(args, dir);
+    assert!(
+        out.status.success(),
+        "retrace {}: {}",
+        args.join(" "),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    out
 }
