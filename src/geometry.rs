@@ -6,6 +6,8 @@
 
 use glam::{Affine3A, Mat3A, Vec3};
 
+use crate::ray::{LaneMask, Ray, RayPacket, PACKET_WIDTH};
+
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Aabb {
     pub min: Vec3,
@@ -65,6 +67,72 @@ impl Aabb {
                 pick(4, self.min.z, self.max.z),
             ))
         }))
+    }
+
+    /// The lanes of `mask` whose segment (`tmin` to `ends`) may cross this
+    /// box: a slab test in f32 that rejects a lane only when the gap between
+    /// entry and exit is far beyond the few ulps of rounding each `t`
+    /// carries.
+    pub fn crossing_lanes(
+        &self,
+        rays: &RayPacket,
+        mask: LaneMask,
+        ends: &[f32; PACKET_WIDTH],
+    ) -> LaneMask {
+        let axis = |pick: fn(&Ray) -> Vec3, axis: usize| -> [f32; PACKET_WIDTH] {
+            std::array::from_fn(|lane| pick(&rays[lane])[axis])
+        };
+        let origin = [0, 1, 2].map(|a| axis(|r| r.origin, a));
+        let dir = [0, 1, 2].map(|a| axis(|r| r.dir, a));
+        let tmin = std::array::from_fn(|lane| rays[lane].tmin);
+        self.crossing_lanes_soa(&origin, &dir, &tmin, ends, mask)
+    }
+
+    /// [`Aabb::crossing_lanes`] on a packet already laid out lane-parallel
+    /// (axis-major). Culling runs it on every packet, so it is written as
+    /// plain selects on whole lanes (`f32::min`'s NaN rules and per-lane
+    /// branches block vectorizing).
+    pub fn crossing_lanes_soa(
+        &self,
+        origin: &[[f32; PACKET_WIDTH]; 3],
+        dir: &[[f32; PACKET_WIDTH]; 3],
+        tmin: &[f32; PACKET_WIDTH],
+        ends: &[f32; PACKET_WIDTH],
+        mask: LaneMask,
+    ) -> LaneMask {
+        let mut enter = *tmin;
+        let mut exit = *ends;
+        // A lane whose slab distances come out NaN (a ray parallel to a slab
+        // and starting exactly on it) is kept: the exact test decides.
+        let mut undecided = [false; PACKET_WIDTH];
+        for axis in 0..3 {
+            let (lo, hi) = (self.min[axis], self.max[axis]);
+            let (origin, dir) = (&origin[axis], &dir[axis]);
+            for lane in 0..PACKET_WIDTH {
+                // A zero direction component gives infinite distances of the
+                // right signs: no limit from inside the slab, a miss from
+                // outside it.
+                let inv = 1.0 / dir[lane];
+                let a = (lo - origin[lane]) * inv;
+                let z = (hi - origin[lane]) * inv;
+                undecided[lane] |= a.is_nan() | z.is_nan();
+                let (near, far) = if a < z { (a, z) } else { (z, a) };
+                enter[lane] = if near > enter[lane] {
+                    near
+                } else {
+                    enter[lane]
+                };
+                exit[lane] = if far < exit[lane] { far } else { exit[lane] };
+            }
+        }
+        let mut crossing: LaneMask = 0;
+        for lane in 0..PACKET_WIDTH {
+            let margin = (enter[lane].abs() + exit[lane].abs()) * 1e-5 + f32::MIN_POSITIVE;
+            // NaN is unordered, so a NaN entry or exit keeps the lane too.
+            let misses = enter[lane] > exit[lane] + margin && !undecided[lane];
+            crossing |= LaneMask::from(!misses) << lane;
+        }
+        crossing & mask
     }
 }
 

@@ -189,60 +189,6 @@ struct VoxelBits {
     voxel_count: usize,
 }
 
-impl VoxelBits {
-    /// The lanes of `mask` whose segment (`tmin` to `ends`) may cross the
-    /// grid's box: a slab test in f32 that rejects a lane only when the gap
-    /// between entry and exit is far beyond the few ulps of rounding each
-    /// `t` carries. Most rays never come near the moving objects and cost
-    /// this alone, so it runs on all eight lanes at once (plain selects
-    /// instead of `f32::min`, whose NaN rules block vectorizing).
-    fn crossing_lanes(
-        &self,
-        rays: &RayPacket,
-        mask: LaneMask,
-        ends: &[f32; PACKET_WIDTH],
-    ) -> LaneMask {
-        let (lo, hi) = (self.spec.bounds.min, self.spec.bounds.max);
-        let mut enter: [f32; PACKET_WIDTH] = std::array::from_fn(|lane| rays[lane].tmin);
-        let mut exit = *ends;
-        for axis in 0..3 {
-            // Coordinates gathered lane by lane first, so the arithmetic
-            // below runs on whole vectors.
-            let origin: [f32; PACKET_WIDTH] = std::array::from_fn(|lane| rays[lane].origin[axis]);
-            let dir: [f32; PACKET_WIDTH] = std::array::from_fn(|lane| rays[lane].dir[axis]);
-            for lane in 0..PACKET_WIDTH {
-                let (o, d) = (origin[lane], dir[lane]);
-                let inv = 1.0 / d;
-                let (mut a, mut z) = ((lo[axis] - o) * inv, (hi[axis] - o) * inv);
-                if !inv.is_finite() {
-                    // Parallel to the slabs (a zero or subnormal component):
-                    // no limit inside them, nothing outside.
-                    let inside = o >= lo[axis] && o <= hi[axis];
-                    a = if inside {
-                        f32::NEG_INFINITY
-                    } else {
-                        f32::INFINITY
-                    };
-                    z = -a;
-                }
-                let (near, far) = if a < z { (a, z) } else { (z, a) };
-                enter[lane] = if near > enter[lane] {
-                    near
-                } else {
-                    enter[lane]
-                };
-                exit[lane] = if far < exit[lane] { far } else { exit[lane] };
-            }
-        }
-        (0..PACKET_WIDTH).fold(0, |crossing, lane| {
-            let margin = (enter[lane].abs() + exit[lane].abs()) * 1e-5 + f32::MIN_POSITIVE;
-            // NaN is unordered: walk it and let the walk decide.
-            let misses = enter[lane] > exit[lane] + margin;
-            crossing | (LaneMask::from(!misses) << lane)
-        }) & mask
-    }
-}
-
 /// A walk ends this far (relative to its length) past the hit, so the voxel
 /// the hit lies in always counts whatever the rounding of `t`.
 const WALK_END_SLACK: f32 = 1e-4;
@@ -509,7 +455,7 @@ impl RayObserver for RegionMarker<'_> {
         // moving objects): it is not timed, the walks and marks are.
         let ends: [f32; PACKET_WIDTH] =
             std::array::from_fn(|lane| ends[lane] + ends[lane].abs() * WALK_END_SLACK);
-        let crossing = voxels.crossing_lanes(rays, mask, &ends);
+        let crossing = voxels.spec.bounds.crossing_lanes(rays, mask, &ends);
         if crossing == 0 {
             return;
         }
@@ -665,7 +611,7 @@ mod tests {
             let walked = voxels.spec.walk(origin, dir, 0.0, t1).next().is_some();
             let mut rays = [Ray::INACTIVE; PACKET_WIDTH];
             rays[3] = Ray { origin, dir, tmin: 0.0, tmax: t1 };
-            let crossing = voxels.crossing_lanes(&rays, 1 << 3, &[t1; PACKET_WIDTH]);
+            let crossing = voxels.spec.bounds.crossing_lanes(&rays, 1 << 3, &[t1; PACKET_WIDTH]);
             proptest::prop_assert!(!walked || crossing == 1 << 3);
         }
     }
