@@ -12,13 +12,17 @@
 //!   an instance, even of one small sphere, nearly doubled the cost of every
 //!   ray of the paper scene); meshes move as instances, so their own
 //!   triangles are never rebuilt. An edit re-commits the scene once, however
-//!   many objects it moved. That commit rebuilds the top-level BVH, which
-//!   holds every world-placed object: measured on Embree 3.13.5, about 15 us
-//!   on the paper scene but about 2 ms beside the 3674-triangle bunny, as it
-//!   was with instances. RTC_SCENE_FLAG_DYNAMIC, RTC_BUILD_QUALITY_REFIT on
-//!   the spheres, or both with MEDIUM scene quality did not shorten it, and
-//!   at our HIGH scene quality the first two left tracing unchanged to the
-//!   instruction (callgrind), so none is set.
+//!   many objects it moved. That commit rebuilds the BVH over every object
+//!   of its scene: measured on Embree 3.13.5, about 15 us on the paper
+//!   scene but about 2 ms beside the 3674-triangle bunny, as it was with
+//!   instances. RTC_SCENE_FLAG_DYNAMIC, RTC_BUILD_QUALITY_REFIT on the
+//!   spheres, or both with MEDIUM scene quality did not shorten it, and at
+//!   our HIGH scene quality the first two left tracing unchanged to the
+//!   instruction (callgrind), so none is set. Big still geometry beside
+//!   moving objects therefore gets a scene of its own, committed once
+//!   ([`EmbreeIntersector`]).
+//! - A stack of scenes reports exactly the nearest hit of one scene holding
+//!   everything: each scene is traced with the ray as the one before left it.
 
 mod sys;
 
@@ -28,7 +32,7 @@ use std::sync::Mutex;
 use glam::{Affine3A, Vec3};
 
 use super::{placed_sphere, Intersector};
-use crate::geometry::{Object, Placement, Shape, Sphere};
+use crate::geometry::{Aabb, Object, Placement, Shape, Sphere};
 use crate::ray::{lanes, Hit, HitPacket, LaneMask, Ray, RayPacket, PACKET_WIDTH};
 
 const INVALID_ID: u32 = u32::MAX;
@@ -339,6 +343,7 @@ impl SceneBuilder {
             device,
             _children: children,
             movable,
+            bounds: scene_bounds(this.raw),
         })
     }
 }
@@ -347,6 +352,18 @@ impl Drop for SceneBuilder {
     fn drop(&mut self) {
         // SAFETY: a builder dropped before commit owns its scene reference.
         unsafe { sys::rtcReleaseScene(self.raw) };
+    }
+}
+
+/// The bounds of a committed scene; empty for a scene with no geometry.
+fn scene_bounds(scene: sys::RTCScene) -> Aabb {
+    let mut bounds = sys::RTCBounds::default();
+    // SAFETY: `scene` is live and committed; `bounds` is a valid, 16-byte
+    // aligned RTCBounds (bindgen's layout test checks the alignment).
+    unsafe { sys::rtcGetSceneBounds(scene, &mut bounds) };
+    Aabb {
+        min: Vec3::new(bounds.lower_x, bounds.lower_y, bounds.lower_z),
+        max: Vec3::new(bounds.upper_x, bounds.upper_y, bounds.upper_z),
     }
 }
 
@@ -380,6 +397,9 @@ pub struct CommittedScene {
     device: Device,
     _children: Vec<CommittedScene>,
     movable: MovableIds,
+    /// Embree's bounds of everything in the scene as last committed: a
+    /// packet that misses them skips the scene when it is traced second.
+    bounds: Aabb,
 }
 
 // SAFETY: Embree allows concurrent rtcIntersect*/rtcOccluded* calls on a
@@ -475,126 +495,192 @@ impl CommittedScene {
     }
 
     pub fn intersect1(&self, ray: &Ray) -> Option<Hit> {
-        let mut rayhit = sys::RTCRayHit {
-            ray: embree_ray(ray),
-            hit: sys::RTCHit {
-                geomID: INVALID_ID,
-                primID: INVALID_ID,
-                instID: [INVALID_ID; sys::RTC_MAX_INSTANCE_LEVEL_COUNT as usize],
-                ..Default::default()
-            },
-        };
+        intersect1(&[self], ray)
+    }
+
+    pub fn occluded1(&self, ray: &Ray) -> bool {
+        occluded1(&[self], ray)
+    }
+
+    pub fn intersect8(&self, rays: &RayPacket, mask: LaneMask, hits: &mut HitPacket) {
+        intersect8(&[self], rays, mask, hits)
+    }
+
+    pub fn occluded8(&self, rays: &RayPacket, mask: LaneMask) -> LaneMask {
+        occluded8(&[self], rays, mask)
+    }
+}
+
+// Tracing a stack of scenes: each call keeps the ray's shortened `tfar` and
+// hit from the previous scene, so Embree reports the nearest hit over all of
+// them. Every scene of a stack names its geometries by object id, so a hit
+// says its object whichever scene it came from.
+
+/// The lanes of `mask` worth tracing through the `index`th scene of a
+/// stack: all of them for the first; for the later (small, moving) ones
+/// only the lanes whose ray, as shortened so far, may cross the scene's
+/// bounds. Without this every packet paid a full call into a one-sphere
+/// scene: +46% instructions on the paper-bounce frame.
+fn lanes_to_trace(
+    scene: &CommittedScene,
+    index: usize,
+    ray: &sys::RTCRay8,
+    mask: LaneMask,
+) -> LaneMask {
+    match index {
+        0 => mask,
+        _ if scene.bounds.is_empty() => 0,
+        _ => scene.bounds.crossing_lanes_soa(
+            &[ray.org_x, ray.org_y, ray.org_z],
+            &[ray.dir_x, ray.dir_y, ray.dir_z],
+            &ray.tnear,
+            &ray.tfar,
+            mask,
+        ),
+    }
+}
+
+fn intersect1(scenes: &[&CommittedScene], ray: &Ray) -> Option<Hit> {
+    let mut rayhit = sys::RTCRayHit {
+        ray: embree_ray(ray),
+        hit: sys::RTCHit {
+            geomID: INVALID_ID,
+            primID: INVALID_ID,
+            instID: [INVALID_ID; sys::RTC_MAX_INSTANCE_LEVEL_COUNT as usize],
+            ..Default::default()
+        },
+    };
+    for scene in scenes {
         #[cfg(embree_version = "3")]
         // SAFETY: the scene is committed; context and rayhit are valid for the call.
         unsafe {
             let mut context = intersect_context();
-            sys::rtcIntersect1(self.raw, &mut context, &mut rayhit);
+            sys::rtcIntersect1(scene.raw, &mut context, &mut rayhit);
         }
         #[cfg(embree_version = "4")]
         // SAFETY: the scene is committed; null arguments select the defaults.
         unsafe {
-            sys::rtcIntersect1(self.raw, &mut rayhit, std::ptr::null_mut());
+            sys::rtcIntersect1(scene.raw, &mut rayhit, std::ptr::null_mut());
         }
-        (rayhit.hit.geomID != INVALID_ID).then(|| Hit {
-            t: rayhit.ray.tfar,
-            object: hit_object(rayhit.hit.geomID, rayhit.hit.instID[0]),
-            prim: rayhit.hit.primID,
-            u: rayhit.hit.u,
-            v: rayhit.hit.v,
-        })
     }
+    (rayhit.hit.geomID != INVALID_ID).then(|| Hit {
+        t: rayhit.ray.tfar,
+        object: hit_object(rayhit.hit.geomID, rayhit.hit.instID[0]),
+        prim: rayhit.hit.primID,
+        u: rayhit.hit.u,
+        v: rayhit.hit.v,
+    })
+}
 
-    pub fn occluded1(&self, ray: &Ray) -> bool {
-        let mut r = embree_ray(ray);
+fn occluded1(scenes: &[&CommittedScene], ray: &Ray) -> bool {
+    let mut r = embree_ray(ray);
+    for scene in scenes {
         #[cfg(embree_version = "3")]
         // SAFETY: the scene is committed; context and ray are valid for the call.
         unsafe {
             let mut context = intersect_context();
-            sys::rtcOccluded1(self.raw, &mut context, &mut r);
+            sys::rtcOccluded1(scene.raw, &mut context, &mut r);
         }
         #[cfg(embree_version = "4")]
         // SAFETY: the scene is committed; null arguments select the defaults.
         unsafe {
-            sys::rtcOccluded1(self.raw, &mut r, std::ptr::null_mut());
+            sys::rtcOccluded1(scene.raw, &mut r, std::ptr::null_mut());
         }
-        r.tfar == f32::NEG_INFINITY
-    }
-
-    fn ray8(rays: &RayPacket) -> sys::RTCRay8 {
-        sys::RTCRay8 {
-            org_x: rays.map(|r| r.origin.x),
-            org_y: rays.map(|r| r.origin.y),
-            org_z: rays.map(|r| r.origin.z),
-            tnear: rays.map(|r| r.tmin),
-            dir_x: rays.map(|r| r.dir.x),
-            dir_y: rays.map(|r| r.dir.y),
-            dir_z: rays.map(|r| r.dir.z),
-            time: [0.0; PACKET_WIDTH],
-            tfar: rays.map(|r| r.tmax),
-            mask: [u32::MAX; PACKET_WIDTH],
-            id: [0; PACKET_WIDTH],
-            flags: [0; PACKET_WIDTH],
+        if r.tfar == f32::NEG_INFINITY {
+            return true;
         }
     }
+    false
+}
 
-    pub fn intersect8(&self, rays: &RayPacket, mask: LaneMask, hits: &mut HitPacket) {
-        let valid = ValidMask8::new(mask);
-        let mut rayhit = sys::RTCRayHit8 {
-            ray: Self::ray8(rays),
-            hit: sys::RTCHit8 {
-                geomID: [INVALID_ID; PACKET_WIDTH],
-                primID: [INVALID_ID; PACKET_WIDTH],
-                instID: [[INVALID_ID; PACKET_WIDTH]; sys::RTC_MAX_INSTANCE_LEVEL_COUNT as usize],
-                ..Default::default()
-            },
-        };
+fn ray8(rays: &RayPacket) -> sys::RTCRay8 {
+    sys::RTCRay8 {
+        org_x: rays.map(|r| r.origin.x),
+        org_y: rays.map(|r| r.origin.y),
+        org_z: rays.map(|r| r.origin.z),
+        tnear: rays.map(|r| r.tmin),
+        dir_x: rays.map(|r| r.dir.x),
+        dir_y: rays.map(|r| r.dir.y),
+        dir_z: rays.map(|r| r.dir.z),
+        time: [0.0; PACKET_WIDTH],
+        tfar: rays.map(|r| r.tmax),
+        mask: [u32::MAX; PACKET_WIDTH],
+        id: [0; PACKET_WIDTH],
+        flags: [0; PACKET_WIDTH],
+    }
+}
+
+fn intersect8(scenes: &[&CommittedScene], rays: &RayPacket, mask: LaneMask, hits: &mut HitPacket) {
+    let mut rayhit = sys::RTCRayHit8 {
+        ray: ray8(rays),
+        hit: sys::RTCHit8 {
+            geomID: [INVALID_ID; PACKET_WIDTH],
+            primID: [INVALID_ID; PACKET_WIDTH],
+            instID: [[INVALID_ID; PACKET_WIDTH]; sys::RTC_MAX_INSTANCE_LEVEL_COUNT as usize],
+            ..Default::default()
+        },
+    };
+    for (index, scene) in scenes.iter().enumerate() {
+        let open = lanes_to_trace(scene, index, &rayhit.ray, mask);
+        if open == 0 {
+            continue;
+        }
+        let valid = ValidMask8::new(open);
         #[cfg(embree_version = "3")]
         // SAFETY: the scene is committed; `valid` and `rayhit` are 32-byte
         // aligned as rtcIntersect8 requires (repr(align(32)) on both).
         unsafe {
             let mut context = intersect_context();
-            sys::rtcIntersect8(valid.0.as_ptr(), self.raw, &mut context, &mut rayhit);
+            sys::rtcIntersect8(valid.0.as_ptr(), scene.raw, &mut context, &mut rayhit);
         }
         #[cfg(embree_version = "4")]
         // SAFETY: as above; null arguments select the defaults.
         unsafe {
             sys::rtcIntersect8(
                 valid.0.as_ptr(),
-                self.raw,
+                scene.raw,
                 &mut rayhit,
                 std::ptr::null_mut(),
             );
         }
-        for lane in lanes(mask) {
-            let geom = rayhit.hit.geomID[lane];
-            hits[lane] = (geom != INVALID_ID).then(|| Hit {
-                t: rayhit.ray.tfar[lane],
-                object: hit_object(geom, rayhit.hit.instID[0][lane]),
-                prim: rayhit.hit.primID[lane],
-                u: rayhit.hit.u[lane],
-                v: rayhit.hit.v[lane],
-            });
-        }
     }
+    for lane in lanes(mask) {
+        let geom = rayhit.hit.geomID[lane];
+        hits[lane] = (geom != INVALID_ID).then(|| Hit {
+            t: rayhit.ray.tfar[lane],
+            object: hit_object(geom, rayhit.hit.instID[0][lane]),
+            prim: rayhit.hit.primID[lane],
+            u: rayhit.hit.u[lane],
+            v: rayhit.hit.v[lane],
+        });
+    }
+}
 
-    pub fn occluded8(&self, rays: &RayPacket, mask: LaneMask) -> LaneMask {
-        let valid = ValidMask8::new(mask);
-        let mut ray = Self::ray8(rays);
+fn occluded8(scenes: &[&CommittedScene], rays: &RayPacket, mask: LaneMask) -> LaneMask {
+    let mut ray = ray8(rays);
+    let mut occluded: LaneMask = 0;
+    for (index, scene) in scenes.iter().enumerate() {
+        let open = lanes_to_trace(scene, index, &ray, mask & !occluded);
+        if open == 0 {
+            continue;
+        }
+        let valid = ValidMask8::new(open);
         #[cfg(embree_version = "3")]
         // SAFETY: the scene is committed; `valid` and `ray` are 32-byte aligned.
         unsafe {
             let mut context = intersect_context();
-            sys::rtcOccluded8(valid.0.as_ptr(), self.raw, &mut context, &mut ray);
+            sys::rtcOccluded8(valid.0.as_ptr(), scene.raw, &mut context, &mut ray);
         }
         #[cfg(embree_version = "4")]
         // SAFETY: as above; null arguments select the defaults.
         unsafe {
-            sys::rtcOccluded8(valid.0.as_ptr(), self.raw, &mut ray, std::ptr::null_mut());
+            sys::rtcOccluded8(valid.0.as_ptr(), scene.raw, &mut ray, std::ptr::null_mut());
         }
-        lanes(mask)
+        occluded |= lanes(open)
             .filter(|&lane| ray.tfar[lane] == f32::NEG_INFINITY)
-            .fold(0, |acc, lane| acc | (1 << lane))
+            .fold(0, |acc, lane| acc | (1 << lane));
     }
+    occluded
 }
 
 /// Moves geometry of a committed scene. Rays cannot be traced meanwhile (the
@@ -679,6 +765,7 @@ impl Drop for SceneEdit<'_> {
             // SAFETY: as in `commit_scene`. An error stays in the device's
             // slot for the next check.
             unsafe { sys::rtcCommitScene(self.scene.raw) };
+            self.scene.bounds = scene_bounds(self.scene.raw);
         }
     }
 }
@@ -686,7 +773,9 @@ impl Drop for SceneEdit<'_> {
 fn commit_scene(scene: &mut CommittedScene) -> Result<(), EmbreeError> {
     // SAFETY: `&mut` guarantees no concurrent tracing on the scene.
     unsafe { sys::rtcCommitScene(scene.raw) };
-    scene.device.take_error()
+    scene.device.take_error()?;
+    scene.bounds = scene_bounds(scene.raw);
+    Ok(())
 }
 
 /// The Embree backend: one geometry per scene object, attached under the
@@ -694,22 +783,83 @@ fn commit_scene(scene: &mut CommittedScene) -> Result<(), EmbreeError> {
 /// transform is attached as the world-space sphere [`placed_sphere`] gives;
 /// other objects placed by a transform get a child scene of their own,
 /// placed by an instance transform.
+///
+/// When objects move, committing their scene rebuilds its BVH over every
+/// object in it. So once the still geometry is big enough that rebuilding it
+/// costs more than a second Embree call per ray (see
+/// [`SPLIT_MIN_STILL_PRIMITIVES`]), the still objects get a scene of their
+/// own, committed once and traced first; the moving scene is traced after it
+/// and rebuilt alone.
 pub struct EmbreeIntersector {
+    /// The objects that move, and the still ones unless they were split off.
     scene: CommittedScene,
+    /// The still objects, when split off.
+    still: Option<CommittedScene>,
     /// Spheres placed by a transform, in their own space: where a move
     /// places them from.
     placed_spheres: Vec<(u32, Sphere)>,
 }
 
+/// Still primitives from which a scene with moving objects keeps them in a
+/// scene of their own. Measured on Embree 3.13.5: a commit costs about
+/// 0.2-0.5 us per triangle in the scene (2 ms beside the 3674-triangle
+/// bunny; 170 ms per frame beside the 940k triangles of
+/// `scenes/bunnies.toml`, where the split makes 10 frames 3.7x faster),
+/// while the split costs 4.5% more instructions on the 640x480
+/// paper-bounce frame (a box test per packet, and a second call for the
+/// packets near the ball), about 2 ms. Small scenes stay in one scene.
+pub const SPLIT_MIN_STILL_PRIMITIVES: usize = 10_000;
+
+/// Whether still objects go into a scene of their own.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum StillSplit {
+    /// Split when objects move and the still ones hold at least
+    /// [`SPLIT_MIN_STILL_PRIMITIVES`] primitives.
+    Auto,
+    Always,
+    Never,
+}
+
 impl EmbreeIntersector {
     pub fn build(objects: &[Object]) -> Result<EmbreeIntersector, EmbreeError> {
+        Self::build_with(objects, StillSplit::Auto)
+    }
+
+    pub fn build_with(
+        objects: &[Object],
+        split: StillSplit,
+    ) -> Result<EmbreeIntersector, EmbreeError> {
         let device = Device::new()?;
+        let moves = |object: &Object| matches!(object.placement, Placement::Instance(_));
+        let still_primitives: usize = objects
+            .iter()
+            .filter(|object| !moves(object))
+            .map(|object| match &object.shape {
+                Shape::Mesh(mesh) => mesh.triangles.len(),
+                Shape::Sphere(_) => 1,
+                Shape::Plane(_) => 0,
+            })
+            .sum();
+        let split = still_primitives > 0
+            && objects.iter().any(moves)
+            && match split {
+                StillSplit::Auto => still_primitives >= SPLIT_MIN_STILL_PRIMITIVES,
+                StillSplit::Always => true,
+                StillSplit::Never => false,
+            };
         let mut top = SceneBuilder::new(&device)?;
+        let mut still = if split {
+            Some(SceneBuilder::new(&device)?)
+        } else {
+            None
+        };
         let mut placed_spheres = Vec::new();
         for (id, object) in objects.iter().enumerate() {
             let id = id as u32;
             match (&object.placement, &object.shape) {
-                (Placement::World, shape) => attach_shape(&mut top, id, shape)?,
+                (Placement::World, shape) => {
+                    attach_shape(still.as_mut().unwrap_or(&mut top), id, shape)?
+                }
                 (Placement::Instance(_), Shape::Plane(_)) => {}
                 (Placement::Instance(transform), Shape::Sphere(sphere)) => {
                     let placed =
@@ -726,8 +876,14 @@ impl EmbreeIntersector {
         }
         Ok(EmbreeIntersector {
             scene: top.commit()?,
+            still: still.map(SceneBuilder::commit).transpose()?,
             placed_spheres,
         })
+    }
+
+    /// Whether the still objects were split off into a scene of their own.
+    pub fn still_split(&self) -> bool {
+        self.still.is_some()
     }
 
     /// Places each object of `moves` (built with a transform) by its new
@@ -754,6 +910,15 @@ impl EmbreeIntersector {
     pub fn device(&self) -> &Device {
         self.scene.device()
     }
+
+    /// The scenes a ray is traced through, still geometry first (it is
+    /// the bigger one, so the moving scene then sees a shorter ray).
+    fn stack(&self) -> ([&CommittedScene; 2], usize) {
+        match &self.still {
+            Some(still) => ([still, &self.scene], 2),
+            None => ([&self.scene, &self.scene], 1),
+        }
+    }
 }
 
 fn not_round(object: u32, transform: &Affine3A) -> EmbreeError {
@@ -776,19 +941,23 @@ fn attach_shape(scene: &mut SceneBuilder, id: u32, shape: &Shape) -> Result<(), 
 
 impl Intersector for EmbreeIntersector {
     fn intersect(&self, ray: &Ray) -> Option<Hit> {
-        self.scene.intersect1(ray)
+        let (scenes, n) = self.stack();
+        intersect1(&scenes[..n], ray)
     }
 
     fn occluded(&self, ray: &Ray) -> bool {
-        self.scene.occluded1(ray)
+        let (scenes, n) = self.stack();
+        occluded1(&scenes[..n], ray)
     }
 
     fn intersect8(&self, rays: &RayPacket, mask: LaneMask, hits: &mut HitPacket) {
-        self.scene.intersect8(rays, mask, hits)
+        let (scenes, n) = self.stack();
+        intersect8(&scenes[..n], rays, mask, hits)
     }
 
     fn occluded8(&self, rays: &RayPacket, mask: LaneMask) -> LaneMask {
-        self.scene.occluded8(rays, mask)
+        let (scenes, n) = self.stack();
+        occluded8(&scenes[..n], rays, mask)
     }
 }
 
