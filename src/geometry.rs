@@ -79,12 +79,20 @@ impl Aabb {
         mask: LaneMask,
         ends: &[f32; PACKET_WIDTH],
     ) -> LaneMask {
-        let axis = |pick: fn(&Ray) -> Vec3, axis: usize| -> [f32; PACKET_WIDTH] {
-            std::array::from_fn(|lane| pick(&rays[lane])[axis])
+        let lanes = |coordinate: &dyn Fn(&Ray) -> f32| -> [f32; PACKET_WIDTH] {
+            std::array::from_fn(|lane| coordinate(&rays[lane]))
         };
-        let origin = [0, 1, 2].map(|a| axis(|r| r.origin, a));
-        let dir = [0, 1, 2].map(|a| axis(|r| r.dir, a));
-        let tmin = std::array::from_fn(|lane| rays[lane].tmin);
+        let origin = [
+            lanes(&|r| r.origin.x),
+            lanes(&|r| r.origin.y),
+            lanes(&|r| r.origin.z),
+        ];
+        let dir = [
+            lanes(&|r| r.dir.x),
+            lanes(&|r| r.dir.y),
+            lanes(&|r| r.dir.z),
+        ];
+        let tmin = lanes(&|r| r.tmin);
         self.crossing_lanes_soa(&origin, &dir, &tmin, ends, mask)
     }
 
