@@ -849,6 +849,15 @@ impl<'a> Animator<'a> {
         render_view(&self.scene, &camera, self.accel)
     }
 
+    /// The scene posed at `frame`, ready to trace, and the camera there:
+    /// for untimed passes that need the shading itself (the bench's ray
+    /// costs).
+    pub fn posed_shader(&mut self, frame: u32) -> (Shader<'_>, Camera) {
+        self.pose(frame);
+        let camera = self.camera_at(frame);
+        (Shader::new(&self.scene, self.accel), camera)
+    }
+
     /// The camera's own rays at `frame`, unsnapped: the exact picture any
     /// pan approximation is measured against.
     pub fn render_true_view(&mut self, frame: u32) -> (Frame, RayCounts) {

@@ -306,13 +306,15 @@ pub struct SequenceBench {
     pub accelerated_ms: f64,
     pub speedup: f64,
     pub samples_traced: u64,
-    /// Frames x pixels over the samples no reuse could avoid tracing: the
-    /// lattice samples the windows expose, each once, and the samples whose
-    /// colour changed.
+    /// The rays of full renders of every frame over the rays of the
+    /// samples no reuse could avoid tracing: the lattice samples the windows
+    /// expose, each once, and the samples whose colour changed.
     pub oracle_speedup: f64,
     /// The same, with every region that holds such a sample traced whole
     /// (the best OSTC can do at its region size).
     pub region_oracle_speedup: f64,
+    /// The oracle's ray totals behind both speedups.
+    pub oracle_rays: OracleRays,
     /// speedup / oracle_speedup.
     pub efficiency: f64,
     /// OSTC's recording and merging per frame, as a share of a full
@@ -356,6 +358,18 @@ struct Oracle {
     region_size: (i64, i64),
     samples: u64,
     region_samples: u64,
+    /// Rays a full render of every frame traced, and the rays of the
+    /// oracle's samples and regions: what tracing them costs, since pixels
+    /// differ a lot in cost (a mirror's samples trace several rays).
+    rays: OracleRays,
+}
+
+/// Ray totals of the oracle (see [`Oracle::rays`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
+pub struct OracleRays {
+    pub all: u64,
+    pub samples: u64,
+    pub regions: u64,
 }
 
 impl Oracle {
@@ -366,17 +380,28 @@ impl Oracle {
             region_size,
             samples: 0,
             region_samples: 0,
+            rays: OracleRays::default(),
         }
     }
 
-    /// Counts what `frame` (seen by `camera`) must trace: (samples,
-    /// samples of whole regions).
-    fn add(&mut self, camera: &crate::camera::Camera, frame: &crate::render::Frame) -> (u64, u64) {
+    /// Counts what `frame` (seen by `camera`, whose full render traced
+    /// `rays[pixel]` rays for each pixel) must trace: (samples, samples of
+    /// whole regions).
+    fn add(
+        &mut self,
+        camera: &crate::camera::Camera,
+        frame: &crate::render::Frame,
+        rays: &[u32],
+    ) -> (u64, u64) {
         use crate::reuse::pan::EqualAngleLattice;
         let pixels = frame.pixels.len() as u64;
+        let all_rays: u64 = rays.iter().map(|&r| u64::from(r)).sum();
+        self.rays.all += all_rays;
         if camera.projection != crate::camera::Projection::EqualAngle {
             self.samples += pixels;
             self.region_samples += pixels;
+            self.rays.samples += all_rays;
+            self.rays.regions += all_rays;
             return (pixels, pixels);
         }
         let before = (self.samples, self.region_samples);
@@ -417,15 +442,67 @@ impl Oracle {
             if self.shown[slot] != hash {
                 self.shown[slot] = hash;
                 self.samples += 1;
+                self.rays.samples += u64::from(rays[i]);
                 dirty_regions.insert(region);
             }
         }
-        self.region_samples += region_of_pixel
-            .iter()
-            .filter(|r| dirty_regions.contains(r))
-            .count() as u64;
+        for (region, &pixel_rays) in region_of_pixel.iter().zip(rays) {
+            if dirty_regions.contains(region) {
+                self.region_samples += 1;
+                self.rays.regions += u64::from(pixel_rays);
+            }
+        }
         (self.samples - before.0, self.region_samples - before.1)
     }
+}
+
+/// Rays traced for each pixel of a full render through `camera` (primary,
+/// shadow and reflection rays of its sample), counted on an untimed pass:
+/// what each pixel costs to trace.
+pub fn rays_per_pixel(shader: &crate::shade::Shader, camera: &crate::camera::Camera) -> Vec<u32> {
+    use crate::render::{trace_groups_observed, SampleGroup};
+    use crate::shade::{RayKind, RayObserver};
+    use std::sync::atomic::{AtomicU32, Ordering};
+
+    struct Counter<'a> {
+        counts: [u32; PACKET_WIDTH],
+        group: SampleGroup,
+        width: i64,
+        height: i64,
+        sink: &'a [AtomicU32],
+    }
+    impl RayObserver for Counter<'_> {
+        fn traced(&mut self, _: RayKind, _: &RayPacket, mask: LaneMask, _: &[f32; PACKET_WIDTH]) {
+            for lane in crate::ray::lanes(mask) {
+                self.counts[lane] += 1;
+            }
+        }
+    }
+    impl Drop for Counter<'_> {
+        fn drop(&mut self) {
+            for (lane, (x, y)) in self.group.lane_samples().into_iter().enumerate() {
+                if x < self.width && y < self.height {
+                    self.sink[(y * self.width + x) as usize]
+                        .fetch_add(self.counts[lane], Ordering::Relaxed);
+                }
+            }
+        }
+    }
+
+    let (width, height) = (i64::from(camera.width), i64::from(camera.height));
+    let sink: Vec<AtomicU32> = (0..width * height).map(|_| AtomicU32::new(0)).collect();
+    let table = crate::camera::RayTable::new(camera);
+    let groups = SampleGroup::covering(0..width, 0..height);
+    trace_groups_observed(shader, &table, &groups, |group| {
+        Some(Counter {
+            counts: [0; PACKET_WIDTH],
+            group,
+            width,
+            height,
+            sink: &sink,
+        })
+    });
+    sink.into_iter().map(AtomicU32::into_inner).collect()
 }
 
 /// Renders `frames` in full and with `techniques`, alternating `rounds`
@@ -473,7 +550,12 @@ pub fn bench_sequence(
             full_frame_ms[(frame - frames.start) as usize].push(ms);
             hashes.push(frame_hash(&image));
             if round == 0 {
-                let (samples, region_samples) = oracle.add(&full.camera_at(frame), &image);
+                let rays_per_pixel = {
+                    let (shader, camera) = full.posed_shader(frame);
+                    rays_per_pixel(&shader, &camera)
+                };
+                let camera = full.camera_at(frame);
+                let (samples, region_samples) = oracle.add(&camera, &image, &rays_per_pixel);
                 row.oracle_samples = Some(samples);
                 row.oracle_region_samples = Some(region_samples);
                 row.full_rays = rays;
@@ -529,9 +611,9 @@ pub fn bench_sequence(
     let frame_count = frames.end - frames.start;
     let (full_ms, accelerated_ms) = (median(full_times), median(fast_times));
     let speedup = full_ms / accelerated_ms;
-    let all_pixels = (u64::from(frame_count) * pixels_per_frame) as f64;
-    let oracle_speedup = all_pixels / oracle.samples.max(1) as f64;
-    let region_oracle_speedup = all_pixels / oracle.region_samples.max(1) as f64;
+    // Weighted by the rays each sample costs (see `Oracle::rays`).
+    let oracle_speedup = oracle.rays.all as f64 / oracle.rays.samples.max(1) as f64;
+    let region_oracle_speedup = oracle.rays.all as f64 / oracle.rays.regions.max(1) as f64;
     SequenceBench {
         frames: frame_count,
         pixels_per_frame,
@@ -541,6 +623,7 @@ pub fn bench_sequence(
         samples_traced,
         oracle_speedup,
         region_oracle_speedup,
+        oracle_rays: oracle.rays,
         efficiency: speedup / oracle_speedup,
         bookkeeping_share: bookkeeping_ms
             / (full_ms / f64::from(frame_count.max(1)))
@@ -794,4 +877,69 @@ pub fn e2_scene(mut scene: Scene, direction: ZoomDirection, pan_deg_per_frame: f
         lights: Vec::new(),
     });
     scene
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::render::render_view;
+    use crate::scene::{paper_scene, SceneOverrides};
+    use crate::shade::Shader;
+
+    fn small_paper() -> Scene {
+        paper_scene(&SceneOverrides {
+            width: Some(64),
+            height: Some(48),
+            ..SceneOverrides::default()
+        })
+        .unwrap()
+    }
+
+    #[test]
+    fn rays_per_pixel_add_up_to_the_full_render() {
+        let scene = small_paper();
+        let accel = Accelerator::build(BackendKind::Embree, &scene.objects).unwrap();
+        let (_, counts) = render_view(&scene, &scene.camera, &accel);
+        let rays = rays_per_pixel(&Shader::new(&scene, &accel), &scene.camera);
+        assert_eq!(rays.len(), 64 * 48);
+        assert!(
+            rays.iter().all(|&r| r >= 1),
+            "every pixel traces its primary ray"
+        );
+        let sum: u64 = rays.iter().map(|&r| u64::from(r)).sum();
+        assert_eq!(sum, counts.total());
+        // Mirrors and lit surfaces cost more than the sky: the weights vary.
+        assert!(rays.iter().max() > rays.iter().min());
+    }
+
+    #[test]
+    fn the_oracle_weighs_changed_samples_by_their_rays() {
+        let scene = small_paper();
+        let accel = Accelerator::build(BackendKind::Embree, &scene.objects).unwrap();
+        let (frame, _) = render_view(&scene, &scene.camera, &accel);
+        let rays = rays_per_pixel(&Shader::new(&scene, &accel), &scene.camera);
+        let all: u64 = rays.iter().map(|&r| u64::from(r)).sum();
+        let mut oracle = Oracle::new((16, 8));
+        // The first frame shows every sample for the first time.
+        assert_eq!(oracle.add(&scene.camera, &frame, &rays), (64 * 48, 64 * 48));
+        assert_eq!(
+            oracle.rays,
+            OracleRays {
+                all,
+                samples: all,
+                regions: all
+            }
+        );
+        // The same frame again: nothing to trace.
+        assert_eq!(oracle.add(&scene.camera, &frame, &rays), (0, 0));
+        // One changed pixel: its rays, and its whole region's.
+        let mut changed = frame.clone();
+        let pixel = 20 * 64 + 37;
+        changed.pixels[pixel] += glam::Vec3::splat(0.25);
+        assert_eq!(oracle.add(&scene.camera, &changed, &rays), (1, 16 * 8));
+        assert_eq!(oracle.rays.all, 3 * all);
+        assert_eq!(oracle.rays.samples, all + u64::from(rays[pixel]));
+        let region_rays = oracle.rays.regions - all;
+        assert!(region_rays >= 16 * 8 && region_rays > u64::from(rays[pixel]));
+    }
 }

@@ -674,9 +674,10 @@ traces each viewport pixel's own ray.
 frame 0, buffers, recording, merging, copies, resampling, scene updates.
 - **speedup**: full time over accelerated time, whole sequences.
 - **oracle (sample / region)**: the speedup of the least tracing any reuse could get away \
-with (below): output pixels of all frames over the samples that had to be traced. The second \
-figure, for camera sequences, traces every OSTC region holding such a sample whole: the best a \
-method working in whole regions (as OSTC does) could do. `n/a` where it was not measured.
+with (below). For camera sequences: the rays full renders of all frames trace over the rays of \
+the samples that had to be traced; the second figure traces every OSTC region holding such a \
+sample whole: the best a method working in whole regions (as OSTC does) could do. For \
+viewports: output pixels over needed samples. `n/a` where it was not measured.
 - **efficiency**: speedup / oracle (per sample / per region): how close the reuse comes to the \
 limit, its overheads included. It can pass 100% where the oracle counts only tracing and the \
 full side pays for more than tracing, or where the region oracle is coarser than the reuse.
@@ -717,8 +718,11 @@ untimed pass:
 a whole turn, so a sample keeps its identity as the view moves). A frame must trace the \
 samples it shows that were never shown before (newly exposed by the pan) and those whose \
 colour differs from the colour last shown there (what changed). The per-region variant \
-(in the CSV) traces every OSTC region holding such a sample whole: the best OSTC can do at its \
-region size.
+traces every OSTC region holding such a sample whole: the best OSTC can do at its region size. \
+Samples are weighted by the rays their full render traced (primary, shadow and reflection, \
+counted per pixel on the untimed pass): a sample on a mirror costs several times one on the \
+sky, and the samples that change (a moving ball, its shadows and reflections) cost more than \
+the average.
 - **Viewport sequences (E2, E4)**: each viewport pixel needs one buffer sample: the nearest \
 sample of the coarsest pyramid level whose spacing is no wider than the pixel's footprint (one \
 sample per pixel, the least that keeps the output's detail). A frame must trace the needed \
@@ -728,8 +732,9 @@ sample is traced again on the untimed pass to find out). RSVP itself reads four 
 pixel (bilinear), picks levels per 16x16-pixel region and traces whole groups of eight \
 samples; that gap is part of what the efficiency shows.
 
-Oracle speedup = output pixels over all frames / oracle samples: it counts tracing only, as \
-if everything else were free.
+Oracle speedup = rays of full renders of all frames / rays of the oracle's samples (camera \
+sequences), or output pixels over all frames / oracle samples (viewports): it counts tracing \
+only, as if everything else were free.
 ";
 
 #[cfg(test)]
