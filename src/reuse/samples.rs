@@ -1449,6 +1449,7 @@ impl SampleBuffer {
                 let mut cache = TileCache::new();
                 let mut window = Vec::new();
                 let mut coords = Vec::new();
+                let mut colors = [Vec3::ZERO; (REGION * REGION) as usize];
                 let mut scratch = vec![Vec::new(); MAX_LEVEL as usize + 1];
                 let srgb = srgb_table();
                 let y0 = band_index * REGION as usize;
@@ -1466,6 +1467,7 @@ impl SampleBuffer {
                         (cols, rows),
                         &mut coords,
                     );
+                    let colors = &mut colors[..cols * rows];
                     self.gather_region(
                         &mut cache,
                         (&mut window, &mut scratch),
@@ -1473,15 +1475,20 @@ impl SampleBuffer {
                         filter,
                         (cols, rows),
                         &coords,
-                        |i, j, c| {
-                            let p = j * w + x0 + i;
-                            out[p * 3..p * 3 + 3]
-                                .copy_from_slice(&c.to_array().map(|v| srgb.encode(v)));
-                            if let Some(slot) = linear_out.get_mut(p) {
-                                *slot = c;
-                            }
-                        },
+                        colors,
                     );
+                    // Whole region rows at once: no per-pixel index checks.
+                    for (j, line) in colors.chunks_exact(cols).enumerate() {
+                        let p = j * w + x0;
+                        for (byte, c) in out[p * 3..(p + cols) * 3].chunks_exact_mut(3).zip(line) {
+                            byte[0] = srgb.encode(c.x);
+                            byte[1] = srgb.encode(c.y);
+                            byte[2] = srgb.encode(c.z);
+                        }
+                        if let Some(slots) = linear_out.get_mut(p..p + cols) {
+                            slots.copy_from_slice(line);
+                        }
+                    }
                 }
             });
         let image =
@@ -1495,7 +1502,8 @@ impl SampleBuffer {
     }
 
     /// Filters one region's pixels (`size` = columns, rows; `coords` holds
-    /// their lattice coordinates, row-major, NaN for no ray) into `put`.
+    /// their lattice coordinates, row-major, NaN for no ray) into `out`
+    /// (row-major, `coords`' length).
     #[allow(clippy::too_many_arguments)]
     fn gather_region(
         &self,
@@ -1505,7 +1513,7 @@ impl SampleBuffer {
         filter: Filter,
         size: (usize, usize),
         coords: &[DVec2],
-        mut put: impl FnMut(usize, usize, Vec3),
+        out: &mut [Vec3],
     ) {
         let (cols, rows) = size;
         // Filter origins grow with the coordinates: the window spans the
@@ -1517,30 +1525,21 @@ impl SampleBuffer {
         }
         // Infinite: every pixel is NaN.
         if lo.x > hi.x {
-            for j in 0..rows {
-                for i in 0..cols {
-                    put(i, j, Vec3::ZERO);
-                }
-            }
+            out.fill(Vec3::ZERO);
             return;
         }
         let (c0, r0) = filter_origin(filter, lo.x, lo.y);
         let (c1, r1) = filter_origin(filter, hi.x, hi.y);
         let (c1, r1) = (c1 + 1, r1 + 1);
         let (wd, ht) = ((c1 - c0 + 1) as usize, (r1 - r0 + 1) as usize);
-        let has_nan = coords.iter().any(|c| c.x.is_nan());
         if wd * ht > 16 * cols * rows {
             // Zoomed far out: a window would copy far more than it reads.
-            for j in 0..rows {
-                for i in 0..cols {
-                    let c = coords[j * cols + i];
-                    let colour = if c.x.is_nan() {
-                        Vec3::ZERO
-                    } else {
-                        self.filter(cache, level, filter, c.x, c.y)
-                    };
-                    put(i, j, colour);
-                }
+            for (slot, c) in out.iter_mut().zip(coords) {
+                *slot = if c.x.is_nan() {
+                    Vec3::ZERO
+                } else {
+                    self.filter(cache, level, filter, c.x, c.y)
+                };
             }
             return;
         }
@@ -1553,37 +1552,48 @@ impl SampleBuffer {
         }
         // Window index and weights of every pixel first, in straight-line
         // f64 code (exact: whole numbers and multiples of 2^-16) that
-        // vectorises; NaN pixels get index 0 and are skipped below.
+        // vectorises; NaN pixels get index 0 and are blacked out last.
         const N: usize = (REGION * REGION) as usize;
         let (mut index, mut wx, mut wy) = ([0u32; N], [0f32; N], [0f32; N]);
         let (c0f, r0f, wdf) = (c0 as f64, r0 as f64, wd as f64);
+        let mut has_nan = false;
         for (((c, k), fx), fy) in coords.iter().zip(&mut index).zip(&mut wx).zip(&mut wy) {
+            has_nan |= c.x.is_nan();
             let (ox, x) = filter_split(filter, c.x);
             let (oy, y) = filter_split(filter, c.y);
             *k = ((oy - r0f) * wdf + (ox - c0f)) as u32;
             *fx = x as f32;
             *fy = y as f32;
         }
-        for j in 0..rows {
-            for i in 0..cols {
-                let p = j * cols + i;
-                if has_nan && coords[p].x.is_nan() {
-                    put(i, j, Vec3::ZERO);
-                    continue;
+        let n = coords.len();
+        let (index, wx, wy) = (&index[..n], &wx[..n], &wy[..n]);
+        // One loop per filter, without branches inside.
+        match filter {
+            Filter::Nearest => {
+                for (slot, &k) in out.iter_mut().zip(index) {
+                    *slot = window[k as usize];
                 }
-                let k = index[p] as usize;
-                let colour = match filter {
-                    Filter::Nearest => window[k],
-                    Filter::Box => {
-                        (window[k] + window[k + 1] + window[k + wd] + window[k + wd + 1]) * 0.25
-                    }
-                    Filter::Bilinear => bilinear(
-                        [window[k], window[k + 1], window[k + wd], window[k + wd + 1]],
-                        wx[p],
-                        wy[p],
-                    ),
-                };
-                put(i, j, colour);
+            }
+            Filter::Box => {
+                for (slot, &k) in out.iter_mut().zip(index) {
+                    let k = k as usize;
+                    let (top, bottom) = (&window[k..k + 2], &window[k + wd..k + wd + 2]);
+                    *slot = (top[0] + top[1] + bottom[0] + bottom[1]) * 0.25;
+                }
+            }
+            Filter::Bilinear => {
+                for (((slot, &k), &fx), &fy) in out.iter_mut().zip(index).zip(wx).zip(wy) {
+                    let k = k as usize;
+                    let (top, bottom) = (&window[k..k + 2], &window[k + wd..k + wd + 2]);
+                    *slot = bilinear([top[0], top[1], bottom[0], bottom[1]], fx, fy);
+                }
+            }
+        }
+        if has_nan {
+            for (slot, c) in out.iter_mut().zip(coords) {
+                if c.x.is_nan() {
+                    *slot = Vec3::ZERO;
+                }
             }
         }
     }
@@ -1741,21 +1751,13 @@ impl SampleBuffer {
     }
 }
 
-/// Weighted by distance; a zero weight drops its sample entirely, so a
-/// pixel exactly on a sample shows it bit for bit.
+/// Weighted by distance. A zero weight adds an exact +0 (samples are
+/// finite and not negative), so a pixel exactly on a sample shows it bit for
+/// bit; no branches, so the loop over a region's pixels stays straight.
 #[inline(always)]
 fn bilinear(s: [Vec3; 4], fx: f32, fy: f32) -> Vec3 {
-    let mut sum = s[0] * ((1.0 - fx) * (1.0 - fy));
-    if fx > 0.0 {
-        sum += s[1] * (fx * (1.0 - fy));
-    }
-    if fy > 0.0 {
-        sum += s[2] * ((1.0 - fx) * fy);
-        if fx > 0.0 {
-            sum += s[3] * (fx * fy);
-        }
-    }
-    sum
+    let (gx, gy) = (1.0 - fx, 1.0 - fy);
+    s[0] * (gx * gy) + s[1] * (fx * gy) + s[2] * (gx * fy) + s[3] * (fx * fy)
 }
 
 /// Sub-sample steps per sample on the filter's grid.
