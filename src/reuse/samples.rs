@@ -1013,33 +1013,30 @@ impl SampleBuffer {
                 footprint = footprint.min((dx.x * dy.y - dx.y * dy.x).abs() / longest);
             }
         }
-        if !footprint.is_finite() || footprint <= 0.0 {
-            return 0;
-        }
-        // A hair of tolerance: exactly one sample per pixel, up to
-        // rounding, needs no finer level.
-        let wanted = ((knobs.oversample / footprint).log2() - 1e-6).ceil() as i64
-            + i64::from(knobs.level_bias)
-            + i64::from(knobs.filter == Filter::Box);
-        wanted.clamp(0, i64::from(MAX_LEVEL)) as u32
+        level_for(footprint, knobs)
     }
 
-    /// The region's mapping grid, or None when interpolating it could miss
-    /// the exact mapping by more than [`GRID_TOLERANCE`] (checked in every
-    /// cell) or a point has no ray. Mapping a pixel exactly costs two
-    /// atan2; a grid costs 57 mappings for 256 pixels.
+    /// The region's level and mapping grid, or None when interpolating it
+    /// could miss the exact mapping by more than [`GRID_TOLERANCE`] at that
+    /// level (checked in every cell) or a point has no ray. Mapping a pixel
+    /// exactly costs two atan2; a grid costs 57 mappings for 256 pixels, and
+    /// its cells give the level too (the finest footprint over 16 cells),
+    /// where [`SampleBuffer::region_level`] would map 15 more points.
     fn region_grid(
         &self,
         pose: &ViewportPose,
         map: &PixelMap,
-        level: u32,
+        knobs: &RsvpKnobs,
         x0: u32,
         y0: u32,
-    ) -> Option<MapGrid> {
+    ) -> Option<(u32, MapGrid)> {
         if matches!(map, PixelMap::Fisheye) {
             return None;
         }
-        let inv_step = 1.0 / self.lattice.step(level);
+        // Level 0 first: scaling to the region's level is by a power of
+        // two, exact, so the grid is the one mapped at that level bit for
+        // bit.
+        let inv_step = 1.0 / self.lattice.step;
         let yaw = pose.camera.yaw;
         let at = |x: u32, y: u32| {
             map.angles(pose, x, y)
@@ -1057,18 +1054,36 @@ impl SampleBuffer {
         // miss in the cell. (The centre alone can hide a saddle, as near a
         // pole, where the two cancel.)
         let half = GRID_SPACING / 2;
+        let spacing = f64::from(GRID_SPACING);
+        let (mut worst, mut footprint) = (0.0f64, f64::INFINITY);
         for j in 0..GRID_POINTS - 1 {
             for i in 0..GRID_POINTS - 1 {
                 let (x, y) = (x0 + i as u32 * GRID_SPACING, y0 + j as u32 * GRID_SPACING);
                 let across = at(x + half, y)? - (grid[j][i] + grid[j][i + 1]) * 0.5;
                 let down = at(x, y + half)? - (grid[j][i] + grid[j + 1][i]) * 0.5;
                 let miss = (across.abs() + down.abs()).max_element();
-                if miss.is_nan() || miss > GRID_TOLERANCE {
+                if miss.is_nan() {
                     return None;
+                }
+                worst = worst.max(miss);
+                // The cell's pixel footprint, as region_level measures it.
+                let dx = (grid[j][i + 1] - grid[j][i]) / spacing;
+                let dy = (grid[j + 1][i] - grid[j][i]) / spacing;
+                let longest = dx.length().max(dy.length());
+                if longest > 0.0 {
+                    footprint = footprint.min((dx.x * dy.y - dx.y * dy.x).abs() / longest);
                 }
             }
         }
-        Some(grid)
+        let level = level_for(footprint, knobs);
+        let scale = f64::from(1u32 << level);
+        if worst * scale > GRID_TOLERANCE {
+            return None;
+        }
+        for point in grid.iter_mut().flatten() {
+            *point *= scale;
+        }
+        Some((level, grid))
     }
 
     /// Lattice coordinates (at `level`) of a region's pixels, row-major,
@@ -1144,8 +1159,10 @@ impl SampleBuffer {
                 for rx in 0..regions_x {
                     let x0 = rx as u32 * REGION;
                     let cols = (w - x0).min(REGION) as usize;
-                    let level = self.region_level(pose, &map, knobs, x0, y0);
-                    let grid = self.region_grid(pose, &map, level, x0, y0);
+                    let (level, grid) = match self.region_grid(pose, &map, knobs, x0, y0) {
+                        Some((level, grid)) => (level, Some(grid)),
+                        None => (self.region_level(pose, &map, knobs, x0, y0), None),
+                    };
                     // Interpolated points lie within their cell's corners, so
                     // the grid's box holds every pixel's.
                     let mut mapped = false;
@@ -1760,6 +1777,20 @@ fn bilinear(s: [Vec3; 4], fx: f32, fy: f32) -> Vec3 {
     s[0] * (gx * gy) + s[1] * (fx * gy) + s[2] * (gx * fy) + s[3] * (fx * fy)
 }
 
+/// The level giving a pixel of `footprint` (its least width, in level-0
+/// samples) at least `oversample` samples per side, with the knobs' bias.
+fn level_for(footprint: f64, knobs: &RsvpKnobs) -> u32 {
+    if !footprint.is_finite() || footprint <= 0.0 {
+        return 0;
+    }
+    // A hair of tolerance: exactly one sample per pixel, up to rounding,
+    // needs no finer level.
+    let wanted = ((knobs.oversample / footprint).log2() - 1e-6).ceil() as i64
+        + i64::from(knobs.level_bias)
+        + i64::from(knobs.filter == Filter::Box);
+    wanted.clamp(0, i64::from(MAX_LEVEL)) as u32
+}
+
 /// Sub-sample steps per sample on the filter's grid.
 const FRACTION_ONE: f64 = 65536.0;
 
@@ -1989,16 +2020,20 @@ mod tests {
             ),
         ];
         let mut interpolated = [0usize; 6];
+        // Regions whose grid level equals region_level's.
+        let mut levels = [0usize; 6];
         for (case, (camera, transform)) in cases.into_iter().enumerate() {
             let pose = ViewportPose::new(camera, transform);
             let map = PixelMap::new(&pose);
             let (mut exact, mut fast) = (Vec::new(), Vec::new());
             for y0 in (0..pose.camera.height).step_by(REGION as usize) {
                 for x0 in (0..pose.camera.width).step_by(REGION as usize) {
-                    let level = buffer.region_level(&pose, &map, &knobs, x0, y0);
-                    let Some(grid) = buffer.region_grid(&pose, &map, level, x0, y0) else {
+                    let Some((level, grid)) = buffer.region_grid(&pose, &map, &knobs, x0, y0)
+                    else {
                         continue;
                     };
+                    let chosen = buffer.region_level(&pose, &map, &knobs, x0, y0);
+                    levels[case] += usize::from(level == chosen);
                     interpolated[case] += 1;
                     let size = (
                         (pose.camera.width - x0).min(REGION) as usize,
@@ -2025,6 +2060,15 @@ mod tests {
         assert!((1..1200).contains(&interpolated[3]), "{interpolated:?}");
         assert_eq!(interpolated[4], 0, "{interpolated:?}");
         assert_eq!(interpolated[5], 1200, "{interpolated:?}");
+        // The grid's cells measure the footprint a few pixels from where
+        // region_level does: a level may differ only where the footprint
+        // sits on a threshold.
+        for (case, (&same, &all)) in levels.iter().zip(&interpolated).enumerate() {
+            assert!(
+                same * 100 >= all * 97,
+                "case {case}: {levels:?} of {interpolated:?}"
+            );
+        }
     }
 
     #[test]
