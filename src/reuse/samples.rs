@@ -34,7 +34,7 @@ use glam::{DMat2, DVec2, DVec3, Vec3};
 use rayon::prelude::*;
 
 use crate::camera::{Camera, Projection};
-use crate::ray::Ray;
+use crate::ray::{LaneMask, Ray, RayPacket, PACKET_WIDTH};
 use crate::render::{
     srgb_table, trace_groups, trace_groups_observed, Frame, PrimaryRays, SampleGroup, GROUP_HEIGHT,
     GROUP_WIDTH,
@@ -213,6 +213,36 @@ impl PrimaryRays for LevelRays<'_> {
         self.lattice
             .direction(self.level, col, row)
             .map(|d| Ray::new(self.lattice.position.as_vec3(), d.as_vec3()))
+    }
+
+    /// As `primary` lane by lane, bit for bit, but with one sine and cosine
+    /// per column and per row of the group rather than two per lane: the
+    /// libm calls were a tenth of a steady frame.
+    fn primary_group(&self, group: SampleGroup) -> (RayPacket, LaneMask) {
+        let (lattice, level) = (self.lattice, self.level);
+        let step = lattice.step(level);
+        let origin = lattice.position.as_vec3();
+        let az: [(f64, f64); GROUP_WIDTH as usize] = std::array::from_fn(|i| {
+            (lattice.wrap_column(level, group.col + i as i64) as f64 * step).sin_cos()
+        });
+        let el: [(f64, f64); GROUP_HEIGHT as usize] =
+            std::array::from_fn(|j| (FRAC_PI_2 - (group.row + j as i64) as f64 * step).sin_cos());
+        let mut rays = [Ray::INACTIVE; PACKET_WIDTH];
+        let mut mask: LaneMask = 0;
+        for (lane, (col, row)) in group.lane_samples().into_iter().enumerate() {
+            let inside = (0..=lattice.last_row(level)).contains(&row);
+            if !inside || lattice.owner(level, col, row).0 != level {
+                continue;
+            }
+            let ((sin_az, cos_az), (sin_el, cos_el)) = (
+                az[(col - group.col) as usize],
+                el[(row - group.row) as usize],
+            );
+            let d = DVec3::new(cos_el * sin_az, sin_el, -cos_el * cos_az);
+            rays[lane] = Ray::new(origin, d.as_vec3());
+            mask |= 1 << lane;
+        }
+        (rays, mask)
     }
 }
 
