@@ -1387,9 +1387,15 @@ impl SampleBuffer {
         for (who, list) in requests.iter().enumerate() {
             all.extend(list.iter().map(|&(l, g)| (l, g, who)));
         }
-        // The first requester pays.
-        all.sort_by_key(|&(l, g, who)| (l, g.row, g.col, who));
-        all.dedup_by_key(|&mut (l, g, _)| (l, g));
+        // The first requester pays. One list comes sorted and unique from
+        // `map` already.
+        if requests.len() > 1 {
+            all.sort_by_key(|&(l, g, who)| (l, g.row, g.col, who));
+            all.dedup_by_key(|&mut (l, g, _)| (l, g));
+        }
+        debug_assert!(all
+            .windows(2)
+            .all(|w| (w[0].0, w[0].1.row, w[0].1.col) < (w[1].0, w[1].1.row, w[1].1.col)));
         let mut out = vec![(0u64, RayCounts::default(), 0.0f64); requests.len()];
         for level in 0..=MAX_LEVEL {
             let batch: Vec<(SampleGroup, usize)> = all
@@ -1427,7 +1433,8 @@ impl SampleBuffer {
                     }
                     let (_, sample, _) = tile_key(col, row);
                     store.colors[tile * TILE_SAMPLES + sample] = colors[lane];
-                    owned += u64::from(lattice.direction(level, col, row).is_some());
+                    // Beyond the poles there is no sample (and no ray).
+                    owned += u64::from((0..=lattice.last_row(level)).contains(&row));
                 }
                 owned_total += owned;
                 out[*who].0 += owned;
