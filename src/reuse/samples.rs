@@ -694,6 +694,39 @@ impl PixelMap {
             }
         }
     }
+
+    /// Level-0 lattice coordinates of many pixels, bit for bit as
+    /// [`PixelMap::angles`] and [`SampleLattice::coords`] give them, in one
+    /// straight loop that vectorises; false for fisheye (which has no
+    /// affine map).
+    fn lattice_many<const N: usize>(
+        &self,
+        lattice: &SampleLattice,
+        yaw: f64,
+        (xs, ys): (&[f64; N], &[f64; N]),
+        out: &mut [DVec2; N],
+    ) -> bool {
+        let inv_step = 1.0 / lattice.step;
+        match self {
+            PixelMap::Perspective { o, u, v } => {
+                for ((c, &x), &y) in out.iter_mut().zip(xs).zip(ys) {
+                    let d = *o + *u * x + *v * y;
+                    let az = fast_atan2(d.x, -d.z);
+                    let el = fast_atan2(d.y, (d.x * d.x + d.z * d.z).sqrt());
+                    *c = DVec2::new((yaw + az) * inv_step, (FRAC_PI_2 - el) * inv_step);
+                }
+                true
+            }
+            PixelMap::EqualAngle { o, u, v } => {
+                for ((c, &x), &y) in out.iter_mut().zip(xs).zip(ys) {
+                    let a = *o + *u * x + *v * y;
+                    *c = DVec2::new((yaw + a.x) * inv_step, (FRAC_PI_2 - a.y) * inv_step);
+                }
+                true
+            }
+            PixelMap::Fisheye => false,
+        }
+    }
 }
 
 /// One level's traced samples, in tiles allocated on first touch.
@@ -1060,37 +1093,46 @@ impl SampleBuffer {
         x0: u32,
         y0: u32,
     ) -> Option<(u32, MapGrid)> {
-        if matches!(map, PixelMap::Fisheye) {
-            return None;
-        }
         // Level 0 first: scaling to the region's level is by a power of
         // two, exact, so the grid is the one mapped at that level bit for
-        // bit.
-        let inv_step = 1.0 / self.lattice.step;
-        let yaw = pose.camera.yaw;
-        let at = |x: u32, y: u32| {
-            map.angles(pose, x, y)
-                .map(|(az, el)| DVec2::new((yaw + az) * inv_step, (FRAC_PI_2 - el) * inv_step))
-        };
-        let mut grid = [[DVec2::ZERO; GRID_POINTS]; GRID_POINTS];
-        for (j, line) in grid.iter_mut().enumerate() {
-            for (i, point) in line.iter_mut().enumerate() {
-                *point = at(x0 + i as u32 * GRID_SPACING, y0 + j as u32 * GRID_SPACING)?;
+        // bit. All 57 points in one batch: the grid's, then each cell's top
+        // and left edge midpoints.
+        const CELLS: usize = GRID_POINTS - 1;
+        const MAPPED: usize = GRID_POINTS * GRID_POINTS + 2 * CELLS * CELLS;
+        let (mut xs, mut ys) = ([0f64; MAPPED], [0f64; MAPPED]);
+        let half = GRID_SPACING / 2;
+        for j in 0..GRID_POINTS {
+            for i in 0..GRID_POINTS {
+                let (x, y) = (x0 + i as u32 * GRID_SPACING, y0 + j as u32 * GRID_SPACING);
+                let k = j * GRID_POINTS + i;
+                (xs[k], ys[k]) = (f64::from(x), f64::from(y));
+                if i < CELLS && j < CELLS {
+                    let k = GRID_POINTS * GRID_POINTS + 2 * (j * CELLS + i);
+                    (xs[k], ys[k]) = (f64::from(x + half), f64::from(y));
+                    (xs[k + 1], ys[k + 1]) = (f64::from(x), f64::from(y + half));
+                }
             }
+        }
+        let mut mapped = [DVec2::ZERO; MAPPED];
+        if !map.lattice_many(&self.lattice, pose.camera.yaw, (&xs, &ys), &mut mapped) {
+            return None;
+        }
+        let mut grid = [[DVec2::ZERO; GRID_POINTS]; GRID_POINTS];
+        for (line, points) in grid.iter_mut().zip(mapped.chunks_exact(GRID_POINTS)) {
+            line.copy_from_slice(points);
         }
         // Bilinear interpolation of a quadratic misses by at most
         // (|f_xx| + |f_yy|) h^2 / 8, and the misses at a cell's edge
         // midpoints are f_xx h^2 / 8 and f_yy h^2 / 8: their sum bounds the
         // miss in the cell. (The centre alone can hide a saddle, as near a
         // pole, where the two cancel.)
-        let half = GRID_SPACING / 2;
         let spacing = f64::from(GRID_SPACING);
         let (mut worst, mut footprint) = (0.0f64, f64::INFINITY);
-        for j in 0..GRID_POINTS - 1 {
-            for i in 0..GRID_POINTS - 1 {
-                let (x, y) = (x0 + i as u32 * GRID_SPACING, y0 + j as u32 * GRID_SPACING);
-                let across = at(x + half, y)? - (grid[j][i] + grid[j][i + 1]) * 0.5;
-                let down = at(x, y + half)? - (grid[j][i] + grid[j + 1][i]) * 0.5;
+        for j in 0..CELLS {
+            for i in 0..CELLS {
+                let k = GRID_POINTS * GRID_POINTS + 2 * (j * CELLS + i);
+                let across = mapped[k] - (grid[j][i] + grid[j][i + 1]) * 0.5;
+                let down = mapped[k + 1] - (grid[j][i] + grid[j + 1][i]) * 0.5;
                 let miss = (across.abs() + down.abs()).max_element();
                 if miss.is_nan() {
                     return None;
