@@ -1644,7 +1644,7 @@ impl SampleBuffer {
         let last_row = self.lattice.last_row(level);
         for (j, line) in window.chunks_mut(wd).enumerate() {
             let row = (r0 + j as i64).clamp(0, last_row);
-            self.copy_row(level, c0, row, line, scratch);
+            self.copy_row(cache, level, c0, row, line, scratch);
         }
         // Window index and weights of every pixel first, in straight-line
         // f64 code (exact: whole numbers and multiples of 2^-16) that
@@ -1700,13 +1700,14 @@ impl SampleBuffer {
     /// `scratch` holds one row per coarser level.
     fn copy_row(
         &self,
+        cache: &mut TileCache,
         level: u32,
         col: i64,
         row: i64,
         out: &mut [Vec3],
         scratch: &mut [Vec<Vec3>],
     ) {
-        self.copy_run(level, col, row, out);
+        self.copy_run(cache, level, col, row, out);
         if level == 0 || row & 1 == 1 {
             return;
         }
@@ -1717,9 +1718,13 @@ impl SampleBuffer {
         let (coarse, rest) = scratch
             .split_first_mut()
             .expect("one scratch row per level");
-        coarse.clear();
-        coarse.resize((out.len() - first).div_ceil(2), Vec3::ZERO);
-        self.copy_row(level - 1, (col + first as i64) >> 1, row >> 1, coarse, rest);
+        // copy_run writes every sample of the row: no need to clear it.
+        let len = (out.len() - first).div_ceil(2);
+        if coarse.len() < len {
+            coarse.resize(len, Vec3::ZERO);
+        }
+        let coarse = &mut coarse[..len];
+        self.copy_row(cache, level - 1, (col + first as i64) >> 1, row >> 1, coarse, rest);
         for (slot, &sample) in out[first..].iter_mut().step_by(2).zip(coarse.iter()) {
             *slot = sample;
         }
@@ -1727,7 +1732,9 @@ impl SampleBuffer {
 
     /// Samples (col.., row) of `level` as its tiles hold them, copied in
     /// runs (black where no tile is): right where the level owns them.
-    fn copy_run(&self, level: u32, col: i64, row: i64, out: &mut [Vec3]) {
+    /// A window's rows come in pairs per tile row and span a tile or two:
+    /// `cache` saves most of the hash map lookups.
+    fn copy_run(&self, cache: &mut TileCache, level: u32, col: i64, row: i64, out: &mut [Vec3]) {
         let store = &self.levels[level as usize];
         let columns = self.lattice.columns(level);
         let mut i = 0;
@@ -1737,12 +1744,17 @@ impl SampleBuffer {
             let run = (out.len() - i)
                 .min((TILE_COLS - (wc & (TILE_COLS - 1))) as usize)
                 .min((columns - wc) as usize);
-            match store.tile(key) {
-                Some(tile) => {
+            let o = level as usize * 2 + (key.1 & 1) as usize;
+            if cache.keys[o] != key {
+                cache.keys[o] = key;
+                cache.tiles[o] = store.tile(key).unwrap_or(u32::MAX);
+            }
+            match cache.tiles[o] {
+                u32::MAX => out[i..i + run].fill(Vec3::ZERO),
+                tile => {
                     let start = tile as usize * TILE_SAMPLES + sample;
                     out[i..i + run].copy_from_slice(&store.colors[start..start + run]);
                 }
-                None => out[i..i + run].fill(Vec3::ZERO),
             }
             i += run;
         }
