@@ -1386,7 +1386,12 @@ impl SampleBuffer {
                 let level = &self.levels[owner as usize];
                 *slot = (key, level.tile(key).map_or(0, |t| level.traced[t as usize]));
             }
-            if slot.1 >> bit & 1 == 0 && missing.last() != Some(&(owner, group)) {
+            // A group asked for counts as traced in the cached mask: the
+            // pixels after it that read it skip it (a pixel reads four
+            // samples, alternating between owners, so the list's last entry
+            // alone caught few repeats).
+            if slot.1 >> bit & 1 == 0 {
+                slot.1 |= 1 << bit;
                 missing.push((owner, group));
             }
         };
