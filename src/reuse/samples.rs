@@ -1729,7 +1729,14 @@ impl SampleBuffer {
             coarse.resize(len, Vec3::ZERO);
         }
         let coarse = &mut coarse[..len];
-        self.copy_row(cache, level - 1, (col + first as i64) >> 1, row >> 1, coarse, rest);
+        self.copy_row(
+            cache,
+            level - 1,
+            (col + first as i64) >> 1,
+            row >> 1,
+            coarse,
+            rest,
+        );
         for (slot, &sample) in out[first..].iter_mut().step_by(2).zip(coarse.iter()) {
             *slot = sample;
         }
