@@ -34,7 +34,7 @@ use glam::{DMat2, DVec2, DVec3, Vec3};
 use rayon::prelude::*;
 
 use crate::camera::{Camera, Projection};
-use crate::ray::Ray;
+use crate::ray::{LaneMask, Ray, RayPacket, PACKET_WIDTH};
 use crate::render::{
     srgb_table, trace_groups, trace_groups_observed, Frame, PrimaryRays, SampleGroup, GROUP_HEIGHT,
     GROUP_WIDTH,
@@ -213,6 +213,36 @@ impl PrimaryRays for LevelRays<'_> {
         self.lattice
             .direction(self.level, col, row)
             .map(|d| Ray::new(self.lattice.position.as_vec3(), d.as_vec3()))
+    }
+
+    /// As `primary` lane by lane, bit for bit, but with one sine and cosine
+    /// per column and per row of the group rather than two per lane: the
+    /// libm calls were a tenth of a steady frame.
+    fn primary_group(&self, group: SampleGroup) -> (RayPacket, LaneMask) {
+        let (lattice, level) = (self.lattice, self.level);
+        let step = lattice.step(level);
+        let origin = lattice.position.as_vec3();
+        let az: [(f64, f64); GROUP_WIDTH as usize] = std::array::from_fn(|i| {
+            (lattice.wrap_column(level, group.col + i as i64) as f64 * step).sin_cos()
+        });
+        let el: [(f64, f64); GROUP_HEIGHT as usize] =
+            std::array::from_fn(|j| (FRAC_PI_2 - (group.row + j as i64) as f64 * step).sin_cos());
+        let mut rays = [Ray::INACTIVE; PACKET_WIDTH];
+        let mut mask: LaneMask = 0;
+        for (lane, (col, row)) in group.lane_samples().into_iter().enumerate() {
+            let inside = (0..=lattice.last_row(level)).contains(&row);
+            if !inside || lattice.owner(level, col, row).0 != level {
+                continue;
+            }
+            let ((sin_az, cos_az), (sin_el, cos_el)) = (
+                az[(col - group.col) as usize],
+                el[(row - group.row) as usize],
+            );
+            let d = DVec3::new(cos_el * sin_az, sin_el, -cos_el * cos_az);
+            rays[lane] = Ray::new(origin, d.as_vec3());
+            mask |= 1 << lane;
+        }
+        (rays, mask)
     }
 }
 
@@ -664,6 +694,39 @@ impl PixelMap {
             }
         }
     }
+
+    /// Level-0 lattice coordinates of many pixels, bit for bit as
+    /// [`PixelMap::angles`] and [`SampleLattice::coords`] give them, in one
+    /// straight loop that vectorises; false for fisheye (which has no
+    /// affine map).
+    fn lattice_many<const N: usize>(
+        &self,
+        lattice: &SampleLattice,
+        yaw: f64,
+        (xs, ys): (&[f64; N], &[f64; N]),
+        out: &mut [DVec2; N],
+    ) -> bool {
+        let inv_step = 1.0 / lattice.step;
+        match self {
+            PixelMap::Perspective { o, u, v } => {
+                for ((c, &x), &y) in out.iter_mut().zip(xs).zip(ys) {
+                    let d = *o + *u * x + *v * y;
+                    let az = fast_atan2(d.x, -d.z);
+                    let el = fast_atan2(d.y, (d.x * d.x + d.z * d.z).sqrt());
+                    *c = DVec2::new((yaw + az) * inv_step, (FRAC_PI_2 - el) * inv_step);
+                }
+                true
+            }
+            PixelMap::EqualAngle { o, u, v } => {
+                for ((c, &x), &y) in out.iter_mut().zip(xs).zip(ys) {
+                    let a = *o + *u * x + *v * y;
+                    *c = DVec2::new((yaw + a.x) * inv_step, (FRAC_PI_2 - a.y) * inv_step);
+                }
+                true
+            }
+            PixelMap::Fisheye => false,
+        }
+    }
 }
 
 /// One level's traced samples, in tiles allocated on first touch.
@@ -1013,62 +1076,86 @@ impl SampleBuffer {
                 footprint = footprint.min((dx.x * dy.y - dx.y * dy.x).abs() / longest);
             }
         }
-        if !footprint.is_finite() || footprint <= 0.0 {
-            return 0;
-        }
-        // A hair of tolerance: exactly one sample per pixel, up to
-        // rounding, needs no finer level.
-        let wanted = ((knobs.oversample / footprint).log2() - 1e-6).ceil() as i64
-            + i64::from(knobs.level_bias)
-            + i64::from(knobs.filter == Filter::Box);
-        wanted.clamp(0, i64::from(MAX_LEVEL)) as u32
+        level_for(footprint, knobs)
     }
 
-    /// The region's mapping grid, or None when interpolating it could miss
-    /// the exact mapping by more than [`GRID_TOLERANCE`] (checked in every
-    /// cell) or a point has no ray. Mapping a pixel exactly costs two
-    /// atan2; a grid costs 57 mappings for 256 pixels.
+    /// The region's level and mapping grid, or None when interpolating it
+    /// could miss the exact mapping by more than [`GRID_TOLERANCE`] at that
+    /// level (checked in every cell) or a point has no ray. Mapping a pixel
+    /// exactly costs two atan2; a grid costs 57 mappings for 256 pixels, and
+    /// its cells give the level too (the finest footprint over 16 cells),
+    /// where [`SampleBuffer::region_level`] would map 15 more points.
     fn region_grid(
         &self,
         pose: &ViewportPose,
         map: &PixelMap,
-        level: u32,
+        knobs: &RsvpKnobs,
         x0: u32,
         y0: u32,
-    ) -> Option<MapGrid> {
-        if matches!(map, PixelMap::Fisheye) {
+    ) -> Option<(u32, MapGrid)> {
+        // Level 0 first: scaling to the region's level is by a power of
+        // two, exact, so the grid is the one mapped at that level bit for
+        // bit. All 57 points in one batch: the grid's, then each cell's top
+        // and left edge midpoints.
+        const CELLS: usize = GRID_POINTS - 1;
+        const MAPPED: usize = GRID_POINTS * GRID_POINTS + 2 * CELLS * CELLS;
+        let (mut xs, mut ys) = ([0f64; MAPPED], [0f64; MAPPED]);
+        let half = GRID_SPACING / 2;
+        for j in 0..GRID_POINTS {
+            for i in 0..GRID_POINTS {
+                let (x, y) = (x0 + i as u32 * GRID_SPACING, y0 + j as u32 * GRID_SPACING);
+                let k = j * GRID_POINTS + i;
+                (xs[k], ys[k]) = (f64::from(x), f64::from(y));
+                if i < CELLS && j < CELLS {
+                    let k = GRID_POINTS * GRID_POINTS + 2 * (j * CELLS + i);
+                    (xs[k], ys[k]) = (f64::from(x + half), f64::from(y));
+                    (xs[k + 1], ys[k + 1]) = (f64::from(x), f64::from(y + half));
+                }
+            }
+        }
+        let mut mapped = [DVec2::ZERO; MAPPED];
+        if !map.lattice_many(&self.lattice, pose.camera.yaw, (&xs, &ys), &mut mapped) {
             return None;
         }
-        let inv_step = 1.0 / self.lattice.step(level);
-        let yaw = pose.camera.yaw;
-        let at = |x: u32, y: u32| {
-            map.angles(pose, x, y)
-                .map(|(az, el)| DVec2::new((yaw + az) * inv_step, (FRAC_PI_2 - el) * inv_step))
-        };
         let mut grid = [[DVec2::ZERO; GRID_POINTS]; GRID_POINTS];
-        for (j, line) in grid.iter_mut().enumerate() {
-            for (i, point) in line.iter_mut().enumerate() {
-                *point = at(x0 + i as u32 * GRID_SPACING, y0 + j as u32 * GRID_SPACING)?;
-            }
+        for (line, points) in grid.iter_mut().zip(mapped.chunks_exact(GRID_POINTS)) {
+            line.copy_from_slice(points);
         }
         // Bilinear interpolation of a quadratic misses by at most
         // (|f_xx| + |f_yy|) h^2 / 8, and the misses at a cell's edge
         // midpoints are f_xx h^2 / 8 and f_yy h^2 / 8: their sum bounds the
         // miss in the cell. (The centre alone can hide a saddle, as near a
         // pole, where the two cancel.)
-        let half = GRID_SPACING / 2;
-        for j in 0..GRID_POINTS - 1 {
-            for i in 0..GRID_POINTS - 1 {
-                let (x, y) = (x0 + i as u32 * GRID_SPACING, y0 + j as u32 * GRID_SPACING);
-                let across = at(x + half, y)? - (grid[j][i] + grid[j][i + 1]) * 0.5;
-                let down = at(x, y + half)? - (grid[j][i] + grid[j + 1][i]) * 0.5;
+        let spacing = f64::from(GRID_SPACING);
+        let (mut worst, mut footprint) = (0.0f64, f64::INFINITY);
+        for j in 0..CELLS {
+            for i in 0..CELLS {
+                let k = GRID_POINTS * GRID_POINTS + 2 * (j * CELLS + i);
+                let across = mapped[k] - (grid[j][i] + grid[j][i + 1]) * 0.5;
+                let down = mapped[k + 1] - (grid[j][i] + grid[j + 1][i]) * 0.5;
                 let miss = (across.abs() + down.abs()).max_element();
-                if miss.is_nan() || miss > GRID_TOLERANCE {
+                if miss.is_nan() {
                     return None;
+                }
+                worst = worst.max(miss);
+                // The cell's pixel footprint, as region_level measures it.
+                let dx = (grid[j][i + 1] - grid[j][i]) / spacing;
+                let dy = (grid[j + 1][i] - grid[j][i]) / spacing;
+                let longest = dx.length().max(dy.length());
+                if longest > 0.0 {
+                    footprint = footprint.min((dx.x * dy.y - dx.y * dy.x).abs() / longest);
                 }
             }
         }
-        Some(grid)
+        let level = level_for(footprint, knobs);
+        let scale = f64::from(1u32 << level);
+        if worst * scale > GRID_TOLERANCE {
+            return None;
+        }
+        for point in grid.iter_mut().flatten() {
+            *point *= scale;
+        }
+        Some((level, grid))
     }
 
     /// Lattice coordinates (at `level`) of a region's pixels, row-major,
@@ -1144,8 +1231,10 @@ impl SampleBuffer {
                 for rx in 0..regions_x {
                     let x0 = rx as u32 * REGION;
                     let cols = (w - x0).min(REGION) as usize;
-                    let level = self.region_level(pose, &map, knobs, x0, y0);
-                    let grid = self.region_grid(pose, &map, level, x0, y0);
+                    let (level, grid) = match self.region_grid(pose, &map, knobs, x0, y0) {
+                        Some((level, grid)) => (level, Some(grid)),
+                        None => (self.region_level(pose, &map, knobs, x0, y0), None),
+                    };
                     // Interpolated points lie within their cell's corners, so
                     // the grid's box holds every pixel's.
                     let mut mapped = false;
@@ -1297,7 +1386,12 @@ impl SampleBuffer {
                 let level = &self.levels[owner as usize];
                 *slot = (key, level.tile(key).map_or(0, |t| level.traced[t as usize]));
             }
-            if slot.1 >> bit & 1 == 0 && missing.last() != Some(&(owner, group)) {
+            // A group asked for counts as traced in the cached mask: the
+            // pixels after it that read it skip it (a pixel reads four
+            // samples, alternating between owners, so the list's last entry
+            // alone caught few repeats).
+            if slot.1 >> bit & 1 == 0 {
+                slot.1 |= 1 << bit;
                 missing.push((owner, group));
             }
         };
@@ -1340,9 +1434,15 @@ impl SampleBuffer {
         for (who, list) in requests.iter().enumerate() {
             all.extend(list.iter().map(|&(l, g)| (l, g, who)));
         }
-        // The first requester pays.
-        all.sort_by_key(|&(l, g, who)| (l, g.row, g.col, who));
-        all.dedup_by_key(|&mut (l, g, _)| (l, g));
+        // The first requester pays. One list comes sorted and unique from
+        // `map` already.
+        if requests.len() > 1 {
+            all.sort_by_key(|&(l, g, who)| (l, g.row, g.col, who));
+            all.dedup_by_key(|&mut (l, g, _)| (l, g));
+        }
+        debug_assert!(all
+            .windows(2)
+            .all(|w| (w[0].0, w[0].1.row, w[0].1.col) < (w[1].0, w[1].1.row, w[1].1.col)));
         let mut out = vec![(0u64, RayCounts::default(), 0.0f64); requests.len()];
         for level in 0..=MAX_LEVEL {
             let batch: Vec<(SampleGroup, usize)> = all
@@ -1380,7 +1480,8 @@ impl SampleBuffer {
                     }
                     let (_, sample, _) = tile_key(col, row);
                     store.colors[tile * TILE_SAMPLES + sample] = colors[lane];
-                    owned += u64::from(lattice.direction(level, col, row).is_some());
+                    // Beyond the poles there is no sample (and no ray).
+                    owned += u64::from((0..=lattice.last_row(level)).contains(&row));
                 }
                 owned_total += owned;
                 out[*who].0 += owned;
@@ -1449,6 +1550,7 @@ impl SampleBuffer {
                 let mut cache = TileCache::new();
                 let mut window = Vec::new();
                 let mut coords = Vec::new();
+                let mut colors = [Vec3::ZERO; (REGION * REGION) as usize];
                 let mut scratch = vec![Vec::new(); MAX_LEVEL as usize + 1];
                 let srgb = srgb_table();
                 let y0 = band_index * REGION as usize;
@@ -1466,6 +1568,7 @@ impl SampleBuffer {
                         (cols, rows),
                         &mut coords,
                     );
+                    let colors = &mut colors[..cols * rows];
                     self.gather_region(
                         &mut cache,
                         (&mut window, &mut scratch),
@@ -1473,15 +1576,20 @@ impl SampleBuffer {
                         filter,
                         (cols, rows),
                         &coords,
-                        |i, j, c| {
-                            let p = j * w + x0 + i;
-                            out[p * 3..p * 3 + 3]
-                                .copy_from_slice(&c.to_array().map(|v| srgb.encode(v)));
-                            if let Some(slot) = linear_out.get_mut(p) {
-                                *slot = c;
-                            }
-                        },
+                        colors,
                     );
+                    // Whole region rows at once: no per-pixel index checks.
+                    for (j, line) in colors.chunks_exact(cols).enumerate() {
+                        let p = j * w + x0;
+                        for (byte, c) in out[p * 3..(p + cols) * 3].chunks_exact_mut(3).zip(line) {
+                            byte[0] = srgb.encode(c.x);
+                            byte[1] = srgb.encode(c.y);
+                            byte[2] = srgb.encode(c.z);
+                        }
+                        if let Some(slots) = linear_out.get_mut(p..p + cols) {
+                            slots.copy_from_slice(line);
+                        }
+                    }
                 }
             });
         let image =
@@ -1495,7 +1603,8 @@ impl SampleBuffer {
     }
 
     /// Filters one region's pixels (`size` = columns, rows; `coords` holds
-    /// their lattice coordinates, row-major, NaN for no ray) into `put`.
+    /// their lattice coordinates, row-major, NaN for no ray) into `out`
+    /// (row-major, `coords`' length).
     #[allow(clippy::too_many_arguments)]
     fn gather_region(
         &self,
@@ -1505,7 +1614,7 @@ impl SampleBuffer {
         filter: Filter,
         size: (usize, usize),
         coords: &[DVec2],
-        mut put: impl FnMut(usize, usize, Vec3),
+        out: &mut [Vec3],
     ) {
         let (cols, rows) = size;
         // Filter origins grow with the coordinates: the window spans the
@@ -1517,30 +1626,21 @@ impl SampleBuffer {
         }
         // Infinite: every pixel is NaN.
         if lo.x > hi.x {
-            for j in 0..rows {
-                for i in 0..cols {
-                    put(i, j, Vec3::ZERO);
-                }
-            }
+            out.fill(Vec3::ZERO);
             return;
         }
         let (c0, r0) = filter_origin(filter, lo.x, lo.y);
         let (c1, r1) = filter_origin(filter, hi.x, hi.y);
         let (c1, r1) = (c1 + 1, r1 + 1);
         let (wd, ht) = ((c1 - c0 + 1) as usize, (r1 - r0 + 1) as usize);
-        let has_nan = coords.iter().any(|c| c.x.is_nan());
         if wd * ht > 16 * cols * rows {
             // Zoomed far out: a window would copy far more than it reads.
-            for j in 0..rows {
-                for i in 0..cols {
-                    let c = coords[j * cols + i];
-                    let colour = if c.x.is_nan() {
-                        Vec3::ZERO
-                    } else {
-                        self.filter(cache, level, filter, c.x, c.y)
-                    };
-                    put(i, j, colour);
-                }
+            for (slot, c) in out.iter_mut().zip(coords) {
+                *slot = if c.x.is_nan() {
+                    Vec3::ZERO
+                } else {
+                    self.filter(cache, level, filter, c.x, c.y)
+                };
             }
             return;
         }
@@ -1549,41 +1649,52 @@ impl SampleBuffer {
         let last_row = self.lattice.last_row(level);
         for (j, line) in window.chunks_mut(wd).enumerate() {
             let row = (r0 + j as i64).clamp(0, last_row);
-            self.copy_row(level, c0, row, line, scratch);
+            self.copy_row(cache, level, c0, row, line, scratch);
         }
         // Window index and weights of every pixel first, in straight-line
         // f64 code (exact: whole numbers and multiples of 2^-16) that
-        // vectorises; NaN pixels get index 0 and are skipped below.
+        // vectorises; NaN pixels get index 0 and are blacked out last.
         const N: usize = (REGION * REGION) as usize;
         let (mut index, mut wx, mut wy) = ([0u32; N], [0f32; N], [0f32; N]);
         let (c0f, r0f, wdf) = (c0 as f64, r0 as f64, wd as f64);
+        let mut has_nan = false;
         for (((c, k), fx), fy) in coords.iter().zip(&mut index).zip(&mut wx).zip(&mut wy) {
+            has_nan |= c.x.is_nan();
             let (ox, x) = filter_split(filter, c.x);
             let (oy, y) = filter_split(filter, c.y);
             *k = ((oy - r0f) * wdf + (ox - c0f)) as u32;
             *fx = x as f32;
             *fy = y as f32;
         }
-        for j in 0..rows {
-            for i in 0..cols {
-                let p = j * cols + i;
-                if has_nan && coords[p].x.is_nan() {
-                    put(i, j, Vec3::ZERO);
-                    continue;
+        let n = coords.len();
+        let (index, wx, wy) = (&index[..n], &wx[..n], &wy[..n]);
+        // One loop per filter, without branches inside.
+        match filter {
+            Filter::Nearest => {
+                for (slot, &k) in out.iter_mut().zip(index) {
+                    *slot = window[k as usize];
                 }
-                let k = index[p] as usize;
-                let colour = match filter {
-                    Filter::Nearest => window[k],
-                    Filter::Box => {
-                        (window[k] + window[k + 1] + window[k + wd] + window[k + wd + 1]) * 0.25
-                    }
-                    Filter::Bilinear => bilinear(
-                        [window[k], window[k + 1], window[k + wd], window[k + wd + 1]],
-                        wx[p],
-                        wy[p],
-                    ),
-                };
-                put(i, j, colour);
+            }
+            Filter::Box => {
+                for (slot, &k) in out.iter_mut().zip(index) {
+                    let k = k as usize;
+                    let (top, bottom) = (&window[k..k + 2], &window[k + wd..k + wd + 2]);
+                    *slot = (top[0] + top[1] + bottom[0] + bottom[1]) * 0.25;
+                }
+            }
+            Filter::Bilinear => {
+                for (((slot, &k), &fx), &fy) in out.iter_mut().zip(index).zip(wx).zip(wy) {
+                    let k = k as usize;
+                    let (top, bottom) = (&window[k..k + 2], &window[k + wd..k + wd + 2]);
+                    *slot = bilinear([top[0], top[1], bottom[0], bottom[1]], fx, fy);
+                }
+            }
+        }
+        if has_nan {
+            for (slot, c) in out.iter_mut().zip(coords) {
+                if c.x.is_nan() {
+                    *slot = Vec3::ZERO;
+                }
             }
         }
     }
@@ -1594,13 +1705,14 @@ impl SampleBuffer {
     /// `scratch` holds one row per coarser level.
     fn copy_row(
         &self,
+        cache: &mut TileCache,
         level: u32,
         col: i64,
         row: i64,
         out: &mut [Vec3],
         scratch: &mut [Vec<Vec3>],
     ) {
-        self.copy_run(level, col, row, out);
+        self.copy_run(cache, level, col, row, out);
         if level == 0 || row & 1 == 1 {
             return;
         }
@@ -1611,9 +1723,20 @@ impl SampleBuffer {
         let (coarse, rest) = scratch
             .split_first_mut()
             .expect("one scratch row per level");
-        coarse.clear();
-        coarse.resize((out.len() - first).div_ceil(2), Vec3::ZERO);
-        self.copy_row(level - 1, (col + first as i64) >> 1, row >> 1, coarse, rest);
+        // copy_run writes every sample of the row: no need to clear it.
+        let len = (out.len() - first).div_ceil(2);
+        if coarse.len() < len {
+            coarse.resize(len, Vec3::ZERO);
+        }
+        let coarse = &mut coarse[..len];
+        self.copy_row(
+            cache,
+            level - 1,
+            (col + first as i64) >> 1,
+            row >> 1,
+            coarse,
+            rest,
+        );
         for (slot, &sample) in out[first..].iter_mut().step_by(2).zip(coarse.iter()) {
             *slot = sample;
         }
@@ -1621,7 +1744,9 @@ impl SampleBuffer {
 
     /// Samples (col.., row) of `level` as its tiles hold them, copied in
     /// runs (black where no tile is): right where the level owns them.
-    fn copy_run(&self, level: u32, col: i64, row: i64, out: &mut [Vec3]) {
+    /// A window's rows come in pairs per tile row and span a tile or two:
+    /// `cache` saves most of the hash map lookups.
+    fn copy_run(&self, cache: &mut TileCache, level: u32, col: i64, row: i64, out: &mut [Vec3]) {
         let store = &self.levels[level as usize];
         let columns = self.lattice.columns(level);
         let mut i = 0;
@@ -1631,12 +1756,17 @@ impl SampleBuffer {
             let run = (out.len() - i)
                 .min((TILE_COLS - (wc & (TILE_COLS - 1))) as usize)
                 .min((columns - wc) as usize);
-            match store.tile(key) {
-                Some(tile) => {
+            let o = level as usize * 2 + (key.1 & 1) as usize;
+            if cache.keys[o] != key {
+                cache.keys[o] = key;
+                cache.tiles[o] = store.tile(key).unwrap_or(u32::MAX);
+            }
+            match cache.tiles[o] {
+                u32::MAX => out[i..i + run].fill(Vec3::ZERO),
+                tile => {
                     let start = tile as usize * TILE_SAMPLES + sample;
                     out[i..i + run].copy_from_slice(&store.colors[start..start + run]);
                 }
-                None => out[i..i + run].fill(Vec3::ZERO),
             }
             i += run;
         }
@@ -1741,21 +1871,27 @@ impl SampleBuffer {
     }
 }
 
-/// Weighted by distance; a zero weight drops its sample entirely, so a
-/// pixel exactly on a sample shows it bit for bit.
+/// Weighted by distance. A zero weight adds an exact +0 (samples are
+/// finite and not negative), so a pixel exactly on a sample shows it bit for
+/// bit; no branches, so the loop over a region's pixels stays straight.
 #[inline(always)]
 fn bilinear(s: [Vec3; 4], fx: f32, fy: f32) -> Vec3 {
-    let mut sum = s[0] * ((1.0 - fx) * (1.0 - fy));
-    if fx > 0.0 {
-        sum += s[1] * (fx * (1.0 - fy));
+    let (gx, gy) = (1.0 - fx, 1.0 - fy);
+    s[0] * (gx * gy) + s[1] * (fx * gy) + s[2] * (gx * fy) + s[3] * (fx * fy)
+}
+
+/// The level giving a pixel of `footprint` (its least width, in level-0
+/// samples) at least `oversample` samples per side, with the knobs' bias.
+fn level_for(footprint: f64, knobs: &RsvpKnobs) -> u32 {
+    if !footprint.is_finite() || footprint <= 0.0 {
+        return 0;
     }
-    if fy > 0.0 {
-        sum += s[2] * ((1.0 - fx) * fy);
-        if fx > 0.0 {
-            sum += s[3] * (fx * fy);
-        }
-    }
-    sum
+    // A hair of tolerance: exactly one sample per pixel, up to rounding,
+    // needs no finer level.
+    let wanted = ((knobs.oversample / footprint).log2() - 1e-6).ceil() as i64
+        + i64::from(knobs.level_bias)
+        + i64::from(knobs.filter == Filter::Box);
+    wanted.clamp(0, i64::from(MAX_LEVEL)) as u32
 }
 
 /// Sub-sample steps per sample on the filter's grid.
@@ -1987,16 +2123,20 @@ mod tests {
             ),
         ];
         let mut interpolated = [0usize; 6];
+        // Regions whose grid level equals region_level's.
+        let mut levels = [0usize; 6];
         for (case, (camera, transform)) in cases.into_iter().enumerate() {
             let pose = ViewportPose::new(camera, transform);
             let map = PixelMap::new(&pose);
             let (mut exact, mut fast) = (Vec::new(), Vec::new());
             for y0 in (0..pose.camera.height).step_by(REGION as usize) {
                 for x0 in (0..pose.camera.width).step_by(REGION as usize) {
-                    let level = buffer.region_level(&pose, &map, &knobs, x0, y0);
-                    let Some(grid) = buffer.region_grid(&pose, &map, level, x0, y0) else {
+                    let Some((level, grid)) = buffer.region_grid(&pose, &map, &knobs, x0, y0)
+                    else {
                         continue;
                     };
+                    let chosen = buffer.region_level(&pose, &map, &knobs, x0, y0);
+                    levels[case] += usize::from(level == chosen);
                     interpolated[case] += 1;
                     let size = (
                         (pose.camera.width - x0).min(REGION) as usize,
@@ -2023,6 +2163,15 @@ mod tests {
         assert!((1..1200).contains(&interpolated[3]), "{interpolated:?}");
         assert_eq!(interpolated[4], 0, "{interpolated:?}");
         assert_eq!(interpolated[5], 1200, "{interpolated:?}");
+        // The grid's cells measure the footprint a few pixels from where
+        // region_level does: a level may differ only where the footprint
+        // sits on a threshold.
+        for (case, (&same, &all)) in levels.iter().zip(&interpolated).enumerate() {
+            assert!(
+                same * 100 >= all * 97,
+                "case {case}: {levels:?} of {interpolated:?}"
+            );
+        }
     }
 
     #[test]
