@@ -701,13 +701,13 @@ pub fn bench_viewport_sequence(
     frames: std::ops::Range<u32>,
     knobs: crate::reuse::samples::RsvpKnobs,
     measure_error: bool,
-    ostc: bool,
+    ostc: Option<crate::anim::OstcSettings>,
     mut progress: impl FnMut(),
 ) -> ViewportSequenceBench {
     use crate::anim::{image_error, Animator, Techniques};
     let rsvp_only = Techniques {
         rsvp: true,
-        ostc,
+        ostc: ostc.is_some(),
         ..Techniques::FULL
     };
     let views = scene.viewports.len();
@@ -734,6 +734,9 @@ pub fn bench_viewport_sequence(
     let mut fast = Animator::new(scene, accel, rsvp_only, frames.clone());
     fast.set_linear_output(false);
     fast.set_rsvp_knobs(knobs);
+    if let Some(settings) = ostc {
+        fast.set_ostc(settings);
+    }
     let mut rsvp_ms = 0.0;
     let mut samples_traced = 0;
     let mut bookkeeping_ms = 0.0;
@@ -769,6 +772,9 @@ pub fn bench_viewport_sequence(
     if measure_error {
         let mut check = Animator::new(scene, accel, rsvp_only, frames.clone());
         check.set_rsvp_knobs(knobs);
+        if let Some(settings) = ostc {
+            check.set_ostc(settings);
+        }
         for (row, frame) in profile.iter_mut().zip(frames.clone()) {
             let mut worst = f64::INFINITY;
             for (index, output) in check.render_viewports(frame).into_iter().enumerate() {
@@ -780,7 +786,7 @@ pub fn bench_viewport_sequence(
             }
             row.psnr_db = Some(worst);
             let last = frame + 1 == frames.end;
-            if ostc && (last || (frame - frames.start + 1) % BUFFER_CHECK_EVERY == 0) {
+            if ostc.is_some() && (last || (frame - frames.start + 1) % BUFFER_CHECK_EVERY == 0) {
                 if let Some((compared, differing)) = check.verify_sample_buffer() {
                     let (c, d) = buffer_check.unwrap_or((0, 0));
                     buffer_check = Some((c + compared, d + differing));

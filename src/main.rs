@@ -717,7 +717,7 @@ fn run_experiment(
                 frames.clone(),
                 retrace::reuse::samples::RsvpKnobs::default(),
                 true,
-                experiment == Experiment::E4,
+                (experiment == Experiment::E4).then(|| args.ostc.settings()),
                 tick,
             );
             let oracle = retrace::bench::viewport_oracle(&scene, &mut accel, frames, tick);
@@ -802,7 +802,7 @@ fn bench_e2(
             0..100,
             retrace::reuse::samples::RsvpKnobs::default(),
             true,
-            false,
+            None,
             || bar.inc(1),
         );
         results.push((label, result));

@@ -152,7 +152,7 @@ pub fn sweep_rsvp_knobs(
                 frames.clone(),
                 knobs,
                 true,
-                false,
+                None,
                 &mut progress,
             )
         })

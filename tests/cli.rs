@@ -392,6 +392,42 @@ fn bench_writes_the_table_profiles_plots_and_report() {
 }
 
 #[test]
+fn bench_e3_and_e4_cut_regions_as_asked() {
+    // Coarser regions dirty fewer, bigger regions: the per-frame dirty
+    // counts of both OSTC experiments must follow --regions.
+    let dirty_per_experiment = |regions: &str| -> Vec<u64> {
+        ["E3", "E4"]
+            .iter()
+            .map(|id| {
+                let dir = tempfile::tempdir().unwrap();
+                let out_dir = dir.path().join("bench");
+                let args = ["--only", id, "--frames", "85-88", "--regions", regions];
+                let out = bench(&out_dir, &args);
+                assert!(out.status.success(), "stderr: {}", stderr(&out));
+                let stem = id.to_lowercase();
+                let frames =
+                    std::fs::read_to_string(out_dir.join(format!("{stem}-frames.csv"))).unwrap();
+                let mut lines = frames.lines();
+                let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+                let column = header.iter().position(|c| *c == "dirty_regions").unwrap();
+                lines
+                    .map(|l| l.split(',').nth(column).unwrap().parse::<u64>().unwrap())
+                    .sum()
+            })
+            .collect()
+    };
+    let (coarse, fine) = (dirty_per_experiment("4"), dirty_per_experiment("16"));
+    for (index, id) in ["E3", "E4"].iter().enumerate() {
+        assert!(
+            0 < coarse[index] && coarse[index] < fine[index],
+            "{id}: {} dirty regions at 4x4, {} at 16x16",
+            coarse[index],
+            fine[index]
+        );
+    }
+}
+
+#[test]
 fn bench_rejects_bad_frames_before_any_work() {
     let dir = tempfile::tempdir().unwrap();
     let out_dir = dir.path().join("bench");
