@@ -310,13 +310,18 @@ pub fn render_view(
         .map(|(index, pixels)| {
             let row = (index * GROUP_HEIGHT as usize) as i64;
             let mut counts = RayCounts::default();
-            for col in (0..width as i64).step_by(GROUP_WIDTH as usize) {
-                let group = SampleGroup { col, row };
+            let group_width = GROUP_WIDTH as usize;
+            for x in (0..width).step_by(group_width) {
+                let group = SampleGroup { col: x as i64, row };
                 let colors = trace_group(&shader, &table, group, &mut counts, None);
-                for (lane, (x, y)) in group.lane_samples().into_iter().enumerate() {
-                    let (x, y) = (x as usize, (y - row) as usize);
-                    if x < width && y * width + x < pixels.len() {
-                        pixels[y * width + x] = colors[lane];
+                // Lanes run along rows of the group (`lane_samples`): each
+                // row is one slice copy, cut at the image's right edge; the
+                // band's last rows may be missing at its bottom edge.
+                let n = group_width.min(width - x);
+                for (y, lanes) in colors.chunks_exact(group_width).enumerate() {
+                    let start = y * width + x;
+                    if let Some(dst) = pixels.get_mut(start..start + n) {
+                        dst.copy_from_slice(&lanes[..n]);
                     }
                 }
             }

@@ -345,11 +345,26 @@ impl<'a> Shader<'a> {
         mask: LaneMask,
         depth: u32,
         counts: &mut RayCounts,
-        mut observer: Option<&mut dyn RayObserver>,
+        observer: Option<&mut dyn RayObserver>,
     ) -> [Vec3; PACKET_WIDTH] {
+        self.shade_lanes(rays, mask, depth, counts, observer)
+            .vectors()
+    }
+
+    /// [`Shader::shade`] with the colours by coordinate, as the recursion
+    /// mixes them: reflections blend into their parents lane-parallel, and
+    /// the colours change layout once per primary packet, not per bounce.
+    fn shade_lanes(
+        &self,
+        rays: &RayPacket,
+        mask: LaneMask,
+        depth: u32,
+        counts: &mut RayCounts,
+        mut observer: Option<&mut dyn RayObserver>,
+    ) -> Vec3Lanes {
         let scene = self.scene;
         if mask == 0 {
-            return [Vec3::ZERO; PACKET_WIDTH];
+            return Vec3Lanes::default();
         }
         let traced = u64::from(mask.count_ones());
         if depth == 0 {
@@ -392,13 +407,8 @@ impl<'a> Shader<'a> {
             // All misses (common for reflections): the colours straight
             // from registers. Read back from `colors`, whose lanes were just
             // stored one by one, they would wait on store forwarding.
-            return std::array::from_fn(|lane| {
-                if mask & (1 << lane) != 0 {
-                    scene.background
-                } else {
-                    Vec3::ZERO
-                }
-            });
+            return Vec3Lanes::splat(scene.background)
+                .select(&lane_flags(mask), &Vec3Lanes::default());
         }
 
         for (light_index, light) in scene.lights.iter().enumerate() {
@@ -478,7 +488,6 @@ impl<'a> Shader<'a> {
             );
         }
 
-        let mut colors = colors.vectors();
         if depth < scene.max_depth {
             let h = &lanes_hit;
             // Scene numbers are finite (a `Scene` promise), so no NaN to exclude.
@@ -498,11 +507,12 @@ impl<'a> Shader<'a> {
                     };
                     reflected[lane] = Ray::new(h.spawn_point.get(lane), r);
                 }
-                let mirrored = self.shade(&reflected, mirror_mask, depth + 1, counts, observer);
-                for lane in lanes(mirror_mask) {
-                    let k = h.reflectivity[lane];
-                    colors[lane] = colors[lane] * (1.0 - k) + mirrored[lane] * k;
-                }
+                let mirrored =
+                    self.shade_lanes(&reflected, mirror_mask, depth + 1, counts, observer);
+                let k = &h.reflectivity;
+                let rest = k.map(|k| 1.0 - k);
+                let mixed = colors.scale(&rest).add(&mirrored.scale(k));
+                colors = mixed.select(&lane_flags(mirror_mask), &colors);
             }
         }
         colors
@@ -595,6 +605,24 @@ impl Vec3Lanes {
     #[inline]
     fn sub(&self, other: &Vec3Lanes) -> Vec3Lanes {
         self.zip(other, |a, b| a - b)
+    }
+
+    #[inline]
+    fn add(&self, other: &Vec3Lanes) -> Vec3Lanes {
+        self.zip(other, |a, b| a + b)
+    }
+
+    /// `self` in the `pick` lanes, `other` elsewhere.
+    #[inline]
+    fn select(&self, pick: &[bool; PACKET_WIDTH], other: &Vec3Lanes) -> Vec3Lanes {
+        let choose = |a: &Lanes, b: &Lanes| -> Lanes {
+            std::array::from_fn(|i| if pick[i] { a[i] } else { b[i] })
+        };
+        Vec3Lanes {
+            x: choose(&self.x, &other.x),
+            y: choose(&self.y, &other.y),
+            z: choose(&self.z, &other.z),
+        }
     }
 
     #[inline]
