@@ -270,14 +270,22 @@ fn albedo(material: &Material, surface: &Surface) -> Vec3 {
     checker.colors[(parity & 1) as usize]
 }
 
+/// One object as shading sees it, looked up once per hit: its shape in
+/// world space and its material, with what lighting derives from it.
+struct ObjectShading<'a> {
+    shape: WorldShape<'a>,
+    material_index: usize,
+    material: &'a Material,
+    /// R.V below which the material's highlight is negligible.
+    highlight_cutoff: f32,
+}
+
 /// Traces and shades packets for one scene through one intersector.
 pub struct Shader<'a> {
     scene: &'a Scene,
     intersector: &'a dyn Intersector,
-    /// Per object: its world-space shape for surface reconstruction.
-    shapes: Vec<WorldShape<'a>>,
-    /// Per material: R.V below which its highlight is negligible.
-    highlight_cutoffs: Vec<f32>,
+    /// Per object: what reconstructing and lighting its hits needs.
+    objects: Vec<ObjectShading<'a>>,
     /// Per material: the Phong exponent when it is a whole number, so the
     /// highlight is a few multiplications instead of a powf.
     whole_exponents: Vec<Option<u32>>,
@@ -314,11 +322,18 @@ impl<'a> Shader<'a> {
         Shader {
             scene,
             intersector,
-            shapes: scene.objects.iter().map(WorldShape::new).collect(),
-            highlight_cutoffs: scene
-                .materials
+            objects: scene
+                .objects
                 .iter()
-                .map(Material::highlight_cutoff)
+                .map(|object| {
+                    let material = &scene.materials[object.material];
+                    ObjectShading {
+                        shape: WorldShape::new(object),
+                        material_index: object.material,
+                        material,
+                        highlight_cutoff: material.highlight_cutoff(),
+                    }
+                })
                 .collect(),
             whole_exponents: scene
                 .materials
@@ -391,14 +406,15 @@ impl<'a> Shader<'a> {
             match &hits[lane] {
                 None => colors.set(lane, scene.background),
                 Some(hit) => {
-                    let object = hit.object as usize;
-                    let material = scene.objects[object].material;
-                    let surface = self.shapes[object].surface(&rays[lane], hit, material);
-                    let albedo = albedo(&scene.materials[material], &surface);
+                    let object = &self.objects[hit.object as usize];
+                    let surface = object
+                        .shape
+                        .surface(&rays[lane], hit, object.material_index);
+                    let albedo = albedo(object.material, &surface);
                     colors.set(lane, scene.ambient * albedo);
                     lanes_hit.set(lane, &surface, albedo, rays[lane].dir.normalize());
-                    lanes_hit.cutoff[lane] = self.highlight_cutoffs[material];
-                    lanes_hit.reflectivity[lane] = scene.materials[material].reflectivity;
+                    lanes_hit.cutoff[lane] = object.highlight_cutoff;
+                    lanes_hit.reflectivity[lane] = object.material.reflectivity;
                     hit_mask |= 1 << lane;
                 }
             }
@@ -413,16 +429,12 @@ impl<'a> Shader<'a> {
 
         for (light_index, light) in scene.lights.iter().enumerate() {
             let h = &lanes_hit;
+            let (facing, to_light) = h.toward(light.position);
             // A light behind the surface cannot light it: no ray needed.
-            let facing = h
-                .geometric_normal
-                .dot(&Vec3Lanes::splat(light.position).sub(&h.point));
             let lit_mask = hit_mask & lanes_where(|lane| facing[lane] > 0.0);
             if lit_mask == 0 {
                 continue;
             }
-            // The segment ends at the light: dir spans it, so t < 1.
-            let to_light = Vec3Lanes::splat(light.position).sub(&h.spawn_point);
             let mut shadow_rays = [Ray::INACTIVE; PACKET_WIDTH];
             for lane in lanes(lit_mask) {
                 shadow_rays[lane] = Ray::segment(h.spawn_point.get(lane), to_light.get(lane), 1.0);
@@ -441,11 +453,7 @@ impl<'a> Shader<'a> {
             if shaded == 0 {
                 continue;
             }
-            let n = &h.shading_normal;
-            let l = to_light.normalize();
-            let n_dot_l = n.dot(&l).map(|c| c.max(0.0));
-            let view = h.direction.neg();
-            let r_dot_v = reflect_lanes(&l.neg(), n).dot(&view);
+            let (n_dot_l, r_dot_v) = h.cosines(&to_light);
             // Below the cutoff the highlight is under 1e-5: skip the powf.
             let mut specular = Vec3Lanes::default();
             for lane in lanes(shaded & lanes_where(|lane| r_dot_v[lane] > h.cutoff[lane])) {
@@ -460,31 +468,13 @@ impl<'a> Shader<'a> {
                         ),
                 );
             }
-            let power = light.power;
-            let keep = lane_flags(shaded);
-            accumulate(
-                &mut colors.x,
-                power.x,
-                &h.albedo.x,
+            add_light(
+                &mut colors,
+                light.power,
+                &h.albedo,
                 &n_dot_l,
-                &specular.x,
-                &keep,
-            );
-            accumulate(
-                &mut colors.y,
-                power.y,
-                &h.albedo.y,
-                &n_dot_l,
-                &specular.y,
-                &keep,
-            );
-            accumulate(
-                &mut colors.z,
-                power.z,
-                &h.albedo.z,
-                &n_dot_l,
-                &specular.z,
-                &keep,
+                &specular,
+                &lane_flags(shaded),
             );
         }
 
@@ -531,7 +521,60 @@ fn lanes_where(test: impl Fn(usize) -> bool) -> LaneMask {
 /// keeps LLVM from vectorizing the loop; a flag per lane does not.
 #[inline]
 fn lane_flags(mask: LaneMask) -> [bool; PACKET_WIDTH] {
-    std::array::from_fn(|lane| mask & (1 << lane) != 0)
+    LANE_FLAGS[usize::from(mask)]
+}
+
+/// [`lane_flags`] of every mask, worked out at compile time: one load,
+/// where LLVM spreads a mask's bits over lanes with a dozen shuffles.
+const LANE_FLAGS: [[bool; PACKET_WIDTH]; 1 << PACKET_WIDTH] = {
+    let mut table = [[false; PACKET_WIDTH]; 1 << PACKET_WIDTH];
+    let mut mask = 0;
+    while mask < table.len() {
+        let mut lane = 0;
+        while lane < PACKET_WIDTH {
+            table[mask][lane] = mask & (1 << lane) != 0;
+            lane += 1;
+        }
+        mask += 1;
+    }
+    table
+};
+
+/// One light's contribution to every channel, added in the `keep` lanes.
+/// Out of line for the reason given at [`HitLanes::toward`].
+#[inline(never)]
+fn add_light(
+    colors: &mut Vec3Lanes,
+    power: Vec3,
+    albedo: &Vec3Lanes,
+    n_dot_l: &Lanes,
+    specular: &Vec3Lanes,
+    keep: &[bool; PACKET_WIDTH],
+) {
+    accumulate(
+        &mut colors.x,
+        power.x,
+        &albedo.x,
+        n_dot_l,
+        &specular.x,
+        keep,
+    );
+    accumulate(
+        &mut colors.y,
+        power.y,
+        &albedo.y,
+        n_dot_l,
+        &specular.y,
+        keep,
+    );
+    accumulate(
+        &mut colors.z,
+        power.z,
+        &albedo.z,
+        n_dot_l,
+        &specular.z,
+        keep,
+    );
 }
 
 /// One light's contribution to one colour channel, added in the `keep`
@@ -682,6 +725,34 @@ struct HitLanes {
 }
 
 impl HitLanes {
+    /// Toward a light at `light`: the facing term `n_g . (light - point)`
+    /// (the light is in front where it is positive) and the shadow rays'
+    /// directions, from the spawn points to the light (so the segment ends
+    /// at t = 1).
+    ///
+    /// The lighting math is kept out of line (here, [`HitLanes::cosines`]
+    /// and [`add_light`]): inlined into `shade_lanes`, LLVM's SLP vectorizer
+    /// gave these lanes a different shape each time the code around them
+    /// changed, up to twice the instructions (split halves, shuffles).
+    #[inline(never)]
+    fn toward(&self, light: Vec3) -> (Lanes, Vec3Lanes) {
+        let light = Vec3Lanes::splat(light);
+        let facing = self.geometric_normal.dot(&light.sub(&self.point));
+        (facing, light.sub(&self.spawn_point))
+    }
+
+    /// Lambert's `n . l`, clamped at zero, and Phong's `r . v` for light
+    /// arriving along `to_light`.
+    #[inline(never)]
+    fn cosines(&self, to_light: &Vec3Lanes) -> (Lanes, Lanes) {
+        let n = &self.shading_normal;
+        let l = to_light.normalize();
+        let n_dot_l = n.dot(&l).map(|c| c.max(0.0));
+        let view = self.direction.neg();
+        let r_dot_v = reflect_lanes(&l.neg(), n).dot(&view);
+        (n_dot_l, r_dot_v)
+    }
+
     #[inline]
     fn set(&mut self, lane: usize, surface: &Surface, albedo: Vec3, direction: Vec3) {
         self.point.set(lane, surface.point);
