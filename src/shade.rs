@@ -483,26 +483,19 @@ impl<'a> Shader<'a> {
             // Scene numbers are finite (a `Scene` promise), so no NaN to exclude.
             let mirror_mask = hit_mask & lanes_where(|lane| h.reflectivity[lane] > 0.0);
             if mirror_mask != 0 {
-                let d = &h.direction;
-                let by_shading = reflect_lanes(d, &h.shading_normal);
-                let by_geometry = reflect_lanes(d, &h.geometric_normal);
-                // Interpolated normals can bend a reflection into the surface.
-                let bent = by_shading.dot(&h.geometric_normal);
+                let directions = h.mirror_directions();
                 let mut reflected = [Ray::INACTIVE; PACKET_WIDTH];
                 for lane in lanes(mirror_mask) {
-                    let r = if bent[lane] <= 0.0 {
-                        by_geometry.get(lane)
-                    } else {
-                        by_shading.get(lane)
-                    };
-                    reflected[lane] = Ray::new(h.spawn_point.get(lane), r);
+                    reflected[lane] = Ray::new(h.spawn_point.get(lane), directions.get(lane));
                 }
                 let mirrored =
                     self.shade_lanes(&reflected, mirror_mask, depth + 1, counts, observer);
-                let k = &h.reflectivity;
-                let rest = k.map(|k| 1.0 - k);
-                let mixed = colors.scale(&rest).add(&mirrored.scale(k));
-                colors = mixed.select(&lane_flags(mirror_mask), &colors);
+                mix_reflection(
+                    &mut colors,
+                    &mirrored,
+                    &h.reflectivity,
+                    &lane_flags(mirror_mask),
+                );
             }
         }
         colors
@@ -575,6 +568,21 @@ fn add_light(
         &specular.z,
         keep,
     );
+}
+
+/// `colors` blended in the `keep` lanes with what their mirrors see,
+/// `mirrored`, by each lane's reflectivity `k`. Out of line for the reason
+/// given at [`HitLanes::toward`].
+#[inline(never)]
+fn mix_reflection(
+    colors: &mut Vec3Lanes,
+    mirrored: &Vec3Lanes,
+    k: &Lanes,
+    keep: &[bool; PACKET_WIDTH],
+) {
+    let rest = k.map(|k| 1.0 - k);
+    let mixed = colors.scale(&rest).add(&mirrored.scale(k));
+    *colors = mixed.select(keep, colors);
 }
 
 /// One light's contribution to one colour channel, added in the `keep`
@@ -739,6 +747,18 @@ impl HitLanes {
         let light = Vec3Lanes::splat(light);
         let facing = self.geometric_normal.dot(&light.sub(&self.point));
         (facing, light.sub(&self.spawn_point))
+    }
+
+    /// Where mirror reflections leave: the incoming direction mirrored
+    /// about the shading normal, or about the geometric normal where an
+    /// interpolated normal would bend the reflection into the surface.
+    #[inline(never)]
+    fn mirror_directions(&self) -> Vec3Lanes {
+        let d = &self.direction;
+        let by_shading = reflect_lanes(d, &self.shading_normal);
+        let by_geometry = reflect_lanes(d, &self.geometric_normal);
+        let bent = by_shading.dot(&self.geometric_normal).map(|c| c <= 0.0);
+        by_geometry.select(&bent, &by_shading)
     }
 
     /// Lambert's `n . l`, clamped at zero, and Phong's `r . v` for light
