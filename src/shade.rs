@@ -399,9 +399,15 @@ impl<'a> Shader<'a> {
             observer.traced(kind, rays, mask, &ends);
         }
 
+        let hit_mask = mask & lanes_where(|lane| hits[lane].is_some());
+        if hit_mask == 0 {
+            // All misses (common for reflections): no per-lane work, and
+            // no hit lanes to clear.
+            return Vec3Lanes::splat(scene.background)
+                .select(&lane_flags(mask), &Vec3Lanes::default());
+        }
         let mut colors = Vec3Lanes::default();
         let mut lanes_hit = HitLanes::default();
-        let mut hit_mask: LaneMask = 0;
         for lane in lanes(mask) {
             match &hits[lane] {
                 None => colors.set(lane, scene.background),
@@ -415,16 +421,8 @@ impl<'a> Shader<'a> {
                     lanes_hit.set(lane, &surface, albedo, rays[lane].dir.normalize());
                     lanes_hit.cutoff[lane] = object.highlight_cutoff;
                     lanes_hit.reflectivity[lane] = object.material.reflectivity;
-                    hit_mask |= 1 << lane;
                 }
             }
-        }
-        if hit_mask == 0 {
-            // All misses (common for reflections): the colours straight
-            // from registers. Read back from `colors`, whose lanes were just
-            // stored one by one, they would wait on store forwarding.
-            return Vec3Lanes::splat(scene.background)
-                .select(&lane_flags(mask), &Vec3Lanes::default());
         }
 
         for (light_index, light) in scene.lights.iter().enumerate() {
@@ -710,7 +708,7 @@ impl Vec3Lanes {
 }
 
 /// `d` mirrored about `n`, lane by lane: `d - n * (2 (d.n))`.
-#[inline]
+#[inline(always)]
 fn reflect_lanes(d: &Vec3Lanes, n: &Vec3Lanes) -> Vec3Lanes {
     let twice = d.dot(n).map(|c| 2.0 * c);
     d.sub(&n.scale(&twice))
