@@ -418,12 +418,14 @@ impl<'a> Shader<'a> {
                         .surface(&rays[lane], hit, object.material_index);
                     let albedo = albedo(object.material, &surface);
                     colors.set(lane, scene.ambient * albedo);
-                    lanes_hit.set(lane, &surface, albedo, rays[lane].dir.normalize());
+                    lanes_hit.set(lane, &surface, albedo, rays[lane].dir);
                     lanes_hit.cutoff[lane] = object.highlight_cutoff;
                     lanes_hit.reflectivity[lane] = object.material.reflectivity;
                 }
             }
         }
+
+        lanes_hit.normalize_directions();
 
         for (light_index, light) in scene.lights.iter().enumerate() {
             let h = &lanes_hit;
@@ -722,7 +724,8 @@ struct HitLanes {
     shading_normal: Vec3Lanes,
     spawn_point: Vec3Lanes,
     albedo: Vec3Lanes,
-    /// The incoming ray's unit direction.
+    /// The incoming ray's direction; unit once
+    /// [`HitLanes::normalize_directions`] has run.
     direction: Vec3Lanes,
     material: [u32; PACKET_WIDTH],
     /// The material's highlight cutoff and reflectivity.
@@ -757,6 +760,14 @@ impl HitLanes {
         let by_geometry = reflect_lanes(d, &self.geometric_normal);
         let bent = by_shading.dot(&self.geometric_normal).map(|c| c <= 0.0);
         by_geometry.select(&bent, &by_shading)
+    }
+
+    /// Makes every lane's direction unit length, all lanes at once rather
+    /// than one per hit. Lanes without a hit (zero) come out NaN; nothing
+    /// reads them.
+    #[inline(never)]
+    fn normalize_directions(&mut self) {
+        self.direction = self.direction.normalize();
     }
 
     /// Lambert's `n . l`, clamped at zero, and Phong's `r . v` for light
