@@ -435,9 +435,13 @@ impl<'a> Shader<'a> {
             if lit_mask == 0 {
                 continue;
             }
-            let mut shadow_rays = [Ray::INACTIVE; PACKET_WIDTH];
-            for lane in lanes(lit_mask) {
-                shadow_rays[lane] = Ray::segment(h.spawn_point.get(lane), to_light.get(lane), 1.0);
+            // Nearly every lane is lit: filling all of them and resetting
+            // the few others beats picking lanes out one by one.
+            let mut shadow_rays: RayPacket = std::array::from_fn(|lane| {
+                Ray::segment(h.spawn_point.get(lane), to_light.get(lane), 1.0)
+            });
+            for lane in lanes(!lit_mask) {
+                shadow_rays[lane] = Ray::INACTIVE;
             }
             counts.shadow += u64::from(lit_mask.count_ones());
             let blocked = self.intersector.occluded8(&shadow_rays, lit_mask);
@@ -484,9 +488,12 @@ impl<'a> Shader<'a> {
             let mirror_mask = hit_mask & lanes_where(|lane| h.reflectivity[lane] > 0.0);
             if mirror_mask != 0 {
                 let directions = h.mirror_directions();
-                let mut reflected = [Ray::INACTIVE; PACKET_WIDTH];
-                for lane in lanes(mirror_mask) {
-                    reflected[lane] = Ray::new(h.spawn_point.get(lane), directions.get(lane));
+                // As for shadow rays: all lanes, then reset the others.
+                let mut reflected: RayPacket = std::array::from_fn(|lane| {
+                    Ray::new(h.spawn_point.get(lane), directions.get(lane))
+                });
+                for lane in lanes(!mirror_mask) {
+                    reflected[lane] = Ray::INACTIVE;
                 }
                 let mirrored =
                     self.shade_lanes(&reflected, mirror_mask, depth + 1, counts, observer);
