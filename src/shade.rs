@@ -406,26 +406,26 @@ impl<'a> Shader<'a> {
             return Vec3Lanes::splat(scene.background)
                 .select(&lane_flags(mask), &Vec3Lanes::default());
         }
-        let mut colors = Vec3Lanes::default();
         let mut lanes_hit = HitLanes::default();
-        for lane in lanes(mask) {
-            match &hits[lane] {
-                None => colors.set(lane, scene.background),
-                Some(hit) => {
-                    let object = &self.objects[hit.object as usize];
-                    let surface = object
-                        .shape
-                        .surface(&rays[lane], hit, object.material_index);
-                    let albedo = albedo(object.material, &surface);
-                    colors.set(lane, scene.ambient * albedo);
-                    lanes_hit.set(lane, &surface, albedo, rays[lane].dir);
-                    lanes_hit.cutoff[lane] = object.highlight_cutoff;
-                    lanes_hit.reflectivity[lane] = object.material.reflectivity;
-                }
-            }
+        for lane in lanes(hit_mask) {
+            let Some(hit) = &hits[lane] else { continue };
+            let object = &self.objects[hit.object as usize];
+            let surface = object
+                .shape
+                .surface(&rays[lane], hit, object.material_index);
+            let albedo = albedo(object.material, &surface);
+            lanes_hit.set(lane, &surface, albedo, rays[lane].dir);
+            lanes_hit.cutoff[lane] = object.highlight_cutoff;
+            lanes_hit.reflectivity[lane] = object.material.reflectivity;
         }
-
         lanes_hit.normalize_directions();
+        let mut colors = first_colors(
+            scene.ambient,
+            &lanes_hit.albedo,
+            &lane_flags(hit_mask),
+            scene.background,
+            &lane_flags(mask & !hit_mask),
+        );
 
         for (light_index, light) in scene.lights.iter().enumerate() {
             let h = &lanes_hit;
@@ -577,6 +577,21 @@ fn add_light(
     );
 }
 
+/// Colours before any light: `ambient * albedo` in the `hit` lanes, the
+/// background in the `missed` ones, black elsewhere. All lanes at once,
+/// out of line for the reason given at [`HitLanes::toward`].
+#[inline(never)]
+fn first_colors(
+    ambient: Vec3,
+    albedo: &Vec3Lanes,
+    hit: &[bool; PACKET_WIDTH],
+    background: Vec3,
+    missed: &[bool; PACKET_WIDTH],
+) -> Vec3Lanes {
+    let sky = Vec3Lanes::splat(background).select(missed, &Vec3Lanes::default());
+    Vec3Lanes::splat(ambient).mul(albedo).select(hit, &sky)
+}
+
 /// `colors` blended in the `keep` lanes with what their mirrors see,
 /// `mirrored`, by each lane's reflectivity `k`. Out of line for the reason
 /// given at [`HitLanes::toward`].
@@ -668,6 +683,11 @@ impl Vec3Lanes {
     #[inline]
     fn add(&self, other: &Vec3Lanes) -> Vec3Lanes {
         self.zip(other, |a, b| a + b)
+    }
+
+    #[inline]
+    fn mul(&self, other: &Vec3Lanes) -> Vec3Lanes {
+        self.zip(other, |a, b| a * b)
     }
 
     /// `self` in the `pick` lanes, `other` elsewhere.
