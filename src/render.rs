@@ -77,16 +77,22 @@ pub trait PrimaryRays: Sync {
     /// type and inlines (eight dynamic calls per packet cost more than the
     /// ray arithmetic).
     fn primary_group(&self, group: SampleGroup) -> (RayPacket, LaneMask) {
-        let mut rays = [Ray::INACTIVE; PACKET_WIDTH];
-        let mut mask: LaneMask = 0;
-        for (lane, (col, row)) in group.lane_samples().into_iter().enumerate() {
-            if let Some(ray) = self.primary(col, row) {
-                rays[lane] = ray;
-                mask |= 1 << lane;
-            }
-        }
-        (rays, mask)
+        gather_group(self, group)
     }
+}
+
+/// The rays of `group`, one [`PrimaryRays::primary`] call per lane.
+#[inline(always)]
+fn gather_group<P: PrimaryRays + ?Sized>(source: &P, group: SampleGroup) -> (RayPacket, LaneMask) {
+    let mut rays = [Ray::INACTIVE; PACKET_WIDTH];
+    let mut mask: LaneMask = 0;
+    for (lane, (col, row)) in group.lane_samples().into_iter().enumerate() {
+        if let Some(ray) = source.primary(col, row) {
+            rays[lane] = ray;
+            mask |= 1 << lane;
+        }
+    }
+    (rays, mask)
 }
 
 /// A camera's lattice is its image: one sample per pixel centre.
@@ -99,6 +105,33 @@ impl PrimaryRays for RayTable {
             return None;
         }
         self.primary_ray(col as u32, row as u32)
+    }
+
+    /// A group inside the image (every group of a frame whose size is a
+    /// multiple of the group's) is checked against the image once, not
+    /// lane by lane.
+    fn primary_group(&self, group: SampleGroup) -> (RayPacket, LaneMask) {
+        let (width, height) = self.size();
+        let inside = group.col >= 0
+            && group.row >= 0
+            && group.col + i64::from(GROUP_WIDTH) <= i64::from(width)
+            && group.row + i64::from(GROUP_HEIGHT) <= i64::from(height);
+        if !inside {
+            return gather_group(self, group);
+        }
+        let (col, row) = (group.col as u32, group.row as u32);
+        let mut rays = [Ray::INACTIVE; PACKET_WIDTH];
+        let mut mask: LaneMask = 0;
+        for (lane, ray) in rays.iter_mut().enumerate() {
+            let lane_u32 = lane as u32;
+            let sample =
+                self.primary_ray(col + lane_u32 % GROUP_WIDTH, row + lane_u32 / GROUP_WIDTH);
+            if let Some(sample) = sample {
+                *ray = sample;
+                mask |= 1 << lane;
+            }
+        }
+        (rays, mask)
     }
 }
 
@@ -310,13 +343,18 @@ pub fn render_view(
         .map(|(index, pixels)| {
             let row = (index * GROUP_HEIGHT as usize) as i64;
             let mut counts = RayCounts::default();
-            for col in (0..width as i64).step_by(GROUP_WIDTH as usize) {
-                let group = SampleGroup { col, row };
+            let group_width = GROUP_WIDTH as usize;
+            for x in (0..width).step_by(group_width) {
+                let group = SampleGroup { col: x as i64, row };
                 let colors = trace_group(&shader, &table, group, &mut counts, None);
-                for (lane, (x, y)) in group.lane_samples().into_iter().enumerate() {
-                    let (x, y) = (x as usize, (y - row) as usize);
-                    if x < width && y * width + x < pixels.len() {
-                        pixels[y * width + x] = colors[lane];
+                // Lanes run along rows of the group (`lane_samples`): each
+                // row is one slice copy, cut at the image's right edge; the
+                // band's last rows may be missing at its bottom edge.
+                let n = group_width.min(width - x);
+                for (y, lanes) in colors.chunks_exact(group_width).enumerate() {
+                    let start = y * width + x;
+                    if let Some(dst) = pixels.get_mut(start..start + n) {
+                        dst.copy_from_slice(&lanes[..n]);
                     }
                 }
             }

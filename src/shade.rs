@@ -270,14 +270,22 @@ fn albedo(material: &Material, surface: &Surface) -> Vec3 {
     checker.colors[(parity & 1) as usize]
 }
 
+/// One object as shading sees it, looked up once per hit: its shape in
+/// world space and its material, with what lighting derives from it.
+struct ObjectShading<'a> {
+    shape: WorldShape<'a>,
+    material_index: usize,
+    material: &'a Material,
+    /// R.V below which the material's highlight is negligible.
+    highlight_cutoff: f32,
+}
+
 /// Traces and shades packets for one scene through one intersector.
 pub struct Shader<'a> {
     scene: &'a Scene,
     intersector: &'a dyn Intersector,
-    /// Per object: its world-space shape for surface reconstruction.
-    shapes: Vec<WorldShape<'a>>,
-    /// Per material: R.V below which its highlight is negligible.
-    highlight_cutoffs: Vec<f32>,
+    /// Per object: what reconstructing and lighting its hits needs.
+    objects: Vec<ObjectShading<'a>>,
     /// Per material: the Phong exponent when it is a whole number, so the
     /// highlight is a few multiplications instead of a powf.
     whole_exponents: Vec<Option<u32>>,
@@ -314,11 +322,18 @@ impl<'a> Shader<'a> {
         Shader {
             scene,
             intersector,
-            shapes: scene.objects.iter().map(WorldShape::new).collect(),
-            highlight_cutoffs: scene
-                .materials
+            objects: scene
+                .objects
                 .iter()
-                .map(Material::highlight_cutoff)
+                .map(|object| {
+                    let material = &scene.materials[object.material];
+                    ObjectShading {
+                        shape: WorldShape::new(object),
+                        material_index: object.material,
+                        material,
+                        highlight_cutoff: material.highlight_cutoff(),
+                    }
+                })
                 .collect(),
             whole_exponents: scene
                 .materials
@@ -345,11 +360,26 @@ impl<'a> Shader<'a> {
         mask: LaneMask,
         depth: u32,
         counts: &mut RayCounts,
-        mut observer: Option<&mut dyn RayObserver>,
+        observer: Option<&mut dyn RayObserver>,
     ) -> [Vec3; PACKET_WIDTH] {
+        self.shade_lanes(rays, mask, depth, counts, observer)
+            .vectors()
+    }
+
+    /// [`Shader::shade`] with the colours by coordinate, as the recursion
+    /// mixes them: reflections blend into their parents lane-parallel, and
+    /// the colours change layout once per primary packet, not per bounce.
+    fn shade_lanes(
+        &self,
+        rays: &RayPacket,
+        mask: LaneMask,
+        depth: u32,
+        counts: &mut RayCounts,
+        mut observer: Option<&mut dyn RayObserver>,
+    ) -> Vec3Lanes {
         let scene = self.scene;
         if mask == 0 {
-            return [Vec3::ZERO; PACKET_WIDTH];
+            return Vec3Lanes::default();
         }
         let traced = u64::from(mask.count_ones());
         if depth == 0 {
@@ -369,53 +399,49 @@ impl<'a> Shader<'a> {
             observer.traced(kind, rays, mask, &ends);
         }
 
-        let mut colors = Vec3Lanes::default();
-        let mut lanes_hit = HitLanes::default();
-        let mut hit_mask: LaneMask = 0;
-        for lane in lanes(mask) {
-            match &hits[lane] {
-                None => colors.set(lane, scene.background),
-                Some(hit) => {
-                    let object = hit.object as usize;
-                    let material = scene.objects[object].material;
-                    let surface = self.shapes[object].surface(&rays[lane], hit, material);
-                    let albedo = albedo(&scene.materials[material], &surface);
-                    colors.set(lane, scene.ambient * albedo);
-                    lanes_hit.set(lane, &surface, albedo, rays[lane].dir.normalize());
-                    lanes_hit.cutoff[lane] = self.highlight_cutoffs[material];
-                    lanes_hit.reflectivity[lane] = scene.materials[material].reflectivity;
-                    hit_mask |= 1 << lane;
-                }
-            }
-        }
+        let hit_mask = mask & lanes_where(|lane| hits[lane].is_some());
         if hit_mask == 0 {
-            // All misses (common for reflections): the colours straight
-            // from registers. Read back from `colors`, whose lanes were just
-            // stored one by one, they would wait on store forwarding.
-            return std::array::from_fn(|lane| {
-                if mask & (1 << lane) != 0 {
-                    scene.background
-                } else {
-                    Vec3::ZERO
-                }
-            });
+            // All misses (common for reflections): no per-lane work, and
+            // no hit lanes to clear.
+            return Vec3Lanes::splat(scene.background)
+                .select(&lane_flags(mask), &Vec3Lanes::default());
         }
+        let mut lanes_hit = HitLanes::default();
+        for lane in lanes(hit_mask) {
+            let Some(hit) = &hits[lane] else { continue };
+            let object = &self.objects[hit.object as usize];
+            let surface = object
+                .shape
+                .surface(&rays[lane], hit, object.material_index);
+            let albedo = albedo(object.material, &surface);
+            lanes_hit.set(lane, &surface, albedo, rays[lane].dir);
+            lanes_hit.cutoff[lane] = object.highlight_cutoff;
+            lanes_hit.reflectivity[lane] = object.material.reflectivity;
+        }
+        lanes_hit.normalize_directions();
+        let mut colors = first_colors(
+            scene.ambient,
+            &lanes_hit.albedo,
+            &lane_flags(hit_mask),
+            scene.background,
+            &lane_flags(mask & !hit_mask),
+        );
 
         for (light_index, light) in scene.lights.iter().enumerate() {
             let h = &lanes_hit;
+            let (facing, to_light) = h.toward(light.position);
             // A light behind the surface cannot light it: no ray needed.
-            let facing = h
-                .geometric_normal
-                .dot(&Vec3Lanes::splat(light.position).sub(&h.point));
             let lit_mask = hit_mask & lanes_where(|lane| facing[lane] > 0.0);
             if lit_mask == 0 {
                 continue;
             }
-            // The segment ends at the light: dir spans it, so t < 1.
-            let to_light = Vec3Lanes::splat(light.position).sub(&h.spawn_point);
-            let mut shadow_rays = [Ray::INACTIVE; PACKET_WIDTH];
-            for lane in lanes(lit_mask) {
-                shadow_rays[lane] = Ray::segment(h.spawn_point.get(lane), to_light.get(lane), 1.0);
+            // Nearly every lane is lit: filling all of them and resetting
+            // the few others beats picking lanes out one by one.
+            let mut shadow_rays: RayPacket = std::array::from_fn(|lane| {
+                Ray::segment(h.spawn_point.get(lane), to_light.get(lane), 1.0)
+            });
+            for lane in lanes(!lit_mask) {
+                shadow_rays[lane] = Ray::INACTIVE;
             }
             counts.shadow += u64::from(lit_mask.count_ones());
             let blocked = self.intersector.occluded8(&shadow_rays, lit_mask);
@@ -431,11 +457,7 @@ impl<'a> Shader<'a> {
             if shaded == 0 {
                 continue;
             }
-            let n = &h.shading_normal;
-            let l = to_light.normalize();
-            let n_dot_l = n.dot(&l).map(|c| c.max(0.0));
-            let view = h.direction.neg();
-            let r_dot_v = reflect_lanes(&l.neg(), n).dot(&view);
+            let (n_dot_l, r_dot_v) = h.cosines(&to_light);
             // Below the cutoff the highlight is under 1e-5: skip the powf.
             let mut specular = Vec3Lanes::default();
             for lane in lanes(shaded & lanes_where(|lane| r_dot_v[lane] > h.cutoff[lane])) {
@@ -450,47 +472,37 @@ impl<'a> Shader<'a> {
                         ),
                 );
             }
-            let power = light.power;
-            let add = |color: &mut Lanes, power: f32, albedo: &Lanes, specular: &Lanes| {
-                *color = std::array::from_fn(|lane| {
-                    let term = power * (albedo[lane] * n_dot_l[lane] + specular[lane]);
-                    if shaded & (1 << lane) != 0 {
-                        color[lane] + term
-                    } else {
-                        color[lane]
-                    }
-                });
-            };
-            add(&mut colors.x, power.x, &h.albedo.x, &specular.x);
-            add(&mut colors.y, power.y, &h.albedo.y, &specular.y);
-            add(&mut colors.z, power.z, &h.albedo.z, &specular.z);
+            add_light(
+                &mut colors,
+                light.power,
+                &h.albedo,
+                &n_dot_l,
+                &specular,
+                &lane_flags(shaded),
+            );
         }
 
-        let mut colors = colors.vectors();
         if depth < scene.max_depth {
             let h = &lanes_hit;
             // Scene numbers are finite (a `Scene` promise), so no NaN to exclude.
             let mirror_mask = hit_mask & lanes_where(|lane| h.reflectivity[lane] > 0.0);
             if mirror_mask != 0 {
-                let d = &h.direction;
-                let by_shading = reflect_lanes(d, &h.shading_normal);
-                let by_geometry = reflect_lanes(d, &h.geometric_normal);
-                // Interpolated normals can bend a reflection into the surface.
-                let bent = by_shading.dot(&h.geometric_normal);
-                let mut reflected = [Ray::INACTIVE; PACKET_WIDTH];
-                for lane in lanes(mirror_mask) {
-                    let r = if bent[lane] <= 0.0 {
-                        by_geometry.get(lane)
-                    } else {
-                        by_shading.get(lane)
-                    };
-                    reflected[lane] = Ray::new(h.spawn_point.get(lane), r);
+                let directions = h.mirror_directions();
+                // As for shadow rays: all lanes, then reset the others.
+                let mut reflected: RayPacket = std::array::from_fn(|lane| {
+                    Ray::new(h.spawn_point.get(lane), directions.get(lane))
+                });
+                for lane in lanes(!mirror_mask) {
+                    reflected[lane] = Ray::INACTIVE;
                 }
-                let mirrored = self.shade(&reflected, mirror_mask, depth + 1, counts, observer);
-                for lane in lanes(mirror_mask) {
-                    let k = h.reflectivity[lane];
-                    colors[lane] = colors[lane] * (1.0 - k) + mirrored[lane] * k;
-                }
+                let mirrored =
+                    self.shade_lanes(&reflected, mirror_mask, depth + 1, counts, observer);
+                mix_reflection(
+                    &mut colors,
+                    &mirrored,
+                    &h.reflectivity,
+                    &lane_flags(mirror_mask),
+                );
             }
         }
         colors
@@ -503,6 +515,116 @@ type Lanes = [f32; PACKET_WIDTH];
 #[inline]
 fn lanes_where(test: impl Fn(usize) -> bool) -> LaneMask {
     (0..PACKET_WIDTH).fold(0, |acc, lane| acc | (u8::from(test(lane)) << lane))
+}
+
+/// Lane by lane, whether `mask` holds it. A bit test inside a lane loop
+/// keeps LLVM from vectorizing the loop; a flag per lane does not.
+#[inline]
+fn lane_flags(mask: LaneMask) -> [bool; PACKET_WIDTH] {
+    LANE_FLAGS[usize::from(mask)]
+}
+
+/// [`lane_flags`] of every mask, worked out at compile time: one load,
+/// where LLVM spreads a mask's bits over lanes with a dozen shuffles.
+const LANE_FLAGS: [[bool; PACKET_WIDTH]; 1 << PACKET_WIDTH] = {
+    let mut table = [[false; PACKET_WIDTH]; 1 << PACKET_WIDTH];
+    let mut mask = 0;
+    while mask < table.len() {
+        let mut lane = 0;
+        while lane < PACKET_WIDTH {
+            table[mask][lane] = mask & (1 << lane) != 0;
+            lane += 1;
+        }
+        mask += 1;
+    }
+    table
+};
+
+/// One light's contribution to every channel, added in the `keep` lanes.
+/// Out of line for the reason given at [`HitLanes::toward`].
+#[inline(never)]
+fn add_light(
+    colors: &mut Vec3Lanes,
+    power: Vec3,
+    albedo: &Vec3Lanes,
+    n_dot_l: &Lanes,
+    specular: &Vec3Lanes,
+    keep: &[bool; PACKET_WIDTH],
+) {
+    accumulate(
+        &mut colors.x,
+        power.x,
+        &albedo.x,
+        n_dot_l,
+        &specular.x,
+        keep,
+    );
+    accumulate(
+        &mut colors.y,
+        power.y,
+        &albedo.y,
+        n_dot_l,
+        &specular.y,
+        keep,
+    );
+    accumulate(
+        &mut colors.z,
+        power.z,
+        &albedo.z,
+        n_dot_l,
+        &specular.z,
+        keep,
+    );
+}
+
+/// Colours before any light: `ambient * albedo` in the `hit` lanes, the
+/// background in the `missed` ones, black elsewhere. All lanes at once,
+/// out of line for the reason given at [`HitLanes::toward`].
+#[inline(never)]
+fn first_colors(
+    ambient: Vec3,
+    albedo: &Vec3Lanes,
+    hit: &[bool; PACKET_WIDTH],
+    background: Vec3,
+    missed: &[bool; PACKET_WIDTH],
+) -> Vec3Lanes {
+    let sky = Vec3Lanes::splat(background).select(missed, &Vec3Lanes::default());
+    Vec3Lanes::splat(ambient).mul(albedo).select(hit, &sky)
+}
+
+/// `colors` blended in the `keep` lanes with what their mirrors see,
+/// `mirrored`, by each lane's reflectivity `k`. Out of line for the reason
+/// given at [`HitLanes::toward`].
+#[inline(never)]
+fn mix_reflection(
+    colors: &mut Vec3Lanes,
+    mirrored: &Vec3Lanes,
+    k: &Lanes,
+    keep: &[bool; PACKET_WIDTH],
+) {
+    let rest = k.map(|k| 1.0 - k);
+    let mixed = colors.scale(&rest).add(&mirrored.scale(k));
+    *colors = mixed.select(keep, colors);
+}
+
+/// One light's contribution to one colour channel, added in the `keep`
+/// lanes: `color + power * (albedo * n_dot_l + specular)`. Computed in every
+/// lane and then selected, so the loop is a few vector instructions instead
+/// of eight branches.
+#[inline]
+fn accumulate(
+    color: &mut Lanes,
+    power: f32,
+    albedo: &Lanes,
+    n_dot_l: &Lanes,
+    specular: &Lanes,
+    keep: &[bool; PACKET_WIDTH],
+) {
+    for lane in 0..PACKET_WIDTH {
+        let term = power * (albedo[lane] * n_dot_l[lane] + specular[lane]);
+        let sum = color[lane] + term;
+        color[lane] = if keep[lane] { sum } else { color[lane] };
+    }
 }
 
 /// Eight vectors stored by coordinate, so arithmetic on all lanes at once
@@ -559,6 +681,29 @@ impl Vec3Lanes {
     }
 
     #[inline]
+    fn add(&self, other: &Vec3Lanes) -> Vec3Lanes {
+        self.zip(other, |a, b| a + b)
+    }
+
+    #[inline]
+    fn mul(&self, other: &Vec3Lanes) -> Vec3Lanes {
+        self.zip(other, |a, b| a * b)
+    }
+
+    /// `self` in the `pick` lanes, `other` elsewhere.
+    #[inline]
+    fn select(&self, pick: &[bool; PACKET_WIDTH], other: &Vec3Lanes) -> Vec3Lanes {
+        let choose = |a: &Lanes, b: &Lanes| -> Lanes {
+            std::array::from_fn(|i| if pick[i] { a[i] } else { b[i] })
+        };
+        Vec3Lanes {
+            x: choose(&self.x, &other.x),
+            y: choose(&self.y, &other.y),
+            z: choose(&self.z, &other.z),
+        }
+    }
+
+    #[inline]
     fn neg(&self) -> Vec3Lanes {
         Vec3Lanes {
             x: self.x.map(|c| -c),
@@ -592,7 +737,7 @@ impl Vec3Lanes {
 }
 
 /// `d` mirrored about `n`, lane by lane: `d - n * (2 (d.n))`.
-#[inline]
+#[inline(always)]
 fn reflect_lanes(d: &Vec3Lanes, n: &Vec3Lanes) -> Vec3Lanes {
     let twice = d.dot(n).map(|c| 2.0 * c);
     d.sub(&n.scale(&twice))
@@ -606,7 +751,8 @@ struct HitLanes {
     shading_normal: Vec3Lanes,
     spawn_point: Vec3Lanes,
     albedo: Vec3Lanes,
-    /// The incoming ray's unit direction.
+    /// The incoming ray's direction; unit once
+    /// [`HitLanes::normalize_directions`] has run.
     direction: Vec3Lanes,
     material: [u32; PACKET_WIDTH],
     /// The material's highlight cutoff and reflectivity.
@@ -615,6 +761,54 @@ struct HitLanes {
 }
 
 impl HitLanes {
+    /// Toward a light at `light`: the facing term `n_g . (light - point)`
+    /// (the light is in front where it is positive) and the shadow rays'
+    /// directions, from the spawn points to the light (so the segment ends
+    /// at t = 1).
+    ///
+    /// The lighting math is kept out of line (here, [`HitLanes::cosines`]
+    /// and [`add_light`]): inlined into `shade_lanes`, LLVM's SLP vectorizer
+    /// gave these lanes a different shape each time the code around them
+    /// changed, up to twice the instructions (split halves, shuffles).
+    #[inline(never)]
+    fn toward(&self, light: Vec3) -> (Lanes, Vec3Lanes) {
+        let light = Vec3Lanes::splat(light);
+        let facing = self.geometric_normal.dot(&light.sub(&self.point));
+        (facing, light.sub(&self.spawn_point))
+    }
+
+    /// Where mirror reflections leave: the incoming direction mirrored
+    /// about the shading normal, or about the geometric normal where an
+    /// interpolated normal would bend the reflection into the surface.
+    #[inline(never)]
+    fn mirror_directions(&self) -> Vec3Lanes {
+        let d = &self.direction;
+        let by_shading = reflect_lanes(d, &self.shading_normal);
+        let by_geometry = reflect_lanes(d, &self.geometric_normal);
+        let bent = by_shading.dot(&self.geometric_normal).map(|c| c <= 0.0);
+        by_geometry.select(&bent, &by_shading)
+    }
+
+    /// Makes every lane's direction unit length, all lanes at once rather
+    /// than one per hit. Lanes without a hit (zero) come out NaN; nothing
+    /// reads them.
+    #[inline(never)]
+    fn normalize_directions(&mut self) {
+        self.direction = self.direction.normalize();
+    }
+
+    /// Lambert's `n . l`, clamped at zero, and Phong's `r . v` for light
+    /// arriving along `to_light`.
+    #[inline(never)]
+    fn cosines(&self, to_light: &Vec3Lanes) -> (Lanes, Lanes) {
+        let n = &self.shading_normal;
+        let l = to_light.normalize();
+        let n_dot_l = n.dot(&l).map(|c| c.max(0.0));
+        let view = self.direction.neg();
+        let r_dot_v = reflect_lanes(&l.neg(), n).dot(&view);
+        (n_dot_l, r_dot_v)
+    }
+
     #[inline]
     fn set(&mut self, lane: usize, surface: &Surface, albedo: Vec3, direction: Vec3) {
         self.point.set(lane, surface.point);

@@ -308,10 +308,16 @@ impl PlaneTest {
 
 /// `t` if the denominator it came from is usable and `t` lies in the
 /// ray's range, infinity otherwise.
+///
+/// [`plane_distance`] also rejects a zero denominator; here the range test
+/// does that: `t` is then an infinity or NaN, and neither lies strictly
+/// inside any range. Spelled `abs != inf` rather than `is_finite() && != 0`,
+/// which LLVM turns into a float-class test done lane by lane in integer
+/// registers, the finiteness test stays a vector compare.
 #[inline]
 fn in_range(denom: f32, t: f32, tmin: f32, tmax: f32) -> f32 {
     // `&`, not `&&`: one select instead of four unpredictable branches.
-    if (denom != 0.0) & denom.is_finite() & (t > tmin) & (t < tmax) {
+    if (denom.abs() != f32::INFINITY) & (t > tmin) & (t < tmax) {
         t
     } else {
         f32::INFINITY
