@@ -172,7 +172,7 @@ fn ostc_settings() -> Vec<(&'static str, String, OstcSettings)> {
             OstcSettings { regions, ..default },
         ));
     }
-    for voxels in [512, DEFAULT_VOXELS, 32_768] {
+    for voxels in [64, DEFAULT_VOXELS, 4096, 32_768] {
         settings.push((
             "OSTC voxel grid",
             format!("{voxels} voxels"),
@@ -595,9 +595,9 @@ mod tests {
     #[test]
     fn every_ostc_setting_is_in_its_group_and_runs_once() {
         let settings = ostc_settings();
-        assert_eq!(settings.len(), 7);
+        assert_eq!(settings.len(), 8);
         // The default is both a region grid and a voxel grid setting.
-        assert_eq!(unique_ostc_settings().len(), 6);
+        assert_eq!(unique_ostc_settings().len(), 7);
         let rsvp = rsvp_knob_settings();
         assert_eq!(rsvp[0], RsvpKnobs::default());
         assert!(rsvp.iter().any(|k| k.filter == Filter::Nearest));

@@ -52,7 +52,7 @@ pub struct RegionGrid(pub u32);
 /// bouncing ball) the rays re-traced per frame fall from 28% of a full
 /// frame at 16x16 to 17% at 32x32 and 11% at 64x64, while the marking cost
 /// per ray stays the same (one bit per voxel crossed) and the bits take
-/// 4096 voxels x 75 words at 64x64.
+/// 75 words per voxel at 64x64.
 impl Default for RegionGrid {
     fn default() -> Self {
         RegionGrid(64)
@@ -207,10 +207,14 @@ pub struct Ostc {
     record_nanos: AtomicU64,
 }
 
-/// Default voxel count of the OSTC grid. Finer grids hardly tighten the
-/// dirty regions (measured on E3: 32k voxels re-trace 1.5% fewer samples
-/// than 4k, 262k voxels 2%) but walk many more voxels per ray.
-pub const DEFAULT_VOXELS: u32 = 4096;
+/// Default voxel count of the OSTC grid. Recording walks every re-traced
+/// ray through the grid, and finer grids tighten the dirty regions little:
+/// on E3 (`bench --only E3 --ostc-voxels N`, one quiet run each, OSTC ms
+/// per frame / samples re-traced over 100 frames): 64 voxels 11.34 / 2.41M,
+/// 216: 11.31 / 2.31M, 512: 10.05-10.82 / 2.16M, 1728: 11.09-11.67 /
+/// 2.02M, 4096: 11.60-12.66 / 1.93M. On E4, 512 took 36.1 ms per frame
+/// against 45.8 for 4096.
+pub const DEFAULT_VOXELS: u32 = 512;
 
 impl Ostc {
     /// Bookkeeping for a buffer tiled by `layout`: a grid of about `voxels`
