@@ -550,12 +550,9 @@ pub fn bench_sequence(
             full_frame_ms[(frame - frames.start) as usize].push(ms);
             hashes.push(frame_hash(&image));
             if round == 0 {
-                let rays_per_pixel = {
-                    let (shader, camera) = full.posed_shader(frame);
-                    rays_per_pixel(&shader, &camera)
-                };
-                let camera = full.camera_at(frame);
-                let (samples, region_samples) = oracle.add(&camera, &image, &rays_per_pixel);
+                let (shader, camera) = full.posed_shader(frame);
+                let pixel_rays = rays_per_pixel(&shader, &camera);
+                let (samples, region_samples) = oracle.add(&camera, &image, &pixel_rays);
                 row.oracle_samples = Some(samples);
                 row.oracle_region_samples = Some(region_samples);
                 row.full_rays = rays;
@@ -892,21 +889,24 @@ mod tests {
     use crate::scene::{paper_scene, SceneOverrides};
     use crate::shade::Shader;
 
-    fn small_paper() -> Scene {
-        paper_scene(&SceneOverrides {
+    /// The paper scene at 64x48: a full render, its ray counts, and the
+    /// rays of each pixel.
+    fn small_paper_traced() -> (Scene, crate::render::Frame, RayCounts, Vec<u32>) {
+        let scene = paper_scene(&SceneOverrides {
             width: Some(64),
             height: Some(48),
             ..SceneOverrides::default()
         })
-        .unwrap()
+        .unwrap();
+        let accel = Accelerator::build(BackendKind::Embree, &scene.objects).unwrap();
+        let (frame, counts) = render_view(&scene, &scene.camera, &accel);
+        let rays = rays_per_pixel(&Shader::new(&scene, &accel), &scene.camera);
+        (scene, frame, counts, rays)
     }
 
     #[test]
     fn rays_per_pixel_add_up_to_the_full_render() {
-        let scene = small_paper();
-        let accel = Accelerator::build(BackendKind::Embree, &scene.objects).unwrap();
-        let (_, counts) = render_view(&scene, &scene.camera, &accel);
-        let rays = rays_per_pixel(&Shader::new(&scene, &accel), &scene.camera);
+        let (_, _, counts, rays) = small_paper_traced();
         assert_eq!(rays.len(), 64 * 48);
         assert!(
             rays.iter().all(|&r| r >= 1),
@@ -920,10 +920,7 @@ mod tests {
 
     #[test]
     fn the_oracle_weighs_changed_samples_by_their_rays() {
-        let scene = small_paper();
-        let accel = Accelerator::build(BackendKind::Embree, &scene.objects).unwrap();
-        let (frame, _) = render_view(&scene, &scene.camera, &accel);
-        let rays = rays_per_pixel(&Shader::new(&scene, &accel), &scene.camera);
+        let (scene, frame, _, rays) = small_paper_traced();
         let all: u64 = rays.iter().map(|&r| u64::from(r)).sum();
         let mut oracle = Oracle::new((16, 8));
         // The first frame shows every sample for the first time.
