@@ -12,7 +12,7 @@ use retrace::ray::{Ray, PACKET_WIDTH};
 use retrace::render::{trace_groups, SampleGroup};
 use retrace::reuse::ostc::{Footprint, Ostc, RegionGrid, RegionSet, DEFAULT_VOXELS};
 use retrace::reuse::pan::{EqualAngleLattice, PanBuffer};
-use retrace::reuse::samples::{LevelRays, SampleLattice, ViewTransform, ViewportPose};
+use retrace::reuse::samples::{Level, LevelRays, SampleLattice, ViewTransform, ViewportPose};
 use retrace::rng::SplitMix64;
 use retrace::scene::{paper_scene, SceneOverrides};
 use retrace::shade::{RayKind, RayObserver, Shader};
@@ -147,7 +147,7 @@ fn rsvp_null_batches(c: &mut Criterion) {
     let lattice = SampleLattice::for_camera(&scene.camera);
     let source = LevelRays {
         lattice: &lattice,
-        level: 0,
+        level: Level::default(),
     };
     let view = groups_in_view(&scene, &lattice);
     // In the order the buffer traces a batch: by row, then column.

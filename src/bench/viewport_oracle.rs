@@ -26,12 +26,12 @@ use rayon::prelude::*;
 
 use crate::accel::Accelerator;
 use crate::render::{trace_groups, SampleGroup};
-use crate::reuse::samples::{LevelRays, SampleLattice, ViewportPose, MAX_LEVEL};
+use crate::reuse::samples::{Level, LevelRays, SampleLattice, ViewportPose, MAX_LEVEL};
 use crate::scene::Scene;
 use crate::shade::Shader;
 
-/// A buffer sample: (owning level, column, row).
-type SampleId = (u32, i64, i64);
+/// A buffer sample: (owning level, its slot's column and row).
+type SampleId = (Level, i64, i64);
 
 /// The level of `lattice` at which a pixel whose neighbours lie `dx` and
 /// `dy` away (in level-0 samples) gets at least one sample per pixel.
@@ -88,9 +88,9 @@ fn for_each_pixel<T: Send>(
                 let level = level_for_footprint(right, down);
                 let sample = |level: u32, col: f64, row: f64| {
                     let row = (row as i64).clamp(0, lattice.last_row(level));
-                    lattice.owner(level, col as i64, row)
+                    lattice.owner(Level::square(level), col as i64, row)
                 };
-                let mut candidates = [(0, 0, 0); 8];
+                let mut candidates = [(Level::default(), 0, 0); 8];
                 for (k, slot) in candidates.iter_mut().enumerate() {
                     let level = (level + (k / 4) as u32).min(MAX_LEVEL);
                     let at = centre * f64::from(1u32 << level);
@@ -126,7 +126,10 @@ fn colour_hash(colour: glam::Vec3) -> u64 {
 /// per sample, in order.
 fn trace_samples(shader: &Shader, lattice: &SampleLattice, samples: &[SampleId]) -> Vec<u64> {
     let mut hashes = vec![0u64; samples.len()];
-    for level in 0..=MAX_LEVEL {
+    let mut levels: Vec<Level> = samples.iter().map(|s| s.0).collect();
+    levels.sort_unstable();
+    levels.dedup();
+    for level in levels {
         let indices: Vec<usize> = (0..samples.len())
             .filter(|&i| samples[i].0 == level)
             .collect();
