@@ -603,6 +603,20 @@ impl<'a> Animator<'a> {
         Some(buffer.buffer_image(&camera, self.scene.camera.width, self.scene.camera.height))
     }
 
+    /// With RSVP, viewport `index`'s image of the last frame rendered with
+    /// every pixel black that read a sample traced for that frame; None
+    /// without a sample buffer.
+    pub fn viewport_fresh_image(
+        &self,
+        frame: u32,
+        index: usize,
+        image: &image::RgbImage,
+    ) -> Option<image::RgbImage> {
+        let buffer = self.samples.as_ref()?;
+        let pose = self.viewport_poses(frame).into_iter().nth(index)?;
+        Some(buffer.fresh_image(&pose, &self.knobs, image))
+    }
+
     /// With RSVP, re-traces every sample the buffer keeps (the scene posed
     /// at the last frame rendered) and compares bit for bit: (samples
     /// compared, samples that differ); None without a sample buffer.

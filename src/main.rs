@@ -1295,6 +1295,10 @@ fn animate_viewports(
     if let Some((prefix, digits, suffix)) = &buffer_pattern {
         retrace::output::format_for(Path::new(&format!("{prefix}{:0digits$}{suffix}", 0)))?;
     }
+    let dirty_pattern = args.dirty_image.as_deref().map(frame_pattern).transpose()?;
+    if let Some(pattern) = &dirty_pattern {
+        retrace::output::format_for(&viewport_path(pattern, 0, "view"))?;
+    }
     let names: Vec<String> = scene
         .viewports
         .iter()
@@ -1338,6 +1342,11 @@ fn animate_viewports(
             }
             let write_start = Instant::now();
             save_image(&viewport_path(&pattern, frame, &output.name), &output.image)?;
+            if let Some(dirty) = &dirty_pattern {
+                if let Some(image) = animator.viewport_fresh_image(frame, index, &output.image) {
+                    save_image(&viewport_path(dirty, frame, &output.name), &image)?;
+                }
+            }
             if index == 0 {
                 if let Some(gif) = &mut gif {
                     gif.add(&output.image)?;

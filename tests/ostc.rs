@@ -362,3 +362,46 @@ fn animate_writes_dirty_images_and_ostc_stats() {
     let row: Vec<&str> = csv.lines().nth(3).unwrap().split(',').collect();
     assert_eq!(row[mode], "ostc");
 }
+
+#[test]
+fn dirty_images_of_viewports_show_what_each_frame_traced() {
+    let dir = tempfile::tempdir().unwrap();
+    let scenes = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes");
+    for name in ["paper.toml", "paper-bounce.toml"] {
+        std::fs::copy(format!("{scenes}/{name}"), dir.path().join(name)).unwrap();
+    }
+    std::fs::write(
+        dir.path().join("view.toml"),
+        "include = \"paper-bounce.toml\"\n\n[[viewport]]\nname = \"view\"\nwidth = 64\nheight = 48\nfov = 100.0\n",
+    )
+    .unwrap();
+    common::retrace_ok(
+        &[
+            "animate",
+            "view.toml",
+            "--frames",
+            "0-3",
+            "--width",
+            "64",
+            "--height",
+            "48",
+            "-o",
+            "out/f_##.png",
+            "--dirty-image",
+            "out/d_##.png",
+        ],
+        dir.path(),
+    );
+    let black = |name: &str| {
+        let image = image::open(dir.path().join("out").join(name))
+            .unwrap()
+            .to_rgb8();
+        image.pixels().filter(|p| p.0 == [0, 0, 0]).count()
+    };
+    // Frame 0 traces every sample it reads; later frames only what the
+    // ball's regions erased.
+    assert_eq!(black("d_00_view.png"), 64 * 48);
+    let later = black("d_02_view.png");
+    assert!(later > 0 && later < 64 * 48 / 2, "{later} black pixels");
+    assert_eq!(black("f_02_view.png"), 0);
+}

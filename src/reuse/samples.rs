@@ -912,6 +912,7 @@ struct TileCache {
 }
 
 const TILE_CACHE_SLOTS: usize = 64;
+const _: () = assert!(TILE_CACHE_SLOTS == 4 * 8 * 2);
 
 impl TileCache {
     fn new() -> TileCache {
@@ -925,7 +926,9 @@ impl TileCache {
     #[inline(always)]
     fn tile(&mut self, store: &LevelSamples, level: Level, key: (i64, i64)) -> u32 {
         let index = level.index();
-        let slot = (index * 2 + (key.1 & 1) as usize) % TILE_CACHE_SLOTS;
+        // Distinct for levels within 4 of each other in azimuth and 8 in
+        // elevation: the owners one region reads.
+        let slot = (((level.x & 3) * 8 + (level.y & 7)) * 2) as usize + (key.1 & 1) as usize;
         if self.keys[slot] != (index, key) {
             self.keys[slot] = (index, key);
             self.tiles[slot] = store.tile(key).unwrap_or(u32::MAX);
@@ -996,6 +999,9 @@ pub struct SampleBuffer {
     /// By [`Level::index`].
     levels: Vec<LevelSamples>,
     samples_traced: u64,
+    /// The groups the last [`SampleBuffer::render`] traced, sorted as
+    /// `missing` is: what [`SampleBuffer::fresh_image`] paints.
+    fresh: Vec<(Level, SampleGroup)>,
     /// OSTC bookkeeping of the samples, when objects or lights move: every
     /// batch's rays are recorded into it (see [`SampleBuffer::erase`]).
     ostc: Option<Ostc>,
@@ -1007,6 +1013,7 @@ impl SampleBuffer {
             lattice,
             levels: (0..Level::COUNT).map(|_| LevelSamples::default()).collect(),
             samples_traced: 0,
+            fresh: Vec::new(),
             ostc: None,
         }
     }
@@ -1505,10 +1512,15 @@ impl SampleBuffer {
         if dense && self.box_traced(level, (c0, c1), (r0, r1)) {
             return;
         }
-        // Consecutive groups mostly share a tile: keep its traced mask, one
-        // tile per owning level (direct-mapped: a region reads few levels).
-        const SLOTS: usize = 16;
+        // Consecutive groups mostly share a tile: keep its traced mask. A
+        // pixel reads two rows, which may lie in neighbouring tile rows: one
+        // slot per owning level and tile row parity, distinct for owners
+        // within 4 levels on each axis (those a region reads most).
+        const SLOTS: usize = 32;
         let mut cached = [(usize::MAX, (i64::MIN, i64::MIN), 0u64); SLOTS];
+        let slot_of = |level: Level, key: (i64, i64)| {
+            (((level.x & 3) * 4 + (level.y & 3)) * 2) as usize + (key.1 & 1) as usize
+        };
         let mut add =
             |missing: &mut Vec<(Level, SampleGroup)>, owner: Level, group: SampleGroup| {
                 let group = SampleGroup {
@@ -1517,7 +1529,7 @@ impl SampleBuffer {
                 };
                 let (key, _, bit) = tile_key(group.col, group.row);
                 let index = owner.index();
-                let slot = &mut cached[index % SLOTS];
+                let slot = &mut cached[slot_of(owner, key)];
                 if (slot.0, slot.1) != (index, key) {
                     let store = &self.levels[index];
                     *slot = (
@@ -1584,6 +1596,9 @@ impl SampleBuffer {
             .windows(2)
             .all(|w| (w[0].0, w[0].1.row, w[0].1.col) < (w[1].0, w[1].1.row, w[1].1.col)));
         let mut out = vec![(0u64, RayCounts::default(), 0.0f64); requests.len()];
+        self.fresh.clear();
+        self.fresh
+            .extend(all.iter().map(|&(level, group, _)| (level, group)));
         for batch in all.chunk_by(|a, b| a.0 == b.0) {
             let level = batch[0].0;
             let batch: Vec<(SampleGroup, usize)> =
@@ -1684,7 +1699,6 @@ impl SampleBuffer {
                 let mut window = Vec::new();
                 let mut coords = Vec::new();
                 let mut colors = [Vec3::ZERO; (REGION * REGION) as usize];
-                let mut scratch = vec![Vec::new(); MAX_LEVEL as usize + 1];
                 let srgb = srgb_table();
                 let y0 = band_index * REGION as usize;
                 let rows = (h - y0).min(REGION as usize);
@@ -1704,7 +1718,7 @@ impl SampleBuffer {
                     let colors = &mut colors[..cols * rows];
                     self.gather_region(
                         &mut cache,
-                        (&mut window, &mut scratch),
+                        &mut window,
                         region.level,
                         filter,
                         (cols, rows),
@@ -1742,7 +1756,7 @@ impl SampleBuffer {
     fn gather_region(
         &self,
         cache: &mut TileCache,
-        (window, scratch): (&mut Vec<Vec3>, &mut [Vec<Vec3>]),
+        window: &mut Vec<Vec3>,
         level: Level,
         filter: Filter,
         size: (usize, usize),
@@ -1782,7 +1796,7 @@ impl SampleBuffer {
         let last_row = self.lattice.last_row(level.y);
         for (j, line) in window.chunks_mut(wd).enumerate() {
             let row = (r0 + j as i64).clamp(0, last_row);
-            self.copy_row(cache, level, c0, row, line, scratch);
+            self.copy_row(cache, level, c0, row, line);
         }
         // Window index and weights of every pixel first, in straight-line
         // f64 code (exact: whole numbers and multiples of 2^-16) that
@@ -1833,52 +1847,31 @@ impl SampleBuffer {
     }
 
     /// Samples (col.., row) of `level` whichever level owns them (black
-    /// where nothing was traced). A row the level does not own (an even row,
-    /// finer than 0 in elevation) is the coarser elevation level's row; in
-    /// a row it owns, the odd columns are its slots and the even ones the
-    /// coarser azimuth level's, recursively. `scratch` holds one row per
-    /// coarser azimuth level.
-    fn copy_row(
-        &self,
-        cache: &mut TileCache,
-        level: Level,
-        col: i64,
-        row: i64,
-        out: &mut [Vec3],
-        scratch: &mut [Vec<Vec3>],
-    ) {
-        if level.y > 0 && row & 1 == 0 {
-            let coarser = Level::new(level.x, level.y - 1);
-            return self.copy_row(cache, coarser, col, row >> 1, out, scratch);
-        }
-        let slot_row = row >> u32::from(level.y > 0);
-        if level.x == 0 {
-            self.copy_run(cache, level, col, slot_row, out, 1);
-            return;
-        }
-        let first_odd = (!col & 1) as usize;
-        if first_odd < out.len() {
-            let slot = (col + first_odd as i64) >> 1;
-            self.copy_run(cache, level, slot, slot_row, &mut out[first_odd..], 2);
-        }
-        let first_even = (col & 1) as usize;
-        if first_even >= out.len() {
-            return;
-        }
-        let (coarse, rest) = scratch
-            .split_first_mut()
-            .expect("one scratch row per level");
-        // copy_row writes every sample of the row: no need to clear it.
-        let len = (out.len() - first_even).div_ceil(2);
-        if coarse.len() < len {
-            coarse.resize(len, Vec3::ZERO);
-        }
-        let coarse = &mut coarse[..len];
-        let coarser = Level::new(level.x - 1, level.y);
-        let even = (col + first_even as i64) >> 1;
-        self.copy_row(cache, coarser, even, row, coarse, rest);
-        for (slot, &sample) in out[first_even..].iter_mut().step_by(2).zip(coarse.iter()) {
-            *slot = sample;
+    /// where nothing was traced). The row belongs to one elevation level;
+    /// along it, each coarser azimuth level owns every 2^k-th sample, so
+    /// each owner's slots go straight into `out` at their stride.
+    fn copy_row(&self, cache: &mut TileCache, level: Level, col: i64, row: i64, out: &mut [Vec3]) {
+        let sy = row.trailing_zeros().min(level.y);
+        let oy = level.y - sy;
+        let slot_row = (row >> sy) >> u32::from(oy > 0);
+        let n = out.len() as i64;
+        for ox in 0..=level.x {
+            // Owned by ox: multiples of 2^level.x for ox = 0, else the odd
+            // multiples of 2^sx.
+            let sx = level.x - ox;
+            let (period, offset) = if ox == 0 {
+                (1i64 << level.x, 0)
+            } else {
+                (1i64 << (sx + 1), 1i64 << sx)
+            };
+            let first = col + (offset - col).rem_euclid(period);
+            if first - col >= n {
+                continue;
+            }
+            let slot = (first >> sx) >> u32::from(ox > 0);
+            let owner = Level::new(ox, oy);
+            let out = &mut out[(first - col) as usize..];
+            self.copy_run(cache, owner, slot, slot_row, out, period as usize);
         }
     }
 
@@ -2001,6 +1994,66 @@ impl SampleBuffer {
             .collect()
     }
 
+    /// `image` (the viewport `pose` as the last [`SampleBuffer::render`]
+    /// showed it) with every pixel black whose filter read a sample traced
+    /// in that render: what the frame re-traced (the paper's figure 4).
+    /// Maps the viewport again, so it costs about a frame's resampling.
+    pub fn fresh_image(
+        &self,
+        pose: &ViewportPose,
+        knobs: &RsvpKnobs,
+        image: &image::RgbImage,
+    ) -> image::RgbImage {
+        let mut out = image.clone();
+        if self.fresh.is_empty() {
+            return out;
+        }
+        let mapped = self.map(pose, knobs);
+        let map = PixelMap::new(pose);
+        let (w, h) = (pose.camera.width, pose.camera.height);
+        let extra = i64::from(knobs.filter != Filter::Nearest);
+        let mut coords = Vec::new();
+        for (index, region) in mapped.regions.iter().enumerate() {
+            let (x0, y0) = (
+                (index % mapped.regions_x) as u32 * REGION,
+                (index / mapped.regions_x) as u32 * REGION,
+            );
+            let (cols, rows) = ((w - x0).min(REGION), (h - y0).min(REGION));
+            let level = region.level;
+            let size = (cols as usize, rows as usize);
+            let grid = region.grid.as_ref();
+            self.region_coords(pose, &map, level, grid, (x0, y0), size, &mut coords);
+            let last_row = self.lattice.last_row(level.y);
+            for (k, c) in coords.iter().enumerate() {
+                if c.x.is_nan() {
+                    continue;
+                }
+                let (cx, ry) = filter_origin(knobs.filter, c.x, c.y);
+                let fresh = (0..=extra).any(|dr| {
+                    (0..=extra).any(|dc| {
+                        let row = (ry + dr).clamp(0, last_row);
+                        let (owner, col, row) = self.lattice.owner(level, cx + dc, row);
+                        let group = SampleGroup::containing(col, row);
+                        let group = SampleGroup {
+                            col: wrap(group.col, self.lattice.slot_columns(owner)),
+                            row: group.row,
+                        };
+                        self.fresh
+                            .binary_search_by_key(&(owner, group.row, group.col), |&(l, g)| {
+                                (l, g.row, g.col)
+                            })
+                            .is_ok()
+                    })
+                });
+                if fresh {
+                    let (x, y) = (x0 + (k % size.0) as u32, y0 + (k / size.0) as u32);
+                    out.put_pixel(x, y, image::Rgb([0, 0, 0]));
+                }
+            }
+        }
+        out
+    }
+
     /// The buffer at level 0 as seen by an equal-angle window around the
     /// camera's view (width x height samples, corner snapped): traced
     /// samples in colour, never-traced ones black (the paper's figure 5a).
@@ -2062,8 +2115,9 @@ impl SampleDensity {
         if !(det.is_finite() && det > 0.0) {
             return;
         }
-        self.x = self.x.max(dy.y.hypot(dx.y) / det);
-        self.y = self.y.max(dy.x.hypot(dx.x) / det);
+        // sqrt rather than hypot (a libm call per cell): no overflow here.
+        self.x = self.x.max((dy.y * dy.y + dx.y * dx.y).sqrt() / det);
+        self.y = self.y.max((dy.x * dy.x + dx.x * dx.x).sqrt() / det);
     }
 
     /// The level giving at least `oversample` samples per pixel on each
