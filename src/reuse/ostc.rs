@@ -33,7 +33,7 @@
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Instant;
 
-use crate::accel::grid::GridSpec;
+use crate::accel::grid::{GridSpec, GridWalker};
 use crate::geometry::Aabb;
 use glam::Vec3;
 
@@ -183,6 +183,7 @@ impl RegionSet {
 /// The voxel grid and its per-voxel region bits.
 struct VoxelBits {
     spec: GridSpec,
+    walker: GridWalker,
     /// `words` planes of one u64 per voxel, plane-major: a walk marks one
     /// plane (its region's), whose voxels lie side by side in memory.
     bits: Vec<AtomicU64>,
@@ -238,6 +239,7 @@ impl Ostc {
                         .map(|_| AtomicU64::new(0))
                         .collect(),
                     voxel_count: spec.voxel_count(),
+                    walker: spec.walker(),
                     spec,
                 }
             });
@@ -467,10 +469,9 @@ impl RayObserver for RegionMarker<'_> {
         let plane = &voxels.bits[word * voxels.voxel_count..(word + 1) * voxels.voxel_count];
         for lane in lanes(crossing) {
             let ray = &rays[lane];
-            let walk = voxels.spec.walk(ray.origin, ray.dir, ray.tmin, ends[lane]);
-            walk.for_each_voxel(|voxel| {
+            let (origin, dir, t0, t1) = (ray.origin, ray.dir, ray.tmin, ends[lane]);
+            voxels.walker.for_each_index(origin, dir, t0, t1, |index| {
                 self.walked += 1;
-                let index = voxels.spec.linear_index(voxel);
                 let slot = index % RECENT_SLOTS;
                 if self.recent[slot] == index as u32 + 1 {
                     return;
