@@ -173,7 +173,8 @@ impl GridWalker {
     /// The supercover walk of the segment `origin + t * dir`, `t` in
     /// `[t0, t1]`: see [`VoxelWalk`].
     pub fn walk(&self, origin: Vec3, dir: Vec3, t0: f32, t1: f32) -> VoxelWalk {
-        match Segment::new(&self.grid, self.valid, origin, dir, t0, t1) {
+        let segment = Segment::new(&self.grid, self.valid, origin, dir, t0, t1);
+        match segment.and_then(|s| Some((s, s.axis_loop(s.axes[0], s.span)?))) {
             Some((segment, outer)) => VoxelWalk {
                 segment,
                 loops: [outer, AxisLoop::default(), AxisLoop::default()],
@@ -198,14 +199,16 @@ impl GridWalker {
         t1: f32,
         mut visit: impl FnMut(usize),
     ) {
-        let Some((segment, outer)) = Segment::new(&self.grid, self.valid, origin, dir, t0, t1)
-        else {
+        let Some(segment) = Segment::new(&self.grid, self.valid, origin, dir, t0, t1) else {
+            return;
+        };
+        let Some(outer) = segment.axis_range(segment.axes[0], segment.span) else {
             return;
         };
         let strides = segment.axes.map(|axis| self.strides[axis]);
         segment.for_each_run(outer, |i, j, inner| {
             let base = i as usize * strides[0] + j as usize * strides[1];
-            for k in inner.0..=inner.1 {
+            for k in inner.0..inner.1 + 1 {
                 visit(base + k as usize * strides[2]);
             }
         });
@@ -320,15 +323,18 @@ impl GridCoords {
 /// Voxels (of `n` along an axis) whose closed span [i, i+1] meets the
 /// closed span [lo, hi], clamped to the grid; `None` if there are none.
 fn index_range(n: i64, lo: f64, hi: f64) -> Option<(i64, i64)> {
-    let first = ((lo.ceil() - 1.0).max(0.0)).min(i64::MAX as f64) as i64;
-    let last = (hi.floor().min((n - 1) as f64)).max(-1.0) as i64;
-    (first <= last && lo <= hi).then_some((first, last))
+    // Compared as floats (whole numbers, never NaN: `max` and `min` drop a
+    // NaN), so `first` needs no clamp to fit: when they bound a range, it
+    // is at most `last`.
+    let first = (lo.ceil() - 1.0).max(0.0);
+    let last = hi.floor().min((n - 1) as f64).max(-1.0);
+    (first <= last && lo <= hi).then_some((first as i64, last as i64))
 }
 
 impl Segment {
     /// The segment `origin + t * dir`, `t` in `[t0, t1]`, clipped to the
-    /// grid, and the loop over its outermost axis; `None` when it visits
-    /// no voxel (or `valid`, the grid's own check, is false).
+    /// grid; `None` when it misses the grid (or `valid`, the grid's own
+    /// check, is false).
     fn new(
         grid: &GridCoords,
         valid: bool,
@@ -336,7 +342,7 @@ impl Segment {
         dir: Vec3,
         t0: f32,
         t1: f32,
-    ) -> Option<(Segment, AxisLoop)> {
+    ) -> Option<Segment> {
         let valid = valid
             && origin.is_finite()
             && dir.is_finite()
@@ -390,8 +396,7 @@ impl Segment {
             let hi = grid.n[a] as f64 + segment.eps;
             segment.span = segment.slab_interval(a, -segment.eps, hi, segment.span)?;
         }
-        let outer = segment.axis_loop(axes[0], segment.span)?;
-        Some((segment, outer))
+        Some(segment)
     }
 
     /// The coordinate on `axis` at parameter `t` (exact for a zero direction
@@ -452,21 +457,19 @@ impl Segment {
     /// innermost axis: outer index `i`, middle index `j`, inner indices
     /// `first..=last`. The same voxels as the iterator, computed the same
     /// way, but in ascending order per level instead of along the segment.
-    fn for_each_run(&self, outer: AxisLoop, mut run: impl FnMut(i64, i64, (i64, i64))) {
+    /// `outer`: the outermost level's indices, first to last.
+    fn for_each_run(&self, outer: (i64, i64), mut run: impl FnMut(i64, i64, (i64, i64))) {
         let [outer_axis, middle, inner] = self.axes;
-        let (first, last) = if outer.step < 0 {
-            (outer.last, outer.next)
-        } else {
-            (outer.next, outer.last)
-        };
-        for i in first..=last {
+        let (first, last) = outer;
+        // Half-open ranges: an inclusive range's end check costs more.
+        for i in first..last + 1 {
             let Some(outer_span) = self.voxel_span(outer_axis, i, self.span) else {
                 continue;
             };
             let Some((first, last)) = self.axis_range(middle, outer_span) else {
                 continue;
             };
-            for j in first..=last {
+            for j in first..last + 1 {
                 let Some(middle_span) = self.voxel_span(middle, j, outer_span) else {
                     continue;
                 };
@@ -512,16 +515,21 @@ impl VoxelWalk {
             return;
         }
         let [outer, middle, inner] = self.segment.axes;
-        self.segment
-            .for_each_run(self.loops[0], |i, j, (first, last)| {
-                let mut voxel = [0u32; 3];
-                voxel[outer] = i as u32;
-                voxel[middle] = j as u32;
-                for k in first..=last {
-                    voxel[inner] = k as u32;
-                    visit(voxel);
-                }
-            });
+        let rest = self.loops[0];
+        let range = if rest.step < 0 {
+            (rest.last, rest.next)
+        } else {
+            (rest.next, rest.last)
+        };
+        self.segment.for_each_run(range, |i, j, (first, last)| {
+            let mut voxel = [0u32; 3];
+            voxel[outer] = i as u32;
+            voxel[middle] = j as u32;
+            for k in first..=last {
+                voxel[inner] = k as u32;
+                visit(voxel);
+            }
+        });
     }
 }
 
