@@ -212,16 +212,22 @@ pub fn window_groups_where<L: Lattice>(
     };
     let (gw, gh) = (i64::from(GROUP_WIDTH), i64::from(GROUP_HEIGHT));
     // A window wider than a turn would meet some groups twice.
-    let group_cols = ((last.col - first.col) / gw + 1).min(lattice.period() / gw);
+    let period = lattice.period();
+    let group_cols = ((last.col - first.col) / gw + 1).min(period / gw);
+    let first_col = lattice.wrap(first.col);
     let mut groups = Vec::new();
     for row in (first.row..=last.row).step_by(gh as usize) {
-        for k in 0..group_cols {
-            let group = SampleGroup {
-                col: lattice.wrap(first.col + k * gw),
-                row,
-            };
+        // Wrapped by hand (no division per group): `gw` divides the
+        // period, so a step that wraps lands exactly on it.
+        let mut col = first_col;
+        for _ in 0..group_cols {
+            let group = SampleGroup { col, row };
             if keep(group) {
                 groups.push(group);
+            }
+            col += gw;
+            if col == period {
+                col = 0;
             }
         }
     }
@@ -448,7 +454,7 @@ impl<L: Lattice> PanBuffer<L> {
                 if linear {
                     pixels.extend_from_slice(&self.colors[samples.clone()]);
                 }
-                bytes.extend(self.bytes[samples].iter().flatten());
+                bytes.extend_from_slice(self.bytes[samples].as_flattened());
                 x += run;
             }
         }
