@@ -145,7 +145,7 @@ pub trait Lattice: PrimaryRays {
     fn period(&self) -> i64;
     fn rows(&self) -> i64;
     fn wrap(&self, col: i64) -> i64 {
-        col.rem_euclid(self.period())
+        wrap_into(col, self.period())
     }
 }
 
@@ -190,6 +190,16 @@ impl PrimaryRays for EqualAngleLattice {
     fn primary(&self, col: i64, row: i64) -> Option<Ray> {
         self.direction(col, row)
             .map(|d| Ray::new(self.position.as_vec3(), d.as_vec3()))
+    }
+}
+
+/// `x.rem_euclid(turn)`, without the division when `x` lies in the first
+/// turn already, as nearly every column a frame copies does.
+fn wrap_into(x: i64, turn: i64) -> i64 {
+    if (0..turn).contains(&x) {
+        x
+    } else {
+        x.rem_euclid(turn)
     }
 }
 
@@ -269,7 +279,7 @@ fn window_positions<L: Lattice>(
 ) -> impl Iterator<Item = (usize, usize)> {
     let y = row - window.row;
     let turn = lattice.period();
-    let first = (col - window.col).rem_euclid(turn);
+    let first = wrap_into(col - window.col, turn);
     let (width, height) = (i64::from(window.width), i64::from(window.height));
     let row_inside = (0..height).contains(&y);
     (0..)
