@@ -45,7 +45,7 @@ use glam::{Affine3A, Vec3};
 use rayon::prelude::*;
 
 pub use primitives::{intersect_sphere, TriangleHit, WatertightRay};
-pub use walk::{walk_segment, GridSpec, VoxelWalk, MAX_RESOLUTION, WALK_SLACK_VOXELS};
+pub use walk::{walk_segment, GridSpec, GridWalker, VoxelWalk, MAX_RESOLUTION, WALK_SLACK_VOXELS};
 
 use super::{placed_sphere, Intersector};
 use crate::geometry::{Aabb, Object, Placement, Shape, Sphere};

@@ -33,7 +33,7 @@
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Instant;
 
-use crate::accel::grid::GridSpec;
+use crate::accel::grid::{GridSpec, GridWalker};
 use crate::geometry::Aabb;
 use glam::Vec3;
 
@@ -183,6 +183,7 @@ impl RegionSet {
 /// The voxel grid and its per-voxel region bits.
 struct VoxelBits {
     spec: GridSpec,
+    walker: GridWalker,
     /// `words` planes of one u64 per voxel, plane-major: a walk marks one
     /// plane (its region's), whose voxels lie side by side in memory.
     bits: Vec<AtomicU64>,
@@ -203,6 +204,15 @@ pub struct Ostc {
     /// Per light, for animated lights only: regions with a sample one of
     /// whose shadow rays to that light got through.
     lit_by: Vec<Option<Vec<AtomicU64>>>,
+    counters: RecordCounters,
+}
+
+/// What recording cost, summed by every marker as it finishes. On a cache
+/// line of its own: beside the fields every traced packet reads, each add
+/// would take that line away from the other workers.
+#[repr(align(128))]
+#[derive(Default)]
+struct RecordCounters {
     voxels_walked: AtomicU64,
     record_nanos: AtomicU64,
 }
@@ -238,6 +248,7 @@ impl Ostc {
                         .map(|_| AtomicU64::new(0))
                         .collect(),
                     voxel_count: spec.voxel_count(),
+                    walker: spec.walker(),
                     spec,
                 }
             });
@@ -249,8 +260,7 @@ impl Ostc {
                 .iter()
                 .map(|&animated| animated.then(|| atomic_words(words)))
                 .collect(),
-            voxels_walked: AtomicU64::new(0),
-            record_nanos: AtomicU64::new(0),
+            counters: RecordCounters::default(),
         }
     }
 
@@ -355,8 +365,8 @@ impl Ostc {
     /// Voxel visits and recording time since the last call, then zeroes them.
     pub fn take_counters(&self) -> (u64, f64) {
         (
-            self.voxels_walked.swap(0, Ordering::Relaxed),
-            self.record_nanos.swap(0, Ordering::Relaxed) as f64 * 1e-6,
+            self.counters.voxels_walked.swap(0, Ordering::Relaxed),
+            self.counters.record_nanos.swap(0, Ordering::Relaxed) as f64 * 1e-6,
         )
     }
 }
@@ -467,10 +477,9 @@ impl RayObserver for RegionMarker<'_> {
         let plane = &voxels.bits[word * voxels.voxel_count..(word + 1) * voxels.voxel_count];
         for lane in lanes(crossing) {
             let ray = &rays[lane];
-            let walk = voxels.spec.walk(ray.origin, ray.dir, ray.tmin, ends[lane]);
-            walk.for_each_voxel(|voxel| {
+            let (origin, dir, t0, t1) = (ray.origin, ray.dir, ray.tmin, ends[lane]);
+            voxels.walker.for_each_index(origin, dir, t0, t1, |index| {
                 self.walked += 1;
-                let index = voxels.spec.linear_index(voxel);
                 let slot = index % RECENT_SLOTS;
                 if self.recent[slot] == index as u32 + 1 {
                     return;
@@ -489,10 +498,16 @@ impl RayObserver for RegionMarker<'_> {
 
 impl Drop for RegionMarker<'_> {
     fn drop(&mut self) {
+        // Most groups' rays pass nowhere near the grid: nothing to add.
+        if self.walked == 0 && self.nanos == 0 {
+            return;
+        }
         self.ostc
+            .counters
             .voxels_walked
             .fetch_add(self.walked, Ordering::Relaxed);
         self.ostc
+            .counters
             .record_nanos
             .fetch_add(self.nanos, Ordering::Relaxed);
     }

@@ -145,7 +145,7 @@ pub trait Lattice: PrimaryRays {
     fn period(&self) -> i64;
     fn rows(&self) -> i64;
     fn wrap(&self, col: i64) -> i64 {
-        col.rem_euclid(self.period())
+        wrap_into(col, self.period())
     }
 }
 
@@ -193,6 +193,16 @@ impl PrimaryRays for EqualAngleLattice {
     }
 }
 
+/// `x.rem_euclid(turn)`, without the division when `x` lies in the first
+/// turn already, as nearly every column a frame copies does.
+fn wrap_into(x: i64, turn: i64) -> i64 {
+    if (0..turn).contains(&x) {
+        x
+    } else {
+        x.rem_euclid(turn)
+    }
+}
+
 /// The groups covering a window, with their columns wrapped into one turn,
 /// each once, that `keep` accepts.
 pub fn window_groups_where<L: Lattice>(
@@ -212,16 +222,22 @@ pub fn window_groups_where<L: Lattice>(
     };
     let (gw, gh) = (i64::from(GROUP_WIDTH), i64::from(GROUP_HEIGHT));
     // A window wider than a turn would meet some groups twice.
-    let group_cols = ((last.col - first.col) / gw + 1).min(lattice.period() / gw);
+    let period = lattice.period();
+    let group_cols = ((last.col - first.col) / gw + 1).min(period / gw);
+    let first_col = lattice.wrap(first.col);
     let mut groups = Vec::new();
     for row in (first.row..=last.row).step_by(gh as usize) {
-        for k in 0..group_cols {
-            let group = SampleGroup {
-                col: lattice.wrap(first.col + k * gw),
-                row,
-            };
+        // Wrapped by hand (no division per group): `gw` divides the
+        // period, so a step that wraps lands exactly on it.
+        let mut col = first_col;
+        for _ in 0..group_cols {
+            let group = SampleGroup { col, row };
             if keep(group) {
                 groups.push(group);
+            }
+            col += gw;
+            if col == period {
+                col = 0;
             }
         }
     }
@@ -263,7 +279,7 @@ fn window_positions<L: Lattice>(
 ) -> impl Iterator<Item = (usize, usize)> {
     let y = row - window.row;
     let turn = lattice.period();
-    let first = (col - window.col).rem_euclid(turn);
+    let first = wrap_into(col - window.col, turn);
     let (width, height) = (i64::from(window.width), i64::from(window.height));
     let row_inside = (0..height).contains(&y);
     (0..)
@@ -448,7 +464,7 @@ impl<L: Lattice> PanBuffer<L> {
                 if linear {
                     pixels.extend_from_slice(&self.colors[samples.clone()]);
                 }
-                bytes.extend(self.bytes[samples].iter().flatten());
+                bytes.extend_from_slice(self.bytes[samples].as_flattened());
                 x += run;
             }
         }

@@ -105,6 +105,11 @@ impl GridSpec {
     pub fn walk(&self, origin: Vec3, dir: Vec3, t0: f32, t1: f32) -> VoxelWalk {
         VoxelWalk::new(self, origin, dir, t0, t1)
     }
+
+    /// This grid set up for many walks.
+    pub fn walker(&self) -> GridWalker {
+        GridWalker::new(self)
+    }
 }
 
 /// The most voxels per axis [`GridSpec::with_cell_budget`] chooses.
@@ -144,6 +149,72 @@ pub fn walk_segment(
 /// segment count as touched (so rounding can only add voxels, never lose one).
 pub const WALK_SLACK_VOXELS: f64 = 1e-6;
 
+/// A grid set up for many walks: the map to voxel units (three divisions)
+/// and the validity check are done once, not once per segment. Walks from
+/// here and from [`GridSpec::walk`] visit the same voxels, bit for bit.
+#[derive(Clone, Copy, Debug)]
+pub struct GridWalker {
+    grid: GridCoords,
+    valid: bool,
+    /// Linear-index step per axis (`1, nx, nx * ny`).
+    strides: [usize; 3],
+}
+
+impl GridWalker {
+    pub fn new(spec: &GridSpec) -> GridWalker {
+        let [nx, ny, _] = spec.resolution.map(|n| n as usize);
+        GridWalker {
+            grid: GridCoords::new(spec),
+            valid: spec.is_valid(),
+            strides: [1, nx, nx * ny],
+        }
+    }
+
+    /// The supercover walk of the segment `origin + t * dir`, `t` in
+    /// `[t0, t1]`: see [`VoxelWalk`].
+    pub fn walk(&self, origin: Vec3, dir: Vec3, t0: f32, t1: f32) -> VoxelWalk {
+        let segment = Segment::new(&self.grid, self.valid, origin, dir, t0, t1);
+        match segment.and_then(|s| Some((s, s.axis_loop(s.axes[0], s.span)?))) {
+            Some((segment, outer)) => VoxelWalk {
+                segment,
+                loops: [outer, AxisLoop::default(), AxisLoop::default()],
+                spans: [segment.span, (0.0, 0.0), (0.0, 0.0)],
+                voxel: [0; 3],
+                depth: 0,
+                done: false,
+            },
+            None => VoxelWalk::EMPTY,
+        }
+    }
+
+    /// The linear index ([`GridSpec::linear_index`]) of every voxel the walk
+    /// of the segment visits, in no particular order: straight nested loops
+    /// without the iterator's resumable state, for callers (OSTC's marking)
+    /// that only need the set.
+    pub fn for_each_index(
+        &self,
+        origin: Vec3,
+        dir: Vec3,
+        t0: f32,
+        t1: f32,
+        mut visit: impl FnMut(usize),
+    ) {
+        let Some(segment) = Segment::new(&self.grid, self.valid, origin, dir, t0, t1) else {
+            return;
+        };
+        let Some(outer) = segment.axis_range(segment.axes[0], segment.span) else {
+            return;
+        };
+        let strides = segment.axes.map(|axis| self.strides[axis]);
+        segment.for_each_run(outer, |i, j, inner| {
+            let base = i as usize * strides[0] + j as usize * strides[1];
+            for k in inner.0..inner.1 + 1 {
+                visit(base + k as usize * strides[2]);
+            }
+        });
+    }
+}
+
 /// The supercover walk of a segment through a [`GridSpec`]: an iterator over
 /// voxel coordinates `[i, j, k]`.
 ///
@@ -170,18 +241,7 @@ pub const WALK_SLACK_VOXELS: f64 = 1e-6;
 /// that. Closed intervals throughout, so touching counts.
 #[derive(Clone, Debug)]
 pub struct VoxelWalk {
-    grid: GridCoords,
-    /// Origin and direction in voxel units.
-    g0: [f64; 3],
-    d: [f64; 3],
-    /// `1 / d` (unused on axes where `d` is zero). A product instead of a
-    /// quotient adds an ulp or so to each `t`, far inside `eps`.
-    inv_d: [f64; 3],
-    eps: f64,
-    /// The axis of each nesting level, outermost first: axes the segment
-    /// moves along come before axes it does not, so voxels met at the same
-    /// point come together and the walk stays in order.
-    axes: [usize; 3],
+    segment: Segment,
     loops: [AxisLoop; 3],
     /// `spans[n]`: the part of the segment (a t-interval) inside the grid
     /// and inside the current slabs of the levels above `n`.
@@ -189,6 +249,27 @@ pub struct VoxelWalk {
     voxel: [i64; 3],
     depth: usize,
     done: bool,
+}
+
+/// A segment in voxel units, clipped to the (slightly grown) grid: what
+/// every level of a walk's nested loops reads.
+#[derive(Clone, Copy, Debug)]
+struct Segment {
+    /// Origin and direction in voxel units.
+    g0: [f64; 3],
+    d: [f64; 3],
+    /// `1 / d` (unused on axes where `d` is zero). A product instead of a
+    /// quotient adds an ulp or so to each `t`, far inside `eps`.
+    inv_d: [f64; 3],
+    eps: f64,
+    /// Voxels per axis.
+    n: [i64; 3],
+    /// The axis of each nesting level, outermost first: axes the segment
+    /// moves along come before axes it does not, so voxels met at the same
+    /// point come together and the walk stays in order.
+    axes: [usize; 3],
+    /// The t-interval of the segment inside the grown grid.
+    span: (f64, f64),
 }
 
 /// One axis of the nested loop: indices from `next` to `last` by `step`.
@@ -234,69 +315,88 @@ impl GridCoords {
         (x - self.min[axis]) * self.scale[axis]
     }
 
-    /// Voxels whose closed span [i, i+1] meets the closed span [lo, hi],
-    /// clamped to the grid; `None` if there are none.
     fn index_range(&self, axis: usize, lo: f64, hi: f64) -> Option<(i64, i64)> {
-        let first = ((lo.ceil() - 1.0).max(0.0)).min(i64::MAX as f64) as i64;
-        let last = (hi.floor().min((self.n[axis] - 1) as f64)).max(-1.0) as i64;
-        (first <= last && lo <= hi).then_some((first, last))
+        index_range(self.n[axis], lo, hi)
     }
 }
 
-impl VoxelWalk {
-    pub fn new(spec: &GridSpec, origin: Vec3, dir: Vec3, t0: f32, t1: f32) -> VoxelWalk {
-        let grid = GridCoords::new(spec);
-        let g0: [f64; 3] = std::array::from_fn(|a| grid.coord(a, f64::from(origin[a])));
-        let d: [f64; 3] = std::array::from_fn(|a| f64::from(dir[a]) * grid.scale[a]);
-        let mut walk = VoxelWalk {
-            grid,
-            g0,
-            d,
-            inv_d: d.map(|x| 1.0 / x),
-            eps: 0.0,
-            axes: [0, 1, 2],
-            loops: [AxisLoop::default(); 3],
-            spans: [(0.0, 0.0); 3],
-            voxel: [0; 3],
-            depth: 0,
-            done: true,
-        };
-        let valid = spec.is_valid()
+/// Voxels (of `n` along an axis) whose closed span [i, i+1] meets the
+/// closed span [lo, hi], clamped to the grid; `None` if there are none.
+fn index_range(n: i64, lo: f64, hi: f64) -> Option<(i64, i64)> {
+    // Compared as floats (whole numbers, never NaN: `max` and `min` drop a
+    // NaN), so `first` needs no clamp to fit: when they bound a range, it
+    // is at most `last`.
+    let first = (lo.ceil() - 1.0).max(0.0);
+    let last = hi.floor().min((n - 1) as f64).max(-1.0);
+    (first <= last && lo <= hi).then_some((first as i64, last as i64))
+}
+
+impl Segment {
+    /// The segment `origin + t * dir`, `t` in `[t0, t1]`, clipped to the
+    /// grid; `None` when it misses the grid (or `valid`, the grid's own
+    /// check, is false).
+    fn new(
+        grid: &GridCoords,
+        valid: bool,
+        origin: Vec3,
+        dir: Vec3,
+        t0: f32,
+        t1: f32,
+    ) -> Option<Segment> {
+        let valid = valid
             && origin.is_finite()
             && dir.is_finite()
             && t0 <= t1
             && !t0.is_nan()
             && !t1.is_nan();
         if !valid {
-            return walk;
+            return None;
         }
+        let g0: [f64; 3] = std::array::from_fn(|a| grid.coord(a, f64::from(origin[a])));
+        let d: [f64; 3] = std::array::from_fn(|a| f64::from(dir[a]) * grid.scale[a]);
         let (t0, t1) = (f64::from(t0), f64::from(t1));
-        let magnitude = (0..3)
-            .map(|a| {
-                let reach = [t0, t1]
-                    .iter()
-                    .map(|t| if d[a] == 0.0 { 0.0 } else { (t * d[a]).abs() })
-                    .filter(|x| x.is_finite())
-                    .fold(0.0, f64::max);
-                g0[a].abs() + reach + grid.n[a] as f64
-            })
-            .fold(0.0, f64::max);
-        walk.eps = WALK_SLACK_VOXELS + magnitude * 1e-12;
-        // Clip to the (slightly grown) grid box, one slab per axis.
-        let mut span = (t0, t1);
+        // The largest coordinate the walk computes with: the slack grows
+        // with it. Every term is finite and non-negative, so the order of
+        // the maxima does not matter.
+        let mut magnitude = 0.0f64;
         for a in 0..3 {
-            match walk.slab_interval(a, -walk.eps, grid.n[a] as f64 + walk.eps, span) {
-                Some(s) => span = s,
-                None => return walk,
+            let mut reach = 0.0f64;
+            if d[a] != 0.0 {
+                for t in [t0, t1] {
+                    let x = (t * d[a]).abs();
+                    if x.is_finite() {
+                        reach = reach.max(x);
+                    }
+                }
+            }
+            magnitude = magnitude.max(g0[a].abs() + reach + grid.n[a] as f64);
+        }
+        // Moving axes first, each group in axis order.
+        let mut axes = [0usize; 3];
+        let mut level = 0;
+        for moving in [true, false] {
+            for (a, &da) in d.iter().enumerate() {
+                if (da != 0.0) == moving {
+                    axes[level] = a;
+                    level += 1;
+                }
             }
         }
-        walk.axes.sort_by_key(|&a| d[a] == 0.0);
-        walk.spans[0] = span;
-        if let Some(outer) = walk.axis_loop(walk.axes[0], span) {
-            walk.loops[0] = outer;
-            walk.done = false;
+        let mut segment = Segment {
+            g0,
+            d,
+            inv_d: d.map(|x| 1.0 / x),
+            eps: WALK_SLACK_VOXELS + magnitude * 1e-12,
+            n: grid.n,
+            axes,
+            span: (t0, t1),
+        };
+        // Clip to the (slightly grown) grid box, one slab per axis.
+        for a in 0..3 {
+            let hi = grid.n[a] as f64 + segment.eps;
+            segment.span = segment.slab_interval(a, -segment.eps, hi, segment.span)?;
         }
-        walk
+        Some(segment)
     }
 
     /// The coordinate on `axis` at parameter `t` (exact for a zero direction
@@ -325,13 +425,15 @@ impl VoxelWalk {
         (a <= b).then_some((a, b))
     }
 
-    /// The loop over the voxels of `axis` that the part `span` of the
-    /// segment touches, in the direction of travel.
-    fn axis_loop(&self, axis: usize, span: (f64, f64)) -> Option<AxisLoop> {
+    /// The voxels of `axis` that the part `span` of the segment touches.
+    fn axis_range(&self, axis: usize, span: (f64, f64)) -> Option<(i64, i64)> {
         let (p, q) = (self.at(axis, span.0), self.at(axis, span.1));
-        let (first, last) =
-            self.grid
-                .index_range(axis, p.min(q) - self.eps, p.max(q) + self.eps)?;
+        index_range(self.n[axis], p.min(q) - self.eps, p.max(q) + self.eps)
+    }
+
+    /// [`Segment::axis_range`] as a loop in the direction of travel.
+    fn axis_loop(&self, axis: usize, span: (f64, f64)) -> Option<AxisLoop> {
+        let (first, last) = self.axis_range(axis, span)?;
         Some(if self.d[axis] < 0.0 {
             AxisLoop {
                 next: last,
@@ -350,46 +452,84 @@ impl VoxelWalk {
     fn voxel_span(&self, axis: usize, i: i64, span: (f64, f64)) -> Option<(f64, f64)> {
         self.slab_interval(axis, i as f64 - self.eps, (i + 1) as f64 + self.eps, span)
     }
+
+    /// Calls `run(i, j, (first, last))` for every run of voxels along the
+    /// innermost axis: outer index `i`, middle index `j`, inner indices
+    /// `first..=last`. The same voxels as the iterator, computed the same
+    /// way, but in ascending order per level instead of along the segment.
+    /// `outer`: the outermost level's indices, first to last.
+    fn for_each_run(&self, outer: (i64, i64), mut run: impl FnMut(i64, i64, (i64, i64))) {
+        let [outer_axis, middle, inner] = self.axes;
+        let (first, last) = outer;
+        // Half-open ranges: an inclusive range's end check costs more.
+        for i in first..last + 1 {
+            let Some(outer_span) = self.voxel_span(outer_axis, i, self.span) else {
+                continue;
+            };
+            let Some((first, last)) = self.axis_range(middle, outer_span) else {
+                continue;
+            };
+            for j in first..last + 1 {
+                let Some(middle_span) = self.voxel_span(middle, j, outer_span) else {
+                    continue;
+                };
+                if let Some(run_k) = self.axis_range(inner, middle_span) {
+                    run(i, j, run_k);
+                }
+            }
+        }
+    }
 }
 
 impl VoxelWalk {
+    /// A walk that visits nothing.
+    const EMPTY: VoxelWalk = VoxelWalk {
+        segment: Segment {
+            g0: [0.0; 3],
+            d: [0.0; 3],
+            inv_d: [0.0; 3],
+            eps: 0.0,
+            n: [0; 3],
+            axes: [0, 1, 2],
+            span: (0.0, 0.0),
+        },
+        loops: [AxisLoop {
+            next: 0,
+            last: 0,
+            step: 0,
+        }; 3],
+        spans: [(0.0, 0.0); 3],
+        voxel: [0; 3],
+        depth: 0,
+        done: true,
+    };
+
+    pub fn new(spec: &GridSpec, origin: Vec3, dir: Vec3, t0: f32, t1: f32) -> VoxelWalk {
+        GridWalker::new(spec).walk(origin, dir, t0, t1)
+    }
+
     /// Visits the same voxels as iterating, but in no particular order:
-    /// straight nested loops without the iterator's resumable state, for
-    /// callers (OSTC's marking) that only need the set.
+    /// straight nested loops without the iterator's resumable state.
     pub fn for_each_voxel(self, mut visit: impl FnMut([u32; 3])) {
         if self.done {
             return;
         }
-        let [outer, middle, inner] = self.axes;
-        let mut voxel = [0u32; 3];
-        let mut outer_loop = self.loops[0];
-        while let Some(i) = outer_loop.take() {
-            let Some(outer_span) = self.voxel_span(outer, i, self.spans[0]) else {
-                continue;
-            };
-            let Some(mut middle_loop) = self.axis_loop(middle, outer_span) else {
-                continue;
-            };
+        let [outer, middle, inner] = self.segment.axes;
+        let rest = self.loops[0];
+        let range = if rest.step < 0 {
+            (rest.last, rest.next)
+        } else {
+            (rest.next, rest.last)
+        };
+        self.segment.for_each_run(range, |i, j, (first, last)| {
+            let mut voxel = [0u32; 3];
             voxel[outer] = i as u32;
-            while let Some(j) = middle_loop.take() {
-                let Some(middle_span) = self.voxel_span(middle, j, outer_span) else {
-                    continue;
-                };
-                let Some(inner_loop) = self.axis_loop(inner, middle_span) else {
-                    continue;
-                };
-                voxel[middle] = j as u32;
-                let (first, last) = if inner_loop.step < 0 {
-                    (inner_loop.last, inner_loop.next)
-                } else {
-                    (inner_loop.next, inner_loop.last)
-                };
-                for k in first..=last {
-                    voxel[inner] = k as u32;
-                    visit(voxel);
-                }
+            voxel[middle] = j as u32;
+            for k in first..=last {
+                voxel[inner] = k as u32;
+                visit(voxel);
             }
-        }
+        });
     }
 }
 
@@ -407,17 +547,17 @@ impl Iterator for VoxelWalk {
                 }
                 continue;
             };
-            let axis = self.axes[depth];
+            let axis = self.segment.axes[depth];
             if depth == 2 {
                 self.voxel[axis] = i;
                 return Some(self.voxel.map(|c| c as u32));
             }
             // The part of the segment in this slab, and the voxels it
             // touches on the next axis in.
-            let Some(span) = self.voxel_span(axis, i, self.spans[depth]) else {
+            let Some(span) = self.segment.voxel_span(axis, i, self.spans[depth]) else {
                 continue;
             };
-            if let Some(inner) = self.axis_loop(self.axes[depth + 1], span) {
+            if let Some(inner) = self.segment.axis_loop(self.segment.axes[depth + 1], span) {
                 self.voxel[axis] = i;
                 self.spans[depth + 1] = span;
                 self.loops[depth + 1] = inner;
@@ -509,6 +649,17 @@ mod tests {
         if visited != iterated {
             return Err(format!(
                 "for_each_voxel visits {visited:?}, the iterator {iterated:?}"
+            ));
+        }
+        let mut indexed = Vec::new();
+        spec.walker()
+            .for_each_index(o, d, t0, t1, |index| indexed.push(index));
+        indexed.sort_unstable();
+        let mut linear: Vec<usize> = walked.iter().map(|&v| spec.linear_index(v)).collect();
+        linear.sort_unstable();
+        if indexed != linear {
+            return Err(format!(
+                "for_each_index visits {indexed:?}, the iterator {linear:?}"
             ));
         }
         let must = touched(spec, o, d, t0, t1, 0.0);
