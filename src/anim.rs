@@ -383,7 +383,9 @@ pub struct FrameStats {
     pub error: Option<ImageError>,
     /// RSVP: the viewport this row is about (empty: the camera's image).
     pub viewport: String,
-    /// RSVP: finest and coarsest pyramid level the viewport read.
+    /// RSVP: the finest and the coarsest pyramid level the viewport read
+    /// (a level's number is its finer axis's,
+    /// [`crate::reuse::samples::Level::finest`]).
     pub finest_level: Option<u32>,
     pub coarsest_level: Option<u32>,
 }
@@ -749,8 +751,8 @@ impl<'a> Animator<'a> {
                     copy_ms: total - view.trace_ms - book_ms / count,
                     total_ms: total,
                     viewport: name.clone(),
-                    finest_level: Some(view.levels.0),
-                    coarsest_level: Some(view.levels.1),
+                    finest_level: Some(view.levels.1),
+                    coarsest_level: Some(view.levels.0),
                     ..FrameStats::default()
                 };
                 stats.count_rays(view.rays);
