@@ -310,13 +310,29 @@ proptest! {
     }
 }
 
-#[test]
-fn animate_writes_dirty_images_and_ostc_stats() {
+/// A temporary directory holding the paper scene, the bouncing ball and
+/// `extra` files (name, contents).
+fn bounce_dir(extra: &[(&str, &str)]) -> tempfile::TempDir {
     let dir = tempfile::tempdir().unwrap();
     let scenes = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes");
     for name in ["paper.toml", "paper-bounce.toml"] {
         std::fs::copy(format!("{scenes}/{name}"), dir.path().join(name)).unwrap();
     }
+    for (name, contents) in extra {
+        std::fs::write(dir.path().join(name), contents).unwrap();
+    }
+    dir
+}
+
+/// Black pixels of image `name` under `dir`/out.
+fn black_pixels(dir: &Path, name: &str) -> usize {
+    let image = image::open(dir.join("out").join(name)).unwrap().to_rgb8();
+    image.pixels().filter(|p| p.0 == [0, 0, 0]).count()
+}
+
+#[test]
+fn animate_writes_dirty_images_and_ostc_stats() {
+    let dir = bounce_dir(&[]);
     common::retrace_ok(
         &[
             "animate",
@@ -337,12 +353,7 @@ fn animate_writes_dirty_images_and_ostc_stats() {
         ],
         dir.path(),
     );
-    let black = |name: &str| {
-        let image = image::open(dir.path().join("out").join(name))
-            .unwrap()
-            .to_rgb8();
-        image.pixels().filter(|p| p.0 == [0, 0, 0]).count()
-    };
+    let black = |name: &str| black_pixels(dir.path(), name);
     // Frame 0 traces everything; later frames only the ball's regions.
     assert_eq!(black("d_00.png"), 64 * 48);
     let later = black("d_02.png");
@@ -365,16 +376,8 @@ fn animate_writes_dirty_images_and_ostc_stats() {
 
 #[test]
 fn dirty_images_of_viewports_show_what_each_frame_traced() {
-    let dir = tempfile::tempdir().unwrap();
-    let scenes = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes");
-    for name in ["paper.toml", "paper-bounce.toml"] {
-        std::fs::copy(format!("{scenes}/{name}"), dir.path().join(name)).unwrap();
-    }
-    std::fs::write(
-        dir.path().join("view.toml"),
-        "include = \"paper-bounce.toml\"\n\n[[viewport]]\nname = \"view\"\nwidth = 64\nheight = 48\nfov = 100.0\n",
-    )
-    .unwrap();
+    let view = "include = \"paper-bounce.toml\"\n\n[[viewport]]\nname = \"view\"\nwidth = 64\nheight = 48\nfov = 100.0\n";
+    let dir = bounce_dir(&[("view.toml", view)]);
     common::retrace_ok(
         &[
             "animate",
@@ -392,12 +395,7 @@ fn dirty_images_of_viewports_show_what_each_frame_traced() {
         ],
         dir.path(),
     );
-    let black = |name: &str| {
-        let image = image::open(dir.path().join("out").join(name))
-            .unwrap()
-            .to_rgb8();
-        image.pixels().filter(|p| p.0 == [0, 0, 0]).count()
-    };
+    let black = |name: &str| black_pixels(dir.path(), name);
     // Frame 0 traces every sample it reads; later frames only what the
     // ball's regions erased.
     assert_eq!(black("d_00_view.png"), 64 * 48);
