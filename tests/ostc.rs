@@ -330,35 +330,39 @@ fn black_pixels(dir: &Path, name: &str) -> usize {
     image.pixels().filter(|p| p.0 == [0, 0, 0]).count()
 }
 
+/// Animates frames 0-3 of `scene` in `dir` at 64x48 with dirty images
+/// (plus `extra` arguments) and checks them: frame 0 traces every pixel's
+/// samples, frame 2 only the ball's regions, and the frame itself has no
+/// black. `suffix` is the viewport's file suffix ("" for the camera).
+fn check_dirty_frames(dir: &Path, scene: &str, suffix: &str, extra: &[&str]) {
+    let mut args = vec![
+        "animate",
+        scene,
+        "--frames",
+        "0-3",
+        "--width",
+        "64",
+        "--height",
+        "48",
+        "-o",
+        "out/f_##.png",
+        "--dirty-image",
+        "out/d_##.png",
+    ];
+    args.extend_from_slice(extra);
+    common::retrace_ok(&args, dir);
+    let black = |name: &str| black_pixels(dir, &format!("{name}{suffix}.png"));
+    assert_eq!(black("d_00"), 64 * 48);
+    let later = black("d_02");
+    assert!(later > 0 && later < 64 * 48 / 2, "{later} black pixels");
+    assert_eq!(black("f_02"), 0);
+}
+
 #[test]
 fn animate_writes_dirty_images_and_ostc_stats() {
     let dir = bounce_dir(&[]);
-    common::retrace_ok(
-        &[
-            "animate",
-            "paper-bounce.toml",
-            "--frames",
-            "0-3",
-            "--width",
-            "64",
-            "--height",
-            "48",
-            "-o",
-            "out/f_##.png",
-            "--dirty-image",
-            "out/d_##.png",
-            "--stats",
-            "out/s.csv",
-            "--verify",
-        ],
-        dir.path(),
-    );
-    let black = |name: &str| black_pixels(dir.path(), name);
-    // Frame 0 traces everything; later frames only the ball's regions.
-    assert_eq!(black("d_00.png"), 64 * 48);
-    let later = black("d_02.png");
-    assert!(later > 0 && later < 64 * 48 / 2, "{later} black pixels");
-    assert_eq!(black("f_02.png"), 0);
+    let stats = ["--stats", "out/s.csv", "--verify"];
+    check_dirty_frames(dir.path(), "paper-bounce.toml", "", &stats);
     let csv = std::fs::read_to_string(dir.path().join("out/s.csv")).unwrap();
     let header: Vec<&str> = csv.lines().next().unwrap().split(',').collect();
     for column in [
@@ -378,28 +382,5 @@ fn animate_writes_dirty_images_and_ostc_stats() {
 fn dirty_images_of_viewports_show_what_each_frame_traced() {
     let view = "include = \"paper-bounce.toml\"\n\n[[viewport]]\nname = \"view\"\nwidth = 64\nheight = 48\nfov = 100.0\n";
     let dir = bounce_dir(&[("view.toml", view)]);
-    common::retrace_ok(
-        &[
-            "animate",
-            "view.toml",
-            "--frames",
-            "0-3",
-            "--width",
-            "64",
-            "--height",
-            "48",
-            "-o",
-            "out/f_##.png",
-            "--dirty-image",
-            "out/d_##.png",
-        ],
-        dir.path(),
-    );
-    let black = |name: &str| black_pixels(dir.path(), name);
-    // Frame 0 traces every sample it reads; later frames only what the
-    // ball's regions erased.
-    assert_eq!(black("d_00_view.png"), 64 * 48);
-    let later = black("d_02_view.png");
-    assert!(later > 0 && later < 64 * 48 / 2, "{later} black pixels");
-    assert_eq!(black("f_02_view.png"), 0);
+    check_dirty_frames(dir.path(), "view.toml", "_view", &[]);
 }
