@@ -1291,6 +1291,21 @@ impl SampleBuffer {
     ) {
         out.clear();
         out.resize(cols * rows, DVec2::NAN);
+        self.fill_coords(pose, map, level, grid, (x0, y0), cols, out);
+    }
+
+    /// [`SampleBuffer::region_coords`] into `out`, `cols` wide, all NaN.
+    #[allow(clippy::too_many_arguments)]
+    fn fill_coords(
+        &self,
+        pose: &ViewportPose,
+        map: &PixelMap,
+        level: Level,
+        grid: Option<&MapGrid>,
+        (x0, y0): (u32, u32),
+        cols: usize,
+        out: &mut [DVec2],
+    ) {
         if let Some(grid) = grid {
             let s = GRID_SPACING as usize;
             let inv = 1.0 / GRID_SPACING as f64;
@@ -1665,9 +1680,12 @@ impl SampleBuffer {
         out
     }
 
-    /// Pass 2: each pixel's colour from its samples. Each region first
-    /// copies the samples under it into a small dense window (whole runs
-    /// where one level owns a row), so the filter reads plain arrays.
+    /// Pass 2: each pixel's colour from its samples. The samples under a
+    /// run of neighbouring regions of one level are first copied into one
+    /// dense window, so the filter reads plain arrays. A window per run
+    /// rather than per region: a region's rows are runs of a few cache
+    /// lines in each owner's tiles, too short for the hardware prefetcher,
+    /// and the copy stalled on nearly every line.
     fn gather(
         &self,
         pose: &ViewportPose,
@@ -1696,47 +1714,89 @@ impl SampleBuffer {
             .enumerate()
             .for_each(|(band_index, (out, linear_out))| {
                 let mut cache = TileCache::new();
-                let mut window = Vec::new();
-                let mut coords = Vec::new();
+                let mut window = Window::default();
                 let mut colors = [Vec3::ZERO; (REGION * REGION) as usize];
                 let srgb = srgb_table();
                 let y0 = band_index * REGION as usize;
                 let rows = (h - y0).min(REGION as usize);
-                for rx in 0..mapped.regions_x {
-                    let x0 = rx * REGION as usize;
-                    let cols = (w - x0).min(REGION as usize);
-                    let region = &mapped.regions[band_index * mapped.regions_x + rx];
-                    self.region_coords(
-                        pose,
-                        &map,
-                        region.level,
-                        region.grid.as_ref(),
-                        (x0 as u32, y0 as u32),
-                        (cols, rows),
-                        &mut coords,
-                    );
-                    let colors = &mut colors[..cols * rows];
-                    self.gather_region(
-                        &mut cache,
-                        &mut window,
-                        region.level,
-                        filter,
-                        (cols, rows),
-                        &coords,
-                        colors,
-                    );
-                    // Whole region rows at once: no per-pixel index checks.
-                    for (j, line) in colors.chunks_exact(cols).enumerate() {
-                        let p = j * w + x0;
-                        for (byte, c) in out[p * 3..(p + cols) * 3].chunks_exact_mut(3).zip(line) {
-                            byte[0] = srgb.encode(c.x);
-                            byte[1] = srgb.encode(c.y);
-                            byte[2] = srgb.encode(c.z);
+                let regions = &mapped.regions[band_index * mapped.regions_x..][..mapped.regions_x];
+                // Every region's coordinates first (region after region,
+                // each row-major), for the boxes that decide the runs.
+                let mut coords = vec![DVec2::NAN; w * rows];
+                let spans: Vec<RegionSpan> = regions
+                    .iter()
+                    .enumerate()
+                    .map(|(rx, region)| {
+                        let x0 = rx * REGION as usize;
+                        let cols = (w - x0).min(REGION as usize);
+                        let coords = &mut coords[x0 * rows..(x0 + cols) * rows];
+                        self.fill_coords(
+                            pose,
+                            &map,
+                            region.level,
+                            region.grid.as_ref(),
+                            (x0 as u32, y0 as u32),
+                            cols,
+                            coords,
+                        );
+                        RegionSpan::new(filter, region.level, cols, rows, coords)
+                    })
+                    .collect();
+                let mut rx = 0;
+                while rx < spans.len() {
+                    let first = &spans[rx];
+                    let mut end = rx + 1;
+                    if let Some(mut joined) = first.window.filter(|_| !first.direct) {
+                        let mut area = joined.area();
+                        while let Some(next) = spans.get(end).filter(|n| n.level == first.level) {
+                            let Some(b) = next.window.filter(|_| !next.direct) else {
+                                break;
+                            };
+                            let union = joined.union(&b);
+                            // A rotated view's band runs diagonally: its
+                            // box would copy far more than its regions read.
+                            if union.area() * 4 > (area + b.area()) * 5 {
+                                break;
+                            }
+                            (joined, area) = (union, area + b.area());
+                            end += 1;
                         }
-                        if let Some(slots) = linear_out.get_mut(p..p + cols) {
-                            slots.copy_from_slice(line);
+                        self.fill_window(&mut cache, first.level, &joined, &mut window);
+                    }
+                    for (rx, span) in spans.iter().enumerate().take(end).skip(rx) {
+                        let x0 = rx * REGION as usize;
+                        let cols = span.cols;
+                        let region_coords = &coords[x0 * rows..(x0 + cols) * rows];
+                        let colors = &mut colors[..cols * rows];
+                        match span.window {
+                            None => colors.fill(Vec3::ZERO),
+                            Some(_) if span.direct => {
+                                for (slot, c) in colors.iter_mut().zip(region_coords) {
+                                    *slot = if c.x.is_nan() {
+                                        Vec3::ZERO
+                                    } else {
+                                        self.filter(&mut cache, span.level, filter, c.x, c.y)
+                                    };
+                                }
+                            }
+                            Some(_) => gather_region(&window, filter, region_coords, colors),
+                        }
+                        // Whole region rows at once: no per-pixel index checks.
+                        for (j, line) in colors.chunks_exact(cols).enumerate() {
+                            let p = j * w + x0;
+                            for (byte, c) in
+                                out[p * 3..(p + cols) * 3].chunks_exact_mut(3).zip(line)
+                            {
+                                byte[0] = srgb.encode(c.x);
+                                byte[1] = srgb.encode(c.y);
+                                byte[2] = srgb.encode(c.z);
+                            }
+                            if let Some(slots) = linear_out.get_mut(p..p + cols) {
+                                slots.copy_from_slice(line);
+                            }
                         }
                     }
+                    rx = end;
                 }
             });
         let image =
@@ -1749,100 +1809,25 @@ impl SampleBuffer {
         (frame, image)
     }
 
-    /// Filters one region's pixels (`size` = columns, rows; `coords` holds
-    /// their lattice coordinates, row-major, NaN for no ray) into `out`
-    /// (row-major, `coords`' length).
-    #[allow(clippy::too_many_arguments)]
-    fn gather_region(
+    /// Copies the samples of `level` in `bounds` (rows clamped to the
+    /// lattice) into `window`.
+    fn fill_window(
         &self,
         cache: &mut TileCache,
-        window: &mut Vec<Vec3>,
         level: Level,
-        filter: Filter,
-        size: (usize, usize),
-        coords: &[DVec2],
-        out: &mut [Vec3],
+        bounds: &SampleBox,
+        window: &mut Window,
     ) {
-        let (cols, rows) = size;
-        // Filter origins grow with the coordinates: the window spans the
-        // origins of the coordinates' box (min and max skip NaN).
-        let (mut lo, mut hi) = (DVec2::INFINITY, DVec2::NEG_INFINITY);
-        for c in coords {
-            lo = lo.min(*c);
-            hi = hi.max(*c);
-        }
-        // Infinite: every pixel is NaN.
-        if lo.x > hi.x {
-            out.fill(Vec3::ZERO);
-            return;
-        }
-        let (c0, r0) = filter_origin(filter, lo.x, lo.y);
-        let (c1, r1) = filter_origin(filter, hi.x, hi.y);
-        let (c1, r1) = (c1 + 1, r1 + 1);
-        let (wd, ht) = ((c1 - c0 + 1) as usize, (r1 - r0 + 1) as usize);
-        if wd * ht > 16 * cols * rows {
-            // Zoomed far out: a window would copy far more than it reads.
-            for (slot, c) in out.iter_mut().zip(coords) {
-                *slot = if c.x.is_nan() {
-                    Vec3::ZERO
-                } else {
-                    self.filter(cache, level, filter, c.x, c.y)
-                };
-            }
-            return;
-        }
-        window.clear();
-        window.resize(wd * ht, Vec3::ZERO);
+        let (wd, ht) = (bounds.width(), bounds.height());
+        window.col = bounds.c0;
+        window.row = bounds.r0;
+        window.width = wd;
+        window.samples.clear();
+        window.samples.resize(wd * ht, Vec3::ZERO);
         let last_row = self.lattice.last_row(level.y);
-        for (j, line) in window.chunks_mut(wd).enumerate() {
-            let row = (r0 + j as i64).clamp(0, last_row);
-            self.copy_row(cache, level, c0, row, line);
-        }
-        // Window index and weights of every pixel first, in straight-line
-        // f64 code (exact: whole numbers and multiples of 2^-16) that
-        // vectorises; NaN pixels get index 0 and are blacked out last.
-        const N: usize = (REGION * REGION) as usize;
-        let (mut index, mut wx, mut wy) = ([0u32; N], [0f32; N], [0f32; N]);
-        let (c0f, r0f, wdf) = (c0 as f64, r0 as f64, wd as f64);
-        let mut has_nan = false;
-        for (((c, k), fx), fy) in coords.iter().zip(&mut index).zip(&mut wx).zip(&mut wy) {
-            has_nan |= c.x.is_nan();
-            let (ox, x) = filter_split(filter, c.x);
-            let (oy, y) = filter_split(filter, c.y);
-            *k = ((oy - r0f) * wdf + (ox - c0f)) as u32;
-            *fx = x as f32;
-            *fy = y as f32;
-        }
-        let n = coords.len();
-        let (index, wx, wy) = (&index[..n], &wx[..n], &wy[..n]);
-        // One loop per filter, without branches inside.
-        match filter {
-            Filter::Nearest => {
-                for (slot, &k) in out.iter_mut().zip(index) {
-                    *slot = window[k as usize];
-                }
-            }
-            Filter::Box => {
-                for (slot, &k) in out.iter_mut().zip(index) {
-                    let k = k as usize;
-                    let (top, bottom) = (&window[k..k + 2], &window[k + wd..k + wd + 2]);
-                    *slot = (top[0] + top[1] + bottom[0] + bottom[1]) * 0.25;
-                }
-            }
-            Filter::Bilinear => {
-                for (((slot, &k), &fx), &fy) in out.iter_mut().zip(index).zip(wx).zip(wy) {
-                    let k = k as usize;
-                    let (top, bottom) = (&window[k..k + 2], &window[k + wd..k + wd + 2]);
-                    *slot = bilinear([top[0], top[1], bottom[0], bottom[1]], fx, fy);
-                }
-            }
-        }
-        if has_nan {
-            for (slot, c) in out.iter_mut().zip(coords) {
-                if c.x.is_nan() {
-                    *slot = Vec3::ZERO;
-                }
-            }
+        for (j, line) in window.samples.chunks_mut(wd).enumerate() {
+            let row = (bounds.r0 + j as i64).clamp(0, last_row);
+            self.copy_row(cache, level, bounds.c0, row, line);
         }
     }
 
@@ -1974,6 +1959,16 @@ impl SampleBuffer {
             .zip(&mapped)
             .zip(traced.into_iter().zip(map_ms))
             .map(|((pose, mapped), ((samples, rays, trace_ms), map_ms))| {
+                if let Some(reps) = std::env::var_os("GATHER_REPS") {
+                    let reps: usize = reps.to_str().unwrap().parse().unwrap();
+                    let mut best = f64::MAX;
+                    for _ in 0..reps {
+                        let t = Instant::now();
+                        let _ = self.gather(pose, mapped, knobs.filter, linear);
+                        best = best.min(t.elapsed().as_secs_f64() * 1e3);
+                    }
+                    eprintln!("gathermin {best:.4}");
+                }
                 let start = Instant::now();
                 let (frame, image) = self.gather(pose, mapped, knobs.filter, linear);
                 let gather_ms = start.elapsed().as_secs_f64() * 1e3;
@@ -2083,6 +2078,142 @@ impl SampleBuffer {
             });
             image::Rgb(colour.map_or([0; 3], |c| c.to_array().map(|v| srgb.encode(v))))
         })
+    }
+}
+
+/// Samples of one level copied into a dense row-major array, `width`
+/// wide, its first entry the sample (col, row).
+#[derive(Default)]
+struct Window {
+    col: i64,
+    row: i64,
+    width: usize,
+    samples: Vec<Vec3>,
+}
+
+/// The samples (c0..=c1, r0..=r1) of a level.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct SampleBox {
+    c0: i64,
+    r0: i64,
+    c1: i64,
+    r1: i64,
+}
+
+impl SampleBox {
+    fn width(&self) -> usize {
+        (self.c1 - self.c0 + 1) as usize
+    }
+
+    fn height(&self) -> usize {
+        (self.r1 - self.r0 + 1) as usize
+    }
+
+    fn area(&self) -> usize {
+        self.width() * self.height()
+    }
+
+    fn union(&self, other: &SampleBox) -> SampleBox {
+        SampleBox {
+            c0: self.c0.min(other.c0),
+            r0: self.r0.min(other.r0),
+            c1: self.c1.max(other.c1),
+            r1: self.r1.max(other.r1),
+        }
+    }
+}
+
+/// What pass 2 needs to know of a region before reading its samples.
+struct RegionSpan {
+    level: Level,
+    cols: usize,
+    /// The samples its filter reads; None: no pixel has a ray.
+    window: Option<SampleBox>,
+    /// Zoomed far out: a window would copy far more samples than the
+    /// region's pixels read, so each pixel reads its own.
+    direct: bool,
+}
+
+impl RegionSpan {
+    fn new(filter: Filter, level: Level, cols: usize, rows: usize, coords: &[DVec2]) -> Self {
+        // Filter origins grow with the coordinates: the window spans the
+        // origins of the coordinates' box (min and max skip NaN).
+        let (mut lo, mut hi) = (DVec2::INFINITY, DVec2::NEG_INFINITY);
+        for c in coords {
+            lo = lo.min(*c);
+            hi = hi.max(*c);
+        }
+        let window = (lo.x <= hi.x).then(|| {
+            let (c0, r0) = filter_origin(filter, lo.x, lo.y);
+            let (c1, r1) = filter_origin(filter, hi.x, hi.y);
+            SampleBox {
+                c0,
+                r0,
+                c1: c1 + 1,
+                r1: r1 + 1,
+            }
+        });
+        let direct = window.is_some_and(|b| b.area() > 16 * cols * rows);
+        RegionSpan {
+            level,
+            cols,
+            window,
+            direct,
+        }
+    }
+}
+
+/// Filters one region's pixels (`coords`: their lattice coordinates at the
+/// window's level, NaN for no ray) from `window`, which holds every sample
+/// they read, into `out` (`coords`' length).
+fn gather_region(window: &Window, filter: Filter, coords: &[DVec2], out: &mut [Vec3]) {
+    let wd = window.width;
+    let samples = &window.samples;
+    // Window index and weights of every pixel first, in straight-line f64
+    // code (exact: whole numbers and multiples of 2^-16) that vectorises;
+    // NaN pixels get index 0 and are blacked out last.
+    const N: usize = (REGION * REGION) as usize;
+    let (mut index, mut wx, mut wy) = ([0u32; N], [0f32; N], [0f32; N]);
+    let (c0f, r0f, wdf) = (window.col as f64, window.row as f64, wd as f64);
+    let mut has_nan = false;
+    for (((c, k), fx), fy) in coords.iter().zip(&mut index).zip(&mut wx).zip(&mut wy) {
+        has_nan |= c.x.is_nan();
+        let (ox, x) = filter_split(filter, c.x);
+        let (oy, y) = filter_split(filter, c.y);
+        *k = ((oy - r0f) * wdf + (ox - c0f)) as u32;
+        *fx = x as f32;
+        *fy = y as f32;
+    }
+    let n = coords.len();
+    let (index, wx, wy) = (&index[..n], &wx[..n], &wy[..n]);
+    // One loop per filter, without branches inside.
+    match filter {
+        Filter::Nearest => {
+            for (slot, &k) in out.iter_mut().zip(index) {
+                *slot = samples[k as usize];
+            }
+        }
+        Filter::Box => {
+            for (slot, &k) in out.iter_mut().zip(index) {
+                let k = k as usize;
+                let (top, bottom) = (&samples[k..k + 2], &samples[k + wd..k + wd + 2]);
+                *slot = (top[0] + top[1] + bottom[0] + bottom[1]) * 0.25;
+            }
+        }
+        Filter::Bilinear => {
+            for (((slot, &k), &fx), &fy) in out.iter_mut().zip(index).zip(wx).zip(wy) {
+                let k = k as usize;
+                let (top, bottom) = (&samples[k..k + 2], &samples[k + wd..k + wd + 2]);
+                *slot = bilinear([top[0], top[1], bottom[0], bottom[1]], fx, fy);
+            }
+        }
+    }
+    if has_nan {
+        for (slot, c) in out.iter_mut().zip(coords) {
+            if c.x.is_nan() {
+                *slot = Vec3::ZERO;
+            }
+        }
     }
 }
 
