@@ -1822,7 +1822,8 @@ impl SampleBuffer {
         window.col = bounds.c0;
         window.row = bounds.r0;
         window.width = wd;
-        window.samples.clear();
+        // No clearing: copy_row writes every entry of a row (the owners'
+        // positions tile it), and a band's windows are up to ~1 MB.
         window.samples.resize(wd * ht, Vec3::ZERO);
         let last_row = self.lattice.last_row(level.y);
         for (j, line) in window.samples.chunks_mut(wd).enumerate() {
