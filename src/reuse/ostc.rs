@@ -145,6 +145,22 @@ impl RegionSet {
         self.words[region / 64] & (1 << (region % 64)) != 0
     }
 
+    /// Whether any region of `range` is in the set.
+    pub fn any_in(&self, range: std::ops::RangeInclusive<usize>) -> bool {
+        let (first, last) = (*range.start(), *range.end());
+        if first > last {
+            return false;
+        }
+        let (w0, w1) = (first / 64, last / 64);
+        (w0..=w1).any(|w| {
+            let lo = if w == w0 { first % 64 } else { 0 };
+            let hi = if w == w1 { last % 64 } else { 63 };
+            // Bits lo..=hi of the word.
+            let span = (u64::MAX >> (63 - (hi - lo))) << lo;
+            self.words[w] & span != 0
+        })
+    }
+
     pub fn len(&self) -> usize {
         self.words.iter().map(|w| w.count_ones() as usize).sum()
     }
@@ -550,6 +566,14 @@ mod tests {
         assert_eq!(set.iter().collect::<Vec<_>>(), vec![0, 63, 64, 129]);
         assert_eq!(set.len(), 4);
         assert!(set.contains(64) && !set.contains(65));
+        // Every range of 0..130 against the members, across word edges.
+        for first in 0..130 {
+            for last in first..130 {
+                let expected = [0, 63, 64, 129].iter().any(|r| (first..=last).contains(r));
+                assert_eq!(set.any_in(first..=last), expected, "{first}..={last}");
+            }
+        }
+        assert!(!set.any_in(std::ops::RangeInclusive::new(5, 4)));
     }
 
     #[test]

@@ -1106,17 +1106,38 @@ impl SampleBuffer {
         };
         let layout = *ostc.layout();
         let mut erased = 0;
+        let gw = i64::from(GROUP_WIDTH);
         for (index, store) in self.levels.iter_mut().enumerate() {
             let level = Level::from_index(index);
-            let doomed: Vec<(usize, u32)> = traced_groups(store)
-                .filter(|&(group, _, _)| {
-                    regions.contains(Self::region_of(&self.lattice, &layout, level, group))
-                })
-                .map(|(_, tile, bit)| (tile, bit))
-                .collect();
-            for (tile, bit) in doomed {
-                store.traced[tile] &= !(1u64 << bit);
-                erased += 1;
+            for (&(tile_col, tile_row), &tile) in &store.tiles {
+                let mask = &mut store.traced[tile as usize];
+                if *mask == 0 {
+                    continue;
+                }
+                // A tile is one row of groups, so its groups' regions run
+                // along one region row, in column order unless the tile
+                // wraps the turn (a small camera's turn may be shorter than
+                // a tile): one range test skips most clean tiles.
+                let (col, row) = (tile_col << TILE_COL_SHIFT, tile_row << TILE_ROW_SHIFT);
+                let region = |col| {
+                    let group = SampleGroup { col, row };
+                    Self::region_of(&self.lattice, &layout, level, group)
+                };
+                let last_col = col + TILE_COLS - gw;
+                let wraps = self.lattice.slot_position(level, last_col, row).0
+                    >= self.lattice.columns(level.x);
+                if !wraps && !regions.any_in(region(col)..=region(last_col)) {
+                    continue;
+                }
+                let mut rest = *mask;
+                while rest != 0 {
+                    let bit = rest.trailing_zeros();
+                    rest &= rest - 1;
+                    if regions.contains(region(col + i64::from(bit) * gw)) {
+                        *mask &= !(1u64 << bit);
+                        erased += 1;
+                    }
+                }
             }
         }
         erased
