@@ -10,12 +10,20 @@
 //! of the voxels under its old and its new bounds names every region whose
 //! samples could change ("dirty"); those are erased to null and re-traced.
 //!
+//! The voxel bits only name candidates: each region also keeps the
+//! segments of its recorded rays that enter the grid, and a candidate is
+//! dirty only if one of those segments meets the object's old or new
+//! footprint itself. Voxels round every footprint out to whole voxels (on
+//! E3, a ring of regions around the ball, its shadows and reflections that
+//! never changed); the segment test does not.
+//!
 //! Promises:
 //! - Conservative: every sample whose colour can change lies in a dirty
 //!   region. Bounds are rounded outward, walks are supercover walks that
 //!   end a little past the hit, shadow rays count to the light (an
 //!   occlusion query finds *a* blocker, not the nearest), misses count to
-//!   the grid's exit.
+//!   the grid's exit. A segment counts as meeting a footprint within a
+//!   slack well above the rounding of the hit and of the posed object.
 //! - Bits are never stale nor lost early: a region's bits are cleared only
 //!   when the region is erased (all its samples nulled), and the re-traced
 //!   samples set them again.
@@ -31,13 +39,14 @@
 //! before, it does not light now.
 
 use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Mutex, PoisonError};
 use std::time::Instant;
 
 use crate::accel::grid::{GridSpec, GridWalker};
 use crate::geometry::Aabb;
 use glam::Vec3;
 
-use crate::ray::{lanes, LaneMask, RayPacket, PACKET_WIDTH};
+use crate::ray::{lanes, LaneMask, Ray, RayPacket, PACKET_WIDTH};
 use crate::render::{SampleGroup, GROUP_HEIGHT, GROUP_WIDTH};
 use crate::shade::{RayKind, RayObserver};
 
@@ -188,6 +197,11 @@ struct VoxelBits {
     /// plane (its region's), whose voxels lie side by side in memory.
     bits: Vec<AtomicU64>,
     voxel_count: usize,
+    /// Per region, the recorded rays that enter the grid, as walked (`tmin`
+    /// to the walk's end): what refines the voxels' candidates. Filled by
+    /// the markers of the region's groups (one lock per group), emptied
+    /// with the region's bits.
+    segments: Vec<Mutex<Vec<Ray>>>,
 }
 
 /// A walk ends this far (relative to its length) past the hit, so the voxel
@@ -249,6 +263,7 @@ impl Ostc {
                         .collect(),
                     voxel_count: spec.voxel_count(),
                     walker: spec.walker(),
+                    segments: (0..layout.count()).map(|_| Mutex::default()).collect(),
                     spec,
                 }
             });
@@ -289,16 +304,30 @@ impl Ostc {
             walked: 0,
             nanos: 0,
             recent: [0; RECENT_SLOTS],
+            segments: Vec::new(),
         }
     }
 
-    /// Regions whose rays crossed a voxel that `volumes` (an object's old
-    /// and new place) overlap, rounded outward.
+    /// Regions with a recorded ray that meets one of `volumes` (an
+    /// object's old and new place), rounded outward.
+    ///
+    /// Why this is enough: a ray's result depends only on the geometry
+    /// along the segment it was walked over (to its hit and a little past
+    /// it; to the light for shadow rays, since an occlusion query may stop
+    /// at any blocker; to the grid's exit for misses). An object that
+    /// neither was nor is on that segment leaves the ray's hit, and so its
+    /// shading and the rays it spawns, exactly as they were; by induction
+    /// over the sample's rays, a sample none of whose rays meets `volumes`
+    /// keeps its colour bit for bit. The voxels only pick the regions worth
+    /// testing: a segment that meets a footprint crosses a voxel the
+    /// footprint overlaps (the walk is a supercover, the voxel range and
+    /// the footprints are rounded outward).
     pub fn dirty_for(&self, volumes: &[Footprint]) -> RegionSet {
         let mut dirty = RegionSet::empty(self.layout.count());
         let Some(voxels) = &self.voxels else {
             return dirty;
         };
+        let mut candidates = RegionSet::empty(self.layout.count());
         for volume in volumes {
             let bounds = padded_outward(volume.bounds());
             let Some([first, last]) = voxels.spec.voxel_range(&bounds) else {
@@ -311,12 +340,21 @@ impl Ostc {
                             continue;
                         }
                         let voxel = voxels.spec.linear_index([i, j, k]);
-                        for (word, bits) in dirty.words.iter_mut().enumerate() {
+                        for (word, bits) in candidates.words.iter_mut().enumerate() {
                             *bits |= voxels.bits[word * voxels.voxel_count + voxel]
                                 .load(Ordering::Relaxed);
                         }
                     }
                 }
+            }
+        }
+        for region in candidates.iter() {
+            let segments = voxels.segments[region]
+                .lock()
+                .unwrap_or_else(PoisonError::into_inner);
+            let meets = |ray: &Ray| volumes.iter().any(|volume| volume.meets_segment(ray));
+            if segments.iter().any(meets) {
+                dirty.insert(region);
             }
         }
         dirty
@@ -352,6 +390,12 @@ impl Ostc {
                 for bits in plane {
                     *bits.get_mut() &= keep;
                 }
+            }
+            for region in regions.iter() {
+                voxels.segments[region]
+                    .get_mut()
+                    .unwrap_or_else(PoisonError::into_inner)
+                    .clear();
             }
         }
         let light_sets = self.lit_by.iter_mut().flatten();
@@ -406,6 +450,62 @@ impl Footprint {
     }
 }
 
+impl Footprint {
+    /// False only if the segment `ray` (`tmin` to `tmax`, which may be
+    /// infinite) surely misses the footprint. In f64, with a slack far
+    /// above the rounding of the posed object (its centre and bounds come
+    /// out of an f32 transform, Embree intersects in f32) and of the walk's
+    /// end (which already lies a little past the hit).
+    fn meets_segment(&self, ray: &Ray) -> bool {
+        let (t0, t1) = (f64::from(ray.tmin), f64::from(ray.tmax));
+        // An empty or NaN segment was never walked; keep it anyway.
+        if !(t0 <= t1 && t0.is_finite()) {
+            return true;
+        }
+        let origin = ray.origin.as_dvec3();
+        let dir = ray.dir.as_dvec3();
+        match *self {
+            Footprint::Ball { center, radius } => {
+                let center = center.as_dvec3();
+                let radius = f64::from(radius);
+                let dd = dir.length_squared();
+                // The segment's point nearest the centre.
+                let t = if dd > 0.0 {
+                    ((center - origin).dot(dir) / dd).clamp(t0, t1)
+                } else {
+                    t0
+                };
+                let nearest = origin + dir * t;
+                let slack = radius * 1e-3
+                    + (center.abs().max_element() + nearest.abs().max_element()) * 1e-5;
+                let distance = (center - nearest).length();
+                // A NaN (an overflow) is kept.
+                distance <= radius + slack || distance.is_nan()
+            }
+            Footprint::Box(bounds) => {
+                let bounds = padded_outward(bounds);
+                let (lo, hi) = (bounds.min.as_dvec3(), bounds.max.as_dvec3());
+                let (mut enter, mut exit) = (t0, t1);
+                for axis in 0..3 {
+                    if dir[axis] == 0.0 {
+                        if origin[axis] < lo[axis] || origin[axis] > hi[axis] {
+                            return false;
+                        }
+                        continue;
+                    }
+                    let a = (lo[axis] - origin[axis]) / dir[axis];
+                    let z = (hi[axis] - origin[axis]) / dir[axis];
+                    enter = enter.max(a.min(z));
+                    exit = exit.min(a.max(z));
+                }
+                // The box is padded far beyond f64's error in `t`; a NaN
+                // (an overflow) is kept.
+                enter <= exit || enter.is_nan() || exit.is_nan()
+            }
+        }
+    }
+}
+
 fn atomic_words(count: usize) -> Vec<AtomicU64> {
     (0..count).map(|_| AtomicU64::new(0)).collect()
 }
@@ -431,6 +531,9 @@ pub struct RegionMarker<'a> {
     /// rays of one group cross mostly the same voxels, and a hit here
     /// skips the shared bit array.
     recent: [u32; RECENT_SLOTS],
+    /// The group's rays that entered the grid, as walked: added to the
+    /// region's list once, when the marker is done.
+    segments: Vec<Ray>,
 }
 
 const RECENT_SLOTS: usize = 64;
@@ -478,6 +581,12 @@ impl RayObserver for RegionMarker<'_> {
         for lane in lanes(crossing) {
             let ray = &rays[lane];
             let (origin, dir, t0, t1) = (ray.origin, ray.dir, ray.tmin, ends[lane]);
+            self.segments.push(Ray {
+                origin,
+                dir,
+                tmin: t0,
+                tmax: t1,
+            });
             voxels.walker.for_each_index(origin, dir, t0, t1, |index| {
                 self.walked += 1;
                 let slot = index % RECENT_SLOTS;
@@ -498,6 +607,14 @@ impl RayObserver for RegionMarker<'_> {
 
 impl Drop for RegionMarker<'_> {
     fn drop(&mut self) {
+        if !self.segments.is_empty() {
+            if let Some(voxels) = &self.ostc.voxels {
+                voxels.segments[self.region]
+                    .lock()
+                    .unwrap_or_else(PoisonError::into_inner)
+                    .append(&mut self.segments);
+            }
+        }
         // Most groups' rays pass nowhere near the grid: nothing to add.
         if self.walked == 0 && self.nanos == 0 {
             return;
@@ -588,17 +705,24 @@ mod tests {
         });
         assert!(ostc.dirty_for(&[aside]).is_empty());
         // A ball whose bounding box reaches the voxels the ray marked (y and
-        // z within 1 +- 0.125 and 0 +- 0.125: 16 voxels a side), but not the
-        // ball itself.
+        // z within 1 +- 0.125 and 0 +- 0.125: 16 voxels a side), but neither
+        // the ball nor its box reaches the ray: the voxels name the region
+        // a candidate, its recorded segment clears it.
         let ball = |center: Vec3| Footprint::Ball {
             center,
             radius: 0.3,
         };
         let corner = Vec3::new(-0.5, 1.125 + 0.23, 0.125 + 0.23);
-        assert!(!ostc
+        assert!(ostc
             .dirty_for(&[Footprint::Box(ball(corner).bounds())])
             .is_empty());
         assert!(ostc.dirty_for(&[ball(corner)]).is_empty());
+        // Within the slack of the ray's line, a ball and a box count.
+        let grazing = Vec3::new(-0.5, 1.3, 0.0);
+        assert!(ostc.dirty_for(&[ball(grazing)]).contains(region));
+        assert!(ostc
+            .dirty_for(&[Footprint::Box(ball(grazing).bounds())])
+            .contains(region));
         assert!(ostc
             .dirty_for(&[ball(Vec3::new(-0.5, 1.2, 0.0))])
             .contains(region));
