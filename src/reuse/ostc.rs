@@ -232,13 +232,15 @@ struct RecordCounters {
 }
 
 /// Default voxel count of the OSTC grid. Recording walks every re-traced
-/// ray through the grid, and finer grids tighten the dirty regions little:
-/// on E3 (`bench --only E3 --ostc-voxels N`, one quiet run each, OSTC ms
-/// per frame / samples re-traced over 100 frames): 64 voxels 11.34 / 2.41M,
-/// 216: 11.31 / 2.31M, 512: 10.05-10.82 / 2.16M, 1728: 11.09-11.67 /
-/// 2.02M, 4096: 11.60-12.66 / 1.93M. On E4, 512 took 36.1 ms per frame
-/// against 45.8 for 4096.
-pub const DEFAULT_VOXELS: u32 = 512;
+/// ray through the grid, while the dirty regions no longer depend on it:
+/// the recorded segments decide, the voxels only pick the candidates, and
+/// testing a few thousand segments a frame costs less than walking finer
+/// voxels. On E3 (callgrind, one thread, instructions per steady frame):
+/// 512 voxels 123.3M, 64: 118.1M, 8: 115.2M; `bench --only E3`, alternated
+/// runs on a busy machine, OSTC ms per frame: 512 18.45 and 14.61, 8 17.98
+/// and 14.15. (Before the segments, 512 was the fastest of 64-4096: finer
+/// grids re-traced less but walked more.)
+pub const DEFAULT_VOXELS: u32 = 8;
 
 impl Ostc {
     /// Bookkeeping for a buffer tiled by `layout`: a grid of about `voxels`
