@@ -201,7 +201,33 @@ struct VoxelBits {
     /// to the walk's end): what refines the voxels' candidates. Filled by
     /// the markers of the region's groups (one lock per group), emptied
     /// with the region's bits.
-    segments: Vec<Mutex<Vec<Ray>>>,
+    segments: Vec<Mutex<Vec<RecordedSegment>>>,
+}
+
+/// One recorded ray inside the grid: `tmin` to the walk's end (its hit or
+/// `tmax`, plus [`WALK_END_SLACK`]).
+#[derive(Clone, Copy, Debug)]
+struct RecordedSegment {
+    ray: Ray,
+    /// A shadow ray: only whether something blocks it matters.
+    shadow: bool,
+}
+
+impl RecordedSegment {
+    /// Whether moving an object from and to `volumes` (its places, each a
+    /// bound of it) can change what this ray found.
+    ///
+    /// A ray that meets none of them found what it found before (see
+    /// [`Ostc::dirty_for`]). A shadow ray's one result is whether anything
+    /// blocks it: if the object surely blocks it at every place (the
+    /// footprint is the object's own exact shape and the segment runs
+    /// through it well inside), it was blocked and still is, whatever else
+    /// lies on it. On E3 that spares the core of the ball's shadows, where
+    /// both the old and the new ball block the way to the light.
+    fn may_change(&self, volumes: &[Footprint]) -> bool {
+        volumes.iter().any(|volume| volume.meets_segment(&self.ray))
+            && !(self.shadow && volumes.iter().all(|volume| volume.surely_blocks(&self.ray)))
+    }
 }
 
 /// A walk ends this far (relative to its length) past the hit, so the voxel
@@ -354,8 +380,7 @@ impl Ostc {
             let segments = voxels.segments[region]
                 .lock()
                 .unwrap_or_else(PoisonError::into_inner);
-            let meets = |ray: &Ray| volumes.iter().any(|volume| volume.meets_segment(ray));
-            if segments.iter().any(meets) {
+            if segments.iter().any(|segment| segment.may_change(volumes)) {
                 dirty.insert(region);
             }
         }
@@ -508,6 +533,47 @@ impl Footprint {
     }
 }
 
+impl Footprint {
+    /// True only if the object, whose exact shape this footprint is, surely
+    /// blocks the shadow ray `ray` (recorded: its `tmax` carries
+    /// [`WALK_END_SLACK`]): the segment passes through a ball well inside
+    /// it, its whole chord of the ball grown by the slack of
+    /// [`Footprint::meets_segment`] strictly between the segment's ends,
+    /// with the same slack again as room. Never for boxes (a bound, not
+    /// the shape).
+    fn surely_blocks(&self, ray: &Ray) -> bool {
+        let Footprint::Ball { center, radius } = *self else {
+            return false;
+        };
+        let t0 = f64::from(ray.tmin);
+        // The recorded end lies past the light by the walk's slack: undo
+        // it, and a little more.
+        let t1 = f64::from(ray.tmax) * (1.0 - 3.0 * f64::from(WALK_END_SLACK));
+        let origin = ray.origin.as_dvec3();
+        let dir = ray.dir.as_dvec3();
+        let dd = dir.length_squared();
+        if !(t0.is_finite() && t1.is_finite() && t0 < t1 && dd > 0.0 && dd.is_finite()) {
+            return false;
+        }
+        let center = center.as_dvec3();
+        let radius = f64::from(radius);
+        let closest = (center - origin).dot(dir) / dd;
+        let nearest = origin + dir * closest;
+        let slack =
+            radius * 1e-3 + (center.abs().max_element() + nearest.abs().max_element()) * 1e-5;
+        let distance = (center - nearest).length();
+        // Well inside: a ray grazing the ball might be missed by rounding
+        // (and a NaN settles nothing).
+        if distance.is_nan() || distance >= radius - 2.0 * slack {
+            return false;
+        }
+        let grown = radius + slack;
+        let half_chord = (grown * grown - distance * distance).sqrt() / dd.sqrt();
+        let room = slack / dd.sqrt();
+        closest - half_chord > t0 + room && closest + half_chord < t1 - room
+    }
+}
+
 fn atomic_words(count: usize) -> Vec<AtomicU64> {
     (0..count).map(|_| AtomicU64::new(0)).collect()
 }
@@ -535,7 +601,7 @@ pub struct RegionMarker<'a> {
     recent: [u32; RECENT_SLOTS],
     /// The group's rays that entered the grid, as walked: added to the
     /// region's list once, when the marker is done.
-    segments: Vec<Ray>,
+    segments: Vec<RecordedSegment>,
 }
 
 const RECENT_SLOTS: usize = 64;
@@ -579,15 +645,19 @@ impl RayObserver for RegionMarker<'_> {
             return;
         }
         let start = Instant::now();
+        let shadow = matches!(kind, RayKind::Shadow { .. });
         let plane = &voxels.bits[word * voxels.voxel_count..(word + 1) * voxels.voxel_count];
         for lane in lanes(crossing) {
             let ray = &rays[lane];
             let (origin, dir, t0, t1) = (ray.origin, ray.dir, ray.tmin, ends[lane]);
-            self.segments.push(Ray {
-                origin,
-                dir,
-                tmin: t0,
-                tmax: t1,
+            self.segments.push(RecordedSegment {
+                ray: Ray {
+                    origin,
+                    dir,
+                    tmin: t0,
+                    tmax: t1,
+                },
+                shadow,
             });
             voxels.walker.for_each_index(origin, dir, t0, t1, |index| {
                 self.walked += 1;
@@ -733,6 +803,51 @@ mod tests {
         dirty.insert(region);
         ostc.forget(&dirty);
         assert!(ostc.dirty_for(&[near(-0.5)]).is_empty());
+    }
+
+    #[test]
+    fn shadow_rays_blocked_by_both_places_of_a_ball_stay_clean() {
+        let swept = Aabb {
+            min: Vec3::new(-1.0, 0.0, -1.0),
+            max: Vec3::new(1.0, 2.0, 1.0),
+        };
+        let ostc = Ostc::new(layout(), Some(swept), 64, &[]);
+        let region = ostc.layout().region_of(44, 40);
+        let mut rays = [Ray::INACTIVE; PACKET_WIDTH];
+        // Toward a light at x = 5, through the middle of the box.
+        rays[0] = Ray::segment(Vec3::new(-5.0, 1.0, 0.0), Vec3::new(10.0, 0.0, 0.0), 1.0);
+        let ends = [1.0; PACKET_WIDTH];
+        let shadow = RayKind::Shadow {
+            light: 0,
+            blocked: 1,
+        };
+        ostc.marker(SampleGroup { col: 44, row: 40 })
+            .traced(shadow, &rays, 1, &ends);
+        let ball = |x: f32, y: f32| Footprint::Ball {
+            center: Vec3::new(x, y, 0.0),
+            radius: 0.3,
+        };
+        // Blocked before and after: nothing to re-trace.
+        assert!(ostc
+            .dirty_for(&[ball(-0.5, 1.0), ball(0.5, 1.1)])
+            .is_empty());
+        // Off the ray at one of its places (or only grazing it): dirty.
+        assert!(ostc
+            .dirty_for(&[ball(-0.5, 1.0), ball(0.5, 1.5)])
+            .contains(region));
+        assert!(ostc
+            .dirty_for(&[ball(-0.5, 1.0), ball(0.5, 1.3)])
+            .contains(region));
+        // A box is only a bound of its object: it never surely blocks.
+        let boxed = |x: f32| Footprint::Box(ball(x, 1.0).bounds());
+        assert!(ostc.dirty_for(&[boxed(-0.5), boxed(0.5)]).contains(region));
+        // A primary or reflected ray through both places still changes.
+        let ostc = Ostc::new(layout(), Some(swept), 64, &[]);
+        ostc.marker(SampleGroup { col: 44, row: 40 })
+            .traced(RayKind::Reflection, &rays, 1, &ends);
+        assert!(ostc
+            .dirty_for(&[ball(-0.5, 1.0), ball(0.5, 1.1)])
+            .contains(region));
     }
 
     proptest::proptest! {
