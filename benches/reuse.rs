@@ -178,11 +178,14 @@ fn rsvp_null_batches(c: &mut Criterion) {
     group.finish();
 }
 
-/// The supercover walk alone over the packets `ostc_recording` records:
-/// the difference between the two is the marking.
+/// The supercover walk alone over the packets `ostc_recording` records,
+/// through a 512-voxel grid: what a finer `--ostc-voxels` adds per ray.
 fn voxel_walk(c: &mut Criterion) {
     let (ostc, packets) = ostc_fixture();
-    let spec = *ostc.grid().expect("the fixture has a moving object");
+    let bounds = ostc.grid().expect("the fixture has a moving object").bounds;
+    // The default grid is one voxel, which records without a walk: walk
+    // the old default's 512 instead, as `--ostc-voxels 512` would.
+    let spec = retrace::accel::grid::GridSpec::with_cell_budget(bounds, 512.0);
     let mut group = c.benchmark_group("ostc");
     group.bench_function("walk 4096 packets (8 rays, to the exit), no marking", |b| {
         b.iter(|| {
