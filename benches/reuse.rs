@@ -4,7 +4,7 @@
 //! (walk plus marking), and the merging of dirty regions when an object
 //! moves.
 
-use criterion::{criterion_group, criterion_main, Criterion, Throughput};
+use criterion::{criterion_group, criterion_main, BatchSize, Criterion, Throughput};
 use glam::Vec3;
 use retrace::accel::{Accelerator, BackendKind};
 use retrace::geometry::Aabb;
@@ -68,26 +68,34 @@ fn ostc_fixture() -> (Ostc, Vec<[Ray; PACKET_WIDTH]>) {
 fn ostc_recording(c: &mut Criterion) {
     let (ostc, packets) = ostc_fixture();
     let ends = [f32::INFINITY; PACKET_WIDTH];
+    let record = |ostc: &Ostc| {
+        for (i, packet) in packets.iter().enumerate() {
+            let group = SampleGroup {
+                col: (i as i64 * 4) % 2304,
+                row: (i as i64 / 576) * 2,
+            };
+            ostc.marker(group).traced(
+                RayKind::Shadow {
+                    light: 0,
+                    blocked: 0,
+                },
+                packet,
+                0xff,
+                &ends,
+            );
+        }
+    };
     let mut group = c.benchmark_group("ostc");
+    // Each run into fresh bookkeeping: regions keep their recorded
+    // segments until forgotten, so one shared `Ostc` would grow.
     group.bench_function("record 4096 packets (8 rays, to the exit)", |b| {
-        b.iter(|| {
-            for (i, packet) in packets.iter().enumerate() {
-                let group = SampleGroup {
-                    col: (i as i64 * 4) % 2304,
-                    row: (i as i64 / 576) * 2,
-                };
-                ostc.marker(group).traced(
-                    RayKind::Shadow {
-                        light: 0,
-                        blocked: 0,
-                    },
-                    packet,
-                    0xff,
-                    &ends,
-                );
-            }
-        })
+        b.iter_batched_ref(
+            || ostc_fixture().0,
+            |fresh| record(fresh),
+            BatchSize::LargeInput,
+        )
     });
+    record(&ostc);
     let ball = |y: f32| Footprint::Ball {
         center: Vec3::new(0.0, y, 0.0),
         radius: 0.5,
@@ -170,11 +178,14 @@ fn rsvp_null_batches(c: &mut Criterion) {
     group.finish();
 }
 
-/// The supercover walk alone over the packets `ostc_recording` records:
-/// the difference between the two is the marking.
+/// The supercover walk alone over the packets `ostc_recording` records,
+/// through a 512-voxel grid: what a finer `--ostc-voxels` adds per ray.
 fn voxel_walk(c: &mut Criterion) {
     let (ostc, packets) = ostc_fixture();
-    let spec = *ostc.grid().expect("the fixture has a moving object");
+    let bounds = ostc.grid().expect("the fixture has a moving object").bounds;
+    // The default grid is one voxel, which records without a walk: walk
+    // the old default's 512 instead, as `--ostc-voxels 512` would.
+    let spec = retrace::accel::grid::GridSpec::with_cell_budget(bounds, 512.0);
     let mut group = c.benchmark_group("ostc");
     group.bench_function("walk 4096 packets (8 rays, to the exit), no marking", |b| {
         b.iter(|| {

@@ -10,12 +10,20 @@
 //! of the voxels under its old and its new bounds names every region whose
 //! samples could change ("dirty"); those are erased to null and re-traced.
 //!
+//! The voxel bits only name candidates: each region also keeps the
+//! segments of its recorded rays that enter the grid, and a candidate is
+//! dirty only if one of those segments meets the object's old or new
+//! footprint itself. Voxels round every footprint out to whole voxels (on
+//! E3, a ring of regions around the ball, its shadows and reflections that
+//! never changed); the segment test does not.
+//!
 //! Promises:
 //! - Conservative: every sample whose colour can change lies in a dirty
 //!   region. Bounds are rounded outward, walks are supercover walks that
 //!   end a little past the hit, shadow rays count to the light (an
 //!   occlusion query finds *a* blocker, not the nearest), misses count to
-//!   the grid's exit.
+//!   the grid's exit. A segment counts as meeting a footprint within a
+//!   slack well above the rounding of the hit and of the posed object.
 //! - Bits are never stale nor lost early: a region's bits are cleared only
 //!   when the region is erased (all its samples nulled), and the re-traced
 //!   samples set them again.
@@ -31,13 +39,14 @@
 //! before, it does not light now.
 
 use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Mutex, PoisonError};
 use std::time::Instant;
 
 use crate::accel::grid::{GridSpec, GridWalker};
 use crate::geometry::Aabb;
 use glam::Vec3;
 
-use crate::ray::{lanes, LaneMask, RayPacket, PACKET_WIDTH};
+use crate::ray::{lanes, LaneMask, Ray, RayPacket, PACKET_WIDTH};
 use crate::render::{SampleGroup, GROUP_HEIGHT, GROUP_WIDTH};
 use crate::shade::{RayKind, RayObserver};
 
@@ -204,6 +213,37 @@ struct VoxelBits {
     /// plane (its region's), whose voxels lie side by side in memory.
     bits: Vec<AtomicU64>,
     voxel_count: usize,
+    /// Per region, the recorded rays that enter the grid, as walked (`tmin`
+    /// to the walk's end): what refines the voxels' candidates. Filled by
+    /// the markers of the region's groups (one lock per group), emptied
+    /// with the region's bits.
+    segments: Vec<Mutex<Vec<RecordedSegment>>>,
+}
+
+/// One recorded ray inside the grid: `tmin` to the walk's end (its hit or
+/// `tmax`, plus [`WALK_END_SLACK`]).
+#[derive(Clone, Copy, Debug)]
+struct RecordedSegment {
+    ray: Ray,
+    /// A shadow ray: only whether something blocks it matters.
+    shadow: bool,
+}
+
+impl RecordedSegment {
+    /// Whether moving an object from and to `volumes` (its places, each a
+    /// bound of it) can change what this ray found.
+    ///
+    /// A ray that meets none of them found what it found before (see
+    /// [`Ostc::dirty_for`]). A shadow ray's one result is whether anything
+    /// blocks it: if the object surely blocks it at every place (the
+    /// footprint is the object's own exact shape and the segment runs
+    /// through it well inside), it was blocked and still is, whatever else
+    /// lies on it. On E3 that spares the core of the ball's shadows, where
+    /// both the old and the new ball block the way to the light.
+    fn may_change(&self, volumes: &[Footprint]) -> bool {
+        volumes.iter().any(|volume| volume.meets_segment(&self.ray))
+            && !(self.shadow && volumes.iter().all(|volume| volume.surely_blocks(&self.ray)))
+    }
 }
 
 /// A walk ends this far (relative to its length) past the hit, so the voxel
@@ -233,14 +273,16 @@ struct RecordCounters {
     record_nanos: AtomicU64,
 }
 
-/// Default voxel count of the OSTC grid. Recording walks every re-traced
-/// ray through the grid, and finer grids tighten the dirty regions little:
-/// on E3 (`bench --only E3 --ostc-voxels N`, one quiet run each, OSTC ms
-/// per frame / samples re-traced over 100 frames): 64 voxels 11.34 / 2.41M,
-/// 216: 11.31 / 2.31M, 512: 10.05-10.82 / 2.16M, 1728: 11.09-11.67 /
-/// 2.02M, 4096: 11.60-12.66 / 1.93M. On E4, 512 took 36.1 ms per frame
-/// against 45.8 for 4096.
-pub const DEFAULT_VOXELS: u32 = 512;
+/// Default voxel count of the OSTC grid. The dirty regions do not depend
+/// on it: the recorded segments decide, the voxels only pick the candidate
+/// regions, and testing every recorded segment of the few thousand
+/// candidates a frame costs less than walking rays through finer voxels.
+/// One voxel needs no walk at all. On E3 (callgrind, one thread,
+/// instructions per steady frame, with the segments): 512 voxels 123.3M,
+/// 64: 118.1M, 8: 115.2M, then (with the shadow refinement) 8: 110.2M,
+/// 1 without a walk: 101.1M. (Before the segments, 512 was the fastest of
+/// 64-4096: finer grids re-traced less but walked more.)
+pub const DEFAULT_VOXELS: u32 = 1;
 
 impl Ostc {
     /// Bookkeeping for a buffer tiled by `layout`: a grid of about `voxels`
@@ -258,13 +300,20 @@ impl Ostc {
         let voxels = swept
             .filter(|b| !b.is_empty() && b.is_finite())
             .map(|bounds| {
-                let spec = GridSpec::with_cell_budget(bounds, f64::from(voxels.max(1)));
+                let mut spec = GridSpec::with_cell_budget(bounds, f64::from(voxels.max(1)));
+                // The budget rounds per axis (1 asked over a tall box gives
+                // 1x2x1): one voxel asked for is one voxel, whose marking
+                // needs no walk.
+                if voxels <= 1 {
+                    spec.resolution = [1, 1, 1];
+                }
                 VoxelBits {
                     bits: (0..spec.voxel_count() * words)
                         .map(|_| AtomicU64::new(0))
                         .collect(),
                     voxel_count: spec.voxel_count(),
                     walker: spec.walker(),
+                    segments: (0..layout.count()).map(|_| Mutex::default()).collect(),
                     spec,
                 }
             });
@@ -305,16 +354,30 @@ impl Ostc {
             walked: 0,
             nanos: 0,
             recent: [0; RECENT_SLOTS],
+            segments: Vec::new(),
         }
     }
 
-    /// Regions whose rays crossed a voxel that `volumes` (an object's old
-    /// and new place) overlap, rounded outward.
+    /// Regions with a recorded ray that meets one of `volumes` (an
+    /// object's old and new place), rounded outward.
+    ///
+    /// Why this is enough: a ray's result depends only on the geometry
+    /// along the segment it was walked over (to its hit and a little past
+    /// it; to the light for shadow rays, since an occlusion query may stop
+    /// at any blocker; to the grid's exit for misses). An object that
+    /// neither was nor is on that segment leaves the ray's hit, and so its
+    /// shading and the rays it spawns, exactly as they were; by induction
+    /// over the sample's rays, a sample none of whose rays meets `volumes`
+    /// keeps its colour bit for bit. The voxels only pick the regions worth
+    /// testing: a segment that meets a footprint crosses a voxel the
+    /// footprint overlaps (the walk is a supercover, the voxel range and
+    /// the footprints are rounded outward).
     pub fn dirty_for(&self, volumes: &[Footprint]) -> RegionSet {
         let mut dirty = RegionSet::empty(self.layout.count());
         let Some(voxels) = &self.voxels else {
             return dirty;
         };
+        let mut candidates = RegionSet::empty(self.layout.count());
         for volume in volumes {
             let bounds = padded_outward(volume.bounds());
             let Some([first, last]) = voxels.spec.voxel_range(&bounds) else {
@@ -327,12 +390,20 @@ impl Ostc {
                             continue;
                         }
                         let voxel = voxels.spec.linear_index([i, j, k]);
-                        for (word, bits) in dirty.words.iter_mut().enumerate() {
+                        for (word, bits) in candidates.words.iter_mut().enumerate() {
                             *bits |= voxels.bits[word * voxels.voxel_count + voxel]
                                 .load(Ordering::Relaxed);
                         }
                     }
                 }
+            }
+        }
+        for region in candidates.iter() {
+            let segments = voxels.segments[region]
+                .lock()
+                .unwrap_or_else(PoisonError::into_inner);
+            if segments.iter().any(|segment| segment.may_change(volumes)) {
+                dirty.insert(region);
             }
         }
         dirty
@@ -368,6 +439,12 @@ impl Ostc {
                 for bits in plane {
                     *bits.get_mut() &= keep;
                 }
+            }
+            for region in regions.iter() {
+                voxels.segments[region]
+                    .get_mut()
+                    .unwrap_or_else(PoisonError::into_inner)
+                    .clear();
             }
         }
         let light_sets = self.lit_by.iter_mut().flatten();
@@ -422,6 +499,103 @@ impl Footprint {
     }
 }
 
+impl Footprint {
+    /// False only if the segment `ray` (`tmin` to `tmax`, which may be
+    /// infinite) surely misses the footprint. In f64, with a slack far
+    /// above the rounding of the posed object (its centre and bounds come
+    /// out of an f32 transform, Embree intersects in f32) and of the walk's
+    /// end (which already lies a little past the hit).
+    fn meets_segment(&self, ray: &Ray) -> bool {
+        let (t0, t1) = (f64::from(ray.tmin), f64::from(ray.tmax));
+        // An empty or NaN segment was never walked; keep it anyway.
+        if !(t0 <= t1 && t0.is_finite()) {
+            return true;
+        }
+        let origin = ray.origin.as_dvec3();
+        let dir = ray.dir.as_dvec3();
+        match *self {
+            Footprint::Ball { center, radius } => {
+                let center = center.as_dvec3();
+                let radius = f64::from(radius);
+                let dd = dir.length_squared();
+                // The segment's point nearest the centre.
+                let t = if dd > 0.0 {
+                    ((center - origin).dot(dir) / dd).clamp(t0, t1)
+                } else {
+                    t0
+                };
+                let nearest = origin + dir * t;
+                let slack = radius * 1e-3
+                    + (center.abs().max_element() + nearest.abs().max_element()) * 1e-5;
+                let distance = (center - nearest).length();
+                // A NaN (an overflow) is kept.
+                distance <= radius + slack || distance.is_nan()
+            }
+            Footprint::Box(bounds) => {
+                let bounds = padded_outward(bounds);
+                let (lo, hi) = (bounds.min.as_dvec3(), bounds.max.as_dvec3());
+                let (mut enter, mut exit) = (t0, t1);
+                for axis in 0..3 {
+                    if dir[axis] == 0.0 {
+                        if origin[axis] < lo[axis] || origin[axis] > hi[axis] {
+                            return false;
+                        }
+                        continue;
+                    }
+                    let a = (lo[axis] - origin[axis]) / dir[axis];
+                    let z = (hi[axis] - origin[axis]) / dir[axis];
+                    enter = enter.max(a.min(z));
+                    exit = exit.min(a.max(z));
+                }
+                // The box is padded far beyond f64's error in `t`; a NaN
+                // (an overflow) is kept.
+                enter <= exit || enter.is_nan() || exit.is_nan()
+            }
+        }
+    }
+}
+
+impl Footprint {
+    /// True only if the object, whose exact shape this footprint is, surely
+    /// blocks the shadow ray `ray` (recorded: its `tmax` carries
+    /// [`WALK_END_SLACK`]): the segment passes through a ball well inside
+    /// it, its whole chord of the ball grown by the slack of
+    /// [`Footprint::meets_segment`] strictly between the segment's ends,
+    /// with the same slack again as room. Never for boxes (a bound, not
+    /// the shape).
+    fn surely_blocks(&self, ray: &Ray) -> bool {
+        let Footprint::Ball { center, radius } = *self else {
+            return false;
+        };
+        let t0 = f64::from(ray.tmin);
+        // The recorded end lies past the light by the walk's slack: undo
+        // it, and a little more.
+        let t1 = f64::from(ray.tmax) * (1.0 - 3.0 * f64::from(WALK_END_SLACK));
+        let origin = ray.origin.as_dvec3();
+        let dir = ray.dir.as_dvec3();
+        let dd = dir.length_squared();
+        if !(t0.is_finite() && t1.is_finite() && t0 < t1 && dd > 0.0 && dd.is_finite()) {
+            return false;
+        }
+        let center = center.as_dvec3();
+        let radius = f64::from(radius);
+        let closest = (center - origin).dot(dir) / dd;
+        let nearest = origin + dir * closest;
+        let slack =
+            radius * 1e-3 + (center.abs().max_element() + nearest.abs().max_element()) * 1e-5;
+        let distance = (center - nearest).length();
+        // Well inside: a ray grazing the ball might be missed by rounding
+        // (and a NaN settles nothing).
+        if distance.is_nan() || distance >= radius - 2.0 * slack {
+            return false;
+        }
+        let grown = radius + slack;
+        let half_chord = (grown * grown - distance * distance).sqrt() / dd.sqrt();
+        let room = slack / dd.sqrt();
+        closest - half_chord > t0 + room && closest + half_chord < t1 - room
+    }
+}
+
 fn atomic_words(count: usize) -> Vec<AtomicU64> {
     (0..count).map(|_| AtomicU64::new(0)).collect()
 }
@@ -447,6 +621,9 @@ pub struct RegionMarker<'a> {
     /// rays of one group cross mostly the same voxels, and a hit here
     /// skips the shared bit array.
     recent: [u32; RECENT_SLOTS],
+    /// The group's rays that entered the grid, as walked: added to the
+    /// region's list once, when the marker is done.
+    segments: Vec<RecordedSegment>,
 }
 
 const RECENT_SLOTS: usize = 64;
@@ -490,10 +667,32 @@ impl RayObserver for RegionMarker<'_> {
             return;
         }
         let start = Instant::now();
+        let shadow = matches!(kind, RayKind::Shadow { .. });
         let plane = &voxels.bits[word * voxels.voxel_count..(word + 1) * voxels.voxel_count];
+        if voxels.voxel_count == 1 {
+            // One voxel, the whole grid: every lane the box test lets
+            // through may cross it (a superset of what the walk would
+            // find, so still conservative), and no walk is needed.
+            self.walked += u64::from(crossing.count_ones());
+            if plane[0].load(Ordering::Relaxed) & bit == 0 {
+                plane[0].fetch_or(bit, Ordering::Relaxed);
+            }
+        }
         for lane in lanes(crossing) {
             let ray = &rays[lane];
             let (origin, dir, t0, t1) = (ray.origin, ray.dir, ray.tmin, ends[lane]);
+            self.segments.push(RecordedSegment {
+                ray: Ray {
+                    origin,
+                    dir,
+                    tmin: t0,
+                    tmax: t1,
+                },
+                shadow,
+            });
+            if voxels.voxel_count == 1 {
+                continue;
+            }
             voxels.walker.for_each_index(origin, dir, t0, t1, |index| {
                 self.walked += 1;
                 let slot = index % RECENT_SLOTS;
@@ -514,6 +713,14 @@ impl RayObserver for RegionMarker<'_> {
 
 impl Drop for RegionMarker<'_> {
     fn drop(&mut self) {
+        if !self.segments.is_empty() {
+            if let Some(voxels) = &self.ostc.voxels {
+                voxels.segments[self.region]
+                    .lock()
+                    .unwrap_or_else(PoisonError::into_inner)
+                    .append(&mut self.segments);
+            }
+        }
         // Most groups' rays pass nowhere near the grid: nothing to add.
         if self.walked == 0 && self.nanos == 0 {
             return;
@@ -612,17 +819,24 @@ mod tests {
         });
         assert!(ostc.dirty_for(&[aside]).is_empty());
         // A ball whose bounding box reaches the voxels the ray marked (y and
-        // z within 1 +- 0.125 and 0 +- 0.125: 16 voxels a side), but not the
-        // ball itself.
+        // z within 1 +- 0.125 and 0 +- 0.125: 16 voxels a side), but neither
+        // the ball nor its box reaches the ray: the voxels name the region
+        // a candidate, its recorded segment clears it.
         let ball = |center: Vec3| Footprint::Ball {
             center,
             radius: 0.3,
         };
         let corner = Vec3::new(-0.5, 1.125 + 0.23, 0.125 + 0.23);
-        assert!(!ostc
+        assert!(ostc
             .dirty_for(&[Footprint::Box(ball(corner).bounds())])
             .is_empty());
         assert!(ostc.dirty_for(&[ball(corner)]).is_empty());
+        // Within the slack of the ray's line, a ball and a box count.
+        let grazing = Vec3::new(-0.5, 1.3, 0.0);
+        assert!(ostc.dirty_for(&[ball(grazing)]).contains(region));
+        assert!(ostc
+            .dirty_for(&[Footprint::Box(ball(grazing).bounds())])
+            .contains(region));
         assert!(ostc
             .dirty_for(&[ball(Vec3::new(-0.5, 1.2, 0.0))])
             .contains(region));
@@ -631,6 +845,51 @@ mod tests {
         dirty.insert(region);
         ostc.forget(&dirty);
         assert!(ostc.dirty_for(&[near(-0.5)]).is_empty());
+    }
+
+    #[test]
+    fn shadow_rays_blocked_by_both_places_of_a_ball_stay_clean() {
+        let swept = Aabb {
+            min: Vec3::new(-1.0, 0.0, -1.0),
+            max: Vec3::new(1.0, 2.0, 1.0),
+        };
+        let ostc = Ostc::new(layout(), Some(swept), 64, &[]);
+        let region = ostc.layout().region_of(44, 40);
+        let mut rays = [Ray::INACTIVE; PACKET_WIDTH];
+        // Toward a light at x = 5, through the middle of the box.
+        rays[0] = Ray::segment(Vec3::new(-5.0, 1.0, 0.0), Vec3::new(10.0, 0.0, 0.0), 1.0);
+        let ends = [1.0; PACKET_WIDTH];
+        let shadow = RayKind::Shadow {
+            light: 0,
+            blocked: 1,
+        };
+        ostc.marker(SampleGroup { col: 44, row: 40 })
+            .traced(shadow, &rays, 1, &ends);
+        let ball = |x: f32, y: f32| Footprint::Ball {
+            center: Vec3::new(x, y, 0.0),
+            radius: 0.3,
+        };
+        // Blocked before and after: nothing to re-trace.
+        assert!(ostc
+            .dirty_for(&[ball(-0.5, 1.0), ball(0.5, 1.1)])
+            .is_empty());
+        // Off the ray at one of its places (or only grazing it): dirty.
+        assert!(ostc
+            .dirty_for(&[ball(-0.5, 1.0), ball(0.5, 1.5)])
+            .contains(region));
+        assert!(ostc
+            .dirty_for(&[ball(-0.5, 1.0), ball(0.5, 1.3)])
+            .contains(region));
+        // A box is only a bound of its object: it never surely blocks.
+        let boxed = |x: f32| Footprint::Box(ball(x, 1.0).bounds());
+        assert!(ostc.dirty_for(&[boxed(-0.5), boxed(0.5)]).contains(region));
+        // A primary or reflected ray through both places still changes.
+        let ostc = Ostc::new(layout(), Some(swept), 64, &[]);
+        ostc.marker(SampleGroup { col: 44, row: 40 })
+            .traced(RayKind::Reflection, &rays, 1, &ends);
+        assert!(ostc
+            .dirty_for(&[ball(-0.5, 1.0), ball(0.5, 1.1)])
+            .contains(region));
     }
 
     proptest::proptest! {
