@@ -1984,16 +1984,6 @@ impl SampleBuffer {
             .zip(&mapped)
             .zip(traced.into_iter().zip(map_ms))
             .map(|((pose, mapped), ((samples, rays, trace_ms), map_ms))| {
-                if let Some(reps) = std::env::var_os("GATHER_REPS") {
-                    let reps: usize = reps.to_str().unwrap().parse().unwrap();
-                    let mut best = f64::MAX;
-                    for _ in 0..reps {
-                        let t = Instant::now();
-                        let _ = self.gather(pose, mapped, knobs.filter, linear);
-                        best = best.min(t.elapsed().as_secs_f64() * 1e3);
-                    }
-                    eprintln!("gathermin {best:.4}");
-                }
                 let start = Instant::now();
                 let (frame, image) = self.gather(pose, mapped, knobs.filter, linear);
                 let gather_ms = start.elapsed().as_secs_f64() * 1e3;
