@@ -1297,27 +1297,11 @@ impl SampleBuffer {
         Some((level, grid))
     }
 
-    /// Lattice coordinates (at `level`) of a region's pixels, row-major,
-    /// `cols` wide (NaN: no ray): interpolated from `grid`, else exact.
+    /// Lattice coordinates (at `level`) of a region's pixels into `out`,
+    /// row-major, `cols` wide, which comes filled with NaN (left where a
+    /// pixel has no ray): interpolated from `grid`, else exact.
     #[allow(clippy::too_many_arguments)]
     fn region_coords(
-        &self,
-        pose: &ViewportPose,
-        map: &PixelMap,
-        level: Level,
-        grid: Option<&MapGrid>,
-        (x0, y0): (u32, u32),
-        (cols, rows): (usize, usize),
-        out: &mut Vec<DVec2>,
-    ) {
-        out.clear();
-        out.resize(cols * rows, DVec2::NAN);
-        self.fill_coords(pose, map, level, grid, (x0, y0), cols, out);
-    }
-
-    /// [`SampleBuffer::region_coords`] into `out`, `cols` wide, all NaN.
-    #[allow(clippy::too_many_arguments)]
-    fn fill_coords(
         &self,
         pose: &ViewportPose,
         map: &PixelMap,
@@ -1409,8 +1393,8 @@ impl SampleBuffer {
                                 level,
                                 None,
                                 (x0, y0),
-                                (cols, rows),
-                                &mut coords,
+                                cols,
+                                nan_filled(&mut coords, cols * rows),
                             );
                             mapped = true;
                             for c in coords.iter().filter(|c| !c.x.is_nan()) {
@@ -1436,8 +1420,8 @@ impl SampleBuffer {
                                         level,
                                         grid.as_ref(),
                                         (x0, y0),
-                                        (cols, rows),
-                                        &mut coords,
+                                        cols,
+                                        nan_filled(&mut coords, cols * rows),
                                     );
                                 }
                                 for c in coords.iter().filter(|c| !c.x.is_nan()) {
@@ -1752,7 +1736,7 @@ impl SampleBuffer {
                         let x0 = rx * REGION as usize;
                         let cols = (w - x0).min(REGION as usize);
                         let coords = &mut coords[x0 * rows..(x0 + cols) * rows];
-                        self.fill_coords(
+                        self.region_coords(
                             pose,
                             &map,
                             region.level,
@@ -2032,7 +2016,8 @@ impl SampleBuffer {
             let level = region.level;
             let size = (cols as usize, rows as usize);
             let grid = region.grid.as_ref();
-            self.region_coords(pose, &map, level, grid, (x0, y0), size, &mut coords);
+            let slots = nan_filled(&mut coords, size.0 * size.1);
+            self.region_coords(pose, &map, level, grid, (x0, y0), size.0, slots);
             let last_row = self.lattice.last_row(level.y);
             for (k, c) in coords.iter().enumerate() {
                 if c.x.is_nan() {
@@ -2094,6 +2079,13 @@ impl SampleBuffer {
             image::Rgb(colour.map_or([0; 3], |c| c.to_array().map(|v| srgb.encode(v))))
         })
     }
+}
+
+/// `v` as `len` NaN coordinates, reusing its allocation.
+fn nan_filled(v: &mut Vec<DVec2>, len: usize) -> &mut [DVec2] {
+    v.clear();
+    v.resize(len, DVec2::NAN);
+    v
 }
 
 /// Samples of one level copied into a dense row-major array, `width`
@@ -2577,8 +2569,11 @@ mod tests {
                         (pose.camera.height - y0).min(REGION) as usize,
                     );
                     let at = (x0, y0);
-                    buffer.region_coords(&pose, &map, level, None, at, size, &mut exact);
-                    buffer.region_coords(&pose, &map, level, Some(&grid), at, size, &mut fast);
+                    let n = size.0 * size.1;
+                    let exact_out = nan_filled(&mut exact, n);
+                    buffer.region_coords(&pose, &map, level, None, at, size.0, exact_out);
+                    let fast_out = nan_filled(&mut fast, n);
+                    buffer.region_coords(&pose, &map, level, Some(&grid), at, size.0, fast_out);
                     for (e, f) in exact.iter().zip(&fast) {
                         let miss = (*e - *f).abs().max_element();
                         assert!(
