@@ -315,6 +315,12 @@ pub struct SequenceBench {
     pub region_oracle_speedup: f64,
     /// The oracle's ray totals behind both speedups.
     pub oracle_rays: OracleRays,
+    /// The region oracle timed rather than counted: full renders over
+    /// frame 0 in full plus, for each later frame, the time of tracing just
+    /// the groups of its regions that had to be traced (first round). Rays
+    /// differ in cost (those near a moving object hit more and reflect
+    /// more), which counting rays cannot see.
+    pub timed_region_oracle_speedup: f64,
     /// speedup / oracle_speedup.
     pub efficiency: f64,
     /// OSTC's recording and merging per frame, as a share of a full
@@ -358,6 +364,8 @@ struct Oracle {
     region_size: (i64, i64),
     samples: u64,
     region_samples: u64,
+    /// Per pixel of the last frame added: does its region need tracing?
+    region_pixels: Vec<bool>,
     /// Rays a full render of every frame traced, and the rays of the
     /// oracle's samples and regions: what tracing them costs, since pixels
     /// differ a lot in cost (a mirror's samples trace several rays).
@@ -380,6 +388,7 @@ impl Oracle {
             region_size,
             samples: 0,
             region_samples: 0,
+            region_pixels: Vec::new(),
             rays: OracleRays::default(),
         }
     }
@@ -402,6 +411,7 @@ impl Oracle {
             self.region_samples += pixels;
             self.rays.samples += all_rays;
             self.rays.regions += all_rays;
+            self.region_pixels = vec![true; frame.pixels.len()];
             return (pixels, pixels);
         }
         let before = (self.samples, self.region_samples);
@@ -446,13 +456,35 @@ impl Oracle {
                 dirty_regions.insert(region);
             }
         }
+        self.region_pixels.clear();
         for (region, &pixel_rays) in region_of_pixel.iter().zip(rays) {
-            if dirty_regions.contains(region) {
+            let dirty = dirty_regions.contains(region);
+            if dirty {
                 self.region_samples += 1;
                 self.rays.regions += u64::from(pixel_rays);
             }
+            self.region_pixels.push(dirty);
         }
         (self.samples - before.0, self.region_samples - before.1)
+    }
+
+    /// The sample groups (of a `width` pixels wide frame) holding a pixel
+    /// of the last frame's regions that had to be traced: what the region
+    /// oracle traces when timed.
+    fn region_groups(&self, width: u32) -> Vec<crate::render::SampleGroup> {
+        let width = i64::from(width.max(1));
+        let mut groups: Vec<_> = self
+            .region_pixels
+            .iter()
+            .enumerate()
+            .filter(|&(_, &dirty)| dirty)
+            .map(|(i, _)| {
+                crate::render::SampleGroup::containing(i as i64 % width, i as i64 / width)
+            })
+            .collect();
+        groups.sort_unstable_by_key(|g| (g.row, g.col));
+        groups.dedup();
+        groups
     }
 }
 
@@ -528,6 +560,8 @@ pub fn bench_sequence(
     let mut pixels_per_frame = 0;
     let mut bookkeeping_ms = 0.0;
     let mut oracle = Oracle::new(region_size);
+    let mut oracle_traced_ms = 0.0;
+    let mut first_full_ms = 0.0;
     let mut profile = FrameProfile::empty(frames.clone());
     // Per frame and round, for per-frame medians.
     let mut full_frame_ms = vec![Vec::new(); profile.len()];
@@ -556,10 +590,18 @@ pub fn bench_sequence(
                 row.oracle_samples = Some(samples);
                 row.oracle_region_samples = Some(region_samples);
                 row.full_rays = rays;
+                let table = crate::camera::RayTable::new(&camera);
+                let groups = oracle.region_groups(camera.width);
+                let start = Instant::now();
+                std::hint::black_box(crate::render::trace_groups(&shader, &table, &groups));
+                oracle_traced_ms += start.elapsed().as_secs_f64() * 1e3;
             }
             progress();
         }
         full_times.push(elapsed);
+        if round == 0 {
+            first_full_ms = elapsed;
+        }
 
         let mut fast = Animator::new(scene, accel, techniques, frames.clone());
         fast.set_linear_output(false);
@@ -621,6 +663,7 @@ pub fn bench_sequence(
         oracle_speedup,
         region_oracle_speedup,
         oracle_rays: oracle.rays,
+        timed_region_oracle_speedup: first_full_ms / oracle_traced_ms.max(1e-9),
         efficiency: speedup / oracle_speedup,
         bookkeeping_share: bookkeeping_ms
             / (full_ms / f64::from(frame_count.max(1)))
@@ -944,5 +987,38 @@ mod tests {
         assert_eq!(oracle.rays.samples, all + u64::from(rays[pixel]));
         let region_rays = oracle.rays.regions - all;
         assert!(region_rays >= 16 * 8 && region_rays > u64::from(rays[pixel]));
+    }
+
+    #[test]
+    fn the_timed_region_oracle_traces_exactly_the_changed_regions_groups() {
+        use crate::render::SampleGroup;
+        let (scene, frame, _, rays) = small_paper_traced();
+        let mut oracle = Oracle::new((16, 8));
+        oracle.add(&scene.camera, &frame, &rays);
+        // Frame 0: the whole frame.
+        assert_eq!(
+            oracle.region_groups(64),
+            SampleGroup::covering(0..64, 0..48)
+        );
+        oracle.add(&scene.camera, &frame, &rays);
+        assert!(oracle.region_groups(64).is_empty());
+        // Pixel (37, 20) lies in the region of columns 32..48, rows 16..24
+        // (the window starts on the lattice's region grid here).
+        let mut changed = frame.clone();
+        changed.pixels[20 * 64 + 37] += glam::Vec3::splat(0.25);
+        oracle.add(&scene.camera, &changed, &rays);
+        let groups = oracle.region_groups(64);
+        let region: Vec<(i64, i64)> = groups.iter().map(|g| (g.col, g.row)).collect();
+        let lattice = crate::reuse::pan::EqualAngleLattice::for_camera(&scene.camera);
+        let window = lattice.window(&scene.camera);
+        let (c0, r0) = (window.col.rem_euclid(16), window.row.rem_euclid(8));
+        let expected: Vec<(i64, i64)> = SampleGroup::covering(
+            (37 - (37 + c0) % 16)..(37 - (37 + c0) % 16 + 16),
+            (20 - (20 + r0) % 8)..(20 - (20 + r0) % 8 + 8),
+        )
+        .iter()
+        .map(|g| (g.col, g.row))
+        .collect();
+        assert_eq!(region, expected);
     }
 }

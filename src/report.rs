@@ -41,6 +41,8 @@ pub struct BenchRow {
     pub oracle_speedup: Option<f64>,
     /// The same when whole OSTC regions are traced.
     pub region_oracle_speedup: Option<f64>,
+    /// The region oracle timed: its regions' groups traced, not counted.
+    pub timed_region_oracle_speedup: Option<f64>,
     /// speedup / oracle_speedup.
     pub efficiency: Option<f64>,
     /// OSTC recording and merging per frame over a full frame's time; None
@@ -62,6 +64,11 @@ impl BenchRow {
     /// any method tracing whole regions could do.
     pub fn region_efficiency(&self) -> Option<f64> {
         self.region_oracle_speedup.map(|r| self.speedup / r)
+    }
+
+    /// speedup / timed_region_oracle_speedup.
+    pub fn timed_region_efficiency(&self) -> Option<f64> {
+        self.timed_region_oracle_speedup.map(|r| self.speedup / r)
     }
 }
 
@@ -108,6 +115,7 @@ impl ExperimentResult {
             speedup: bench.speedup,
             oracle_speedup: Some(bench.oracle_speedup),
             region_oracle_speedup: Some(bench.region_oracle_speedup),
+            timed_region_oracle_speedup: Some(bench.timed_region_oracle_speedup),
             efficiency: Some(bench.efficiency),
             bookkeeping_share: ostc.then_some(bench.bookkeeping_share),
             samples_traced: bench.samples_traced,
@@ -167,6 +175,7 @@ impl ExperimentResult {
             speedup: bench.speedup,
             oracle_speedup,
             region_oracle_speedup: None,
+            timed_region_oracle_speedup: None,
             efficiency: oracle_speedup.map(|o| bench.speedup / o),
             bookkeeping_share: ostc
                 .then(|| bench.bookkeeping_ms / frames / full_ms_per_frame.max(f64::MIN_POSITIVE)),
@@ -195,7 +204,7 @@ const TABLE_HEADER: [&str; 11] = [
     "full ms/frame",
     "accel ms/frame",
     "speedup",
-    "oracle (sample / region)",
+    "oracle (sample / region / timed)",
     "efficiency",
     "bookkeeping",
     "exactness / error",
@@ -213,11 +222,17 @@ fn cells(row: &BenchRow) -> [String; 11] {
         format!("{:.2}", row.accelerated_ms_per_frame),
         format!("{:.2}x", row.speedup),
         match (row.oracle_speedup, row.region_oracle_speedup) {
-            (Some(o), Some(r)) => format!("{o:.2}x / {r:.2}x"),
+            (Some(o), Some(r)) => match row.timed_region_oracle_speedup {
+                Some(t) => format!("{o:.2}x / {r:.2}x / {t:.2}x"),
+                None => format!("{o:.2}x / {r:.2}x"),
+            },
             (o, _) => or_na(o, |o| format!("{o:.2}x")),
         },
         match (row.efficiency, row.region_efficiency()) {
-            (Some(e), Some(r)) => format!("{:.0}% / {:.0}%", e * 100.0, r * 100.0),
+            (Some(e), Some(r)) => match row.timed_region_efficiency() {
+                Some(t) => format!("{:.0}% / {:.0}% / {:.0}%", e * 100.0, r * 100.0, t * 100.0),
+                None => format!("{:.0}% / {:.0}%", e * 100.0, r * 100.0),
+            },
             (e, _) => or_na(e, |e| format!("{:.0}%", e * 100.0)),
         },
         row.bookkeeping_share
@@ -293,7 +308,7 @@ fn opt<T: ToString>(value: Option<T>) -> String {
 }
 
 /// The columns of `bench.csv`.
-pub const ROW_COLUMNS: [&str; 23] = [
+pub const ROW_COLUMNS: [&str; 25] = [
     "experiment",
     "what",
     "technique",
@@ -310,6 +325,8 @@ pub const ROW_COLUMNS: [&str; 23] = [
     "region_oracle_speedup",
     "efficiency",
     "region_efficiency",
+    "timed_region_oracle_speedup",
+    "timed_region_efficiency",
     "bookkeeping_share",
     "samples_traced",
     "oracle_samples",
@@ -342,6 +359,8 @@ pub fn rows_csv(rows: &[BenchRow]) -> String {
             opt(row.region_oracle_speedup),
             opt(row.efficiency),
             opt(row.region_efficiency()),
+            opt(row.timed_region_oracle_speedup),
+            opt(row.timed_region_efficiency()),
             opt(row.bookkeeping_share),
             row.samples_traced.to_string(),
             opt(row.oracle_samples),
@@ -676,9 +695,13 @@ frame 0, buffers, recording, merging, copies, resampling, scene updates.
 - **oracle (sample / region)**: the speedup of the least tracing any reuse could get away \
 with (below). For camera sequences: the rays full renders of all frames trace over the rays of \
 the samples that had to be traced; the second figure traces every OSTC region holding such a \
-sample whole: the best a method working in whole regions (as OSTC does) could do. For \
-viewports: output pixels over needed samples. `n/a` where it was not measured.
-- **efficiency**: speedup / oracle (per sample / per region): how close the reuse comes to the \
+sample whole: the best a method working in whole regions (as OSTC does) could do. The third \
+(timed) is that region oracle run for real: after each full render, the groups of the regions \
+that had to be traced are traced again and timed; full renders over frame 0 in full plus those \
+times. It prices each ray at what it costs: rays near a moving object hit it, reflect and \
+cast shadows more than the average ray, which counting rays cannot see. For viewports: \
+output pixels over needed samples. `n/a` where it was not measured.
+- **efficiency**: speedup / oracle (per sample / per region / per region timed): how close the reuse comes to the \
 limit, its overheads included. It can pass 100% where the oracle counts only tracing and the \
 full side pays for more than tracing, or where the region oracle is coarser than the reuse.
 - **bookkeeping**: OSTC's recording of rays into voxels and merging of dirty regions, per frame, \
@@ -764,6 +787,7 @@ mod tests {
             speedup: 20.0,
             oracle_speedup: oracle,
             region_oracle_speedup: None,
+            timed_region_oracle_speedup: None,
             efficiency: oracle.map(|o| 20.0 / o),
             bookkeeping_share: None,
             samples_traced: 1000,
