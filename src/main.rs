@@ -244,7 +244,7 @@ struct AnimateArgs {
 #[derive(Args)]
 struct OstcArgs {
     /// OSTC: the screen is cut into N x N regions (the paper's 16: 40x30
-    /// pixels at 640x480; the default 64: 12x8); finer regions re-trace
+    /// pixels at 640x480; the default 160: 4x4); finer regions re-trace
     /// less but take more memory for their bits.
     #[arg(long, default_value_t = retrace::reuse::ostc::RegionGrid::default().0, value_parser = clap::value_parser!(u32).range(1..=256))]
     regions: u32,

@@ -164,7 +164,7 @@ pub fn sweep_rsvp_knobs(
 fn ostc_settings() -> Vec<(&'static str, String, OstcSettings)> {
     let default = OstcSettings::default();
     let mut settings = Vec::new();
-    for n in [8, 16, 32, 64] {
+    for n in [8, 16, 32, 64, RegionGrid::default().0] {
         let regions = RegionGrid(n);
         settings.push((
             "OSTC region grid",
@@ -595,9 +595,9 @@ mod tests {
     #[test]
     fn every_ostc_setting_is_in_its_group_and_runs_once() {
         let settings = ostc_settings();
-        assert_eq!(settings.len(), 8);
+        assert_eq!(settings.len(), 9);
         // The default is both a region grid and a voxel grid setting.
-        assert_eq!(unique_ostc_settings().len(), 7);
+        assert_eq!(unique_ostc_settings().len(), 8);
         let rsvp = rsvp_knob_settings();
         assert_eq!(rsvp[0], RsvpKnobs::default());
         assert!(rsvp.iter().any(|k| k.filter == Filter::Nearest));

@@ -54,7 +54,7 @@ fn a_short_sweep_reports_every_knob_with_exact_ones_at_zero_error() {
         ("RSVP filter", 3),
         ("RSVP oversampling", 3),
         ("RSVP level bias", 3),
-        ("OSTC region grid", 4),
+        ("OSTC region grid", 5),
         ("OSTC voxel grid", 4),
     ] {
         assert_eq!(settings(knob).len(), count, "{knob} in {rows:?}");

@@ -1,7 +1,7 @@
 //! OSTC: Jevans' object space temporal coherence, as Gage & Semwal use it.
 //!
-//! The sample buffer is cut into rectangular *regions* (by default a 64x64
-//! screen grid: 12x8 samples at 640x480; the paper's 16x16 grid of 40x30
+//! The sample buffer is cut into rectangular *regions* (by default a
+//! 160x160 screen grid: 4x4 samples at 640x480; the paper's 16x16 grid of 40x30
 //! is `RegionGrid::PAPER`), fixed in buffer coordinates so a pan does not
 //! invalidate them. A uniform voxel grid over the volume the
 //! animated objects sweep through keeps, per voxel, one bit per region: set
@@ -55,16 +55,19 @@ use crate::shade::{RayKind, RayObserver};
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct RegionGrid(pub u32);
 
-/// Finer than the paper's grid. The regions a moving object dirties hold
-/// its reflections and shadows too, whose samples cost about twice the
+/// Much finer than the paper's grid. The regions a moving object dirties
+/// hold its reflections and shadows too, whose samples cost about twice the
 /// average, so coarse regions cap the saving early: on E3 (paper scene,
 /// bouncing ball) the rays re-traced per frame fall from 28% of a full
-/// frame at 16x16 to 17% at 32x32 and 11% at 64x64, while the marking cost
-/// per ray stays the same (one bit per voxel crossed) and the bits take
-/// 75 words per voxel at 64x64.
+/// frame at 16x16 to 17% at 32x32 and 11% at 64x64. Since a region is
+/// dirtied only by recorded ray segments that meet the object, finer
+/// regions cost little more to keep: `retrace bench`, two alternated runs,
+/// E3 6.3x and 6.2x at 64x64 against 11.1x and 10.1x at 160x160 (4x4
+/// samples), E4 2.35x and 2.01x against 2.65x and 2.42x; 256x256 (one
+/// group) is no faster than 160x160.
 impl Default for RegionGrid {
     fn default() -> Self {
-        RegionGrid(64)
+        RegionGrid(160)
     }
 }
 
