@@ -192,8 +192,15 @@ impl ExperimentResult {
     }
 }
 
-fn or_na<T>(value: Option<T>, show: impl FnOnce(T) -> String) -> String {
-    value.map_or_else(|| "n/a".to_string(), show)
+/// The figures measured, joined by " / ": the per-sample oracle, then the
+/// region ones where there are regions; `n/a` if none was.
+fn figures(values: [Option<f64>; 3], show: impl Fn(f64) -> String) -> String {
+    let shown: Vec<String> = values.into_iter().flatten().map(show).collect();
+    if shown.is_empty() {
+        "n/a".to_string()
+    } else {
+        shown.join(" / ")
+    }
 }
 
 const TABLE_HEADER: [&str; 11] = [
@@ -221,20 +228,22 @@ fn cells(row: &BenchRow) -> [String; 11] {
         format!("{:.2}", row.full_ms_per_frame),
         format!("{:.2}", row.accelerated_ms_per_frame),
         format!("{:.2}x", row.speedup),
-        match (row.oracle_speedup, row.region_oracle_speedup) {
-            (Some(o), Some(r)) => match row.timed_region_oracle_speedup {
-                Some(t) => format!("{o:.2}x / {r:.2}x / {t:.2}x"),
-                None => format!("{o:.2}x / {r:.2}x"),
-            },
-            (o, _) => or_na(o, |o| format!("{o:.2}x")),
-        },
-        match (row.efficiency, row.region_efficiency()) {
-            (Some(e), Some(r)) => match row.timed_region_efficiency() {
-                Some(t) => format!("{:.0}% / {:.0}% / {:.0}%", e * 100.0, r * 100.0, t * 100.0),
-                None => format!("{:.0}% / {:.0}%", e * 100.0, r * 100.0),
-            },
-            (e, _) => or_na(e, |e| format!("{:.0}%", e * 100.0)),
-        },
+        figures(
+            [
+                row.oracle_speedup,
+                row.region_oracle_speedup,
+                row.timed_region_oracle_speedup,
+            ],
+            |o| format!("{o:.2}x"),
+        ),
+        figures(
+            [
+                row.efficiency,
+                row.region_efficiency(),
+                row.timed_region_efficiency(),
+            ],
+            |e| format!("{:.0}%", e * 100.0),
+        ),
         row.bookkeeping_share
             .map_or_else(|| "none".to_string(), |b| format!("{:.1}%", b * 100.0)),
         row.exactness.clone(),
