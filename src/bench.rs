@@ -561,7 +561,6 @@ pub fn bench_sequence(
     let mut bookkeeping_ms = 0.0;
     let mut oracle = Oracle::new(region_size);
     let mut oracle_traced_ms = 0.0;
-    let mut first_full_ms = 0.0;
     let mut profile = FrameProfile::empty(frames.clone());
     // Per frame and round, for per-frame medians.
     let mut full_frame_ms = vec![Vec::new(); profile.len()];
@@ -599,9 +598,6 @@ pub fn bench_sequence(
             progress();
         }
         full_times.push(elapsed);
-        if round == 0 {
-            first_full_ms = elapsed;
-        }
 
         let mut fast = Animator::new(scene, accel, techniques, frames.clone());
         fast.set_linear_output(false);
@@ -648,6 +644,8 @@ pub fn bench_sequence(
         row.accelerated_ms = median(fast);
     }
     let frame_count = frames.end - frames.start;
+    // The oracle was timed in the first round, next to its full renders.
+    let timed_region_oracle_speedup = full_times[0] / oracle_traced_ms.max(1e-9);
     let (full_ms, accelerated_ms) = (median(full_times), median(fast_times));
     let speedup = full_ms / accelerated_ms;
     // Weighted by the rays each sample costs (see `Oracle::rays`).
@@ -663,7 +661,7 @@ pub fn bench_sequence(
         oracle_speedup,
         region_oracle_speedup,
         oracle_rays: oracle.rays,
-        timed_region_oracle_speedup: first_full_ms / oracle_traced_ms.max(1e-9),
+        timed_region_oracle_speedup,
         efficiency: speedup / oracle_speedup,
         bookkeeping_share: bookkeeping_ms
             / (full_ms / f64::from(frame_count.max(1)))
