@@ -12,7 +12,7 @@ use retrace::ray::{Ray, PACKET_WIDTH};
 use retrace::render::{trace_groups, SampleGroup};
 use retrace::reuse::ostc::{Footprint, Ostc, RegionGrid, RegionSet, DEFAULT_VOXELS};
 use retrace::reuse::pan::{EqualAngleLattice, PanBuffer};
-use retrace::reuse::samples::{Level, LevelRays, SampleLattice, ViewTransform, ViewportPose};
+use retrace::reuse::rsvp::{Level, LevelRays, SampleLattice, ViewTransform, ViewportPose};
 use retrace::rng::SplitMix64;
 use retrace::scene::{paper_scene, SceneOverrides};
 use retrace::shade::{RayKind, RayObserver, Shader};

@@ -18,7 +18,7 @@ use crate::reuse::ostc::{Footprint, Ostc, RegionGrid, RegionLayout, RegionSet, D
 use crate::reuse::pan::{
     image_window, render_window, EqualAngleLattice, Lattice, PanBuffer, Window,
 };
-use crate::reuse::samples::{render_direct, RsvpKnobs, SampleBuffer, SampleLattice, ViewportPose};
+use crate::reuse::rsvp::{render_direct, RsvpKnobs, SampleBuffer, SampleLattice, ViewportPose};
 use crate::scene::{Light, Scene};
 use crate::shade::{RayCounts, Shader};
 
@@ -385,7 +385,7 @@ pub struct FrameStats {
     pub viewport: String,
     /// RSVP: the finest and the coarsest pyramid level the viewport read
     /// (a level's number is its finer axis's,
-    /// [`crate::reuse::samples::Level::finest`]).
+    /// [`crate::reuse::rsvp::Level::finest`]).
     pub finest_level: Option<u32>,
     pub coarsest_level: Option<u32>,
 }

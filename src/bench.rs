@@ -709,7 +709,7 @@ pub struct ViewportSequenceBench {
     pub rsvp_ms: f64,
     pub speedup: f64,
     pub samples_traced: u64,
-    pub knobs: crate::reuse::samples::RsvpKnobs,
+    pub knobs: crate::reuse::rsvp::RsvpKnobs,
     /// Against the direct renders, over every frame and viewport.
     pub worst_psnr_db: f64,
     pub mean_psnr_db: f64,
@@ -737,7 +737,7 @@ pub fn bench_viewport_sequence(
     scene: &Scene,
     accel: &mut Accelerator,
     frames: std::ops::Range<u32>,
-    knobs: crate::reuse::samples::RsvpKnobs,
+    knobs: crate::reuse::rsvp::RsvpKnobs,
     measure_error: bool,
     ostc: Option<crate::anim::OstcSettings>,
     mut progress: impl FnMut(),
@@ -878,7 +878,7 @@ pub const E2_ZOOM: f64 = 2.555_723_8;
 /// the camera also yaws (E4 without the moving ball).
 pub fn e2_scene(mut scene: Scene, direction: ZoomDirection, pan_deg_per_frame: f64) -> Scene {
     use crate::anim::{Animation, CameraKey, Ease};
-    use crate::reuse::samples::{ViewTransform, Viewport, ViewportKey, ViewportTrack};
+    use crate::reuse::rsvp::{ViewTransform, Viewport, ViewportKey, ViewportTrack};
     let (from, to) = match direction {
         ZoomDirection::In => (1.0, E2_ZOOM),
         ZoomDirection::Out => (E2_ZOOM, 1.0),

@@ -198,7 +198,7 @@ struct AnimateArgs {
     buffer_image: Option<String>,
     /// RSVP reconstruction filter: nearest, bilinear or box.
     #[arg(long, default_value = "bilinear")]
-    filter: retrace::reuse::samples::Filter,
+    filter: retrace::reuse::rsvp::Filter,
     /// RSVP: buffer samples per viewport pixel (per side) the pyramid level
     /// is chosen for, at least.
     #[arg(long, default_value_t = 1.0)]
@@ -715,7 +715,7 @@ fn run_experiment(
                 &scene,
                 &mut accel,
                 frames.clone(),
-                retrace::reuse::samples::RsvpKnobs::default(),
+                retrace::reuse::rsvp::RsvpKnobs::default(),
                 true,
                 (experiment == Experiment::E4).then(|| args.ostc.settings()),
                 tick,
@@ -800,7 +800,7 @@ fn bench_e2(
             &scene,
             &mut accel,
             0..100,
-            retrace::reuse::samples::RsvpKnobs::default(),
+            retrace::reuse::rsvp::RsvpKnobs::default(),
             true,
             None,
             || bar.inc(1),
@@ -1127,7 +1127,7 @@ fn animate(args: AnimateArgs) -> Result<()> {
     animator.set_ostc(args.ostc.settings());
     animator.set_traced_image(dirty_path.is_some());
     if animator.has_viewports() {
-        let knobs = retrace::reuse::samples::RsvpKnobs {
+        let knobs = retrace::reuse::rsvp::RsvpKnobs {
             filter: args.filter,
             oversample: args.oversample,
             level_bias: args.level_bias,

@@ -25,7 +25,7 @@ use crate::bench::{bench_viewport_sequence, ViewportSequenceBench};
 use crate::plot::{LabelledPoint, PlotError, ScatterGroup};
 use crate::render::Frame;
 use crate::reuse::ostc::{RegionGrid, DEFAULT_VOXELS};
-use crate::reuse::samples::{Filter, RsvpKnobs};
+use crate::reuse::rsvp::{Filter, RsvpKnobs};
 use crate::scene::{parse_scene_str, Scene, SceneError, SceneOverrides, PAPER_SCENE_TOML};
 
 /// One knob at one setting, against the exact reference.

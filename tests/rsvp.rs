@@ -9,7 +9,7 @@ use retrace::anim::{image_error, Animator, Techniques};
 use retrace::camera::{Camera, Projection};
 use retrace::render::trace_groups;
 use retrace::render::SampleGroup;
-use retrace::reuse::samples::{
+use retrace::reuse::rsvp::{
     Filter, Level, LevelRays, RsvpKnobs, SampleBuffer, SampleLattice, ViewTransform, ViewportPose,
 };
 use retrace::scene::{parse_scene_str, Scene, SceneOverrides};
@@ -153,7 +153,7 @@ on_every_backend! {
             let view = buffer.render(&shader, std::slice::from_ref(&p), &RsvpKnobs::default(), true);
             let frame = view[0].frame.as_ref().unwrap();
             assert!(frame.pixels.iter().all(|c| c.is_finite()), "zoom {zoom}");
-            let (direct, _) = retrace::reuse::samples::render_direct(&shader, &p);
+            let (direct, _) = retrace::reuse::rsvp::render_direct(&shader, &p);
             let error = image_error(frame, &direct);
             if zoom > 1.0 {
                 // Far finer than level 0: the pyramid, not an upscale.

@@ -26,7 +26,7 @@ use rayon::prelude::*;
 
 use crate::accel::Accelerator;
 use crate::render::{trace_groups, SampleGroup};
-use crate::reuse::samples::{Level, LevelRays, SampleLattice, ViewportPose, MAX_LEVEL};
+use crate::reuse::rsvp::{Level, LevelRays, SampleLattice, ViewportPose, MAX_LEVEL};
 use crate::scene::Scene;
 use crate::shade::Shader;
 

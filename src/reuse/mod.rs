@@ -4,4 +4,4 @@
 
 pub mod ostc;
 pub mod pan;
-pub mod samples;
+pub mod rsvp;

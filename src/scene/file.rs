@@ -17,7 +17,7 @@ use crate::anim::{
 };
 use crate::camera::{yaw_pitch_toward, Camera, Projection};
 use crate::geometry::{Object, Placement, Plane, Shape, Sphere, TriangleMesh};
-use crate::reuse::samples::{ViewTransform, Viewport, ViewportKey, ViewportTrack};
+use crate::reuse::rsvp::{ViewTransform, Viewport, ViewportKey, ViewportTrack};
 
 /// Settings from the command line that replace the file's.
 #[derive(Clone, Debug, Default)]
@@ -657,7 +657,7 @@ fn transform_error(
     ctx: &Ctx,
     span: std::ops::Range<usize>,
     prefix: &str,
-    err: crate::reuse::samples::TransformError,
+    err: crate::reuse::rsvp::TransformError,
 ) -> SceneError {
     ctx.error(span, format!("{prefix}.{}", err.field), err.message)
 }

@@ -89,7 +89,7 @@ pub struct Scene {
     pub animation: Option<crate::anim::Animation>,
     /// RSVP viewports onto the camera's sample buffer (none: the camera's
     /// own image is the output).
-    pub viewports: Vec<crate::reuse::samples::ViewportTrack>,
+    pub viewports: Vec<crate::reuse::rsvp::ViewportTrack>,
 }
 
 impl Scene {

@@ -1,0 +1,658 @@
+//! Pass 1 of a viewport frame: each region's pyramid level and mapping
+//! grid, its pixels' lattice coordinates, and the groups not yet traced
+//! that its filter will read.
+
+use std::f64::consts::FRAC_PI_2;
+
+use glam::DVec2;
+use rayon::prelude::*;
+
+use super::{
+    fast_atan2,
+    filter::filter_origin,
+    lattice::wrap,
+    store::{tile_key, TILE_COLS},
+    viewport::PixelMap,
+    Filter, Level, RsvpKnobs, SampleBuffer, ViewportPose, MAX_LEVEL, REGION,
+};
+use crate::render::{SampleGroup, GROUP_HEIGHT, GROUP_WIDTH};
+
+/// Pixels between exactly mapped points of a region's grid; the pixels
+/// between are interpolated.
+const GRID_SPACING: u32 = 4;
+const GRID_POINTS: usize = (REGION / GRID_SPACING) as usize + 1;
+const _: () = assert!(REGION % GRID_SPACING == 0);
+
+/// The most a grid may miss the exact mapping, in samples of the region's
+/// level, for the region to be interpolated: it moves a bilinear weight by
+/// at most 3%. (E2's widest view needs 1/64..1/32 at its edges; a finer
+/// grid would cost more exact mappings than it saves.)
+const GRID_TOLERANCE: f64 = 1.0 / 32.0;
+
+/// Lattice coordinates, at the region's level, of the pixels (x0 + 4i,
+/// y0 + 4j) of a region.
+type MapGrid = [[DVec2; GRID_POINTS]; GRID_POINTS];
+
+/// How pass 1 left a region for pass 2.
+pub(super) struct RegionMap {
+    pub(super) level: Level,
+    /// None: the mapping bends too much here (near a pole, across the view's
+    /// back seam, fisheye): every pixel is mapped exactly.
+    pub(super) grid: Option<MapGrid>,
+}
+
+/// One band of regions from pass 1, and the groups they miss.
+type BandMap = (Vec<RegionMap>, Vec<(Level, SampleGroup)>);
+
+/// Pass 1's result for one viewport.
+pub(super) struct Mapped {
+    /// Per region, row-major.
+    pub(super) regions: Vec<RegionMap>,
+    pub(super) regions_x: usize,
+    /// Groups to trace: (owning level, group of its slots), sorted by
+    /// level index, row and column, unique.
+    pub(super) missing: Vec<(Level, SampleGroup)>,
+}
+
+impl SampleBuffer {
+    /// The level a region needs: on each axis, the densest its pixels lie
+    /// along that lattice axis, brought to at least `oversample` samples per
+    /// pixel.
+    fn region_level(
+        &self,
+        pose: &ViewportPose,
+        map: &PixelMap,
+        knobs: &RsvpKnobs,
+        x0: u32,
+        y0: u32,
+    ) -> Level {
+        let cam = &pose.camera;
+        let x1 = (x0 + REGION).min(cam.width) - 1;
+        let y1 = (y0 + REGION).min(cam.height) - 1;
+        let points = [
+            (x0, y0),
+            (x1, y0),
+            (x0, y1),
+            (x1, y1),
+            ((x0 + x1) / 2, (y0 + y1) / 2),
+        ];
+        let mut density = SampleDensity::default();
+        for (x, y) in points {
+            // In level-0 samples.
+            let at = |x: u32, y: u32| {
+                map.angles(pose, x, y)
+                    .map(|(az, el)| DVec2::new(az, -el) / self.lattice.step)
+            };
+            let (Some(p), Some(r), Some(b)) = (at(x, y), at(x + 1, y), at(x, y + 1)) else {
+                continue;
+            };
+            let (mut dx, dy) = (r - p, b - p);
+            // Relative azimuths jump by a turn straight behind the view.
+            let turn = self.lattice.columns_per_turn as f64;
+            if dx.x.abs() > 0.5 * turn {
+                dx.x -= turn.copysign(dx.x);
+            }
+            density.add(dx, dy);
+        }
+        density.level(knobs)
+    }
+
+    /// The region's level and mapping grid, or None when interpolating it
+    /// could miss the exact mapping by more than [`GRID_TOLERANCE`] at that
+    /// level (checked in every cell) or a point has no ray. Mapping a pixel
+    /// exactly costs two atan2; a grid costs 57 mappings for 256 pixels, and
+    /// its cells give the level too (the finest footprint over 16 cells),
+    /// where [`SampleBuffer::region_level`] would map 15 more points.
+    fn region_grid(
+        &self,
+        pose: &ViewportPose,
+        map: &PixelMap,
+        knobs: &RsvpKnobs,
+        x0: u32,
+        y0: u32,
+    ) -> Option<(Level, MapGrid)> {
+        // Level 0 first: scaling to the region's level is by a power of
+        // two, exact, so the grid is the one mapped at that level bit for
+        // bit. All 57 points in one batch: the grid's, then each cell's top
+        // and left edge midpoints.
+        const CELLS: usize = GRID_POINTS - 1;
+        const MAPPED: usize = GRID_POINTS * GRID_POINTS + 2 * CELLS * CELLS;
+        let (mut xs, mut ys) = ([0f64; MAPPED], [0f64; MAPPED]);
+        let half = GRID_SPACING / 2;
+        for j in 0..GRID_POINTS {
+            for i in 0..GRID_POINTS {
+                let (x, y) = (x0 + i as u32 * GRID_SPACING, y0 + j as u32 * GRID_SPACING);
+                let k = j * GRID_POINTS + i;
+                (xs[k], ys[k]) = (f64::from(x), f64::from(y));
+                if i < CELLS && j < CELLS {
+                    let k = GRID_POINTS * GRID_POINTS + 2 * (j * CELLS + i);
+                    (xs[k], ys[k]) = (f64::from(x + half), f64::from(y));
+                    (xs[k + 1], ys[k + 1]) = (f64::from(x), f64::from(y + half));
+                }
+            }
+        }
+        let mut mapped = [DVec2::ZERO; MAPPED];
+        if !map.lattice_many(&self.lattice, pose.camera.yaw, (&xs, &ys), &mut mapped) {
+            return None;
+        }
+        let mut grid = [[DVec2::ZERO; GRID_POINTS]; GRID_POINTS];
+        for (line, points) in grid.iter_mut().zip(mapped.chunks_exact(GRID_POINTS)) {
+            line.copy_from_slice(points);
+        }
+        // Bilinear interpolation of a quadratic misses by at most
+        // (|f_xx| + |f_yy|) h^2 / 8, and the misses at a cell's edge
+        // midpoints are f_xx h^2 / 8 and f_yy h^2 / 8: their sum bounds the
+        // miss in the cell. (The centre alone can hide a saddle, as near a
+        // pole, where the two cancel.)
+        let spacing = f64::from(GRID_SPACING);
+        let (mut worst, mut density) = (DVec2::ZERO, SampleDensity::default());
+        for j in 0..CELLS {
+            for i in 0..CELLS {
+                let k = GRID_POINTS * GRID_POINTS + 2 * (j * CELLS + i);
+                let across = mapped[k] - (grid[j][i] + grid[j][i + 1]) * 0.5;
+                let down = mapped[k + 1] - (grid[j][i] + grid[j + 1][i]) * 0.5;
+                let miss = across.abs() + down.abs();
+                if miss.is_nan() {
+                    return None;
+                }
+                worst = worst.max(miss);
+                // The cell's pixel footprint, as region_level measures it.
+                let dx = (grid[j][i + 1] - grid[j][i]) / spacing;
+                let dy = (grid[j + 1][i] - grid[j][i]) / spacing;
+                density.add(dx, dy);
+            }
+        }
+        let level = density.level(knobs);
+        let scale = level_scale(level);
+        if (worst * scale).max_element() > GRID_TOLERANCE {
+            return None;
+        }
+        for point in grid.iter_mut().flatten() {
+            *point *= scale;
+        }
+        Some((level, grid))
+    }
+
+    /// Lattice coordinates (at `level`) of a region's pixels into `out`,
+    /// row-major, `cols` wide, which comes filled with NaN (left where a
+    /// pixel has no ray): interpolated from `grid`, else exact.
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn region_coords(
+        &self,
+        pose: &ViewportPose,
+        map: &PixelMap,
+        level: Level,
+        grid: Option<&MapGrid>,
+        (x0, y0): (u32, u32),
+        cols: usize,
+        out: &mut [DVec2],
+    ) {
+        if let Some(grid) = grid {
+            let s = GRID_SPACING as usize;
+            let inv = 1.0 / GRID_SPACING as f64;
+            for (j, line_out) in out.chunks_exact_mut(cols).enumerate() {
+                let (gj, ty) = (j / s, (j % s) as f64 * inv);
+                let line: [DVec2; GRID_POINTS] =
+                    std::array::from_fn(|i| grid[gj][i] + (grid[gj + 1][i] - grid[gj][i]) * ty);
+                for (cell, span) in line_out.chunks_mut(s).enumerate() {
+                    let (a, d) = (line[cell], (line[cell + 1] - line[cell]) * inv);
+                    for (i, c) in span.iter_mut().enumerate() {
+                        *c = a + d * i as f64;
+                    }
+                }
+            }
+            return;
+        }
+        let inv_step = level_scale(level) / self.lattice.step;
+        let yaw = pose.camera.yaw;
+        for (j, span) in out.chunks_exact_mut(cols).enumerate() {
+            let y = y0 + j as u32;
+            if let PixelMap::Perspective { o, u, v } = map {
+                // Straight-line code over a row so the two atan2 vectorise.
+                let start = *o + *v * f64::from(y) + *u * f64::from(x0);
+                for (i, c) in span.iter_mut().enumerate() {
+                    let d = start + *u * i as f64;
+                    let az = fast_atan2(d.x, -d.z);
+                    let el = fast_atan2(d.y, (d.x * d.x + d.z * d.z).sqrt());
+                    *c = DVec2::new(yaw + az, FRAC_PI_2 - el) * inv_step;
+                }
+            } else {
+                for (i, c) in span.iter_mut().enumerate() {
+                    if let Some((az, el)) = map.angles(pose, x0 + i as u32, y) {
+                        *c = DVec2::new(yaw + az, FRAC_PI_2 - el) * inv_step;
+                    }
+                }
+            }
+        }
+    }
+
+    /// Pass 1: each region's level and mapping grid, and the groups not
+    /// yet traced that the filter will read.
+    pub(super) fn map(&self, pose: &ViewportPose, knobs: &RsvpKnobs) -> Mapped {
+        let cam = &pose.camera;
+        let (w, h) = (cam.width, cam.height);
+        let regions_x = w.div_ceil(REGION) as usize;
+        let regions_y = h.div_ceil(REGION) as usize;
+        let map = PixelMap::new(pose);
+        let results: Vec<BandMap> = (0..regions_y)
+            .into_par_iter()
+            .map(|band| {
+                let y0 = band as u32 * REGION;
+                let rows = (h - y0).min(REGION) as usize;
+                let mut regions = Vec::with_capacity(regions_x);
+                let mut missing = Vec::new();
+                let mut coords = Vec::new();
+                for rx in 0..regions_x {
+                    let x0 = rx as u32 * REGION;
+                    let cols = (w - x0).min(REGION) as usize;
+                    let (level, grid) = match self.region_grid(pose, &map, knobs, x0, y0) {
+                        Some((level, grid)) => (level, Some(grid)),
+                        None => (self.region_level(pose, &map, knobs, x0, y0), None),
+                    };
+                    // Interpolated points lie within their cell's corners, so
+                    // the grid's box holds every pixel's.
+                    let mut mapped = false;
+                    let (mut lo, mut hi) = (DVec2::INFINITY, DVec2::NEG_INFINITY);
+                    let mut count = 0u32;
+                    match &grid {
+                        Some(grid) => {
+                            for p in grid.iter().flatten() {
+                                lo = lo.min(*p);
+                                hi = hi.max(*p);
+                            }
+                            count = (cols * rows) as u32;
+                        }
+                        None => {
+                            self.region_coords(
+                                pose,
+                                &map,
+                                level,
+                                None,
+                                (x0, y0),
+                                cols,
+                                nan_filled(&mut coords, cols * rows),
+                            );
+                            mapped = true;
+                            for c in coords.iter().filter(|c| !c.x.is_nan()) {
+                                lo = lo.min(*c);
+                                hi = hi.max(*c);
+                                count += 1;
+                            }
+                        }
+                    }
+                    if count > 0 {
+                        self.collect_missing(
+                            level,
+                            knobs.filter,
+                            lo,
+                            hi,
+                            count,
+                            &mut missing,
+                            |f| {
+                                if !mapped {
+                                    self.region_coords(
+                                        pose,
+                                        &map,
+                                        level,
+                                        grid.as_ref(),
+                                        (x0, y0),
+                                        cols,
+                                        nan_filled(&mut coords, cols * rows),
+                                    );
+                                }
+                                for c in coords.iter().filter(|c| !c.x.is_nan()) {
+                                    f((c.x, c.y));
+                                }
+                            },
+                        );
+                    }
+                    regions.push(RegionMap { level, grid });
+                }
+                (regions, missing)
+            })
+            .collect();
+        let mut regions = Vec::with_capacity(regions_x * regions_y);
+        let mut missing = Vec::new();
+        for (r, m) in results {
+            regions.extend(r);
+            missing.extend(m);
+        }
+        missing.sort_unstable_by_key(|&(level, g)| (level, g.row, g.col));
+        missing.dedup();
+        Mapped {
+            regions,
+            regions_x,
+            missing,
+        }
+    }
+
+    /// Whether every group of `owner`'s slots on the group row of slot row
+    /// `row` covering slot columns `c_from..=c_to` was traced: whole tiles'
+    /// masks at once.
+    fn run_traced(&self, owner: Level, row: i64, c_from: i64, c_to: i64) -> bool {
+        let store = &self.levels[owner.index()];
+        let columns = self.lattice.slot_columns(owner);
+        let gw = i64::from(GROUP_WIDTH);
+        let mut col = c_from;
+        while col <= c_to {
+            let wc = wrap(col, columns);
+            let run = (c_to - col + 1)
+                .min(TILE_COLS - (wc & (TILE_COLS - 1)))
+                .min(columns - wc);
+            let (key, _, first) = tile_key(wc, row);
+            let last = ((wc + run - 1) & (TILE_COLS - 1)) / gw;
+            let wanted = (u64::MAX >> (63 - last as u32)) & (u64::MAX << first);
+            let traced = store.tile(key).map_or(0, |t| store.traced[t as usize]);
+            if traced & wanted != wanted {
+                return false;
+            }
+            col += run;
+        }
+        true
+    }
+
+    /// Whether every sample of `level` in columns `c0..=c1` and rows
+    /// `r0..=r1` (rows within the lattice) was traced, at every level that
+    /// owns some of them.
+    fn box_traced(&self, level: Level, (c0, c1): (i64, i64), (r0, r1): (i64, i64)) -> bool {
+        let gh = i64::from(GROUP_HEIGHT);
+        (0..=level.x).all(|ox| {
+            (0..=level.y).all(|oy| {
+                let owner = Level::new(ox, oy);
+                let (sx, sy) = (level.x - ox, level.y - oy);
+                // The owner's positions in the box, then its slots there: a
+                // level finer than 0 on an axis owns the odd positions.
+                let slots = |k: u32, lo: i64, hi: i64| {
+                    if k > 0 {
+                        (lo >> 1, (hi - 1) >> 1)
+                    } else {
+                        (lo, hi)
+                    }
+                };
+                let (sc0, sc1) = slots(ox, c0 >> sx, c1 >> sx);
+                let (sr0, sr1) = slots(oy, r0 >> sy, r1 >> sy);
+                if sc0 > sc1 || sr0 > sr1 {
+                    return true;
+                }
+                let first = SampleGroup::containing(sc0, sr0).row;
+                (0..)
+                    .map(|k| first + k * gh)
+                    .take_while(|&row| row <= sr1)
+                    .all(|row| self.run_traced(owner, row, sc0, sc1))
+            })
+        })
+    }
+
+    /// Adds the untraced groups a region's filter reads. A region whose
+    /// samples are dense (a few per pixel) first checks every group of its
+    /// bounding box at every owning level, a quick yes in the usual case
+    /// that all were traced; otherwise, or for a sparse region (zoomed far
+    /// out, or near a pole), each pixel's own samples are checked.
+    #[allow(clippy::too_many_arguments)]
+    // Inlined into the band closure of `map`, its one caller: about 0.6% of
+    // an E2 run's instructions when left out of line.
+    #[inline]
+    fn collect_missing(
+        &self,
+        level: Level,
+        filter: Filter,
+        lo: DVec2,
+        hi: DVec2,
+        pixels: u32,
+        missing: &mut Vec<(Level, SampleGroup)>,
+        for_each_pixel: impl FnOnce(&mut dyn FnMut((f64, f64))),
+    ) {
+        let (c0, r0) = (lo.x.floor() as i64, lo.y.floor() as i64);
+        let (c1, r1) = (hi.x.floor() as i64 + 1, hi.y.floor() as i64 + 1);
+        let last_row = self.lattice.last_row(level.y);
+        let (r0, r1) = (r0.clamp(0, last_row), r1.clamp(0, last_row));
+        let area = ((c1 - c0 + 1) as f64) * ((r1 - r0 + 1) as f64);
+        let dense = area <= 8.0 * f64::from(pixels) && c1 - c0 < self.lattice.columns(level.x);
+        if dense && self.box_traced(level, (c0, c1), (r0, r1)) {
+            return;
+        }
+        // Consecutive groups mostly share a tile: keep its traced mask. A
+        // pixel reads two rows, which may lie in neighbouring tile rows: one
+        // slot per owning level and tile row parity, distinct for owners
+        // within 4 levels on each axis (those a region reads most).
+        const SLOTS: usize = 32;
+        let mut cached = [(usize::MAX, (i64::MIN, i64::MIN), 0u64); SLOTS];
+        let slot_of = |level: Level, key: (i64, i64)| {
+            (((level.x & 3) * 4 + (level.y & 3)) * 2) as usize + (key.1 & 1) as usize
+        };
+        let mut add =
+            |missing: &mut Vec<(Level, SampleGroup)>, owner: Level, group: SampleGroup| {
+                let group = SampleGroup {
+                    col: wrap(group.col, self.lattice.slot_columns(owner)),
+                    row: group.row,
+                };
+                let (key, _, bit) = tile_key(group.col, group.row);
+                let index = owner.index();
+                let slot = &mut cached[slot_of(owner, key)];
+                if (slot.0, slot.1) != (index, key) {
+                    let store = &self.levels[index];
+                    *slot = (
+                        index,
+                        key,
+                        store.tile(key).map_or(0, |t| store.traced[t as usize]),
+                    );
+                }
+                // A group asked for counts as traced in the cached mask: the
+                // pixels after it that read it skip it (a pixel reads four
+                // samples, alternating between owners, so the list's last entry
+                // alone caught few repeats).
+                if slot.2 >> bit & 1 == 0 {
+                    slot.2 |= 1 << bit;
+                    missing.push((owner, group));
+                }
+            };
+        // The bounding box holds more than the filter reads (at the region's
+        // corners, in whole groups): ask for exactly the pixels' own groups.
+        let before = missing.len();
+        for_each_pixel(&mut |(x, y)| {
+            let (cx, ry) = filter_origin(filter, x, y);
+            let extra = i64::from(filter != Filter::Nearest);
+            for dr in 0..=extra {
+                for dc in 0..=extra {
+                    let row = (ry + dr).clamp(0, last_row);
+                    let (owner, c, r) = self.lattice.owner(level, cx + dc, row);
+                    add(missing, owner, SampleGroup::containing(c, r));
+                }
+            }
+        });
+        // Neighbouring pixels share groups: a small sort here keeps the
+        // frame's list short.
+        let region = &mut missing[before..];
+        region.sort_unstable_by_key(|&(level, g)| (level, g.row, g.col));
+        let mut kept = before;
+        for i in before..missing.len() {
+            if kept == before || missing[kept - 1] != missing[i] {
+                missing[kept] = missing[i];
+                kept += 1;
+            }
+        }
+        missing.truncate(kept);
+    }
+}
+
+/// `v` as `len` NaN coordinates, reusing its allocation.
+pub(super) fn nan_filled(v: &mut Vec<DVec2>, len: usize) -> &mut [DVec2] {
+    v.clear();
+    v.resize(len, DVec2::NAN);
+    v
+}
+
+/// How densely a region's pixels lie along each lattice axis: the most
+/// pixels per level-0 sample step, over the pixels measured.
+#[derive(Clone, Copy, Debug, Default)]
+struct SampleDensity {
+    pub(super) x: f64,
+    pub(super) y: f64,
+}
+
+impl SampleDensity {
+    /// A pixel whose right and lower neighbours lie `dx` and `dy` away (in
+    /// level-0 samples). One sample step along a lattice axis moves the
+    /// image by a column of the inverse Jacobian [dx dy]^-1; its length is
+    /// the pixels per step. (For an unrotated view: 1/|dx| and 1/|dy|; for
+    /// a rotated or uniformly zoomed one the same on both axes, as the
+    /// parallelogram's least width gives it.)
+    fn add(&mut self, dx: DVec2, dy: DVec2) {
+        let det = (dx.x * dy.y - dx.y * dy.x).abs();
+        if !(det.is_finite() && det > 0.0) {
+            return;
+        }
+        // sqrt rather than hypot (a libm call per cell): no overflow here.
+        self.x = self.x.max((dy.y * dy.y + dx.y * dx.y).sqrt() / det);
+        self.y = self.y.max((dy.x * dy.x + dx.x * dx.x).sqrt() / det);
+    }
+
+    /// The level giving at least `oversample` samples per pixel on each
+    /// axis, with the knobs' bias.
+    fn level(&self, knobs: &RsvpKnobs) -> Level {
+        let axis = |pixels_per_step: f64| {
+            if !(pixels_per_step.is_finite() && pixels_per_step > 0.0) {
+                return 0;
+            }
+            // A hair of tolerance: exactly one sample per pixel, up to
+            // rounding, needs no finer level.
+            let wanted = ((knobs.oversample * pixels_per_step).log2() - 1e-6).ceil() as i64
+                + i64::from(knobs.level_bias)
+                + i64::from(knobs.filter == Filter::Box);
+            wanted.clamp(0, i64::from(MAX_LEVEL)) as u32
+        };
+        Level::new(axis(self.x), axis(self.y))
+    }
+}
+
+/// Level-0 lattice coordinates times this are `level`'s (exact: powers of
+/// two).
+fn level_scale(level: Level) -> DVec2 {
+    DVec2::new(f64::from(1u32 << level.x), f64::from(1u32 << level.y))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::camera::{Camera, Projection};
+    use crate::reuse::rsvp::fixtures::*;
+    use crate::reuse::rsvp::ViewTransform;
+
+    #[test]
+    fn interpolated_regions_stay_within_their_tolerance() {
+        let buffer = SampleBuffer::new(lattice());
+        let knobs = RsvpKnobs::default();
+        let base = Camera {
+            pitch: -9f64.to_radians(),
+            ..camera(Projection::Perspective)
+        };
+        let transform = |zoom, rotate, shear| ViewTransform {
+            zoom,
+            rotate,
+            shear,
+            translate: [7.0, -3.0],
+        };
+        let cases = [
+            // E2's ends, then rotation and shear, a view straight down
+            // (the pole), a view wider than a turn (the back seam) and an
+            // equal-angle viewport.
+            (base.clone(), transform(1.0, 0.0, [0.0, 0.0])),
+            (base.clone(), transform(2.5557, 0.0, [0.0, 0.0])),
+            (base.clone(), transform(1.7, 0.5, [0.2, -0.1])),
+            (
+                Camera {
+                    pitch: -89f64.to_radians(),
+                    ..base.clone()
+                },
+                transform(1.0, 0.0, [0.0, 0.0]),
+            ),
+            (base.clone(), transform(0.01, 0.0, [0.0, 0.0])),
+            (
+                Camera {
+                    projection: Projection::EqualAngle,
+                    ..base.clone()
+                },
+                transform(3.0, 0.2, [0.0, 0.0]),
+            ),
+        ];
+        let mut interpolated = [0usize; 6];
+        // Regions whose grid level equals region_level's.
+        let mut levels = [0usize; 6];
+        for (case, (camera, transform)) in cases.into_iter().enumerate() {
+            let pose = ViewportPose::new(camera, transform);
+            let map = PixelMap::new(&pose);
+            let (mut exact, mut fast) = (Vec::new(), Vec::new());
+            for y0 in (0..pose.camera.height).step_by(REGION as usize) {
+                for x0 in (0..pose.camera.width).step_by(REGION as usize) {
+                    let Some((level, grid)) = buffer.region_grid(&pose, &map, &knobs, x0, y0)
+                    else {
+                        continue;
+                    };
+                    let chosen = buffer.region_level(&pose, &map, &knobs, x0, y0);
+                    levels[case] += usize::from(level == chosen);
+                    interpolated[case] += 1;
+                    let size = (
+                        (pose.camera.width - x0).min(REGION) as usize,
+                        (pose.camera.height - y0).min(REGION) as usize,
+                    );
+                    let at = (x0, y0);
+                    let n = size.0 * size.1;
+                    let exact_out = nan_filled(&mut exact, n);
+                    buffer.region_coords(&pose, &map, level, None, at, size.0, exact_out);
+                    let fast_out = nan_filled(&mut fast, n);
+                    buffer.region_coords(&pose, &map, level, Some(&grid), at, size.0, fast_out);
+                    for (e, f) in exact.iter().zip(&fast) {
+                        let miss = (*e - *f).abs().max_element();
+                        assert!(
+                            miss <= 1.25 * GRID_TOLERANCE,
+                            "case {case}, region ({x0}, {y0}) at level {level}: {e} vs {f}"
+                        );
+                    }
+                }
+            }
+        }
+        // 40 x 30 regions: the smooth views interpolate nearly everywhere.
+        assert_eq!(interpolated[0], 1200, "{interpolated:?}");
+        assert_eq!(interpolated[1], 1200, "{interpolated:?}");
+        // Near the pole some regions bend too much; zoomed far out (a region
+        // spans many degrees) nearly none fit: only a few where azimuth
+        // saturates at +-90 degrees and elevation keeps a coarse level.
+        assert!((1..1200).contains(&interpolated[3]), "{interpolated:?}");
+        assert!(interpolated[4] <= 12, "{interpolated:?}");
+        assert_eq!(interpolated[5], 1200, "{interpolated:?}");
+        // The grid's cells measure the footprint a few pixels from where
+        // region_level does: a level may differ only where the footprint
+        // sits on a threshold.
+        for (case, (&same, &all)) in levels.iter().zip(&interpolated).enumerate() {
+            assert!(
+                same * 100 >= all * 97,
+                "case {case}: {levels:?} of {interpolated:?}"
+            );
+        }
+    }
+
+    #[test]
+    fn a_wide_perspective_viewport_needs_finer_levels_at_its_edges() {
+        let lattice = lattice();
+        let buffer = SampleBuffer::new(lattice);
+        let pose = ViewportPose::new(camera(Projection::Perspective), ViewTransform::default());
+        let knobs = RsvpKnobs::default();
+        let map = PixelMap::new(&pose);
+        let level = |x0| buffer.region_level(&pose, &map, &knobs, x0, 232);
+        assert_eq!(level(312), Level::new(0, 0));
+        // Perspective squeezes azimuth first: a third of the way out only
+        // columns need the finer level, at the edge rows too.
+        assert_eq!(level(112), Level::new(1, 0));
+        assert_eq!(level(0), Level::new(1, 1));
+        let zoomed = ViewportPose::new(
+            pose.camera.clone(),
+            ViewTransform {
+                zoom: 1000.0,
+                ..ViewTransform::default()
+            },
+        );
+        let level = buffer.region_level(&zoomed, &PixelMap::new(&zoomed), &knobs, 312, 232);
+        assert!((10..=11).contains(&level.x), "{level}");
+        assert!((10..=11).contains(&level.y), "{level}");
+    }
+}

@@ -1,0 +1,525 @@
+//! RSVP (Ray Sample Viewport): a lazily traced buffer of equal-angle samples
+//! around a fixed eye, and viewports that resample it through their own
+//! projection and 2D transform.
+//!
+//! Owns: the sample lattice pyramid ([`SampleLattice`]), the samples traced
+//! so far ([`SampleBuffer`]), viewports and their 2D transforms
+//! ([`Viewport`], [`ViewTransform`], [`ViewportPose`]) and the resampling
+//! knobs ([`RsvpKnobs`]).
+//!
+//! Promises:
+//! - Level (x, y) of the pyramid puts column c at world azimuth
+//!   `c * step_0 / 2^x` and row r at elevation `90deg - r * step_0 / 2^y`,
+//!   with a whole number of columns per turn (a multiple of the group
+//!   width): the azimuth wraps, the rows end at the poles. The axes refine
+//!   independently, because a wide perspective view squeezes azimuth at
+//!   its sides long before elevation. Halving a step is exact in floating
+//!   point, so level (x+1, y)'s sample (2c, r) has bit for bit level
+//!   (x, y)'s direction, and likewise for rows: the levels nest.
+//! - Every sample belongs to the coarsest level that has it (on each axis),
+//!   is stored only there, and is traced only there. A level finer than 0
+//!   on an axis owns the odd positions on it; its samples are stored and
+//!   traced by slot (the odd positions numbered densely), in aligned 4x2
+//!   groups of slots, so every lane of a packet is a sample the level owns.
+//!   A sample's colour never depends on which level or viewport asked
+//!   first, and a fresh trace of the same group reproduces it bit for bit.
+//! - A sample is traced at most once and kept for every later frame; all
+//!   null samples the viewports of a frame touch are traced in one batch per
+//!   level through [`crate::render::trace_groups`].
+//! - Resampling is an approximation: its error against the viewport's own
+//!   rays is measured (`--verify`, `bench --only E2`), never assumed.
+
+mod filter;
+mod gather;
+mod lattice;
+mod map;
+mod store;
+mod viewport;
+
+pub use filter::{Filter, RsvpKnobs};
+pub use lattice::{fast_atan2, Level, LevelRays, SampleLattice};
+pub use viewport::{
+    render_direct, TransformError, ViewTransform, Viewport, ViewportKey, ViewportPose,
+    ViewportRays, ViewportTrack,
+};
+
+use std::f64::consts::FRAC_PI_2;
+use std::time::Instant;
+
+use glam::Vec3;
+
+use crate::camera::Camera;
+use crate::render::{
+    srgb_table, trace_groups, trace_groups_observed, Frame, SampleGroup, GROUP_WIDTH,
+};
+use crate::reuse::ostc::{Ostc, RegionLayout, RegionSet};
+use crate::shade::{RayCounts, Shader};
+use filter::filter_origin;
+use lattice::wrap;
+use map::nan_filled;
+use store::tile_key;
+use store::traced_groups;
+use store::LevelSamples;
+use store::TILE_COLS;
+use store::TILE_COL_SHIFT;
+use store::TILE_ROW_SHIFT;
+use store::TILE_SAMPLES;
+use viewport::PixelMap;
+
+/// Finest pyramid level: 2^16 times the camera's angular resolution, enough
+/// for a zoom of 1000 with room for oversampling and level bias.
+pub const MAX_LEVEL: u32 = 16;
+
+/// Accepted zoom factors.
+pub const MIN_ZOOM: f64 = 1e-3;
+pub const MAX_ZOOM: f64 = 1e3;
+
+/// Viewport pixels per side of a region that shares one pyramid level.
+pub const REGION: u32 = 16;
+
+/// What one viewport's frame cost and gave.
+pub struct ViewportFrame {
+    /// Linear colour, when asked for.
+    pub frame: Option<Frame>,
+    pub image: image::RgbImage,
+    /// Samples this viewport asked for first and that were traced for it.
+    pub samples_traced: u64,
+    pub rays: RayCounts,
+    /// Mapping pixels and finding null samples.
+    pub map_ms: f64,
+    /// This viewport's share of the frame's trace batch.
+    pub trace_ms: f64,
+    /// Filtering and conversion to 8 bits.
+    pub gather_ms: f64,
+    /// The lowest and highest [`Level::finest`] of the levels the
+    /// viewport's regions read.
+    pub levels: (u32, u32),
+}
+
+/// Every sample traced so far, over all pyramid levels.
+pub struct SampleBuffer {
+    lattice: SampleLattice,
+    /// By [`Level::index`].
+    levels: Vec<LevelSamples>,
+    samples_traced: u64,
+    /// The groups the last [`SampleBuffer::render`] traced, sorted as
+    /// `missing` is: what [`SampleBuffer::fresh_image`] paints.
+    fresh: Vec<(Level, SampleGroup)>,
+    /// OSTC bookkeeping of the samples, when objects or lights move: every
+    /// batch's rays are recorded into it (see [`SampleBuffer::erase`]).
+    ostc: Option<Ostc>,
+}
+
+impl SampleBuffer {
+    pub fn new(lattice: SampleLattice) -> SampleBuffer {
+        SampleBuffer {
+            lattice,
+            levels: (0..Level::COUNT).map(|_| LevelSamples::default()).collect(),
+            samples_traced: 0,
+            fresh: Vec::new(),
+            ostc: None,
+        }
+    }
+
+    /// Regions of `size` level-0 samples tiling the whole buffer (a whole
+    /// turn, pole to pole). A finer level's group lies in the region of
+    /// its position on level 0: a group of slots spans 8 columns and 4 rows
+    /// at a level finer than 0 on that axis, aligned, which is 4 or fewer
+    /// level-0 columns and 2 or fewer rows; regions a multiple of 4 wide and
+    /// 2 tall (40 x 30 samples) so never cut a group.
+    pub fn regions(&self, size: (i64, i64)) -> RegionLayout {
+        RegionLayout::new(
+            size,
+            self.lattice.columns(0),
+            0,
+            self.lattice.last_row(0) + 1,
+        )
+    }
+
+    /// Records every ray traced from now on into `ostc` (built over
+    /// [`SampleBuffer::regions`]).
+    pub fn set_ostc(&mut self, ostc: Option<Ostc>) {
+        self.ostc = ostc;
+    }
+
+    pub fn ostc(&self) -> Option<&Ostc> {
+        self.ostc.as_ref()
+    }
+
+    pub fn ostc_mut(&mut self) -> Option<&mut Ostc> {
+        self.ostc.as_mut()
+    }
+
+    /// The region (of `layout`) of a group of `level`'s slots.
+    fn region_of(
+        lattice: &SampleLattice,
+        layout: &RegionLayout,
+        level: Level,
+        group: SampleGroup,
+    ) -> usize {
+        let (col, row) = lattice.slot_position(level, group.col, group.row);
+        let col = lattice.wrap_column(level.x, col) >> level.x;
+        let row = (row >> level.y).clamp(0, lattice.last_row(0));
+        layout.region_of(col, row)
+    }
+
+    /// Re-traces every traced group, as it was traced, and compares the kept
+    /// samples with the fresh ones bit for bit: (samples compared, samples
+    /// that differ). What `--verify` checks when objects move and OSTC keeps
+    /// the buffer.
+    pub fn verify(&self, shader: &Shader) -> (u64, u64) {
+        let (mut compared, mut differing) = (0u64, 0u64);
+        for (index, store) in self.levels.iter().enumerate() {
+            let level = Level::from_index(index);
+            let (groups, tiles): (Vec<SampleGroup>, Vec<usize>) = traced_groups(store)
+                .map(|(group, tile, _)| (group, tile))
+                .unzip();
+            if groups.is_empty() {
+                continue;
+            }
+            let source = LevelRays {
+                lattice: &self.lattice,
+                level,
+            };
+            let (fresh, _) = trace_groups(shader, &source, &groups);
+            let last = self.lattice.last_slot_row(level);
+            for ((group, tile), colors) in groups.iter().zip(&tiles).zip(&fresh) {
+                for (lane, (col, row)) in group.lane_samples().into_iter().enumerate() {
+                    if row > last {
+                        continue;
+                    }
+                    let (_, sample, _) = tile_key(col, row);
+                    let kept = store.colors[tile * TILE_SAMPLES + sample];
+                    compared += 1;
+                    let same = kept.to_array().map(f32::to_bits)
+                        == colors[lane].to_array().map(f32::to_bits);
+                    differing += u64::from(!same);
+                }
+            }
+        }
+        (compared, differing)
+    }
+
+    /// Nulls, at every level, the samples lying in `regions` (of the OSTC
+    /// layout); returns how many groups were erased. They are traced again
+    /// when a viewport next reads them.
+    pub fn erase(&mut self, regions: &RegionSet) -> u64 {
+        let Some(ostc) = &self.ostc else {
+            return 0;
+        };
+        let layout = *ostc.layout();
+        let mut erased = 0;
+        let gw = i64::from(GROUP_WIDTH);
+        for (index, store) in self.levels.iter_mut().enumerate() {
+            let level = Level::from_index(index);
+            for (&(tile_col, tile_row), &tile) in &store.tiles {
+                let mask = &mut store.traced[tile as usize];
+                if *mask == 0 {
+                    continue;
+                }
+                // A tile is one row of groups, so its groups' regions run
+                // along one region row, in column order unless the tile
+                // wraps the turn (a small camera's turn may be shorter than
+                // a tile): one range test skips most clean tiles.
+                let (col, row) = (tile_col << TILE_COL_SHIFT, tile_row << TILE_ROW_SHIFT);
+                let region = |col| {
+                    let group = SampleGroup { col, row };
+                    Self::region_of(&self.lattice, &layout, level, group)
+                };
+                let last_col = col + TILE_COLS - gw;
+                let wraps = self.lattice.slot_position(level, last_col, row).0
+                    >= self.lattice.columns(level.x);
+                if !wraps && !regions.any_in(region(col)..=region(last_col)) {
+                    continue;
+                }
+                let mut rest = *mask;
+                while rest != 0 {
+                    let bit = rest.trailing_zeros();
+                    rest &= rest - 1;
+                    if regions.contains(region(col + i64::from(bit) * gw)) {
+                        *mask &= !(1u64 << bit);
+                        erased += 1;
+                    }
+                }
+            }
+        }
+        erased
+    }
+
+    pub fn lattice(&self) -> &SampleLattice {
+        &self.lattice
+    }
+
+    /// Samples traced since the buffer was made.
+    pub fn samples_traced(&self) -> u64 {
+        self.samples_traced
+    }
+
+    /// The colour of sample (col, row) of `level`, if traced.
+    pub fn sample(&self, level: Level, col: i64, row: i64) -> Option<Vec3> {
+        let (owner, col, row) = self.lattice.owner(level, col, row);
+        let store = &self.levels[owner.index()];
+        let (key, sample, bit) = tile_key(col, row);
+        let tile = store.tile(key)? as usize;
+        (store.traced[tile] >> bit & 1 == 1).then(|| store.colors[tile * TILE_SAMPLES + sample])
+    }
+
+    /// Whether `group` of `level`'s slots was traced.
+    pub fn group_traced(&self, level: Level, group: SampleGroup) -> bool {
+        self.levels[level.index()].group_traced(group)
+    }
+
+    /// Traces the missing groups, one batch per level, and keeps them.
+    /// Returns the samples and rays traced for each request list.
+    fn trace(
+        &mut self,
+        shader: &Shader,
+        requests: &[Vec<(Level, SampleGroup)>],
+    ) -> Vec<(u64, RayCounts, f64)> {
+        let mut all: Vec<(Level, SampleGroup, usize)> = Vec::new();
+        for (who, list) in requests.iter().enumerate() {
+            all.extend(list.iter().map(|&(l, g)| (l, g, who)));
+        }
+        // The first requester pays. One list comes sorted and unique from
+        // `map` already.
+        if requests.len() > 1 {
+            all.sort_by_key(|&(l, g, who)| (l, g.row, g.col, who));
+            all.dedup_by_key(|&mut (l, g, _)| (l, g));
+        }
+        debug_assert!(all
+            .windows(2)
+            .all(|w| (w[0].0, w[0].1.row, w[0].1.col) < (w[1].0, w[1].1.row, w[1].1.col)));
+        let mut out = vec![(0u64, RayCounts::default(), 0.0f64); requests.len()];
+        self.fresh.clear();
+        self.fresh
+            .extend(all.iter().map(|&(level, group, _)| (level, group)));
+        for batch in all.chunk_by(|a, b| a.0 == b.0) {
+            let level = batch[0].0;
+            let batch: Vec<(SampleGroup, usize)> =
+                batch.iter().map(|&(_, g, who)| (g, who)).collect();
+            let groups: Vec<SampleGroup> = batch.iter().map(|&(g, _)| g).collect();
+            let start = Instant::now();
+            let source = LevelRays {
+                lattice: &self.lattice,
+                level,
+            };
+            let ostc = self.ostc.as_ref();
+            let lattice = &self.lattice;
+            let (colors, rays) = trace_groups_observed(shader, &source, &groups, |group| {
+                ostc.map(|o| o.marker_in(Self::region_of(lattice, o.layout(), level, group)))
+            });
+            let ms = start.elapsed().as_secs_f64() * 1e3;
+            let per_group = ms / groups.len() as f64;
+            let lattice = self.lattice.clone();
+            let store = &mut self.levels[level.index()];
+            let last = lattice.last_slot_row(level);
+            let mut owned_total = 0u64;
+            for ((group, who), colors) in batch.iter().zip(&colors) {
+                let (key, _, bit) = tile_key(group.col, group.row);
+                let tile = store.tile_or_insert(key) as usize;
+                store.traced[tile] |= 1u64 << bit;
+                let mut owned = 0u64;
+                for (lane, (col, row)) in group.lane_samples().into_iter().enumerate() {
+                    let (_, sample, _) = tile_key(col, row);
+                    store.colors[tile * TILE_SAMPLES + sample] = colors[lane];
+                    // Beyond the poles there is no sample (and no ray).
+                    owned += u64::from((0..=last).contains(&row));
+                }
+                owned_total += owned;
+                out[*who].0 += owned;
+                out[*who].2 += per_group;
+            }
+            // Rays by share of samples (groups differ only by masked lanes).
+            let mut given = RayCounts::default();
+            let batch_len = batch.len();
+            let mut counts = vec![0usize; requests.len()];
+            for &(_, who) in &batch {
+                counts[who] += 1;
+            }
+            for (who, &n) in counts.iter().enumerate() {
+                if n == 0 {
+                    continue;
+                }
+                let share = |v: u64| v * n as u64 / batch_len as u64;
+                let part = RayCounts {
+                    primary: share(rays.primary),
+                    shadow: share(rays.shadow),
+                    reflection: share(rays.reflection),
+                };
+                given += part;
+                out[who].1 += part;
+            }
+            if let Some(first) = counts.iter().position(|&n| n > 0) {
+                out[first].1.primary += rays.primary - given.primary;
+                out[first].1.shadow += rays.shadow - given.shadow;
+                out[first].1.reflection += rays.reflection - given.reflection;
+            }
+            self.samples_traced += owned_total;
+        }
+        out
+    }
+
+    /// Renders every viewport of a frame: maps their pixels, traces the
+    /// null samples they touch in one batch, and resamples.
+    pub fn render(
+        &mut self,
+        shader: &Shader,
+        poses: &[ViewportPose],
+        knobs: &RsvpKnobs,
+        linear: bool,
+    ) -> Vec<ViewportFrame> {
+        let mut mapped = Vec::with_capacity(poses.len());
+        let mut map_ms = Vec::with_capacity(poses.len());
+        for pose in poses {
+            let start = Instant::now();
+            mapped.push(self.map(pose, knobs));
+            map_ms.push(start.elapsed().as_secs_f64() * 1e3);
+        }
+        let requests: Vec<Vec<(Level, SampleGroup)>> = mapped
+            .iter_mut()
+            .map(|m| std::mem::take(&mut m.missing))
+            .collect();
+        let traced = self.trace(shader, &requests);
+        poses
+            .iter()
+            .zip(&mapped)
+            .zip(traced.into_iter().zip(map_ms))
+            .map(|((pose, mapped), ((samples, rays, trace_ms), map_ms))| {
+                let start = Instant::now();
+                let (frame, image) = self.gather(pose, mapped, knobs.filter, linear);
+                let gather_ms = start.elapsed().as_secs_f64() * 1e3;
+                let levels = mapped.regions.iter().fold((u32::MAX, 0), |(lo, hi), r| {
+                    (lo.min(r.level.finest()), hi.max(r.level.finest()))
+                });
+                ViewportFrame {
+                    frame,
+                    image,
+                    samples_traced: samples,
+                    rays,
+                    map_ms,
+                    trace_ms,
+                    gather_ms,
+                    levels,
+                }
+            })
+            .collect()
+    }
+
+    /// `image` (the viewport `pose` as the last [`SampleBuffer::render`]
+    /// showed it) with every pixel black whose filter read a sample traced
+    /// in that render: what the frame re-traced (the paper's figure 4).
+    /// Maps the viewport again, so it costs about a frame's resampling.
+    pub fn fresh_image(
+        &self,
+        pose: &ViewportPose,
+        knobs: &RsvpKnobs,
+        image: &image::RgbImage,
+    ) -> image::RgbImage {
+        let mut out = image.clone();
+        if self.fresh.is_empty() {
+            return out;
+        }
+        let mapped = self.map(pose, knobs);
+        let map = PixelMap::new(pose);
+        let (w, h) = (pose.camera.width, pose.camera.height);
+        let extra = i64::from(knobs.filter != Filter::Nearest);
+        let mut coords = Vec::new();
+        for (index, region) in mapped.regions.iter().enumerate() {
+            let (x0, y0) = (
+                (index % mapped.regions_x) as u32 * REGION,
+                (index / mapped.regions_x) as u32 * REGION,
+            );
+            let (cols, rows) = ((w - x0).min(REGION), (h - y0).min(REGION));
+            let level = region.level;
+            let size = (cols as usize, rows as usize);
+            let grid = region.grid.as_ref();
+            let slots = nan_filled(&mut coords, size.0 * size.1);
+            self.region_coords(pose, &map, level, grid, (x0, y0), size.0, slots);
+            let last_row = self.lattice.last_row(level.y);
+            for (k, c) in coords.iter().enumerate() {
+                if c.x.is_nan() {
+                    continue;
+                }
+                let (cx, ry) = filter_origin(knobs.filter, c.x, c.y);
+                let fresh = (0..=extra).any(|dr| {
+                    (0..=extra).any(|dc| {
+                        let row = (ry + dr).clamp(0, last_row);
+                        let (owner, col, row) = self.lattice.owner(level, cx + dc, row);
+                        let group = SampleGroup::containing(col, row);
+                        let group = SampleGroup {
+                            col: wrap(group.col, self.lattice.slot_columns(owner)),
+                            row: group.row,
+                        };
+                        self.fresh
+                            .binary_search_by_key(&(owner, group.row, group.col), |&(l, g)| {
+                                (l, g.row, g.col)
+                            })
+                            .is_ok()
+                    })
+                });
+                if fresh {
+                    let (x, y) = (x0 + (k % size.0) as u32, y0 + (k / size.0) as u32);
+                    out.put_pixel(x, y, image::Rgb([0, 0, 0]));
+                }
+            }
+        }
+        out
+    }
+
+    /// The buffer at level 0 as seen by an equal-angle window around the
+    /// camera's view (width x height samples, corner snapped): traced
+    /// samples in colour, never-traced ones black (the paper's figure 5a).
+    /// Where level 0 is null but a finer level traced inside the sample's
+    /// cell, that sample shows, so zoomed regions appear solid.
+    pub fn buffer_image(&self, camera: &Camera, width: u32, height: u32) -> image::RgbImage {
+        let col0 = (camera.yaw / self.lattice.step - 0.5 * f64::from(width)).round() as i64;
+        let row0 = ((FRAC_PI_2 - camera.pitch) / self.lattice.step - 0.5 * f64::from(height))
+            .round() as i64;
+        let srgb = srgb_table();
+        // Coarser levels first: fewer halvings in all come first.
+        let mut levels: Vec<Level> = (0..Level::COUNT)
+            .filter(|&i| !self.levels[i].traced.is_empty())
+            .map(Level::from_index)
+            .collect();
+        levels.sort_by_key(|l| (l.x + l.y, *l));
+        image::RgbImage::from_fn(width, height, |x, y| {
+            let (c, r) = (col0 + i64::from(x), row0 + i64::from(y));
+            let colour = levels.iter().find_map(|&level| {
+                // The first sample of the cell this level owns.
+                let (col, row) = self.lattice.slot_position(
+                    level,
+                    c << level.x.saturating_sub(1),
+                    r << level.y.saturating_sub(1),
+                );
+                self.sample(level, col, row)
+            });
+            image::Rgb(colour.map_or([0; 3], |c| c.to_array().map(|v| srgb.encode(v))))
+        })
+    }
+}
+
+/// What the unit tests of the submodules share.
+#[cfg(test)]
+mod fixtures {
+    use glam::DVec3;
+
+    use super::*;
+    use crate::camera::Projection;
+
+    /// The paper camera's size and field of view, level, one unit up.
+    pub(super) fn camera(projection: Projection) -> Camera {
+        Camera {
+            projection,
+            position: DVec3::new(0.0, 1.0, 0.0),
+            yaw: 0.0,
+            pitch: 0.0,
+            fov: 100f64.to_radians(),
+            width: 640,
+            height: 480,
+        }
+    }
+
+    pub(super) fn lattice() -> SampleLattice {
+        SampleLattice::for_camera(&camera(Projection::EqualAngle))
+    }
+}

@@ -1,0 +1,138 @@
+//! Where traced samples live: per level, tiles of slots allocated on first
+//! touch, with a traced bit per group, and a small cache of recent tiles.
+
+use std::collections::HashMap;
+use std::hash::{BuildHasherDefault, Hasher};
+
+use glam::Vec3;
+
+use super::Level;
+use crate::render::{SampleGroup, GROUP_HEIGHT, GROUP_WIDTH};
+
+/// Samples per side of a storage tile (a multiple of both group sides).
+/// A tile is one row of groups, 256 samples wide: a viewport row reads
+/// long contiguous runs, which the hardware prefetcher follows (square
+/// tiles made the sample loads miss the cache every few pixels).
+pub(super) const TILE_COLS: i64 = 256;
+pub(super) const TILE_COL_SHIFT: u32 = 8;
+const TILE_ROWS: i64 = GROUP_HEIGHT as i64;
+pub(super) const TILE_ROW_SHIFT: u32 = 1;
+pub(super) const TILE_SAMPLES: usize = (TILE_COLS * TILE_ROWS) as usize;
+const _: () = assert!(TILE_COLS / GROUP_WIDTH as i64 == 64);
+const _: () = assert!(1 << TILE_COL_SHIFT == TILE_COLS && 1 << TILE_ROW_SHIFT == TILE_ROWS);
+
+/// One level's traced samples, by slot, in tiles allocated on first touch.
+#[derive(Default)]
+pub(super) struct LevelSamples {
+    pub(super) tiles: HashMap<(i64, i64), u32, BuildHasherDefault<TileHasher>>,
+    pub(super) colors: Vec<Vec3>,
+    /// Per tile, one bit per 4x2 group: traced yet?
+    pub(super) traced: Vec<u64>,
+}
+
+/// Multiplicative hashing of tile keys (small integers; no adversary).
+#[derive(Default)]
+pub(super) struct TileHasher(u64);
+
+impl Hasher for TileHasher {
+    fn finish(&self) -> u64 {
+        self.0
+    }
+    fn write(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            self.0 = (self.0.rotate_left(5) ^ u64::from(b)).wrapping_mul(0x517c_c1b7_2722_0a95);
+        }
+    }
+    fn write_i64(&mut self, v: i64) {
+        self.0 = (self.0.rotate_left(29) ^ v as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15);
+    }
+}
+
+pub(super) fn tile_key(col: i64, row: i64) -> ((i64, i64), usize, u32) {
+    let key = (col >> TILE_COL_SHIFT, row >> TILE_ROW_SHIFT);
+    let (c, r) = (col & (TILE_COLS - 1), row & (TILE_ROWS - 1));
+    let sample = (r * TILE_COLS + c) as usize;
+    let group = c / i64::from(GROUP_WIDTH);
+    (key, sample, group as u32)
+}
+
+/// Every traced group of a level's store: (group, tile, bit in its mask).
+pub(super) fn traced_groups(
+    store: &LevelSamples,
+) -> impl Iterator<Item = (SampleGroup, usize, u32)> + '_ {
+    store
+        .tiles
+        .iter()
+        .flat_map(move |(&(tile_col, tile_row), &tile)| {
+            let mut rest = store.traced[tile as usize];
+            std::iter::from_fn(move || {
+                if rest == 0 {
+                    return None;
+                }
+                let bit = rest.trailing_zeros();
+                rest &= rest - 1;
+                let group = SampleGroup {
+                    col: (tile_col << TILE_COL_SHIFT) + i64::from(bit) * i64::from(GROUP_WIDTH),
+                    row: tile_row << TILE_ROW_SHIFT,
+                };
+                Some((group, tile as usize, bit))
+            })
+        })
+}
+
+impl LevelSamples {
+    pub(super) fn tile(&self, key: (i64, i64)) -> Option<u32> {
+        self.tiles.get(&key).copied()
+    }
+
+    pub(super) fn tile_or_insert(&mut self, key: (i64, i64)) -> u32 {
+        let next = self.traced.len() as u32;
+        let index = *self.tiles.entry(key).or_insert(next);
+        if index == next {
+            self.traced.push(0);
+            self.colors
+                .resize(self.colors.len() + TILE_SAMPLES, Vec3::ZERO);
+        }
+        index
+    }
+
+    pub(super) fn group_traced(&self, group: SampleGroup) -> bool {
+        let (key, _, bit) = tile_key(group.col, group.row);
+        self.tile(key)
+            .is_some_and(|t| self.traced[t as usize] >> bit & 1 == 1)
+    }
+}
+
+/// Remembers the last tiles read: neighbouring pixels read the same few
+/// tiles, so most reads skip the hash map. Direct-mapped by level and tile
+/// row parity (rows r and r + 1 may lie in neighbouring tile rows).
+pub(super) struct TileCache {
+    pub(super) keys: [(usize, (i64, i64)); TILE_CACHE_SLOTS],
+    pub(super) tiles: [u32; TILE_CACHE_SLOTS],
+}
+
+const TILE_CACHE_SLOTS: usize = 64;
+const _: () = assert!(TILE_CACHE_SLOTS == 4 * 8 * 2);
+
+impl TileCache {
+    pub(super) fn new() -> TileCache {
+        TileCache {
+            keys: [(usize::MAX, (i64::MIN, i64::MIN)); TILE_CACHE_SLOTS],
+            tiles: [u32::MAX; TILE_CACHE_SLOTS],
+        }
+    }
+
+    /// The tile of `key` in `store` (level `level`), or u32::MAX if none.
+    #[inline(always)]
+    pub(super) fn tile(&mut self, store: &LevelSamples, level: Level, key: (i64, i64)) -> u32 {
+        let index = level.index();
+        // Distinct for levels within 4 of each other in azimuth and 8 in
+        // elevation: the owners one region reads.
+        let slot = (((level.x & 3) * 8 + (level.y & 7)) * 2) as usize + (key.1 & 1) as usize;
+        if self.keys[slot] != (index, key) {
+            self.keys[slot] = (index, key);
+            self.tiles[slot] = store.tile(key).unwrap_or(u32::MAX);
+        }
+        self.tiles[slot]
+    }
+}
