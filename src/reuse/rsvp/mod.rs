@@ -57,13 +57,9 @@ use crate::shade::{RayCounts, Shader};
 use filter::filter_origin;
 use lattice::wrap;
 use map::nan_filled;
-use store::tile_key;
-use store::traced_groups;
-use store::LevelSamples;
-use store::TILE_COLS;
-use store::TILE_COL_SHIFT;
-use store::TILE_ROW_SHIFT;
-use store::TILE_SAMPLES;
+use store::{
+    tile_key, traced_groups, LevelSamples, TILE_COLS, TILE_COL_SHIFT, TILE_ROW_SHIFT, TILE_SAMPLES,
+};
 use viewport::PixelMap;
 
 /// Finest pyramid level: 2^16 times the camera's angular resolution, enough
