@@ -123,6 +123,12 @@ on_every_backend! {
             let (compared, differing) = animator.verify_sample_buffer().unwrap();
             assert!(compared > 0);
             assert_eq!(differing, 0, "frame {frame}: buffer samples differ from a fresh trace");
+            // What the viewport shows from the kept buffer (and its views,
+            // updated as samples were erased and traced again) equals what a
+            // fresh buffer shows of this frame alone.
+            let mut accel = retrace::accel::Accelerator::build(backend, &scene.objects).unwrap();
+            let mut fresh = retrace::anim::Animator::new(&scene, &mut accel, Techniques::AUTO, 0..6);
+            assert!(fresh.render_viewports(frame)[0].image == outputs[0].image, "frame {frame}: kept and fresh views differ");
         }
         // Kept samples: later frames trace far less than the first.
         let first = {
