@@ -47,13 +47,13 @@ use std::f64::consts::FRAC_PI_2;
 use std::time::Instant;
 
 use glam::Vec3;
+use rayon::prelude::*;
 
 use crate::camera::Camera;
-use crate::render::{
-    srgb_table, trace_groups, trace_groups_observed, Frame, SampleGroup, GROUP_WIDTH,
-};
+use crate::ray::PACKET_WIDTH;
+use crate::render::{srgb_table, trace_group, trace_groups, Frame, SampleGroup, GROUP_WIDTH};
 use crate::reuse::ostc::{Ostc, RegionLayout, RegionSet};
-use crate::shade::{RayCounts, Shader};
+use crate::shade::{RayCounts, RayObserver, Shader};
 use filter::filter_origin;
 use lattice::wrap;
 use map::nan_filled;
@@ -265,8 +265,9 @@ impl SampleBuffer {
         self.levels[level.index()].group_traced(group)
     }
 
-    /// Traces the missing groups, one batch per level, and keeps them.
-    /// Returns the samples and rays traced for each request list.
+    /// Traces the missing groups of every level in one parallel batch and
+    /// keeps them. Returns the samples and rays traced for each request
+    /// list.
     fn trace(
         &mut self,
         shader: &Shader,
@@ -289,68 +290,44 @@ impl SampleBuffer {
         self.fresh.clear();
         self.fresh
             .extend(all.iter().map(|&(level, group, _)| (level, group)));
-        for batch in all.chunk_by(|a, b| a.0 == b.0) {
-            let level = batch[0].0;
-            let batch: Vec<(SampleGroup, usize)> =
-                batch.iter().map(|&(_, g, who)| (g, who)).collect();
-            let groups: Vec<SampleGroup> = batch.iter().map(|&(g, _)| g).collect();
-            let start = Instant::now();
-            let source = LevelRays {
-                lattice: &self.lattice,
-                level,
-            };
-            let ostc = self.ostc.as_ref();
-            let lattice = &self.lattice;
-            let (colors, rays) = trace_groups_observed(shader, &source, &groups, |group| {
-                ostc.map(|o| o.marker_in(Self::region_of(lattice, o.layout(), level, group)))
-            });
-            let ms = start.elapsed().as_secs_f64() * 1e3;
-            let per_group = ms / groups.len() as f64;
-            let lattice = self.lattice.clone();
+        if all.is_empty() {
+            return out;
+        }
+        // One batch rather than one per level: a frame that refines a few
+        // levels would otherwise wait for each level's last group in turn.
+        let start = Instant::now();
+        let (lattice, ostc) = (&self.lattice, self.ostc.as_ref());
+        let traced: Vec<([Vec3; PACKET_WIDTH], RayCounts)> = all
+            .par_iter()
+            .with_min_len(16)
+            .map(|&(level, group, _)| {
+                let source = LevelRays { lattice, level };
+                let mut rays = RayCounts::default();
+                let mut marker =
+                    ostc.map(|o| o.marker_in(Self::region_of(lattice, o.layout(), level, group)));
+                let observer = marker.as_mut().map(|m| m as &mut dyn RayObserver);
+                let colors = trace_group(shader, &source, group, &mut rays, observer);
+                (colors, rays)
+            })
+            .collect();
+        let per_group = start.elapsed().as_secs_f64() * 1e3 / all.len() as f64;
+        for (&(level, group, who), (colors, rays)) in all.iter().zip(&traced) {
+            let last = self.lattice.last_slot_row(level);
             let store = &mut self.levels[level.index()];
-            let last = lattice.last_slot_row(level);
-            let mut owned_total = 0u64;
-            for ((group, who), colors) in batch.iter().zip(&colors) {
-                let (key, _, bit) = tile_key(group.col, group.row);
-                let tile = store.tile_or_insert(key) as usize;
-                store.traced[tile] |= 1u64 << bit;
-                let mut owned = 0u64;
-                for (lane, (col, row)) in group.lane_samples().into_iter().enumerate() {
-                    let (_, sample, _) = tile_key(col, row);
-                    store.colors[tile * TILE_SAMPLES + sample] = colors[lane];
-                    // Beyond the poles there is no sample (and no ray).
-                    owned += u64::from((0..=last).contains(&row));
-                }
-                owned_total += owned;
-                out[*who].0 += owned;
-                out[*who].2 += per_group;
+            let (key, _, bit) = tile_key(group.col, group.row);
+            let tile = store.tile_or_insert(key) as usize;
+            store.traced[tile] |= 1u64 << bit;
+            let mut owned = 0u64;
+            for (lane, (col, row)) in group.lane_samples().into_iter().enumerate() {
+                let (_, sample, _) = tile_key(col, row);
+                store.colors[tile * TILE_SAMPLES + sample] = colors[lane];
+                // Beyond the poles there is no sample (and no ray).
+                owned += u64::from((0..=last).contains(&row));
             }
-            // Rays by share of samples (groups differ only by masked lanes).
-            let mut given = RayCounts::default();
-            let batch_len = batch.len();
-            let mut counts = vec![0usize; requests.len()];
-            for &(_, who) in &batch {
-                counts[who] += 1;
-            }
-            for (who, &n) in counts.iter().enumerate() {
-                if n == 0 {
-                    continue;
-                }
-                let share = |v: u64| v * n as u64 / batch_len as u64;
-                let part = RayCounts {
-                    primary: share(rays.primary),
-                    shadow: share(rays.shadow),
-                    reflection: share(rays.reflection),
-                };
-                given += part;
-                out[who].1 += part;
-            }
-            if let Some(first) = counts.iter().position(|&n| n > 0) {
-                out[first].1.primary += rays.primary - given.primary;
-                out[first].1.shadow += rays.shadow - given.shadow;
-                out[first].1.reflection += rays.reflection - given.reflection;
-            }
-            self.samples_traced += owned_total;
+            self.samples_traced += owned;
+            out[who].0 += owned;
+            out[who].1 += *rays;
+            out[who].2 += per_group;
         }
         out
     }
