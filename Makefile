@@ -1,5 +1,6 @@
 # retrace: two commands on a fresh Debian machine.
-#   make demo   renders the paper scene (out/paper.png) and the bunny (out/bunny.png)
+#   make demo   renders the paper scene (out/paper.png), the bunny (out/bunny.png)
+#               and 24 frames of pan + zoom + a bouncing ball (out/anim/)
 #   make test   runs the whole test suite (format, lints, unit and integration tests)
 # Both install the Debian packages they need first (Embree, libclang for bindgen).
 
@@ -29,6 +30,8 @@ demo: build
 	@mkdir -p out
 	$(RETRACE) render -o out/paper.png
 	$(RETRACE) render scenes/bunny.toml -o out/bunny.png
+	$(RETRACE) animate scenes/paper-all.toml --frames 0-23 -o out/anim/frame_####.png \
+	  --dirty-image out/anim/traced_####.png --stats out/anim/stats.csv
 
 lint: deps
 	cargo fmt --all -- --check
