@@ -128,6 +128,9 @@ impl SampleBuffer {
         if !map.lattice_many(&self.lattice, pose.camera.yaw, (&xs, &ys), &mut mapped) {
             return None;
         }
+        if !mapped.iter().all(|p| p.is_finite()) {
+            return None;
+        }
         let mut grid = [[DVec2::ZERO; GRID_POINTS]; GRID_POINTS];
         for (line, points) in grid.iter_mut().zip(mapped.chunks_exact(GRID_POINTS)) {
             line.copy_from_slice(points);
@@ -138,8 +141,7 @@ impl SampleBuffer {
         // miss, per axis, so a saddle (near a pole, where the two cancel)
         // shows too. (Mapping each cell's edge midpoints gives the same
         // estimate for 32 more mappings per region; the test below holds
-        // every pixel to the tolerance.) A seam or a point without a ray
-        // makes the differences huge or NaN.
+        // every pixel to the tolerance.) A seam makes the differences huge.
         let second = |a: DVec2, b: DVec2, c: DVec2| (a - b * 2.0 + c).abs();
         // Second differences along x at the inner columns, along y at the
         // inner rows; a cell takes the largest at its nearest inner points.
@@ -166,11 +168,7 @@ impl SampleBuffer {
                     .max(along_y[j1][i])
                     .max(along_y[j0][i + 1])
                     .max(along_y[j1][i + 1]);
-                let miss = (fxx + fyy) / 8.0;
-                if miss.is_nan() {
-                    return None;
-                }
-                worst = worst.max(miss);
+                worst = worst.max((fxx + fyy) / 8.0);
                 // The cell's pixel footprint, as region_level measures it.
                 let dx = (grid[j][i + 1] - grid[j][i]) / spacing;
                 let dy = (grid[j + 1][i] - grid[j][i]) / spacing;
