@@ -47,13 +47,11 @@ use std::f64::consts::FRAC_PI_2;
 use std::time::Instant;
 
 use glam::Vec3;
-use rayon::prelude::*;
 
 use crate::camera::Camera;
-use crate::ray::PACKET_WIDTH;
-use crate::render::{srgb_table, trace_group, trace_groups, Frame, SampleGroup, GROUP_WIDTH};
+use crate::render::{srgb_table, trace_each, trace_groups, Frame, SampleGroup, GROUP_WIDTH};
 use crate::reuse::ostc::{Ostc, RegionLayout, RegionSet};
-use crate::shade::{RayCounts, RayObserver, Shader};
+use crate::shade::{RayCounts, Shader};
 use filter::filter_origin;
 use lattice::wrap;
 use map::nan_filled;
@@ -297,19 +295,11 @@ impl SampleBuffer {
         // levels would otherwise wait for each level's last group in turn.
         let start = Instant::now();
         let (lattice, ostc) = (&self.lattice, self.ostc.as_ref());
-        let traced: Vec<([Vec3; PACKET_WIDTH], RayCounts)> = all
-            .par_iter()
-            .with_min_len(16)
-            .map(|&(level, group, _)| {
-                let source = LevelRays { lattice, level };
-                let mut rays = RayCounts::default();
-                let mut marker =
-                    ostc.map(|o| o.marker_in(Self::region_of(lattice, o.layout(), level, group)));
-                let observer = marker.as_mut().map(|m| m as &mut dyn RayObserver);
-                let colors = trace_group(shader, &source, group, &mut rays, observer);
-                (colors, rays)
-            })
-            .collect();
+        let traced = trace_each(shader, &all, |&(level, group, _)| {
+            let region = |o: &Ostc| Self::region_of(lattice, o.layout(), level, group);
+            let marker = ostc.map(|o| o.marker_in(region(o)));
+            (LevelRays { lattice, level }, group, marker)
+        });
         let per_group = start.elapsed().as_secs_f64() * 1e3 / all.len() as f64;
         for (&(level, group, who), (colors, rays)) in all.iter().zip(&traced) {
             let last = self.lattice.last_slot_row(level);
