@@ -153,6 +153,14 @@ fn replay(log: &[Recorded], intersector: &dyn Intersector) {
         })
 }
 
+/// Each frame's times: the medians of its rounds, full and accelerated.
+fn set_frame_medians(profile: &mut [FrameProfile], full: Vec<Vec<f64>>, fast: Vec<Vec<f64>>) {
+    for ((row, full), fast) in profile.iter_mut().zip(full).zip(fast) {
+        row.full_ms = median(full);
+        row.accelerated_ms = median(fast);
+    }
+}
+
 fn median(mut values: Vec<f64>) -> f64 {
     values.sort_by(f64::total_cmp);
     values[values.len() / 2]
@@ -639,10 +647,7 @@ pub fn bench_sequence(
             exact &= same;
         }
     }
-    for ((row, full), fast) in profile.iter_mut().zip(full_frame_ms).zip(fast_frame_ms) {
-        row.full_ms = median(full);
-        row.accelerated_ms = median(fast);
-    }
+    set_frame_medians(&mut profile, full_frame_ms, fast_frame_ms);
     let frame_count = frames.end - frames.start;
     // The oracle was timed in the first round, next to its full renders.
     let timed_region_oracle_speedup = full_times[0] / oracle_traced_ms.max(1e-9);
@@ -730,13 +735,16 @@ pub struct ViewportSequenceBench {
 /// before it, and every checkpoint costs a retrace of all kept samples.
 const BUFFER_CHECK_EVERY: u32 = 20;
 
-/// Renders the viewports of `frames` directly and with RSVP (one run each,
-/// timed), then measures the RSVP frames' error against the direct ones
+/// Renders the viewports of `frames` directly and with RSVP, alternating
+/// `rounds` timed runs of each (medians reported, per sequence and per
+/// frame), then measures the RSVP frames' error against the direct ones
 /// (untimed; skipped with `measure_error` off).
+#[allow(clippy::too_many_arguments)]
 pub fn bench_viewport_sequence(
     scene: &Scene,
     accel: &mut Accelerator,
     frames: std::ops::Range<u32>,
+    rounds: usize,
     knobs: crate::reuse::rsvp::RsvpKnobs,
     measure_error: bool,
     ostc: Option<crate::anim::OstcSettings>,
@@ -751,60 +759,79 @@ pub fn bench_viewport_sequence(
     let views = scene.viewports.len();
     let mut pixels_per_frame = 0;
     let mut profile = FrameProfile::empty(frames.clone());
-    let mut full = Animator::new(scene, accel, Techniques::FULL, frames.clone());
     // Untimed: see bench_sequence.
     if views > 0 {
-        std::hint::black_box(full.render_viewport_direct(frames.start, 0));
+        let mut warm = Animator::new(scene, accel, Techniques::FULL, frames.clone());
+        std::hint::black_box(warm.render_viewport_direct(frames.start, 0));
     }
-    let mut full_ms = 0.0;
-    for (row, frame) in profile.iter_mut().zip(frames.clone()) {
-        let start = Instant::now();
-        for index in 0..views {
-            let (image, rays) = full.render_viewport_direct(frame, index);
-            std::hint::black_box(image.to_rgb8());
-            row.full_rays += rays;
-        }
-        row.full_ms = start.elapsed().as_secs_f64() * 1e3;
-        full_ms += row.full_ms;
-        progress();
-    }
-    drop(full);
-    let mut fast = Animator::new(scene, accel, rsvp_only, frames.clone());
-    fast.set_linear_output(false);
-    fast.set_rsvp_knobs(knobs);
-    if let Some(settings) = ostc {
-        fast.set_ostc(settings);
-    }
-    let mut rsvp_ms = 0.0;
+    let rounds = rounds.max(1);
+    let (mut full_times, mut fast_times) = (Vec::new(), Vec::new());
+    // Per frame and round, for per-frame medians.
+    let mut full_frame_ms = vec![Vec::new(); profile.len()];
+    let mut fast_frame_ms = vec![Vec::new(); profile.len()];
+    // Counts are the same every round: the last round's are kept.
     let mut samples_traced = 0;
     let mut bookkeeping_ms = 0.0;
-    for (row, frame) in profile.iter_mut().zip(frames.clone()) {
-        let start = Instant::now();
-        let outputs = fast.render_viewports(frame);
-        row.accelerated_ms = start.elapsed().as_secs_f64() * 1e3;
-        rsvp_ms += row.accelerated_ms;
-        pixels_per_frame = outputs.iter().map(|o| o.stats.pixels).sum();
-        for output in &outputs {
-            let stats = &output.stats;
-            row.accelerated_rays += RayCounts {
-                primary: stats.primary_rays,
-                shadow: stats.shadow_rays,
-                reflection: stats.reflection_rays,
-            };
-            row.samples_traced += stats.samples_traced;
-            row.bookkeeping_ms += stats.bookkeeping_ms;
+    for _ in 0..rounds {
+        let mut full = Animator::new(scene, accel, Techniques::FULL, frames.clone());
+        let mut elapsed = 0.0;
+        for (row, frame) in profile.iter_mut().zip(frames.clone()) {
+            let start = Instant::now();
+            let mut frame_rays = RayCounts::default();
+            for index in 0..views {
+                let (image, rays) = full.render_viewport_direct(frame, index);
+                std::hint::black_box(image.to_rgb8());
+                frame_rays += rays;
+            }
+            let ms = start.elapsed().as_secs_f64() * 1e3;
+            full_frame_ms[(frame - frames.start) as usize].push(ms);
+            elapsed += ms;
+            row.full_rays = frame_rays;
+            progress();
         }
-        // Frame-wide OSTC figures repeat on every viewport's stats.
-        if let Some(first) = outputs.first() {
-            row.dirty_regions = first.stats.dirty_regions;
-            row.samples_nulled = first.stats.samples_nulled;
+        full_times.push(elapsed);
+        drop(full);
+        let mut fast = Animator::new(scene, accel, rsvp_only, frames.clone());
+        fast.set_linear_output(false);
+        fast.set_rsvp_knobs(knobs);
+        if let Some(settings) = ostc {
+            fast.set_ostc(settings);
         }
-        samples_traced += row.samples_traced;
-        bookkeeping_ms += row.bookkeeping_ms;
-        std::hint::black_box(outputs);
-        progress();
+        let mut elapsed = 0.0;
+        (samples_traced, bookkeeping_ms) = (0, 0.0);
+        for (row, frame) in profile.iter_mut().zip(frames.clone()) {
+            let start = Instant::now();
+            let outputs = fast.render_viewports(frame);
+            let ms = start.elapsed().as_secs_f64() * 1e3;
+            fast_frame_ms[(frame - frames.start) as usize].push(ms);
+            elapsed += ms;
+            pixels_per_frame = outputs.iter().map(|o| o.stats.pixels).sum();
+            (row.accelerated_rays, row.samples_traced, row.bookkeeping_ms) =
+                (RayCounts::default(), 0, 0.0);
+            for output in &outputs {
+                let stats = &output.stats;
+                row.accelerated_rays += RayCounts {
+                    primary: stats.primary_rays,
+                    shadow: stats.shadow_rays,
+                    reflection: stats.reflection_rays,
+                };
+                row.samples_traced += stats.samples_traced;
+                row.bookkeeping_ms += stats.bookkeeping_ms;
+            }
+            // Frame-wide OSTC figures repeat on every viewport's stats.
+            if let Some(first) = outputs.first() {
+                row.dirty_regions = first.stats.dirty_regions;
+                row.samples_nulled = first.stats.samples_nulled;
+            }
+            samples_traced += row.samples_traced;
+            bookkeeping_ms += row.bookkeeping_ms;
+            std::hint::black_box(outputs);
+            progress();
+        }
+        fast_times.push(elapsed);
     }
-    drop(fast);
+    set_frame_medians(&mut profile, full_frame_ms, fast_frame_ms);
+    let (full_ms, rsvp_ms) = (median(full_times), median(fast_times));
     let mut errors = Vec::new();
     let mut buffer_check = None;
     if measure_error {

@@ -290,7 +290,8 @@ struct BenchArgs {
     #[arg(long, default_value = "out/bench")]
     out: PathBuf,
     /// Timed repetitions, the median reported (default: 15 for `frame`
-    /// and `backends`, one run of each sequence for the experiments).
+    /// and `backends`, one run of each sequence for the experiments; with
+    /// more, an experiment alternates full and accelerated runs).
     #[arg(long, value_parser = clap::value_parser!(u64).range(1..=1000))]
     repeats: Option<u64>,
     /// Also write the result as JSON here (`frame`, `backends`, `E4nomotion`, `knobs`).
@@ -459,13 +460,13 @@ struct PlannedExperiment {
 }
 
 impl PlannedExperiment {
-    /// Progress steps: both sides of a camera sequence; for viewports both
-    /// sides, the error pass and the oracle pass.
-    fn steps(&self) -> u64 {
+    /// Progress steps: both sides of a camera sequence, each of `rounds`
+    /// times; for viewports also the error pass and the oracle pass.
+    fn steps(&self, rounds: u64) -> u64 {
         let frames = u64::from(self.frames.end - self.frames.start);
         match self.experiment {
-            Experiment::E1 | Experiment::E3 => 2 * frames,
-            _ => 4 * frames,
+            Experiment::E1 | Experiment::E3 => 2 * rounds * frames,
+            _ => (2 * rounds + 2) * frames,
         }
     }
 }
@@ -608,7 +609,8 @@ fn bench_suite(
 ) -> Result<()> {
     let load_at_start = load_average();
     check_writable(&args.out)?;
-    bar.set_length(planned.iter().map(PlannedExperiment::steps).sum());
+    let rounds = args.repeats.unwrap_or(1);
+    bar.set_length(planned.iter().map(|plan| plan.steps(rounds)).sum());
     bar.set_position(0);
     let mut results = Vec::new();
     for plan in planned {
@@ -618,9 +620,13 @@ fn bench_suite(
     bar.finish_and_clear();
     let rows: Vec<_> = results.iter().map(|r| r.row.clone()).collect();
     say!(
-        "retrace bench: {} backend, {} threads, one run of each sequence{}",
+        "retrace bench: {} backend, {} threads, {}{}",
         args.backend.backend,
         rayon::current_num_threads(),
+        match rounds {
+            1 => "one run of each sequence".to_string(),
+            n => format!("median of {n} alternated runs of each sequence"),
+        },
         if cfg!(debug_assertions) {
             " (DEBUG BUILD)"
         } else {
@@ -715,6 +721,7 @@ fn run_experiment(
                 &scene,
                 &mut accel,
                 frames.clone(),
+                args.repeats.unwrap_or(1) as usize,
                 retrace::reuse::rsvp::RsvpKnobs::default(),
                 true,
                 (experiment == Experiment::E4).then(|| args.ostc.settings()),
@@ -800,6 +807,7 @@ fn bench_e2(
             &scene,
             &mut accel,
             0..100,
+            1,
             retrace::reuse::rsvp::RsvpKnobs::default(),
             true,
             None,

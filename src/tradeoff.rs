@@ -150,6 +150,7 @@ pub fn sweep_rsvp_knobs(
                 scene,
                 accel,
                 frames.clone(),
+                1,
                 knobs,
                 true,
                 None,

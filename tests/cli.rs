@@ -316,6 +316,21 @@ fn bench(out: &Path, extra: &[&str]) -> Output {
 }
 
 #[test]
+fn bench_repeats_viewport_experiments_too() {
+    let dir = tempfile::tempdir().unwrap();
+    let out_dir = dir.path().join("bench");
+    let out = bench(
+        &out_dir,
+        &["--only", "E2", "--frames", "2-4", "--repeats", "2"],
+    );
+    assert!(out.status.success(), "stderr: {}", stderr(&out));
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(stdout.contains("median of 2 alternated runs"), "{stdout}");
+    let frames = std::fs::read_to_string(out_dir.join("e2-in-frames.csv")).unwrap();
+    assert_eq!(frames.lines().count(), 1 + 3, "{frames}");
+}
+
+#[test]
 fn bench_writes_the_table_profiles_plots_and_report() {
     let dir = tempfile::tempdir().unwrap();
     let out_dir = dir.path().join("bench");
