@@ -81,18 +81,6 @@ pub trait PrimaryRays: Sync {
     }
 }
 
-/// A borrowed source is a source: lets [`trace_each`] take `&dyn
-/// PrimaryRays` as well as owned ones.
-impl<P: PrimaryRays + ?Sized> PrimaryRays for &P {
-    fn primary(&self, col: i64, row: i64) -> Option<Ray> {
-        (**self).primary(col, row)
-    }
-
-    fn primary_group(&self, group: SampleGroup) -> (RayPacket, LaneMask) {
-        (**self).primary_group(group)
-    }
-}
-
 /// The rays of `group`, one [`PrimaryRays::primary`] call per lane.
 #[inline(always)]
 fn gather_group<P: PrimaryRays + ?Sized>(source: &P, group: SampleGroup) -> (RayPacket, LaneMask) {
@@ -191,11 +179,9 @@ pub fn trace_groups_observed<O: RayObserver>(
     groups: &[SampleGroup],
     observer_for: impl Fn(SampleGroup) -> Option<O> + Sync,
 ) -> (Vec<[Vec3; PACKET_WIDTH]>, RayCounts) {
-    let (colors, counts): (Vec<_>, Vec<_>) = trace_each(shader, groups, |&group| {
+    let (colors, counts) = trace_each(shader, groups, |&group| {
         (source, group, observer_for(group))
-    })
-    .into_iter()
-    .unzip();
+    });
     (
         colors,
         counts.into_iter().fold(RayCounts::default(), |a, b| a + b),
@@ -206,11 +192,11 @@ pub fn trace_groups_observed<O: RayObserver>(
 /// and observer `setup(item)` gives (one batch over groups of different
 /// sources, such as several pyramid levels); each item's colours and rays
 /// come back in the order given.
-pub fn trace_each<T: Sync, S: PrimaryRays, O: RayObserver>(
+pub fn trace_each<'s, T: Sync, O: RayObserver>(
     shader: &Shader,
     items: &[T],
-    setup: impl Fn(&T) -> (S, SampleGroup, Option<O>) + Sync,
-) -> Vec<([Vec3; PACKET_WIDTH], RayCounts)> {
+    setup: impl Fn(&T) -> (&'s dyn PrimaryRays, SampleGroup, Option<O>) + Sync,
+) -> (Vec<[Vec3; PACKET_WIDTH]>, Vec<RayCounts>) {
     items
         .par_iter()
         .with_min_len(16)
@@ -219,14 +205,14 @@ pub fn trace_each<T: Sync, S: PrimaryRays, O: RayObserver>(
             let mut counts = RayCounts::default();
             let colors = trace_group(
                 shader,
-                &source,
+                source,
                 group,
                 &mut counts,
                 observer.as_mut().map(|o| o as &mut dyn RayObserver),
             );
             (colors, counts)
         })
-        .collect()
+        .unzip()
 }
 
 /// A linear-light RGB image.

@@ -49,7 +49,9 @@ use std::time::Instant;
 use glam::Vec3;
 
 use crate::camera::Camera;
-use crate::render::{srgb_table, trace_each, trace_groups, Frame, SampleGroup, GROUP_WIDTH};
+use crate::render::{
+    srgb_table, trace_each, trace_groups, Frame, PrimaryRays, SampleGroup, GROUP_WIDTH,
+};
 use crate::reuse::ostc::{Ostc, RegionLayout, RegionSet};
 use crate::shade::{RayCounts, Shader};
 use filter::filter_origin;
@@ -295,13 +297,19 @@ impl SampleBuffer {
         // levels would otherwise wait for each level's last group in turn.
         let start = Instant::now();
         let (lattice, ostc) = (&self.lattice, self.ostc.as_ref());
-        let traced = trace_each(shader, &all, |&(level, group, _)| {
+        let sources: Vec<LevelRays> = (0..Level::COUNT)
+            .map(|index| LevelRays {
+                lattice,
+                level: Level::from_index(index),
+            })
+            .collect();
+        let (colors, rays) = trace_each(shader, &all, |&(level, group, _)| {
             let region = |o: &Ostc| Self::region_of(lattice, o.layout(), level, group);
             let marker = ostc.map(|o| o.marker_in(region(o)));
-            (LevelRays { lattice, level }, group, marker)
+            (&sources[level.index()] as &dyn PrimaryRays, group, marker)
         });
         let per_group = start.elapsed().as_secs_f64() * 1e3 / all.len() as f64;
-        for (&(level, group, who), (colors, rays)) in all.iter().zip(&traced) {
+        for ((&(level, group, who), colors), rays) in all.iter().zip(&colors).zip(&rays) {
             let last = self.lattice.last_slot_row(level);
             let store = &mut self.levels[level.index()];
             let (key, _, bit) = tile_key(group.col, group.row);
