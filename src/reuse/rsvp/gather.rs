@@ -7,7 +7,7 @@ use rayon::prelude::*;
 
 use super::{
     filter::{bilinear, filter_origin, filter_split},
-    lattice::wrap,
+    lattice::{owned_positions, wrap},
     map::Mapped,
     store::{tile_key, TileCache, TILE_COLS, TILE_SAMPLES},
     viewport::PixelMap,
@@ -192,14 +192,8 @@ impl SampleBuffer {
         let slot_row = (row >> sy) >> u32::from(oy > 0);
         let n = out.len() as i64;
         for ox in 0..=level.x {
-            // Owned by ox: multiples of 2^level.x for ox = 0, else the odd
-            // multiples of 2^sx.
             let sx = level.x - ox;
-            let (period, offset) = if ox == 0 {
-                (1i64 << level.x, 0)
-            } else {
-                (1i64 << (sx + 1), 1i64 << sx)
-            };
+            let (period, offset) = owned_positions(level.x, ox);
             let first = col + (offset - col).rem_euclid(period);
             if first - col >= n {
                 continue;

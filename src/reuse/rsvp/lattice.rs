@@ -219,6 +219,20 @@ impl SampleLattice {
     }
 }
 
+/// Along one axis of a level refined `k` times, the positions that level
+/// `owner` (0..=k) of that axis owns are those congruent to `offset` modulo
+/// `period`: level 0 every 2^k-th, a finer level the odd multiples of
+/// 2^(k - owner) (as [`SampleLattice::owner`] decides by trailing zeros).
+#[inline]
+pub(super) fn owned_positions(k: u32, owner: u32) -> (i64, i64) {
+    let shift = k - owner;
+    if owner == 0 {
+        (1 << k, 0)
+    } else {
+        (1 << (shift + 1), 1 << shift)
+    }
+}
+
 /// `v` modulo `n`, cheaply when it is at most a turn away.
 #[inline(always)]
 pub(super) fn wrap(v: i64, n: i64) -> i64 {
