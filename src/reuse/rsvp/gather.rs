@@ -62,93 +62,106 @@ impl SampleBuffer {
             .par_chunks_mut(band * 3)
             .zip(pixel_bands.into_par_iter())
             .enumerate()
-            .for_each(|(band_index, (out, linear_out))| {
-                let mut cache = TileCache::new();
-                let mut window = Window::default();
-                let mut colors = [Vec3::ZERO; (REGION * REGION) as usize];
-                let srgb = srgb_table();
-                let y0 = band_index * REGION as usize;
-                let rows = (h - y0).min(REGION as usize);
-                let regions = &mapped.regions[band_index * mapped.regions_x..][..mapped.regions_x];
-                // Every region's coordinates first (region after region,
-                // each row-major), for the boxes that decide the runs.
-                let mut coords = vec![DVec2::NAN; w * rows];
-                let spans: Vec<RegionSpan> = regions
-                    .iter()
-                    .enumerate()
-                    .map(|(rx, region)| {
-                        let x0 = rx * REGION as usize;
-                        let cols = (w - x0).min(REGION as usize);
-                        let coords = &mut coords[x0 * rows..(x0 + cols) * rows];
-                        self.region_coords(
-                            pose,
-                            &map,
-                            region.level,
-                            region.grid.as_ref(),
-                            (x0 as u32, y0 as u32),
-                            cols,
-                            coords,
-                        );
-                        RegionSpan::new(filter, region.level, cols, rows, coords)
-                    })
-                    .collect();
-                let mut rx = 0;
-                while rx < spans.len() {
-                    let first = &spans[rx];
-                    let mut end = rx + 1;
-                    if let Some(mut joined) = first.window.filter(|_| !first.direct) {
-                        let mut area = joined.area();
-                        while let Some(next) = spans.get(end).filter(|n| n.level == first.level) {
-                            let Some(b) = next.window.filter(|_| !next.direct) else {
-                                break;
-                            };
-                            let union = joined.union(&b);
-                            // A rotated view's band runs diagonally: its
-                            // box would copy far more than its regions read.
-                            if union.area() * 4 > (area + b.area()) * 5 {
-                                break;
+            // Scratch per rayon job rather than per band: a band's window
+            // is up to about a megabyte, which a fresh allocation would
+            // zero (and fault in) again for each of the 30 bands.
+            .for_each_init(
+                BandScratch::default,
+                |scratch, (band_index, (out, linear_out))| {
+                    let BandScratch { window, coords } = scratch;
+                    let mut cache = TileCache::new();
+                    let mut colors = [Vec3::ZERO; (REGION * REGION) as usize];
+                    let srgb = srgb_table();
+                    let y0 = band_index * REGION as usize;
+                    let rows = (h - y0).min(REGION as usize);
+                    let regions =
+                        &mapped.regions[band_index * mapped.regions_x..][..mapped.regions_x];
+                    // Every region's coordinates first (region after region,
+                    // each row-major), for the boxes that decide the runs.
+                    coords.resize(w * rows, DVec2::NAN);
+                    let spans: Vec<RegionSpan> = regions
+                        .iter()
+                        .enumerate()
+                        .map(|(rx, region)| {
+                            let x0 = rx * REGION as usize;
+                            let cols = (w - x0).min(REGION as usize);
+                            let coords = &mut coords[x0 * rows..(x0 + cols) * rows];
+                            // A grid writes every pixel; exact mapping leaves
+                            // pixels without a ray as they were.
+                            if region.grid.is_none() {
+                                coords.fill(DVec2::NAN);
                             }
-                            (joined, area) = (union, area + b.area());
-                            end += 1;
+                            self.region_coords(
+                                pose,
+                                &map,
+                                region.level,
+                                region.grid.as_ref(),
+                                (x0 as u32, y0 as u32),
+                                cols,
+                                coords,
+                            );
+                            RegionSpan::new(filter, region.level, cols, rows, coords)
+                        })
+                        .collect();
+                    let mut rx = 0;
+                    while rx < spans.len() {
+                        let first = &spans[rx];
+                        let mut end = rx + 1;
+                        if let Some(mut joined) = first.window.filter(|_| !first.direct) {
+                            let mut area = joined.area();
+                            while let Some(next) = spans.get(end).filter(|n| n.level == first.level)
+                            {
+                                let Some(b) = next.window.filter(|_| !next.direct) else {
+                                    break;
+                                };
+                                let union = joined.union(&b);
+                                // A rotated view's band runs diagonally: its
+                                // box would copy far more than its regions read.
+                                if union.area() * 4 > (area + b.area()) * 5 {
+                                    break;
+                                }
+                                (joined, area) = (union, area + b.area());
+                                end += 1;
+                            }
+                            self.fill_window(&mut cache, first.level, &joined, window);
                         }
-                        self.fill_window(&mut cache, first.level, &joined, &mut window);
-                    }
-                    for (rx, span) in spans.iter().enumerate().take(end).skip(rx) {
-                        let x0 = rx * REGION as usize;
-                        let cols = span.cols;
-                        let region_coords = &coords[x0 * rows..(x0 + cols) * rows];
-                        let colors = &mut colors[..cols * rows];
-                        match span.window {
-                            None => colors.fill(Vec3::ZERO),
-                            Some(_) if span.direct => {
-                                for (slot, c) in colors.iter_mut().zip(region_coords) {
-                                    *slot = if c.x.is_nan() {
-                                        Vec3::ZERO
-                                    } else {
-                                        self.filter(&mut cache, span.level, filter, c.x, c.y)
-                                    };
+                        for (rx, span) in spans.iter().enumerate().take(end).skip(rx) {
+                            let x0 = rx * REGION as usize;
+                            let cols = span.cols;
+                            let region_coords = &coords[x0 * rows..(x0 + cols) * rows];
+                            let colors = &mut colors[..cols * rows];
+                            match span.window {
+                                None => colors.fill(Vec3::ZERO),
+                                Some(_) if span.direct => {
+                                    for (slot, c) in colors.iter_mut().zip(region_coords) {
+                                        *slot = if c.x.is_nan() {
+                                            Vec3::ZERO
+                                        } else {
+                                            self.filter(&mut cache, span.level, filter, c.x, c.y)
+                                        };
+                                    }
+                                }
+                                Some(_) => gather_region(window, filter, region_coords, colors),
+                            }
+                            // Whole region rows at once: no per-pixel index checks.
+                            for (j, line) in colors.chunks_exact(cols).enumerate() {
+                                let p = j * w + x0;
+                                for (byte, c) in
+                                    out[p * 3..(p + cols) * 3].chunks_exact_mut(3).zip(line)
+                                {
+                                    byte[0] = srgb.encode(c.x);
+                                    byte[1] = srgb.encode(c.y);
+                                    byte[2] = srgb.encode(c.z);
+                                }
+                                if let Some(slots) = linear_out.get_mut(p..p + cols) {
+                                    slots.copy_from_slice(line);
                                 }
                             }
-                            Some(_) => gather_region(&window, filter, region_coords, colors),
                         }
-                        // Whole region rows at once: no per-pixel index checks.
-                        for (j, line) in colors.chunks_exact(cols).enumerate() {
-                            let p = j * w + x0;
-                            for (byte, c) in
-                                out[p * 3..(p + cols) * 3].chunks_exact_mut(3).zip(line)
-                            {
-                                byte[0] = srgb.encode(c.x);
-                                byte[1] = srgb.encode(c.y);
-                                byte[2] = srgb.encode(c.z);
-                            }
-                            if let Some(slots) = linear_out.get_mut(p..p + cols) {
-                                slots.copy_from_slice(line);
-                            }
-                        }
+                        rx = end;
                     }
-                    rx = end;
-                }
-            });
+                },
+            );
         let image =
             image::RgbImage::from_raw(w as u32, h as u32, bytes).expect("three bytes per pixel");
         let frame = linear.then_some(Frame {
@@ -236,19 +249,8 @@ impl SampleBuffer {
             match (source, stride) {
                 (None, 1) => out[i..i + run].fill(Vec3::ZERO),
                 (Some(source), 1) => out[i..i + run].copy_from_slice(source),
-                // Chunks rather than step_by, whose remaining-length
-                // arithmetic (a division by 12-byte elements) cost more
-                // than the copy.
-                (None, _) => {
-                    for chunk in out[i * stride..].chunks_mut(stride).take(run) {
-                        chunk[0] = Vec3::ZERO;
-                    }
-                }
-                (Some(source), _) => {
-                    for (chunk, &sample) in out[i * stride..].chunks_mut(stride).zip(source) {
-                        chunk[0] = sample;
-                    }
-                }
+                (None, _) => scatter(&mut out[i * stride..], Samples::Black(run), stride),
+                (Some(source), _) => scatter(&mut out[i * stride..], Samples::Of(source), stride),
             }
             i += run;
         }
@@ -279,6 +281,64 @@ impl SampleBuffer {
             ),
         }
     }
+}
+
+/// What [`scatter`] writes: samples, or as many blacks.
+#[derive(Clone, Copy)]
+enum Samples<'a> {
+    Of(&'a [Vec3]),
+    Black(usize),
+}
+
+/// Writes `samples` into every `stride`th entry of `out` from its first
+/// (`out` reaches the last). The window's strides (2, 4, 8: a coarser
+/// owner's samples among a finer level's) get loops of fixed step, about
+/// half the instructions per sample of a loop over chunks of a variable
+/// length: the strided copy is most of filling a window.
+#[inline]
+fn scatter(out: &mut [Vec3], samples: Samples, stride: usize) {
+    match stride {
+        2 => scatter_by::<2>(out, samples),
+        4 => scatter_by::<4>(out, samples),
+        8 => scatter_by::<8>(out, samples),
+        _ => match samples {
+            Samples::Of(source) => {
+                for (chunk, &sample) in out.chunks_mut(stride).zip(source) {
+                    chunk[0] = sample;
+                }
+            }
+            Samples::Black(count) => {
+                for chunk in out.chunks_mut(stride).take(count) {
+                    chunk[0] = Vec3::ZERO;
+                }
+            }
+        },
+    }
+}
+
+#[inline(always)]
+fn scatter_by<const STRIDE: usize>(out: &mut [Vec3], samples: Samples) {
+    let slots = out.iter_mut().step_by(STRIDE);
+    match samples {
+        Samples::Of(source) => {
+            for (slot, &sample) in slots.zip(source) {
+                *slot = sample;
+            }
+        }
+        Samples::Black(count) => {
+            for slot in slots.take(count) {
+                *slot = Vec3::ZERO;
+            }
+        }
+    }
+}
+
+/// What pass 2 reuses from band to band.
+#[derive(Default)]
+struct BandScratch {
+    window: Window,
+    /// The band's pixels' lattice coordinates.
+    coords: Vec<DVec2>,
 }
 
 /// Samples of one level copied into a dense row-major array, `width`
