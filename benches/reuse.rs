@@ -1,18 +1,21 @@
 //! Hot paths of the reuse algorithms: the pan shift (a frame assembled
 //! from an already traced buffer), RSVP's batch tracing of scattered null
-//! samples, the bare voxel walk, OSTC's recording of rays into voxel bits
+//! samples, RSVP's resampling of a viewport from a traced buffer, the bare voxel walk, OSTC's recording of rays into voxel bits
 //! (walk plus marking), and the merging of dirty regions when an object
 //! moves.
 
 use criterion::{criterion_group, criterion_main, BatchSize, Criterion, Throughput};
 use glam::Vec3;
 use retrace::accel::{Accelerator, BackendKind};
+use retrace::camera::{Camera, Projection};
 use retrace::geometry::Aabb;
 use retrace::ray::{Ray, PACKET_WIDTH};
 use retrace::render::{trace_groups, SampleGroup};
 use retrace::reuse::ostc::{Footprint, Ostc, RegionGrid, RegionSet, DEFAULT_VOXELS};
 use retrace::reuse::pan::{EqualAngleLattice, PanBuffer};
-use retrace::reuse::rsvp::{Level, LevelRays, SampleLattice, ViewTransform, ViewportPose};
+use retrace::reuse::rsvp::{
+    Level, LevelRays, RsvpKnobs, SampleBuffer, SampleLattice, ViewTransform, ViewportPose,
+};
 use retrace::rng::SplitMix64;
 use retrace::scene::{paper_scene, SceneOverrides};
 use retrace::shade::{RayKind, RayObserver, Shader};
@@ -178,6 +181,46 @@ fn rsvp_null_batches(c: &mut Criterion) {
     group.finish();
 }
 
+/// A steady RSVP frame: E2's 640x480 perspective viewport at both ends of
+/// its zoom, resampled from a buffer that already holds every sample it
+/// reads (pass 1's mapping and pass 2's gather, nothing traced). Besides
+/// its few new samples, this is what each later frame of E2 pays, timed
+/// far more steadily than one run of `retrace bench` can.
+fn rsvp_resample(c: &mut Criterion) {
+    let scene = paper_scene(&SceneOverrides::default()).expect("built-in scene loads");
+    let accel = Accelerator::build(BackendKind::Embree, &scene.objects).expect("backend builds");
+    let shader = Shader::new(&scene, &accel);
+    let camera = Camera {
+        projection: Projection::Perspective,
+        fov: 100f64.to_radians(),
+        ..scene.camera.clone()
+    };
+    let knobs = RsvpKnobs::default();
+    let mut group = c.benchmark_group("rsvp viewport frame 640x480 from a traced buffer");
+    for (name, zoom) in [("100 deg (zoom 1)", 1.0), ("50 deg (zoom 2.56)", 2.5557238)] {
+        let pose = ViewportPose::new(
+            camera.clone(),
+            ViewTransform {
+                zoom,
+                ..ViewTransform::default()
+            },
+        );
+        let poses = std::slice::from_ref(&pose);
+        let mut buffer = SampleBuffer::new(SampleLattice::for_camera(&scene.camera));
+        let first = buffer.render(&shader, poses, &knobs, false);
+        assert!(first[0].samples_traced > 0, "the first frame traces");
+        group.bench_function(name, |b| {
+            b.iter(|| buffer.render(&shader, poses, &knobs, false))
+        });
+        assert_eq!(
+            buffer.render(&shader, poses, &knobs, false)[0].samples_traced,
+            0,
+            "later frames of the same pose trace nothing"
+        );
+    }
+    group.finish();
+}
+
 /// The supercover walk alone over the packets `ostc_recording` records,
 /// through a 512-voxel grid: what a finer `--ostc-voxels` adds per ray.
 fn voxel_walk(c: &mut Criterion) {
@@ -205,6 +248,7 @@ criterion_group!(
     benches,
     pan_shift,
     rsvp_null_batches,
+    rsvp_resample,
     voxel_walk,
     ostc_recording
 );
