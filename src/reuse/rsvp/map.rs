@@ -325,12 +325,14 @@ impl SampleBuffer {
             })
             .collect();
         let mut regions = Vec::with_capacity(regions_x * regions_y);
-        let mut missing = Vec::new();
+        let mut missing = Vec::with_capacity(results.iter().map(|(_, m)| m.len()).sum());
         for (r, m) in results {
             regions.extend(r);
             missing.extend(m);
         }
-        missing.sort_unstable_by_key(|&(level, g)| (level, g.row, g.col));
+        // Frame 0 asks for ~85k groups: sorting them by tuple, on one
+        // thread, took ~9 ms; by one integer on both, ~5.
+        missing.par_sort_unstable_by_key(|&(level, g)| trace_order(level, g));
         missing.dedup();
         Mapped {
             regions,
@@ -541,7 +543,7 @@ impl<'a> GroupRequests<'a> {
         let before = self.before;
         let missing = self.missing;
         let region = &mut missing[before..];
-        region.sort_unstable_by_key(|&(level, g)| (level, g.row, g.col));
+        region.sort_unstable_by_key(|&(level, g)| trace_order(level, g));
         let mut kept = before;
         for i in before..missing.len() {
             if kept == before || missing[kept - 1] != missing[i] {
@@ -629,6 +631,14 @@ impl SampleMarks {
             }
         }
     }
+}
+
+/// The order groups are traced in, (level, row, column), as one integer:
+/// requested groups lie in the turn and within the poles, so neither row
+/// nor column is negative.
+fn trace_order(level: Level, group: SampleGroup) -> u128 {
+    debug_assert!((0..1 << 60).contains(&group.row) && (0..1 << 60).contains(&group.col));
+    (level.index() as u128) << 120 | (group.row as u128) << 60 | group.col as u128
 }
 
 /// `v` as `len` NaN coordinates, reusing its allocation.
