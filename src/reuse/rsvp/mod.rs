@@ -59,7 +59,8 @@ use filter::filter_origin;
 use lattice::wrap;
 use map::nan_filled;
 use store::{
-    tile_key, traced_groups, LevelSamples, TILE_COLS, TILE_COL_SHIFT, TILE_ROW_SHIFT, TILE_SAMPLES,
+    tile_key, traced_groups, LevelSamples, TracedGroups, TILE_COLS, TILE_COL_SHIFT, TILE_ROW_SHIFT,
+    TILE_SAMPLES,
 };
 use viewport::PixelMap;
 
@@ -322,35 +323,13 @@ impl SampleBuffer {
                 let first = all.partition_point(|g| g.0.index() < index);
                 let end = all.partition_point(|g| g.0.index() <= index);
                 (first < end).then(|| {
-                    let range = first..end;
+                    let traced = TracedGroups {
+                        groups: &all[first..end],
+                        colors: &colors[first..end],
+                        rays: &rays[first..end],
+                    };
                     let last = lattice.last_slot_row(Level::from_index(index));
-                    let mut kept = vec![(0u64, RayCounts::default()); requests.len()];
-                    // Sorted by row and column: consecutive groups mostly
-                    // share a tile.
-                    let mut recent = None;
-                    for ((&(_, group, who), colors), rays) in all[range.clone()]
-                        .iter()
-                        .zip(&colors[range.clone()])
-                        .zip(&rays[range])
-                    {
-                        let (key, _, bit) = tile_key(group.col, group.row);
-                        let tile = match recent {
-                            Some((k, tile)) if k == key => tile,
-                            _ => store.tile_or_insert(key) as usize,
-                        };
-                        recent = Some((key, tile));
-                        store.traced[tile] |= 1u64 << bit;
-                        let mut owned = 0u64;
-                        for (lane, (col, row)) in group.lane_samples().into_iter().enumerate() {
-                            let (_, sample, _) = tile_key(col, row);
-                            store.colors[tile * TILE_SAMPLES + sample] = colors[lane];
-                            // Beyond the poles there is no sample (and no ray).
-                            owned += u64::from((0..=last).contains(&row));
-                        }
-                        kept[who].0 += owned;
-                        kept[who].1 += *rays;
-                    }
-                    kept
+                    store.keep(traced, last, requests.len())
                 })
             })
             .collect();

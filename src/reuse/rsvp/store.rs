@@ -7,7 +7,9 @@ use std::hash::{BuildHasherDefault, Hasher};
 use glam::Vec3;
 
 use super::Level;
+use crate::ray::PACKET_WIDTH;
 use crate::render::{SampleGroup, GROUP_HEIGHT, GROUP_WIDTH};
+use crate::shade::RayCounts;
 
 /// Samples per side of a storage tile (a multiple of both group sides).
 /// A tile is one row of groups, 256 samples wide: a viewport row reads
@@ -96,11 +98,53 @@ impl LevelSamples {
         index
     }
 
+    /// Keeps freshly traced groups of this level, sorted by row and
+    /// column. Returns, per requester, the samples it gained (none past
+    /// `last_row`, beyond the pole) and the rays they took.
+    pub(super) fn keep(
+        &mut self,
+        traced: TracedGroups,
+        last_row: i64,
+        requesters: usize,
+    ) -> Vec<(u64, RayCounts)> {
+        let mut kept = vec![(0u64, RayCounts::default()); requesters];
+        // Consecutive groups mostly share a tile.
+        let mut recent = None;
+        for ((&(_, group, who), colors), rays) in
+            traced.groups.iter().zip(traced.colors).zip(traced.rays)
+        {
+            let (key, _, bit) = tile_key(group.col, group.row);
+            let tile = match recent {
+                Some((k, tile)) if k == key => tile,
+                _ => self.tile_or_insert(key) as usize,
+            };
+            recent = Some((key, tile));
+            self.traced[tile] |= 1u64 << bit;
+            let mut owned = 0u64;
+            for (lane, (col, row)) in group.lane_samples().into_iter().enumerate() {
+                let (_, sample, _) = tile_key(col, row);
+                self.colors[tile * TILE_SAMPLES + sample] = colors[lane];
+                owned += u64::from((0..=last_row).contains(&row));
+            }
+            kept[who].0 += owned;
+            kept[who].1 += *rays;
+        }
+        kept
+    }
+
     pub(super) fn group_traced(&self, group: SampleGroup) -> bool {
         let (key, _, bit) = tile_key(group.col, group.row);
         self.tile(key)
             .is_some_and(|t| self.traced[t as usize] >> bit & 1 == 1)
     }
+}
+
+/// A batch's groups of one level, as traced: (level, group, requester),
+/// each group's colours and its rays.
+pub(super) struct TracedGroups<'a> {
+    pub(super) groups: &'a [(Level, SampleGroup, usize)],
+    pub(super) colors: &'a [[Vec3; PACKET_WIDTH]],
+    pub(super) rays: &'a [RayCounts],
 }
 
 /// Remembers the last tiles read: neighbouring pixels read the same few
