@@ -249,8 +249,8 @@ impl SampleBuffer {
             match (source, stride) {
                 (None, 1) => out[i..i + run].fill(Vec3::ZERO),
                 (Some(source), 1) => out[i..i + run].copy_from_slice(source),
-                (None, _) => scatter(&mut out[i * stride..], Samples::Black(run), stride),
-                (Some(source), _) => scatter(&mut out[i * stride..], Samples::Of(source), stride),
+                (None, _) => scatter(&mut out[i * stride..], &BLACK[..run], stride),
+                (Some(source), _) => scatter(&mut out[i * stride..], source, stride),
             }
             i += run;
         }
@@ -283,53 +283,31 @@ impl SampleBuffer {
     }
 }
 
-/// What [`scatter`] writes: samples, or as many blacks.
-#[derive(Clone, Copy)]
-enum Samples<'a> {
-    Of(&'a [Vec3]),
-    Black(usize),
-}
+/// A run's worth of black, for the samples of a tile never allocated.
+static BLACK: [Vec3; TILE_COLS as usize] = [Vec3::ZERO; TILE_COLS as usize];
 
-/// Writes `samples` into every `stride`th entry of `out` from its first
-/// (`out` reaches the last). The window's strides (2, 4, 8: a coarser
-/// owner's samples among a finer level's) get loops of fixed step, about
-/// half the instructions per sample of a loop over chunks of a variable
-/// length: the strided copy is most of filling a window.
+/// Writes `source` into every `stride`th entry of `out` from its first
+/// (`out` reaches the last). The window's usual strides (2, 4, 8: a coarser
+/// owner's samples among a finer level's) get loops of fixed step, 8% fewer
+/// instructions in filling E2's windows than chunks of a variable length.
 #[inline]
-fn scatter(out: &mut [Vec3], samples: Samples, stride: usize) {
+fn scatter(out: &mut [Vec3], source: &[Vec3], stride: usize) {
     match stride {
-        2 => scatter_by::<2>(out, samples),
-        4 => scatter_by::<4>(out, samples),
-        8 => scatter_by::<8>(out, samples),
-        _ => match samples {
-            Samples::Of(source) => {
-                for (chunk, &sample) in out.chunks_mut(stride).zip(source) {
-                    chunk[0] = sample;
-                }
+        2 => scatter_by::<2>(out, source),
+        4 => scatter_by::<4>(out, source),
+        8 => scatter_by::<8>(out, source),
+        _ => {
+            for (chunk, &sample) in out.chunks_mut(stride).zip(source) {
+                chunk[0] = sample;
             }
-            Samples::Black(count) => {
-                for chunk in out.chunks_mut(stride).take(count) {
-                    chunk[0] = Vec3::ZERO;
-                }
-            }
-        },
+        }
     }
 }
 
 #[inline(always)]
-fn scatter_by<const STRIDE: usize>(out: &mut [Vec3], samples: Samples) {
-    let slots = out.iter_mut().step_by(STRIDE);
-    match samples {
-        Samples::Of(source) => {
-            for (slot, &sample) in slots.zip(source) {
-                *slot = sample;
-            }
-        }
-        Samples::Black(count) => {
-            for slot in slots.take(count) {
-                *slot = Vec3::ZERO;
-            }
-        }
+fn scatter_by<const STRIDE: usize>(out: &mut [Vec3], source: &[Vec3]) {
+    for (slot, &sample) in out.iter_mut().step_by(STRIDE).zip(source) {
+        *slot = sample;
     }
 }
 
