@@ -39,6 +39,49 @@ pub(super) struct RegionMap {
     /// None: the mapping bends too much here (near a pole, across the view's
     /// back seam, fisheye): every pixel is mapped exactly.
     pub(super) grid: Option<MapGrid>,
+    /// A box holding every sample the pixels' filters read (rows not
+    /// clamped), when pass 2 reads them through assembled blocks. None: no
+    /// pixel has a ray, or the samples are so sparse (zoomed far out) that
+    /// each pixel reads its own.
+    pub(super) blocks: Option<SampleBox>,
+}
+
+/// The samples (c0..=c1, r0..=r1) of a level.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) struct SampleBox {
+    pub(super) c0: i64,
+    pub(super) r0: i64,
+    pub(super) c1: i64,
+    pub(super) r1: i64,
+}
+
+impl SampleBox {
+    /// The samples `filter` reads for pixels whose lattice coordinates lie
+    /// in `lo..=hi`: filter origins grow with the coordinates, so the box
+    /// spans the origins of the corners, and one more for the 2x2 filters.
+    pub(super) fn read_by(filter: Filter, lo: DVec2, hi: DVec2) -> SampleBox {
+        let extra = i64::from(filter != Filter::Nearest);
+        let (c0, r0) = filter_origin(filter, lo.x, lo.y);
+        let (c1, r1) = filter_origin(filter, hi.x, hi.y);
+        SampleBox {
+            c0,
+            r0,
+            c1: c1 + extra,
+            r1: r1 + extra,
+        }
+    }
+
+    pub(super) fn width(&self) -> usize {
+        (self.c1 - self.c0 + 1) as usize
+    }
+
+    pub(super) fn height(&self) -> usize {
+        (self.r1 - self.r0 + 1) as usize
+    }
+
+    fn area(&self) -> f64 {
+        (self.c1 - self.c0 + 1) as f64 * (self.r1 - self.r0 + 1) as f64
+    }
 }
 
 /// One band of regions from pass 1, and the groups they miss.
@@ -293,12 +336,12 @@ impl SampleBuffer {
                             }
                         }
                     }
-                    if count > 0 {
+                    let reads = (count > 0).then(|| SampleBox::read_by(knobs.filter, lo, hi));
+                    if let Some(reads) = reads {
                         self.collect_missing(
                             level,
                             knobs.filter,
-                            lo,
-                            hi,
+                            reads,
                             count,
                             &mut missing,
                             |f| {
@@ -319,7 +362,17 @@ impl SampleBuffer {
                             },
                         );
                     }
-                    regions.push(RegionMap { level, grid });
+                    // A box with more than 16 samples a pixel would copy far
+                    // more than its pixels read.
+                    let blocks = reads.filter(|b| {
+                        b.area() <= 16.0 * (cols * rows) as f64
+                            && b.c1 - b.c0 < self.lattice.columns(level.x)
+                    });
+                    regions.push(RegionMap {
+                        level,
+                        grid,
+                        blocks,
+                    });
                 }
                 (regions, missing)
             })
@@ -413,19 +466,12 @@ impl SampleBuffer {
         &self,
         level: Level,
         filter: Filter,
-        lo: DVec2,
-        hi: DVec2,
+        reads: SampleBox,
         pixels: u32,
         missing: &mut Vec<(Level, SampleGroup)>,
         for_each_pixel: impl FnOnce(&mut dyn FnMut((f64, f64))),
     ) {
-        // Filter origins grow with the coordinates: the box of the samples
-        // read spans the origins of lo and hi, and one more for the 2x2
-        // filters.
-        let extra = i64::from(filter != Filter::Nearest);
-        let (c0, r0) = filter_origin(filter, lo.x, lo.y);
-        let (c1, r1) = filter_origin(filter, hi.x, hi.y);
-        let (c1, r1) = (c1 + extra, r1 + extra);
+        let SampleBox { c0, r0, c1, r1 } = reads;
         let last_row = self.lattice.last_row(level.y);
         let (r0, r1) = (r0.clamp(0, last_row), r1.clamp(0, last_row));
         let area = ((c1 - c0 + 1) as f64) * ((r1 - r0 + 1) as f64);

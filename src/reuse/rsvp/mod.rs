@@ -23,12 +23,16 @@
 //!   groups of slots, so every lane of a packet is a sample the level owns.
 //!   A sample's colour never depends on which level or viewport asked
 //!   first, and a fresh trace of the same group reproduces it bit for bit.
+//! - Pass 2 reads copies: each level's samples at all its positions,
+//!   assembled from their owners into blocks that take every group traced
+//!   after them, so they always equal the stores (`verify` checks that too).
 //! - A sample is traced at most once and kept for every later frame; all
 //!   null samples the viewports of a frame touch are traced in one batch per
 //!   level through [`crate::render::trace_groups`].
 //! - Resampling is an approximation: its error against the viewport's own
 //!   rays is measured (`--verify`, `bench --only E2`), never assumed.
 
+mod blocks;
 mod filter;
 mod gather;
 mod lattice;
@@ -55,6 +59,7 @@ use crate::render::{
 };
 use crate::reuse::ostc::{Ostc, RegionLayout, RegionSet};
 use crate::shade::{RayCounts, Shader};
+use blocks::LevelBlocks;
 use filter::filter_reads;
 use lattice::wrap;
 use map::nan_filled;
@@ -99,6 +104,13 @@ pub struct SampleBuffer {
     lattice: SampleLattice,
     /// By [`Level::index`].
     levels: Vec<LevelSamples>,
+    /// What pass 2 reads: every level's samples assembled, by
+    /// [`Level::index`].
+    blocks: Vec<LevelBlocks>,
+    /// Blocks given up, for new ones to reuse.
+    spare_blocks: Vec<Box<[Vec3]>>,
+    /// Frames rendered: when each block was last read.
+    frame: u64,
     samples_traced: u64,
     /// The groups the last [`SampleBuffer::render`] traced, sorted as
     /// `missing` is: what [`SampleBuffer::fresh_image`] paints.
@@ -113,6 +125,9 @@ impl SampleBuffer {
         SampleBuffer {
             lattice,
             levels: (0..Level::COUNT).map(|_| LevelSamples::default()).collect(),
+            blocks: (0..Level::COUNT).map(|_| LevelBlocks::default()).collect(),
+            spare_blocks: Vec::new(),
+            frame: 0,
             samples_traced: 0,
             fresh: Vec::new(),
             ostc: None,
@@ -163,8 +178,9 @@ impl SampleBuffer {
 
     /// Re-traces every traced group, as it was traced, and compares the kept
     /// samples with the fresh ones bit for bit: (samples compared, samples
-    /// that differ). What `--verify` checks when objects move and OSTC keeps
-    /// the buffer.
+    /// that differ, counting also any copy in pass 2's assembled blocks that
+    /// no longer equals its sample). What `--verify` checks when objects
+    /// move and OSTC keeps the buffer.
     pub fn verify(&self, shader: &Shader) -> (u64, u64) {
         let (mut compared, mut differing) = (0u64, 0u64);
         for (index, store) in self.levels.iter().enumerate() {
@@ -195,7 +211,7 @@ impl SampleBuffer {
                 }
             }
         }
-        (compared, differing)
+        (compared, differing + self.stale_block_samples())
     }
 
     /// Nulls, at every level, the samples lying in `regions` (of the OSTC
@@ -333,6 +349,7 @@ impl SampleBuffer {
                 })
             })
             .collect();
+        self.follow_traced(&all, &colors);
         for level in kept {
             for (who, (owned, rays)) in level.into_iter().enumerate() {
                 self.samples_traced += owned;
@@ -367,6 +384,15 @@ impl SampleBuffer {
             .map(|m| std::mem::take(&mut m.missing))
             .collect();
         let traced = self.trace(shader, &requests);
+        // Pass 2 reads assembled blocks; assembling new ones is its cost,
+        // shared between the viewports.
+        let start = Instant::now();
+        self.assemble_blocks(mapped.iter().flat_map(|m| {
+            m.regions
+                .iter()
+                .filter_map(|r| r.blocks.map(|b| (r.level, b)))
+        }));
+        let assembly_ms = start.elapsed().as_secs_f64() * 1e3 / poses.len().max(1) as f64;
         poses
             .iter()
             .zip(&mapped)
@@ -374,7 +400,7 @@ impl SampleBuffer {
             .map(|((pose, mapped), ((samples, rays, trace_ms), map_ms))| {
                 let start = Instant::now();
                 let (frame, image) = self.gather(pose, mapped, knobs.filter, linear);
-                let gather_ms = start.elapsed().as_secs_f64() * 1e3;
+                let gather_ms = start.elapsed().as_secs_f64() * 1e3 + assembly_ms;
                 let levels = mapped.regions.iter().fold((u32::MAX, 0), |(lo, hi), r| {
                     (lo.min(r.level.finest()), hi.max(r.level.finest()))
                 });

@@ -1,0 +1,501 @@
+//! Pass 2's copy of the buffer: each level's samples at every one of its
+//! positions (its own and those its coarser owners traced), assembled into
+//! square blocks, so a region's samples are a few rows of one or two plain
+//! arrays instead of strided runs from every owner.
+//!
+//! Derived data: a block is assembled from the stores the first time a
+//! frame reads it, and from then on follows every traced group. It holds
+//! exactly what assembling it again would give (erasing only clears traced
+//! bits, so it changes nothing here), which the tests check.
+
+use std::collections::HashMap;
+use std::hash::BuildHasherDefault;
+
+use glam::Vec3;
+use rayon::prelude::*;
+
+use super::{
+    lattice::{owned_positions, wrap},
+    map::SampleBox,
+    store::{tile_key, TileCache, TileHasher, TILE_COLS, TILE_SAMPLES},
+    Level, SampleBuffer,
+};
+use crate::ray::PACKET_WIDTH;
+use crate::render::SampleGroup;
+
+/// Positions per side of a block: a 16x16-pixel region reads 17-40 samples
+/// a side, so about a third of regions read one block and most of the
+/// rest two.
+pub(super) const BLOCK_SHIFT: u32 = 6;
+pub(super) const BLOCK: i64 = 1 << BLOCK_SHIFT;
+const BLOCK_SAMPLES: usize = (BLOCK * BLOCK) as usize;
+
+/// One level's assembled blocks, row-major inside, made on first read.
+#[derive(Default)]
+pub(super) struct LevelBlocks {
+    index: HashMap<(i64, i64), u32, BuildHasherDefault<TileHasher>>,
+    /// By slot; a slot given up holds an empty box until it is reused.
+    blocks: Vec<Box<[Vec3]>>,
+    /// The frame each slot was last read in.
+    read_in: Vec<u64>,
+    free: Vec<u32>,
+}
+
+/// The block holding position (col, row) of a level, and the sample's
+/// index in it.
+pub(super) fn block_key(col: i64, row: i64) -> ((i64, i64), usize) {
+    let key = (col >> BLOCK_SHIFT, row >> BLOCK_SHIFT);
+    let sample = (row & (BLOCK - 1)) * BLOCK + (col & (BLOCK - 1));
+    (key, sample as usize)
+}
+
+impl LevelBlocks {
+    fn block(&self, key: (i64, i64)) -> Option<u32> {
+        self.index.get(&key).copied()
+    }
+
+    fn samples(&self, block: u32) -> &[Vec3] {
+        &self.blocks[block as usize]
+    }
+
+    /// A slot for `key`, holding `samples` (to be assembled).
+    fn add(&mut self, key: (i64, i64), samples: Box<[Vec3]>, frame: u64) -> u32 {
+        let slot = match self.free.pop() {
+            Some(slot) => {
+                self.blocks[slot as usize] = samples;
+                self.read_in[slot as usize] = frame;
+                slot
+            }
+            None => {
+                self.blocks.push(samples);
+                self.read_in.push(frame);
+                self.blocks.len() as u32 - 1
+            }
+        };
+        self.index.insert(key, slot);
+        slot
+    }
+
+    /// Gives every block last read before frame `since` to `spare`.
+    fn give_up_unread(&mut self, since: u64, spare: &mut Vec<Box<[Vec3]>>) {
+        let (blocks, read_in, free) = (&mut self.blocks, &self.read_in, &mut self.free);
+        self.index.retain(|_, &mut slot| {
+            let keep = read_in[slot as usize] >= since;
+            if !keep {
+                spare.push(std::mem::take(&mut blocks[slot as usize]));
+                free.push(slot);
+            }
+            keep
+        });
+    }
+}
+
+/// The samples (c0.., r0..) of a level as one row-major array `width`
+/// wide: a block itself, or a copy of the samples from several.
+pub(super) struct SampleView<'a> {
+    pub(super) col: i64,
+    pub(super) row: i64,
+    pub(super) width: usize,
+    pub(super) samples: &'a [Vec3],
+}
+
+/// The last blocks a region's rows came from, by the parity of their key
+/// (a region's box spans a few neighbouring blocks).
+struct BlockCache([((i64, i64), u32); 4]);
+
+impl BlockCache {
+    fn new() -> BlockCache {
+        BlockCache([((i64::MIN, i64::MIN), u32::MAX); 4])
+    }
+
+    fn block(&mut self, blocks: &LevelBlocks, key: (i64, i64)) -> u32 {
+        let slot = &mut self.0[((key.0 & 1) * 2 + (key.1 & 1)) as usize];
+        if slot.0 != key {
+            *slot = (key, blocks.block(key).unwrap_or(u32::MAX));
+        }
+        slot.1
+    }
+}
+
+impl SampleBuffer {
+    /// Assembles every block the boxes of `reads` cover (rows clamped to
+    /// the lattice, columns wrapped) that is not assembled yet. Blocks no
+    /// frame read since the one before give their memory to the new ones:
+    /// a fresh block's pages fault in at ~4 us each here, which made
+    /// assembling cost more than copying.
+    pub(super) fn assemble_blocks(&mut self, reads: impl Iterator<Item = (Level, SampleBox)>) {
+        self.frame += 1;
+        let frame = self.frame;
+        let mut wanted: Vec<(usize, (i64, i64))> = Vec::new();
+        for (level, bounds) in reads {
+            let blocks = &mut self.blocks[level.index()];
+            let columns = self.lattice.columns(level.x);
+            let last_row = self.lattice.last_row(level.y);
+            let (r0, r1) = (bounds.r0.clamp(0, last_row), bounds.r1.clamp(0, last_row));
+            for block_row in (r0 >> BLOCK_SHIFT)..=(r1 >> BLOCK_SHIFT) {
+                for_each_run(bounds.c0, bounds.c1, columns, |col, _| {
+                    let key = (col >> BLOCK_SHIFT, block_row);
+                    match blocks.block(key) {
+                        Some(slot) => blocks.read_in[slot as usize] = frame,
+                        None => wanted.push((level.index(), key)),
+                    }
+                });
+            }
+        }
+        if wanted.is_empty() {
+            return;
+        }
+        wanted.sort_unstable();
+        wanted.dedup();
+        for blocks in &mut self.blocks {
+            blocks.give_up_unread(frame - 1, &mut self.spare_blocks);
+        }
+        let mut slots = Vec::with_capacity(wanted.len());
+        for &(index, key) in &wanted {
+            let samples = self
+                .spare_blocks
+                .pop()
+                .unwrap_or_else(|| vec![Vec3::ZERO; BLOCK_SAMPLES].into_boxed_slice());
+            slots.push(self.blocks[index].add(key, samples, frame));
+        }
+        let mut all = std::mem::take(&mut self.blocks);
+        let this = &*self;
+        let mut jobs: Vec<(Level, (i64, i64), &mut [Vec3])> = Vec::with_capacity(wanted.len());
+        let mut next = 0;
+        for (index, blocks) in all.iter_mut().enumerate() {
+            let first = next;
+            while next < wanted.len() && wanted[next].0 == index {
+                next += 1;
+            }
+            if first == next {
+                continue;
+            }
+            let mut mine: Vec<(u32, (i64, i64))> = slots[first..next]
+                .iter()
+                .zip(&wanted[first..next])
+                .map(|(&slot, &(_, key))| (slot, key))
+                .collect();
+            mine.sort_unstable();
+            let mut mine = mine.into_iter().peekable();
+            for (slot, samples) in blocks.blocks.iter_mut().enumerate() {
+                if let Some((_, key)) = mine.next_if(|&(s, _)| s == slot as u32) {
+                    jobs.push((Level::from_index(index), key, &mut samples[..]));
+                }
+            }
+        }
+        jobs.into_par_iter()
+            .for_each(|(level, key, out)| this.assemble_block(level, key, out));
+        self.blocks = all;
+    }
+
+    /// Block `key` of `level` from the stores: each row owner by owner.
+    /// Rows past the pole and columns past the turn are black (no read
+    /// reaches them: reads clamp rows and wrap columns).
+    fn assemble_block(&self, level: Level, key: (i64, i64), out: &mut [Vec3]) {
+        let mut cache = TileCache::new();
+        let c0 = key.0 << BLOCK_SHIFT;
+        let width = (self.lattice.columns(level.x) - c0).min(BLOCK) as usize;
+        let last_row = self.lattice.last_row(level.y);
+        for (j, line) in out.chunks_exact_mut(BLOCK as usize).enumerate() {
+            let row = (key.1 << BLOCK_SHIFT) + j as i64;
+            let (mine, past_turn) = line.split_at_mut(width);
+            // A reused block's old samples stay nowhere a read can reach.
+            past_turn.fill(Vec3::ZERO);
+            if row > last_row {
+                mine.fill(Vec3::ZERO);
+            } else {
+                self.copy_row(&mut cache, level, c0, row, mine);
+            }
+        }
+    }
+
+    /// Samples (col.., row) of `level` whichever level owns them (black
+    /// where nothing was traced). The row belongs to one elevation level;
+    /// along it, each coarser azimuth level owns every 2^k-th sample, so
+    /// each owner's slots go straight into `out` at their stride.
+    fn copy_row(&self, cache: &mut TileCache, level: Level, col: i64, row: i64, out: &mut [Vec3]) {
+        let sy = row.trailing_zeros().min(level.y);
+        let oy = level.y - sy;
+        let slot_row = (row >> sy) >> u32::from(oy > 0);
+        let n = out.len() as i64;
+        for ox in 0..=level.x {
+            let sx = level.x - ox;
+            let (period, offset) = owned_positions(level.x, ox);
+            let first = col + (offset - col).rem_euclid(period);
+            if first - col >= n {
+                continue;
+            }
+            let slot = (first >> sx) >> u32::from(ox > 0);
+            let owner = Level::new(ox, oy);
+            let out = &mut out[(first - col) as usize..];
+            self.copy_run(cache, owner, slot, slot_row, out, period as usize);
+        }
+    }
+
+    /// The slots (col.., row) of `level` as its tiles hold them, into every
+    /// `stride`th entry of `out` (black where no tile is), in runs. A
+    /// block's rows come in pairs per tile row and span a tile or two:
+    /// `cache` saves most of the hash map lookups.
+    fn copy_run(
+        &self,
+        cache: &mut TileCache,
+        level: Level,
+        col: i64,
+        row: i64,
+        out: &mut [Vec3],
+        stride: usize,
+    ) {
+        let store = &self.levels[level.index()];
+        let columns = self.lattice.slot_columns(level);
+        let count = out.len().div_ceil(stride);
+        let mut i = 0;
+        while i < count {
+            let wc = wrap(col + i as i64, columns);
+            let (key, sample, _) = tile_key(wc, row);
+            let run = (count - i)
+                .min((TILE_COLS - (wc & (TILE_COLS - 1))) as usize)
+                .min((columns - wc) as usize);
+            let tile = cache.tile(store, level, key);
+            let source = (tile != u32::MAX).then(|| {
+                let start = tile as usize * TILE_SAMPLES + sample;
+                &store.colors[start..start + run]
+            });
+            match (source, stride) {
+                (None, 1) => out[i..i + run].fill(Vec3::ZERO),
+                (Some(source), 1) => out[i..i + run].copy_from_slice(source),
+                (None, _) => scatter(&mut out[i * stride..], &BLACK[..run], stride),
+                (Some(source), _) => scatter(&mut out[i * stride..], source, stride),
+            }
+            i += run;
+        }
+    }
+
+    /// Samples of the assembled blocks that differ (bit for bit) from
+    /// assembling the blocks again from the stores: none, unless a traced
+    /// group was not followed.
+    pub(super) fn stale_block_samples(&self) -> u64 {
+        let mut fresh = vec![Vec3::ZERO; BLOCK_SAMPLES];
+        let mut stale = 0;
+        for (index, blocks) in self.blocks.iter().enumerate() {
+            for (&key, &slot) in &blocks.index {
+                self.assemble_block(Level::from_index(index), key, &mut fresh);
+                let kept = blocks.samples(slot);
+                stale += kept
+                    .iter()
+                    .zip(&fresh)
+                    .filter(|(a, b)| {
+                        a.to_array().map(f32::to_bits) != b.to_array().map(f32::to_bits)
+                    })
+                    .count() as u64;
+            }
+        }
+        stale
+    }
+
+    /// Writes freshly traced groups (sorted by level, as `trace` keeps
+    /// them) into every assembled block holding their positions: at their
+    /// own level and at every finer one.
+    pub(super) fn follow_traced(
+        &mut self,
+        groups: &[(Level, SampleGroup, usize)],
+        colors: &[[Vec3; PACKET_WIDTH]],
+    ) {
+        let lattice = &self.lattice;
+        self.blocks
+            .par_iter_mut()
+            .enumerate()
+            .filter(|(_, blocks)| !blocks.index.is_empty())
+            .for_each(|(index, blocks)| {
+                let level = Level::from_index(index);
+                let mut recent = ((i64::MIN, i64::MIN), None);
+                for (&(owner, group, _), colors) in groups.iter().zip(colors) {
+                    if owner.x > level.x || owner.y > level.y {
+                        continue;
+                    }
+                    let (sx, sy) = (level.x - owner.x, level.y - owner.y);
+                    let last = lattice.last_slot_row(owner);
+                    for (lane, (col, row)) in group.lane_samples().into_iter().enumerate() {
+                        if row > last {
+                            continue;
+                        }
+                        let (col, row) = lattice.slot_position(owner, col, row);
+                        let (key, sample) = block_key(col << sx, row << sy);
+                        if recent.0 != key {
+                            recent = (key, blocks.block(key));
+                        }
+                        if let Some(block) = recent.1 {
+                            blocks.blocks[block as usize][sample] = colors[lane];
+                        }
+                    }
+                }
+            });
+    }
+
+    /// The samples of `level` in `bounds` (rows clamped to the lattice,
+    /// columns wrapped around the turn), every block of which
+    /// [`SampleBuffer::assemble_blocks`] assembled: the block itself when
+    /// they lie in one, else copied into `window`.
+    pub(super) fn view<'a>(
+        &'a self,
+        level: Level,
+        bounds: &SampleBox,
+        window: &'a mut Vec<Vec3>,
+    ) -> SampleView<'a> {
+        let blocks = &self.blocks[level.index()];
+        let columns = self.lattice.columns(level.x);
+        let last_row = self.lattice.last_row(level.y);
+        let (key, _) = block_key(bounds.c0, bounds.r0);
+        let inside = bounds.r0 >= 0
+            && bounds.r1 <= last_row
+            && bounds.c0 >= 0
+            && bounds.c1 < columns
+            && block_key(bounds.c1, bounds.r1).0 == key;
+        if let Some(block) = blocks.block(key).filter(|_| inside) {
+            return SampleView {
+                col: key.0 << BLOCK_SHIFT,
+                row: key.1 << BLOCK_SHIFT,
+                width: BLOCK as usize,
+                samples: blocks.samples(block),
+            };
+        }
+        let width = bounds.width();
+        window.resize(width * bounds.height(), Vec3::ZERO);
+        let mut cache = BlockCache::new();
+        for (j, line) in window.chunks_exact_mut(width).enumerate() {
+            let row = (bounds.r0 + j as i64).clamp(0, last_row);
+            let mut at = 0;
+            for_each_run(bounds.c0, bounds.c1, columns, |col, run| {
+                let (key, sample) = block_key(col, row);
+                let out = &mut line[at..at + run];
+                match cache.block(blocks, key) {
+                    u32::MAX => {
+                        debug_assert!(false, "block {key:?} of {level:?} was not assembled");
+                        out.fill(Vec3::ZERO);
+                    }
+                    block => out.copy_from_slice(&blocks.samples(block)[sample..sample + run]),
+                }
+                at += run;
+            });
+        }
+        SampleView {
+            col: bounds.c0,
+            row: bounds.r0,
+            width,
+            samples: window,
+        }
+    }
+}
+
+/// A run's worth of black, for the samples of a tile never allocated.
+static BLACK: [Vec3; TILE_COLS as usize] = [Vec3::ZERO; TILE_COLS as usize];
+
+/// Writes `source` into every `stride`th entry of `out` from its first
+/// (`out` reaches the last). The usual strides (2, 4, 8: a coarser owner's
+/// samples among a finer level's) get loops of fixed step: 8% fewer
+/// instructions than chunks of a variable length when pass 2 still copied
+/// every frame's samples this way.
+#[inline]
+fn scatter(out: &mut [Vec3], source: &[Vec3], stride: usize) {
+    match stride {
+        2 => scatter_by::<2>(out, source),
+        4 => scatter_by::<4>(out, source),
+        8 => scatter_by::<8>(out, source),
+        _ => {
+            for (chunk, &sample) in out.chunks_mut(stride).zip(source) {
+                chunk[0] = sample;
+            }
+        }
+    }
+}
+
+#[inline(always)]
+fn scatter_by<const STRIDE: usize>(out: &mut [Vec3], source: &[Vec3]) {
+    for (slot, &sample) in out.iter_mut().step_by(STRIDE).zip(source) {
+        *slot = sample;
+    }
+}
+
+/// Columns `c0..=c1` (in any turn of `columns`) as runs (first column in
+/// the turn, length) that stay within one block and one turn.
+fn for_each_run(c0: i64, c1: i64, columns: i64, mut each: impl FnMut(i64, usize)) {
+    let mut col = c0;
+    while col <= c1 {
+        let wc = col.rem_euclid(columns);
+        let run = (c1 - col + 1)
+            .min(BLOCK - (wc & (BLOCK - 1)))
+            .min(columns - wc);
+        each(wc, run as usize);
+        col += run;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::accel::{Accelerator, BackendKind};
+    use crate::camera::{Camera, Projection};
+    use crate::reuse::rsvp::{RsvpKnobs, SampleLattice, ViewTransform, ViewportPose};
+    use crate::scene::{paper_scene, SceneOverrides};
+    use crate::shade::Shader;
+
+    /// A zoom that refines levels frame by frame (blocks assembled early
+    /// take groups traced later), a rotated view and a turn past the seam
+    /// (columns wrapping): afterwards every block still equals a fresh
+    /// assembly, and the later frames did write into older blocks.
+    #[test]
+    fn blocks_follow_every_traced_group() {
+        let overrides = SceneOverrides {
+            width: Some(64),
+            height: Some(48),
+            ..SceneOverrides::default()
+        };
+        let scene = paper_scene(&overrides).unwrap();
+        let accel = Accelerator::build(BackendKind::Grid, &scene.objects).unwrap();
+        let shader = Shader::new(&scene, &accel);
+        let mut buffer = SampleBuffer::new(SampleLattice::for_camera(&scene.camera));
+        let knobs = RsvpKnobs::default();
+        let pose = |yaw: f64, zoom: f64, rotate: f64| {
+            let camera = Camera {
+                projection: Projection::Perspective,
+                yaw: yaw.to_radians(),
+                width: 64,
+                height: 48,
+                ..scene.camera.clone()
+            };
+            let transform = ViewTransform {
+                zoom,
+                rotate,
+                ..ViewTransform::default()
+            };
+            ViewportPose::new(camera, transform)
+        };
+        let mut followed = 0;
+        for frame in 0..8 {
+            let t = f64::from(frame);
+            let poses = [
+                pose(0.0, 1.0 + 0.4 * t, 0.0),
+                pose(175.0 + 2.0 * t, 1.5, 0.3),
+            ];
+            let before = buffer.blocks.iter().map(|b| b.index.len()).sum::<usize>();
+            buffer.render(&shader, &poses, &knobs, false);
+            if frame > 0 && before > 0 {
+                followed += buffer.fresh.len();
+            }
+            assert_eq!(buffer.stale_block_samples(), 0, "frame {frame}");
+        }
+        assert!(followed > 0, "no later frame traced anything");
+        let levels = buffer.blocks.iter().filter(|b| !b.index.is_empty()).count();
+        assert!(levels >= 3, "blocks at only {levels} levels");
+    }
+
+    #[test]
+    fn runs_stay_in_one_block_and_one_turn() {
+        let columns = 200;
+        let mut runs = Vec::new();
+        for_each_run(-3, 130, columns, |col, run| runs.push((col, run)));
+        assert_eq!(runs, vec![(197, 3), (0, 64), (64, 64), (128, 3)]);
+        let mut runs = Vec::new();
+        for_each_run(190, 205, columns, |col, run| runs.push((col, run)));
+        assert_eq!(runs, vec![(190, 2), (192, 8), (0, 6)]);
+    }
+}
