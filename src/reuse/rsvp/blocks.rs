@@ -58,8 +58,8 @@ impl LevelBlocks {
         &self.blocks[block as usize]
     }
 
-    /// A slot for `key`, holding `samples` (to be assembled).
-    fn add(&mut self, key: (i64, i64), samples: Box<[Vec3]>, frame: u64) -> u32 {
+    /// Keeps the assembled `samples` of block `key`, read in `frame`.
+    fn add(&mut self, key: (i64, i64), samples: Box<[Vec3]>, frame: u64) {
         let slot = match self.free.pop() {
             Some(slot) => {
                 self.blocks[slot as usize] = samples;
@@ -73,7 +73,6 @@ impl LevelBlocks {
             }
         };
         self.index.insert(key, slot);
-        slot
     }
 
     /// Gives every block last read before frame `since` to `spare`.
@@ -150,42 +149,26 @@ impl SampleBuffer {
         for blocks in &mut self.blocks {
             blocks.give_up_unread(frame - 1, &mut self.spare_blocks);
         }
-        let mut slots = Vec::with_capacity(wanted.len());
-        for &(index, key) in &wanted {
-            let samples = self
-                .spare_blocks
-                .pop()
-                .unwrap_or_else(|| vec![Vec3::ZERO; BLOCK_SAMPLES].into_boxed_slice());
-            slots.push(self.blocks[index].add(key, samples, frame));
-        }
-        let mut all = std::mem::take(&mut self.blocks);
+        // New blocks are assembled before they join their levels, so the
+        // stores can be read while they are written.
+        let mut fresh: Vec<Box<[Vec3]>> = wanted
+            .iter()
+            .map(|_| {
+                self.spare_blocks
+                    .pop()
+                    .unwrap_or_else(|| vec![Vec3::ZERO; BLOCK_SAMPLES].into_boxed_slice())
+            })
+            .collect();
         let this = &*self;
-        let mut jobs: Vec<(Level, (i64, i64), &mut [Vec3])> = Vec::with_capacity(wanted.len());
-        let mut next = 0;
-        for (index, blocks) in all.iter_mut().enumerate() {
-            let first = next;
-            while next < wanted.len() && wanted[next].0 == index {
-                next += 1;
-            }
-            if first == next {
-                continue;
-            }
-            let mut mine: Vec<(u32, (i64, i64))> = slots[first..next]
-                .iter()
-                .zip(&wanted[first..next])
-                .map(|(&slot, &(_, key))| (slot, key))
-                .collect();
-            mine.sort_unstable();
-            let mut mine = mine.into_iter().peekable();
-            for (slot, samples) in blocks.blocks.iter_mut().enumerate() {
-                if let Some((_, key)) = mine.next_if(|&(s, _)| s == slot as u32) {
-                    jobs.push((Level::from_index(index), key, &mut samples[..]));
-                }
-            }
+        fresh
+            .par_iter_mut()
+            .zip(&wanted)
+            .for_each(|(out, &(index, key))| {
+                this.assemble_block(Level::from_index(index), key, out)
+            });
+        for (samples, (index, key)) in fresh.into_iter().zip(wanted) {
+            self.blocks[index].add(key, samples, frame);
         }
-        jobs.into_par_iter()
-            .for_each(|(level, key, out)| this.assemble_block(level, key, out));
-        self.blocks = all;
     }
 
     /// Block `key` of `level` from the stores: each row owner by owner.
