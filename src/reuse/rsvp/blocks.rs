@@ -17,6 +17,7 @@ use rayon::prelude::*;
 use super::{
     lattice::{owned_positions, wrap},
     map::SampleBox,
+    same_bits,
     store::{tile_key, TileCache, TileHasher, TILE_COLS, TILE_SAMPLES},
     Level, SampleBuffer,
 };
@@ -24,10 +25,11 @@ use crate::ray::PACKET_WIDTH;
 use crate::render::SampleGroup;
 
 /// Positions per side of a block: a 16x16-pixel region reads 17-40 samples
-/// a side, so about a third of regions read one block and most of the
-/// rest two.
-pub(super) const BLOCK_SHIFT: u32 = 6;
-pub(super) const BLOCK: i64 = 1 << BLOCK_SHIFT;
+/// a side, so on E2 about a fifth of regions read one block in place and
+/// the rest copy a few rows from two to four (128-wide blocks saved few
+/// copies and cost four times the assembly).
+const BLOCK_SHIFT: u32 = 6;
+const BLOCK: i64 = 1 << BLOCK_SHIFT;
 const BLOCK_SAMPLES: usize = (BLOCK * BLOCK) as usize;
 
 /// One level's assembled blocks, row-major inside, made on first read.
@@ -43,7 +45,7 @@ pub(super) struct LevelBlocks {
 
 /// The block holding position (col, row) of a level, and the sample's
 /// index in it.
-pub(super) fn block_key(col: i64, row: i64) -> ((i64, i64), usize) {
+fn block_key(col: i64, row: i64) -> ((i64, i64), usize) {
     let key = (col >> BLOCK_SHIFT, row >> BLOCK_SHIFT);
     let sample = (row & (BLOCK - 1)) * BLOCK + (col & (BLOCK - 1));
     (key, sample as usize)
@@ -266,9 +268,7 @@ impl SampleBuffer {
                 stale += kept
                     .iter()
                     .zip(&fresh)
-                    .filter(|(a, b)| {
-                        a.to_array().map(f32::to_bits) != b.to_array().map(f32::to_bits)
-                    })
+                    .filter(|(&a, &b)| !same_bits(a, b))
                     .count() as u64;
             }
         }

@@ -205,9 +205,7 @@ impl SampleBuffer {
                     let (_, sample, _) = tile_key(col, row);
                     let kept = store.colors[tile * TILE_SAMPLES + sample];
                     compared += 1;
-                    let same = kept.to_array().map(f32::to_bits)
-                        == colors[lane].to_array().map(f32::to_bits);
-                    differing += u64::from(!same);
+                    differing += u64::from(!same_bits(kept, colors[lane]));
                 }
             }
         }
@@ -504,6 +502,12 @@ impl SampleBuffer {
             image::Rgb(colour.map_or([0; 3], |c| c.to_array().map(|v| srgb.encode(v))))
         })
     }
+}
+
+/// Whether two colours are the same bit for bit (what "exact" means for a
+/// kept sample and its copies).
+fn same_bits(a: Vec3, b: Vec3) -> bool {
+    a.to_array().map(f32::to_bits) == b.to_array().map(f32::to_bits)
 }
 
 /// What the unit tests of the submodules share.
