@@ -950,6 +950,23 @@ pub fn e2_scene(mut scene: Scene, direction: ZoomDirection, pan_deg_per_frame: f
     scene
 }
 
+/// Camera yaw per frame in E4 (E1's pan: a whole turn in 100 frames).
+pub const E4_PAN_DEG_PER_FRAME: f64 = 3.6;
+
+/// Experiment E4 on a scene whose own timeline moves objects or lights:
+/// E2's viewport zooming in while the camera pans as in E1, the scene's
+/// motion kept (`scenes/paper-all.toml` is this on the paper scene with a
+/// bouncing ball).
+pub fn e4_scene(mut scene: Scene) -> Scene {
+    let motion = scene.animation.take();
+    let mut scene = e2_scene(scene, ZoomDirection::In, E4_PAN_DEG_PER_FRAME);
+    if let (Some(animation), Some(motion)) = (scene.animation.as_mut(), motion) {
+        animation.objects = motion.objects;
+        animation.lights = motion.lights;
+    }
+    scene
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -970,6 +987,42 @@ mod tests {
         let (frame, counts) = render_view(&scene, &scene.camera, &accel);
         let rays = rays_per_pixel(&Shader::new(&scene, &accel), &scene.camera);
         (scene, frame, counts, rays)
+    }
+
+    /// E4 built on the bouncing-ball scene is `scenes/paper-all.toml`'s
+    /// timeline: the same camera and viewport at every frame, the scene's
+    /// own bounce kept (so `bench --scaling` runs the same E4 on bunnies).
+    #[test]
+    fn e4_on_a_moving_scene_is_paper_all_s_pan_and_zoom_over_its_motion() {
+        let overrides = SceneOverrides::default();
+        let bouncing = crate::tradeoff::bouncing_ball_scene(&overrides).unwrap();
+        let bounce = bouncing.animation.clone().unwrap().objects;
+        assert!(!bounce.is_empty());
+        let built = e4_scene(bouncing);
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/paper-all.toml");
+        let paper_all = crate::scene::load_scene(&path, &overrides).unwrap();
+        let (ours, theirs) = (
+            built.animation.as_ref().unwrap(),
+            paper_all.animation.as_ref().unwrap(),
+        );
+        assert_eq!(ours.objects, bounce);
+        assert!(ours.moves_scene());
+        assert_eq!((ours.frames, built.viewports.len()), (theirs.frames, 1));
+        for frame in 0..ours.frames {
+            let (a, b) = (
+                ours.camera_at(&built.camera, frame),
+                theirs.camera_at(&paper_all.camera, frame),
+            );
+            assert!((a.yaw - b.yaw).abs() < 1e-9, "frame {frame}: yaw");
+            assert_eq!((a.pitch, a.fov, a.position), (b.pitch, b.fov, b.position));
+            let (a, b) = (&built.viewports[0], &paper_all.viewports[0]);
+            assert_eq!(
+                (a.viewport.width, a.viewport.height, a.viewport.fov),
+                (b.viewport.width, b.viewport.height, b.viewport.fov)
+            );
+            let (za, zb) = (a.transform_at(frame).zoom, b.transform_at(frame).zoom);
+            assert!((za - zb).abs() < 1e-9, "frame {frame}: zoom {za} {zb}");
+        }
     }
 
     #[test]

@@ -467,4 +467,40 @@ fn bench_rejects_bad_frames_before_any_work() {
     let out = bench(&out_dir, &["--only", "E9"]);
     assert_eq!(out.status.code(), Some(1));
     assert!(stderr(&out).contains("unknown measurement 'E9'"));
+    // A still scene without a viewport gives E4 nothing to move or resample.
+    let out = bench(&out_dir, &["--only", "E4", "scenes/paper.toml"]);
+    let err = stderr(&out);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("E4 needs a scene with a [[viewport]], or one whose timeline moves"),
+        "{err}"
+    );
+    assert!(!out_dir.exists(), "output written before the check");
+}
+
+/// A moving scene without viewports gets E4's pan and zoom over its own
+/// motion (how `--scaling` runs E4 on the bunnies), checked as E4 is.
+#[test]
+fn bench_builds_e4_over_a_moving_scene_without_viewports() {
+    let dir = tempfile::tempdir().unwrap();
+    let out_dir = dir.path().join("bench");
+    let out = bench(
+        &out_dir,
+        &[
+            "--only",
+            "E4",
+            "--frames",
+            "0-2",
+            "scenes/paper-bounce.toml",
+        ],
+    );
+    let err = stderr(&out);
+    assert!(out.status.success(), "{err}");
+    let table = std::fs::read_to_string(out_dir.join("bench.csv")).unwrap();
+    let row = table.lines().nth(1).expect("one row");
+    assert!(
+        row.starts_with("E4,") && row.contains(",paper-bounce,"),
+        "{row}"
+    );
+    assert!(row.contains("buffer bit-exact"), "{row}");
 }
