@@ -709,11 +709,19 @@ impl<'a> Animator<'a> {
                 .as_ref()
                 .expect("a kept buffer has a pose");
             let ostc = buffer.ostc().expect("restarted unless ostc is on");
-            let dirty = dirty_regions(ostc, old, &scene_pose);
-            dirty_count = dirty.len() as u64;
-            erased = buffer.erase(&dirty)
+            // A moved light dirties whole regions; a moved object only the
+            // groups whose rays meet it (finer levels hold many groups to
+            // a region).
+            let lit = dirty_by_lights(ostc, old, &scene_pose);
+            let (regions, groups) = dirty_groups(ostc, old, &scene_pose);
+            let mut touched = regions.clone();
+            touched.union_with(&lit);
+            dirty_count = touched.len() as u64;
+            erased = (buffer.erase(&lit) + buffer.erase_groups(&groups))
                 * u64::from(crate::render::GROUP_WIDTH * crate::render::GROUP_HEIGHT);
-            buffer.ostc_mut().expect("just used").forget(&dirty);
+            let ostc = buffer.ostc_mut().expect("just used");
+            ostc.forget(&lit);
+            ostc.forget_groups(&regions, &groups);
             book_ms = book_start.elapsed().as_secs_f64() * 1e3;
         }
         self.samples_pose = Some(scene_pose);
@@ -1144,12 +1152,19 @@ impl<'a> Animator<'a> {
 
 /// The regions whose samples the change from `old` to `new` can alter.
 fn dirty_regions(ostc: &Ostc, old: &ScenePose, new: &ScenePose) -> RegionSet {
-    let mut dirty = RegionSet::empty(ostc.layout().count());
+    let mut dirty = dirty_by_lights(ostc, old, new);
     for (was, is) in old.places.iter().zip(&new.places) {
         if was != is {
             dirty.union_with(&ostc.dirty_for(&[*was, *is]));
         }
     }
+    dirty
+}
+
+/// The regions whose samples the lights' change from `old` to `new` can
+/// alter.
+fn dirty_by_lights(ostc: &Ostc, old: &ScenePose, new: &ScenePose) -> RegionSet {
+    let mut dirty = RegionSet::empty(ostc.layout().count());
     for (index, (was, is)) in old.lights.iter().zip(&new.lights).enumerate() {
         if was != is {
             let moved = was.position != is.position;
@@ -1157,6 +1172,23 @@ fn dirty_regions(ostc: &Ostc, old: &ScenePose, new: &ScenePose) -> RegionSet {
         }
     }
     dirty
+}
+
+/// The groups (sorted keys) whose samples the objects' moves from `old`
+/// to `new` can alter, and the regions they lie in.
+fn dirty_groups(ostc: &Ostc, old: &ScenePose, new: &ScenePose) -> (RegionSet, Vec<u128>) {
+    let mut regions = RegionSet::empty(ostc.layout().count());
+    let mut groups = Vec::new();
+    for (was, is) in old.places.iter().zip(&new.places) {
+        if was != is {
+            let (r, g) = ostc.dirty_groups_for(&[*was, *is]);
+            regions.union_with(&r);
+            groups.extend(g);
+        }
+    }
+    groups.sort_unstable();
+    groups.dedup();
+    (regions, groups)
 }
 
 /// Everything the animated objects of `scene` cover over the whole

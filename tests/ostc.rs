@@ -316,6 +316,39 @@ proptest! {
     }
 }
 
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 8, ..ProptestConfig::default() })]
+
+    /// Random motion under a panning camera, seen through a viewport that
+    /// zooms into finer pyramid levels (where a moving object erases only
+    /// the groups whose rays meet it): every kept buffer sample equals a
+    /// fresh trace at every frame, on both backends.
+    #[test]
+    fn random_animations_through_a_zooming_viewport_keep_an_exact_buffer(
+        extra in random_animation(),
+        zoom in 1.0f64..3.0,
+        rotate in -40.0f64..40.0,
+    ) {
+        let view = format!(
+            "[[viewport]]\nname = \"v\"\nwidth = 40\nheight = 30\nfov = 90.0\n\
+             [[animation.viewport]]\nframe = 0\nzoom = 1.0\n\
+             [[animation.viewport]]\nframe = 4\nzoom = {zoom}\nrotate = {rotate}\n"
+        );
+        let scene = paper_with(&format!("{extra}\n{view}"), 48, 32);
+        for backend in [BackendKind::Embree, BackendKind::Grid] {
+            let mut accel = retrace::accel::Accelerator::build(backend, &scene.objects).unwrap();
+            let mut animator =
+                retrace::anim::Animator::new(&scene, &mut accel, Techniques::AUTO, 0..5);
+            for frame in 0..5 {
+                animator.render_viewports(frame);
+                let (compared, differing) = animator.verify_sample_buffer().unwrap();
+                prop_assert!(compared > 0);
+                prop_assert_eq!(differing, 0, "{:?} frame {}", backend, frame);
+            }
+        }
+    }
+}
+
 /// A temporary directory holding the paper scene, the bouncing ball and
 /// `extra` files (name, contents).
 fn bounce_dir(extra: &[(&str, &str)]) -> tempfile::TempDir {

@@ -64,8 +64,8 @@ use filter::filter_reads;
 use lattice::wrap;
 use map::nan_filled;
 use store::{
-    tile_key, traced_groups, LevelSamples, TracedGroups, TILE_COLS, TILE_COL_SHIFT, TILE_ROW_SHIFT,
-    TILE_SAMPLES,
+    group_key, key_group, tile_key, traced_groups, LevelSamples, TracedGroups, TILE_COLS,
+    TILE_COL_SHIFT, TILE_ROW_SHIFT, TILE_SAMPLES,
 };
 use viewport::PixelMap;
 
@@ -212,6 +212,25 @@ impl SampleBuffer {
         (compared, differing + self.stale_block_samples())
     }
 
+    /// Nulls the groups named by `keys` (the keys their rays were recorded
+    /// under, as [`Ostc::dirty_groups_for`] gives them); returns how many
+    /// of them were traced. They are traced again when a viewport next
+    /// reads them.
+    pub fn erase_groups(&mut self, keys: &[u128]) -> u64 {
+        let mut erased = 0;
+        for &key in keys {
+            let (level, group) = key_group(key);
+            let store = &mut self.levels[level.index()];
+            let (tile, _, bit) = tile_key(group.col, group.row);
+            if let Some(tile) = store.tile(tile) {
+                let mask = &mut store.traced[tile as usize];
+                erased += *mask >> bit & 1;
+                *mask &= !(1u64 << bit);
+            }
+        }
+        erased
+    }
+
     /// Nulls, at every level, the samples lying in `regions` (of the OSTC
     /// layout); returns how many groups were erased. They are traced again
     /// when a viewport next reads them.
@@ -321,7 +340,7 @@ impl SampleBuffer {
             .collect();
         let (colors, rays) = trace_each(shader, &all, |&(level, group, _)| {
             let region = |o: &Ostc| Self::region_of(lattice, o.layout(), level, group);
-            let marker = ostc.map(|o| o.marker_in(region(o)));
+            let marker = ostc.map(|o| o.marker_in(region(o), group_key(level, group)));
             (&sources[level.index()] as &dyn PrimaryRays, group, marker)
         });
         let per_group = start.elapsed().as_secs_f64() * 1e3 / all.len() as f64;

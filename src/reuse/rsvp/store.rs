@@ -58,6 +58,38 @@ pub(super) fn tile_key(col: i64, row: i64) -> ((i64, i64), usize, u32) {
     (key, sample, group as u32)
 }
 
+/// Bits of a [`group_key`] for each of a group's slot column and row:
+/// room for any turn's slots at the finest level; the level's index takes
+/// the rest of OSTC's key.
+const KEY_COORD_BITS: u32 = 43;
+const _: () =
+    assert!(Level::COUNT <= 1 << (crate::reuse::ostc::GROUP_KEY_BITS - 2 * KEY_COORD_BITS));
+
+/// The name OSTC records a traced group's rays under, so that a moving
+/// object erases just the groups whose rays meet it: a level-0 region
+/// holds 4^k times its samples on level k.
+pub(super) fn group_key(level: Level, group: SampleGroup) -> u128 {
+    let fits = 0..1i64 << KEY_COORD_BITS;
+    debug_assert!(
+        fits.contains(&group.col) && fits.contains(&group.row),
+        "{group:?}"
+    );
+    (level.index() as u128) << (2 * KEY_COORD_BITS)
+        | (group.col as u128) << KEY_COORD_BITS
+        | group.row as u128
+}
+
+/// The level and group a [`group_key`] names.
+pub(super) fn key_group(key: u128) -> (Level, SampleGroup) {
+    let coord = |shift: u32| ((key >> shift) & ((1 << KEY_COORD_BITS) - 1)) as i64;
+    let level = Level::from_index((key >> (2 * KEY_COORD_BITS)) as usize);
+    let group = SampleGroup {
+        col: coord(KEY_COORD_BITS),
+        row: coord(0),
+    };
+    (level, group)
+}
+
 /// Every traced group of a level's store: (group, tile, bit in its mask).
 pub(super) fn traced_groups(
     store: &LevelSamples,
@@ -178,5 +210,38 @@ impl TileCache {
             self.tiles[slot] = store.tile(key).unwrap_or(u32::MAX);
         }
         self.tiles[slot]
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::reuse::rsvp::MAX_LEVEL;
+
+    #[test]
+    fn group_keys_name_each_level_s_groups_apart() {
+        let levels = [
+            Level::new(0, 0),
+            Level::new(2, 1),
+            Level::new(MAX_LEVEL, MAX_LEVEL),
+        ];
+        let groups = [
+            (0, 0),
+            (8, 4),
+            ((1 << KEY_COORD_BITS) - 8, 6),
+            (73720, 36862),
+        ];
+        let mut keys = Vec::new();
+        for level in levels {
+            for (col, row) in groups {
+                let group = SampleGroup { col, row };
+                let key = group_key(level, group);
+                assert_eq!(key_group(key), (level, group));
+                keys.push(key);
+            }
+        }
+        keys.sort_unstable();
+        keys.dedup();
+        assert_eq!(keys.len(), levels.len() * groups.len());
     }
 }
