@@ -373,8 +373,8 @@ impl Ostc {
     }
 
     /// What a group's rays are recorded through, for a buffer that erases
-    /// whole regions (all its groups under one key: a region of its is
-    /// about one group).
+    /// whole regions (every group under one key: the pan buffer's regions
+    /// are about a group each).
     pub fn marker(&self, group: SampleGroup) -> RegionMarker<'_> {
         self.marker_in(self.layout.region_of(group.col, group.row), 0)
     }
