@@ -54,6 +54,7 @@ use std::time::Instant;
 use crate::accel::grid::{GridSpec, GridWalker};
 use crate::geometry::Aabb;
 use glam::Vec3;
+use rayon::prelude::*;
 
 use crate::ray::{lanes, LaneMask, Ray, RayPacket, PACKET_WIDTH};
 use crate::render::{SampleGroup, GROUP_HEIGHT, GROUP_WIDTH};
@@ -429,22 +430,30 @@ impl Ostc {
     /// region of a pyramid's level-0 samples holds 4^k times as many
     /// samples on level k, nearly all of them untouched.
     pub fn dirty_groups_for(&self, volumes: &[Footprint]) -> (RegionSet, Vec<u128>) {
+        let candidates: Vec<usize> = self.candidates_for(volumes).iter().collect();
+        // Every segment of a dirty region is tested (E4: 640M instructions
+        // over the sequence), one region per task.
+        let found: Vec<(usize, Vec<u128>)> = candidates
+            .into_par_iter()
+            .filter_map(|region| {
+                let mut groups = Vec::new();
+                self.with_segments(region, |all| {
+                    // A group's segments come in one run (its marker adds
+                    // them at once): once one may change, skip the rest.
+                    for run in all.chunk_by(|a, b| a.group == b.group) {
+                        if run.iter().any(|s| s.may_change(volumes)) {
+                            groups.push(run[0].group.key());
+                        }
+                    }
+                });
+                (!groups.is_empty()).then_some((region, groups))
+            })
+            .collect();
         let mut regions = RegionSet::empty(self.layout.count());
         let mut groups = Vec::new();
-        for region in self.candidates_for(volumes).iter() {
-            let before = groups.len();
-            self.with_segments(region, |all| {
-                // A group's segments come in one run (its marker adds them
-                // at once): once one of them may change, skip the rest.
-                for run in all.chunk_by(|a, b| a.group == b.group) {
-                    if run.iter().any(|s| s.may_change(volumes)) {
-                        groups.push(run[0].group.key());
-                    }
-                }
-            });
-            if groups.len() > before {
-                regions.insert(region);
-            }
+        for (region, mine) in found {
+            regions.insert(region);
+            groups.extend(mine);
         }
         groups.sort_unstable();
         groups.dedup();
