@@ -560,13 +560,15 @@ impl Ostc {
             let segments = voxels.segments[region]
                 .get_mut()
                 .unwrap_or_else(PoisonError::into_inner);
-            // Runs of one group: one search per run.
-            let mut last = None;
-            segments.retain(|s| {
-                if last.map(|(group, _)| group) != Some(s.group) {
-                    last = Some((s.group, groups.binary_search(&s.group.key()).is_err()));
+            // A group's segments come in one run: one search per run.
+            let mut run: Option<(PackedKey, bool)> = None;
+            segments.retain(|s| match run {
+                Some((group, keep)) if group == s.group => keep,
+                _ => {
+                    let keep = groups.binary_search(&s.group.key()).is_err();
+                    run = Some((s.group, keep));
+                    keep
                 }
-                last.is_some_and(|(_, keep)| keep)
             });
             if segments.is_empty() {
                 emptied.insert(region);
