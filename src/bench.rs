@@ -280,6 +280,12 @@ pub struct FrameProfile {
     pub samples_nulled: u64,
     /// OSTC: recording and merging.
     pub bookkeeping_ms: f64,
+    /// The accelerated side's tracing: the samples it could not reuse, with
+    /// their shadow and reflection rays.
+    pub accelerated_trace_ms: f64,
+    /// The accelerated side's everything else but bookkeeping: copying
+    /// reused pixels, RSVP's mapping and resampling, 8-bit conversion.
+    pub accelerated_copy_ms: f64,
     /// Samples the oracle says this frame could not avoid tracing.
     pub oracle_samples: Option<u64>,
     /// The same with every region that holds one traced whole.
@@ -634,6 +640,8 @@ pub fn bench_sequence(
             row.dirty_regions = stats.dirty_regions;
             row.samples_nulled = stats.samples_nulled;
             row.bookkeeping_ms = stats.bookkeeping_ms;
+            row.accelerated_trace_ms = stats.trace_ms;
+            row.accelerated_copy_ms = stats.copy_ms;
             progress();
         }
         fast_times.push(elapsed);
@@ -808,6 +816,7 @@ pub fn bench_viewport_sequence(
             pixels_per_frame = outputs.iter().map(|o| o.stats.pixels).sum();
             (row.accelerated_rays, row.samples_traced, row.bookkeeping_ms) =
                 (RayCounts::default(), 0, 0.0);
+            (row.accelerated_trace_ms, row.accelerated_copy_ms) = (0.0, 0.0);
             for output in &outputs {
                 let stats = &output.stats;
                 row.accelerated_rays += RayCounts {
@@ -817,6 +826,8 @@ pub fn bench_viewport_sequence(
                 };
                 row.samples_traced += stats.samples_traced;
                 row.bookkeeping_ms += stats.bookkeeping_ms;
+                row.accelerated_trace_ms += stats.trace_ms;
+                row.accelerated_copy_ms += stats.copy_ms;
             }
             // Frame-wide OSTC figures repeat on every viewport's stats.
             if let Some(first) = outputs.first() {

@@ -48,6 +48,11 @@ pub struct BenchRow {
     /// OSTC recording and merging per frame over a full frame's time; None
     /// when the experiment has no OSTC.
     pub bookkeeping_share: Option<f64>,
+    /// Of the accelerated time, the share spent tracing, and the share
+    /// spent copying reused pixels (RSVP: mapping and resampling) and
+    /// converting to 8 bits; the rest is OSTC bookkeeping.
+    pub tracing_share: f64,
+    pub copying_share: f64,
     pub samples_traced: u64,
     pub oracle_samples: Option<u64>,
     /// Every output frame (or kept buffer sample) bit-identical to a full
@@ -107,6 +112,7 @@ impl ExperimentResult {
             format!("{differing} of {} frames DIFFER", bench.frames)
         };
         let oracle_samples = bench.profile.iter().filter_map(|p| p.oracle_samples).sum();
+        let split = TimeSplit::of(&bench.profile);
         let row = BenchRow {
             info,
             frames: bench.frames,
@@ -118,6 +124,8 @@ impl ExperimentResult {
             timed_region_oracle_speedup: Some(bench.timed_region_oracle_speedup),
             efficiency: Some(bench.efficiency),
             bookkeeping_share: ostc.then_some(bench.bookkeeping_share),
+            tracing_share: split.tracing,
+            copying_share: split.copying,
             samples_traced: bench.samples_traced,
             oracle_samples: Some(oracle_samples),
             exact: Some(bench.exact),
@@ -167,6 +175,7 @@ impl ExperimentResult {
             None => (None, psnr),
         };
         let ostc = bench.buffer_check.is_some() || bench.bookkeeping_ms > 0.0;
+        let split = TimeSplit::of(&bench.profile);
         let row = BenchRow {
             info,
             frames: bench.frames,
@@ -179,6 +188,8 @@ impl ExperimentResult {
             efficiency: oracle_speedup.map(|o| bench.speedup / o),
             bookkeeping_share: ostc
                 .then(|| bench.bookkeeping_ms / frames / full_ms_per_frame.max(f64::MIN_POSITIVE)),
+            tracing_share: split.tracing,
+            copying_share: split.copying,
             samples_traced: bench.samples_traced,
             oracle_samples,
             exact,
@@ -188,6 +199,26 @@ impl ExperimentResult {
         ExperimentResult {
             row,
             profile: bench.profile,
+        }
+    }
+}
+
+/// Where the accelerated side's time went, as shares of its tracing,
+/// copying and bookkeeping together.
+struct TimeSplit {
+    tracing: f64,
+    copying: f64,
+}
+
+impl TimeSplit {
+    fn of(profile: &[FrameProfile]) -> TimeSplit {
+        let sum = |part: fn(&FrameProfile) -> f64| profile.iter().map(part).sum::<f64>();
+        let tracing = sum(|p| p.accelerated_trace_ms);
+        let copying = sum(|p| p.accelerated_copy_ms);
+        let total = (tracing + copying + sum(|p| p.bookkeeping_ms)).max(f64::MIN_POSITIVE);
+        TimeSplit {
+            tracing: tracing / total,
+            copying: copying / total,
         }
     }
 }
@@ -317,7 +348,7 @@ fn opt<T: ToString>(value: Option<T>) -> String {
 }
 
 /// The columns of `bench.csv`.
-pub const ROW_COLUMNS: [&str; 25] = [
+pub const ROW_COLUMNS: [&str; 27] = [
     "experiment",
     "what",
     "technique",
@@ -337,6 +368,8 @@ pub const ROW_COLUMNS: [&str; 25] = [
     "timed_region_oracle_speedup",
     "timed_region_efficiency",
     "bookkeeping_share",
+    "tracing_share",
+    "copying_share",
     "samples_traced",
     "oracle_samples",
     "exact",
@@ -371,6 +404,8 @@ pub fn rows_csv(rows: &[BenchRow]) -> String {
             opt(row.timed_region_oracle_speedup),
             opt(row.timed_region_efficiency()),
             opt(row.bookkeeping_share),
+            row.tracing_share.to_string(),
+            row.copying_share.to_string(),
             row.samples_traced.to_string(),
             opt(row.oracle_samples),
             opt(row.exact),
@@ -393,7 +428,7 @@ pub fn rows_json(rows: &[BenchRow]) -> String {
 }
 
 /// The columns of each experiment's per-frame CSV.
-pub const PROFILE_COLUMNS: [&str; 18] = [
+pub const PROFILE_COLUMNS: [&str; 20] = [
     "frame",
     "full_ms",
     "accelerated_ms",
@@ -407,6 +442,8 @@ pub const PROFILE_COLUMNS: [&str; 18] = [
     "dirty_regions",
     "samples_nulled",
     "bookkeeping_ms",
+    "accelerated_trace_ms",
+    "accelerated_copy_ms",
     "oracle_samples",
     "oracle_region_samples",
     "psnr_db",
@@ -433,6 +470,8 @@ pub fn profile_csv(profile: &[FrameProfile]) -> String {
             p.dirty_regions.to_string(),
             p.samples_nulled.to_string(),
             format!("{:.4}", p.bookkeeping_ms),
+            format!("{:.4}", p.accelerated_trace_ms),
+            format!("{:.4}", p.accelerated_copy_ms),
             opt(p.oracle_samples),
             opt(p.oracle_region_samples),
             opt(p.psnr_db.map(|db| format!("{db:.3}"))),
@@ -669,7 +708,7 @@ fn summary(row: &BenchRow) -> String {
         _ => "; no oracle was measured".to_string(),
     };
     format!(
-        "{:.2} ms per frame in full against {:.2} ms accelerated over {} frames: {:.2}x (paper: {}){}. {}.",
+        "{:.2} ms per frame in full against {:.2} ms accelerated over {} frames: {:.2}x (paper: {}){}. {}. {}",
         row.full_ms_per_frame,
         row.accelerated_ms_per_frame,
         row.frames,
@@ -677,7 +716,38 @@ fn summary(row: &BenchRow) -> String {
         row.info.paper_speedup,
         oracle,
         capitalise(&row.exactness),
+        time_split(row),
     )
+}
+
+/// Where the accelerated time went, and what the speedup would be if the
+/// copying cost nothing: the bound that tracing less cannot lift.
+fn time_split(row: &BenchRow) -> String {
+    let bookkeeping = (1.0 - row.tracing_share - row.copying_share).max(0.0);
+    let mut text = format!(
+        "The accelerated side spent {:.0}% of its time tracing and {:.0}% copying{}",
+        row.tracing_share * 100.0,
+        row.copying_share * 100.0,
+        if row.info.technique.contains("RSVP") {
+            " (mapping and resampling the buffer)"
+        } else {
+            ""
+        },
+    );
+    if bookkeeping >= 0.005 {
+        text.push_str(&format!(
+            ", {:.0}% on OSTC bookkeeping",
+            bookkeeping * 100.0
+        ));
+    }
+    if row.copying_share < 1.0 {
+        text.push_str(&format!(
+            "; with copying free it would run {:.1}x faster than in full",
+            row.speedup / (1.0 - row.copying_share)
+        ));
+    }
+    text.push('.');
+    text
 }
 
 fn capitalise(text: &str) -> String {
@@ -799,12 +869,39 @@ mod tests {
             timed_region_oracle_speedup: None,
             efficiency: oracle.map(|o| 20.0 / o),
             bookkeeping_share: None,
+            tracing_share: 0.4,
+            copying_share: 0.6,
             samples_traced: 1000,
             oracle_samples: oracle.map(|_| 900),
             exact: Some(true),
             worst_psnr_db: None,
             exactness: "bit-exact".to_string(),
         }
+    }
+
+    #[test]
+    fn the_summary_says_where_the_accelerated_time_went() {
+        let mut e2 = row("E2 in", Some(40.0));
+        e2.info.technique = "RSVP".to_string();
+        let text = summary(&e2);
+        assert!(
+            text.contains("spent 40% of its time tracing and 60% copying (mapping and resampling"),
+            "{text}"
+        );
+        // 20x with 60% of the time copying: 50x if copying were free.
+        assert!(
+            text.contains("with copying free it would run 50.0x faster"),
+            "{text}"
+        );
+        assert!(!text.contains("bookkeeping"), "{text}");
+        let mut e4 = row("E4", Some(12.0));
+        (e4.tracing_share, e4.copying_share) = (0.5, 0.3);
+        let text = summary(&e4);
+        assert!(
+            text.contains("30% copying, 20% on OSTC bookkeeping"),
+            "{text}"
+        );
+        assert!(!text.contains("resampling"), "{text}");
     }
 
     #[test]
@@ -874,6 +971,8 @@ mod tests {
                 reflection: 20,
             },
             oracle_samples: Some(5),
+            accelerated_trace_ms: 1.5,
+            accelerated_copy_ms: 0.75,
             ..FrameProfile::default()
         };
         let csv = profile_csv(&[frame]);
@@ -884,9 +983,10 @@ mod tests {
         assert_eq!(cells.len(), PROFILE_COLUMNS.len());
         assert_eq!(cells[0], "7");
         assert_eq!(cells[3..6], ["100", "150", "20"]);
-        assert_eq!(cells[13], "5");
-        assert_eq!(cells[14], "", "no region oracle: empty");
-        assert_eq!(cells[17], "4.000");
+        assert_eq!(cells[13..15], ["1.5000", "0.7500"]);
+        assert_eq!(cells[15], "5");
+        assert_eq!(cells[16], "", "no region oracle: empty");
+        assert_eq!(cells[19], "4.000");
     }
 
     #[test]

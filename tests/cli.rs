@@ -376,6 +376,14 @@ fn bench_writes_the_table_profiles_plots_and_report() {
         // impossible: the accelerated side traced at least what it says.
         let oracle = row["oracle_samples"].as_u64().expect("oracle measured");
         assert!(oracle > 0 && oracle <= 3 * 64 * 48, "{id}: {oracle}");
+        // Where the accelerated time went: every sequence traced something
+        // (frame 2 has nothing to reuse) and copied or resampled its frames.
+        let (tracing, copying) = (
+            row["tracing_share"].as_f64().unwrap(),
+            row["copying_share"].as_f64().unwrap(),
+        );
+        assert!(tracing > 0.0 && copying > 0.0, "{id}: {tracing} {copying}");
+        assert!(tracing + copying <= 1.0 + 1e-9, "{id}: {tracing} {copying}");
     }
     // The camera experiments are exact; E4 checks its buffer bit for bit.
     for i in [0, 3, 4] {
@@ -393,6 +401,11 @@ fn bench_writes_the_table_profiles_plots_and_report() {
             .collect();
         assert_eq!(frame_numbers, ["2", "3", "4"], "{stem}");
         assert!(frames.starts_with("frame,full_ms,accelerated_ms,"));
+        assert!(frames
+            .lines()
+            .next()
+            .unwrap()
+            .contains(",accelerated_trace_ms,accelerated_copy_ms,"));
         for plot in [format!("{stem}-time.png"), format!("{stem}-rays.png")] {
             let image = image::open(out_dir.join(&plot)).unwrap();
             assert!(image.width() > 100 && image.height() > 100);
