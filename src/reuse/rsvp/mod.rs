@@ -343,7 +343,6 @@ impl SampleBuffer {
             let marker = ostc.map(|o| o.marker_in(region(o), group_key(level, group)));
             (&sources[level.index()] as &dyn PrimaryRays, group, marker)
         });
-        let per_group = start.elapsed().as_secs_f64() * 1e3 / all.len() as f64;
         // Each level's store keeps its own groups, on its own thread: frame
         // 0 stores ~85k groups, and growing the stores (fresh pages, each a
         // fault) took 15-18 ms on one thread, 12-14 ms this way.
@@ -367,6 +366,9 @@ impl SampleBuffer {
             })
             .collect();
         self.follow_traced(&all, &colors);
+        // Keeping the samples is part of tracing them: frame 0 keeps ~85k
+        // groups (fresh pages, 15 ms or so).
+        let per_group = start.elapsed().as_secs_f64() * 1e3 / all.len() as f64;
         for level in kept {
             for (who, (owned, rays)) in level.into_iter().enumerate() {
                 self.samples_traced += owned;
