@@ -196,16 +196,8 @@ struct AnimateArgs {
     /// out/buffer_####.png), never-traced samples black (paper, figure 5a).
     #[arg(long)]
     buffer_image: Option<String>,
-    /// RSVP reconstruction filter: nearest, bilinear or box.
-    #[arg(long, default_value = "bilinear")]
-    filter: retrace::reuse::rsvp::Filter,
-    /// RSVP: buffer samples per viewport pixel (per side) the pyramid level
-    /// is chosen for, at least.
-    #[arg(long, default_value_t = 1.0)]
-    oversample: f64,
-    /// RSVP: pyramid levels added to the chosen one (negative: coarser).
-    #[arg(long, default_value_t = 0, allow_negative_numbers = true)]
-    level_bias: i32,
+    #[command(flatten)]
+    rsvp: RsvpKnobArgs,
     /// Also write the frames as an animated GIF here (with RSVP viewports:
     /// the first viewport's frames).
     #[arg(long)]
@@ -239,6 +231,33 @@ struct AnimateArgs {
     /// Leave frames whose file already exists (to resume a run).
     #[arg(long)]
     skip_existing: bool,
+}
+
+#[derive(Args)]
+struct RsvpKnobArgs {
+    /// RSVP reconstruction filter: nearest, bilinear or box.
+    #[arg(long, default_value = "bilinear")]
+    filter: retrace::reuse::rsvp::Filter,
+    /// RSVP: buffer samples per viewport pixel (per side) the pyramid level
+    /// is chosen for, at least.
+    #[arg(long, default_value_t = 1.0)]
+    oversample: f64,
+    /// RSVP: pyramid levels added to the chosen one (negative: coarser).
+    #[arg(long, default_value_t = 0, allow_negative_numbers = true)]
+    level_bias: i32,
+}
+
+impl RsvpKnobArgs {
+    fn knobs(&self) -> Result<retrace::reuse::rsvp::RsvpKnobs> {
+        if !(self.oversample.is_finite() && (0.01..=64.0).contains(&self.oversample)) {
+            anyhow::bail!("--oversample {}: must be within 0.01..64", self.oversample);
+        }
+        Ok(retrace::reuse::rsvp::RsvpKnobs {
+            filter: self.filter,
+            oversample: self.oversample,
+            level_bias: self.level_bias,
+        })
+    }
 }
 
 #[derive(Args)]
@@ -299,6 +318,10 @@ struct BenchArgs {
     json: Option<PathBuf>,
     #[command(flatten)]
     ostc: OstcArgs,
+    /// The RSVP knobs of the viewport experiments (E2, E4, E4nomotion);
+    /// `knobs` sweeps its own.
+    #[command(flatten)]
+    rsvp: RsvpKnobArgs,
 }
 
 impl BenchArgs {
@@ -378,6 +401,8 @@ fn bench(args: BenchArgs) -> Result<()> {
             "warning: this is a debug build; timings mean little (use `cargo run --release`)"
         );
     }
+    // Before any work, like the frames.
+    args.rsvp.knobs()?;
     let bar = indicatif::ProgressBar::new(args.frame_repeats() as u64).with_style(
         indicatif::ProgressStyle::with_template("{msg} {bar:30} {pos}/{len} {elapsed}")
             .expect("static template"),
@@ -713,10 +738,14 @@ fn run_experiment(
     use retrace::report::ExperimentResult;
     let PlannedExperiment {
         experiment,
-        info,
+        mut info,
         scene,
         frames,
     } = plan;
+    let knobs = args.rsvp.knobs()?;
+    if let (true, Some(changes)) = (info.technique.contains("RSVP"), knobs.changes()) {
+        info.technique = format!("{}, {changes}", info.technique);
+    }
     let mut accel = args.backend.build(&scene)?;
     let tick = || bar.inc(1);
     Ok(match experiment {
@@ -738,7 +767,7 @@ fn run_experiment(
                 &mut accel,
                 frames.clone(),
                 args.repeats.unwrap_or(1) as usize,
-                retrace::reuse::rsvp::RsvpKnobs::default(),
+                knobs,
                 true,
                 (experiment == Experiment::E4).then(|| args.ostc.settings()),
                 tick,
@@ -824,7 +853,7 @@ fn bench_e2(
             &mut accel,
             0..100,
             1,
-            retrace::reuse::rsvp::RsvpKnobs::default(),
+            args.rsvp.knobs()?,
             true,
             None,
             || bar.inc(1),
@@ -1151,15 +1180,7 @@ fn animate(args: AnimateArgs) -> Result<()> {
     animator.set_ostc(args.ostc.settings());
     animator.set_traced_image(dirty_path.is_some());
     if animator.has_viewports() {
-        let knobs = retrace::reuse::rsvp::RsvpKnobs {
-            filter: args.filter,
-            oversample: args.oversample,
-            level_bias: args.level_bias,
-        };
-        if !(knobs.oversample.is_finite() && (0.01..=64.0).contains(&knobs.oversample)) {
-            anyhow::bail!("--oversample {}: must be within 0.01..64", knobs.oversample);
-        }
-        animator.set_rsvp_knobs(knobs);
+        animator.set_rsvp_knobs(args.rsvp.knobs()?);
         return animate_viewports(&args, &scene, animator, range, gif);
     }
     if args.buffer_image.is_some() {

@@ -331,6 +331,37 @@ fn bench_repeats_viewport_experiments_too() {
 }
 
 #[test]
+fn bench_measures_the_viewport_experiments_at_the_knobs_asked_for() {
+    let dir = tempfile::tempdir().unwrap();
+    let samples = |extra: &[&str], name: &str| {
+        let out_dir = dir.path().join(name);
+        let mut args = vec!["--only", "E2", "--frames", "0-3"];
+        args.extend_from_slice(extra);
+        let out = bench(&out_dir, &args);
+        assert!(out.status.success(), "stderr: {}", stderr(&out));
+        let stdout = String::from_utf8_lossy(&out.stdout).into_owned();
+        let json: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(out_dir.join("bench.json")).unwrap())
+                .unwrap();
+        let traced: Vec<u64> = json
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|row| row["samples_traced"].as_u64().unwrap())
+            .collect();
+        (stdout, traced)
+    };
+    let (stdout, default) = samples(&[], "default");
+    assert!(stdout.contains("E2 in (RSVP)"), "{stdout}");
+    // A level bias of -1 halves the density on each axis: far fewer samples.
+    let (stdout, coarse) = samples(&["--level-bias", "-1"], "coarse");
+    assert!(stdout.contains("E2 in (RSVP, level bias -1)"), "{stdout}");
+    for (fine, coarse) in default.iter().zip(&coarse) {
+        assert!(2 * coarse < *fine, "{coarse} against {fine}");
+    }
+}
+
+#[test]
 fn bench_writes_the_table_profiles_plots_and_report() {
     let dir = tempfile::tempdir().unwrap();
     let out_dir = dir.path().join("bench");
@@ -477,6 +508,14 @@ fn bench_rejects_bad_frames_before_any_work() {
             "{frames}: output written before the check"
         );
     }
+    let out = bench(&out_dir, &["--only", "E2", "--oversample", "0"]);
+    let err = stderr(&out);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("--oversample 0: must be within 0.01..64"),
+        "{err}"
+    );
+    assert!(!out_dir.exists(), "output written before the knob check");
     let out = bench(&out_dir, &["--only", "E9"]);
     assert_eq!(out.status.code(), Some(1));
     assert!(stderr(&out).contains("unknown measurement 'E9'"));

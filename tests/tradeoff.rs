@@ -52,7 +52,7 @@ fn a_short_sweep_reports_every_knob_with_exact_ones_at_zero_error() {
     for (knob, count) in [
         ("pan", 2),
         ("RSVP filter", 3),
-        ("RSVP oversampling", 3),
+        ("RSVP oversampling", 5),
         ("RSVP level bias", 3),
         ("OSTC region grid", 5),
         ("OSTC voxel grid", 4),

@@ -63,6 +63,25 @@ impl Default for RsvpKnobs {
     }
 }
 
+impl RsvpKnobs {
+    /// The knobs set away from their defaults, in words ("oversample 0.9,
+    /// level bias -1"); None at the defaults.
+    pub fn changes(&self) -> Option<String> {
+        let default = RsvpKnobs::default();
+        let mut changed = Vec::new();
+        if self.filter != default.filter {
+            changed.push(format!("{} filter", self.filter));
+        }
+        if self.oversample != default.oversample {
+            changed.push(format!("oversample {}", self.oversample));
+        }
+        if self.level_bias != default.level_bias {
+            changed.push(format!("level bias {:+}", self.level_bias));
+        }
+        (!changed.is_empty()).then(|| changed.join(", "))
+    }
+}
+
 /// Weighted by distance. A zero weight adds an exact +0 (samples are
 /// finite and not negative), so a pixel exactly on a sample shows it bit for
 /// bit; no branches, so the loop over a region's pixels stays straight.
@@ -118,4 +137,28 @@ pub(super) fn filter_reads(
     [(cx, top), (cx + 1, top), (cx, bottom), (cx + 1, bottom)]
         .into_iter()
         .take(count)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn changes_name_only_the_knobs_moved_from_their_defaults() {
+        assert_eq!(RsvpKnobs::default().changes(), None);
+        let cheap = RsvpKnobs {
+            oversample: 0.9,
+            ..RsvpKnobs::default()
+        };
+        assert_eq!(cheap.changes().as_deref(), Some("oversample 0.9"));
+        let all = RsvpKnobs {
+            filter: Filter::Box,
+            oversample: 2.0,
+            level_bias: -1,
+        };
+        assert_eq!(
+            all.changes().as_deref(),
+            Some("box filter, oversample 2, level bias -1")
+        );
+    }
 }
