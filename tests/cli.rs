@@ -490,44 +490,36 @@ fn bench_e3_and_e4_cut_regions_as_asked() {
 fn bench_rejects_bad_frames_before_any_work() {
     let dir = tempfile::tempdir().unwrap();
     let out_dir = dir.path().join("bench");
-    for (frames, needle) in [
-        ("5-2", "first frame comes after the last"),
-        ("0-100", "frames 0-99"),
-        ("x", "'x' is not a frame number"),
-    ] {
-        let out = bench(&out_dir, &["--frames", frames]);
+    let cases: [(&[&str], &str); 6] = [
+        (&["--frames", "5-2"], "first frame comes after the last"),
+        (&["--frames", "0-100"], "frames 0-99"),
+        (&["--frames", "x"], "'x' is not a frame number"),
+        (
+            &["--only", "E2", "--oversample", "0"],
+            "--oversample 0: must be within 0.01..64",
+        ),
+        (&["--only", "E9"], "unknown measurement 'E9'"),
+        // A still scene without a viewport gives E4 nothing to move or
+        // resample.
+        (
+            &["--only", "E4", "scenes/paper.toml"],
+            "E4 needs a scene with a [[viewport]], or one whose timeline moves",
+        ),
+    ];
+    for (args, needle) in cases {
+        let out = bench(&out_dir, args);
         let err = stderr(&out);
-        assert_eq!(out.status.code(), Some(1), "{frames}: {err}");
+        assert_eq!(out.status.code(), Some(1), "{args:?}: {err}");
         assert!(
             err.contains(needle),
-            "{frames}: expected '{needle}' in {err}"
+            "{args:?}: expected '{needle}' in {err}"
         );
         assert!(!err.contains("panicked"), "{err}");
         assert!(
             !out_dir.exists(),
-            "{frames}: output written before the check"
+            "{args:?}: output written before the check"
         );
     }
-    let out = bench(&out_dir, &["--only", "E2", "--oversample", "0"]);
-    let err = stderr(&out);
-    assert_eq!(out.status.code(), Some(1), "{err}");
-    assert!(
-        err.contains("--oversample 0: must be within 0.01..64"),
-        "{err}"
-    );
-    assert!(!out_dir.exists(), "output written before the knob check");
-    let out = bench(&out_dir, &["--only", "E9"]);
-    assert_eq!(out.status.code(), Some(1));
-    assert!(stderr(&out).contains("unknown measurement 'E9'"));
-    // A still scene without a viewport gives E4 nothing to move or resample.
-    let out = bench(&out_dir, &["--only", "E4", "scenes/paper.toml"]);
-    let err = stderr(&out);
-    assert_eq!(out.status.code(), Some(1), "{err}");
-    assert!(
-        err.contains("E4 needs a scene with a [[viewport]], or one whose timeline moves"),
-        "{err}"
-    );
-    assert!(!out_dir.exists(), "output written before the check");
 }
 
 /// A moving scene without viewports gets E4's pan and zoom over its own
