@@ -743,7 +743,7 @@ fn run_experiment(
         frames,
     } = plan;
     let knobs = args.rsvp.knobs()?;
-    if let (true, Some(changes)) = (info.technique.contains("RSVP"), knobs.changes()) {
+    if let (true, Some(changes)) = (info.uses_rsvp(), knobs.changes()) {
         info.technique = format!("{}, {changes}", info.technique);
     }
     let mut accel = args.backend.build(&scene)?;

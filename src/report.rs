@@ -27,6 +27,13 @@ pub struct ExperimentInfo {
     pub height: u32,
 }
 
+impl ExperimentInfo {
+    /// Whether the experiment resamples viewports from an RSVP buffer.
+    pub fn uses_rsvp(&self) -> bool {
+        self.technique.contains("RSVP")
+    }
+}
+
 /// One line of the table.
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct BenchRow {
@@ -728,7 +735,7 @@ fn time_split(row: &BenchRow) -> String {
         "The accelerated side spent {:.0}% of its time tracing and {:.0}% copying{}",
         row.tracing_share * 100.0,
         row.copying_share * 100.0,
-        if row.info.technique.contains("RSVP") {
+        if row.info.uses_rsvp() {
             " (mapping and resampling the buffer)"
         } else {
             ""

@@ -366,8 +366,7 @@ impl SampleBuffer {
             })
             .collect();
         self.follow_traced(&all, &colors);
-        // Keeping the samples is part of tracing them: frame 0 keeps ~85k
-        // groups (fresh pages, 15 ms or so).
+        // Keeping the samples (above) counts as tracing them.
         let per_group = start.elapsed().as_secs_f64() * 1e3 / all.len() as f64;
         for level in kept {
             for (who, (owned, rays)) in level.into_iter().enumerate() {
