@@ -341,13 +341,16 @@ impl SampleBuffer {
                 samples: blocks.samples(block),
             };
         }
-        let width = bounds.width();
-        window.resize(width * bounds.height(), Vec3::ZERO);
+        let (width, height) = (bounds.width(), bounds.height());
+        window.resize(width * height, Vec3::ZERO);
         let mut cache = BlockCache::new();
-        for (j, line) in window.chunks_exact_mut(width).enumerate() {
-            let row = (bounds.r0 + j as i64).clamp(0, last_row);
-            let mut at = 0;
-            for_each_run(bounds.c0, bounds.c1, columns, |col, run| {
+        let mut at = 0;
+        // Column runs outside, rows inside: every row of a run copies the
+        // same length, so the copy's branches predict and the rows' loads
+        // overlap instead of each waiting on the last.
+        for_each_run(bounds.c0, bounds.c1, columns, |col, run| {
+            for (j, line) in window.chunks_exact_mut(width).enumerate() {
+                let row = (bounds.r0 + j as i64).clamp(0, last_row);
                 let (key, sample) = block_key(col, row);
                 let out = &mut line[at..at + run];
                 match cache.block(blocks, key) {
@@ -355,17 +358,38 @@ impl SampleBuffer {
                         debug_assert!(false, "block {key:?} of {level:?} was not assembled");
                         out.fill(Vec3::ZERO);
                     }
-                    block => out.copy_from_slice(&blocks.samples(block)[sample..sample + run]),
+                    block => copy_samples(out, &blocks.samples(block)[sample..sample + run]),
                 }
-                at += run;
-            });
-        }
+            }
+            at += run;
+        });
         SampleView {
             col: bounds.c0,
             row: bounds.r0,
             width,
             samples: window,
         }
+    }
+}
+
+/// `source` into `out` (as long), in fixed-size pieces the compiler
+/// copies inline rather than through a call whose branches depend on the
+/// length.
+#[inline(always)]
+fn copy_samples(out: &mut [Vec3], source: &[Vec3]) {
+    const PIECE: usize = 4;
+    let mut out_pieces = out.chunks_exact_mut(PIECE);
+    let mut source_pieces = source.chunks_exact(PIECE);
+    for (o, s) in (&mut out_pieces).zip(&mut source_pieces) {
+        let piece: [Vec3; PIECE] = s.try_into().expect("a whole piece");
+        o.copy_from_slice(&piece);
+    }
+    for (o, s) in out_pieces
+        .into_remainder()
+        .iter_mut()
+        .zip(source_pieces.remainder())
+    {
+        *o = *s;
     }
 }
 
