@@ -11,7 +11,7 @@
 use std::collections::HashMap;
 use std::hash::BuildHasherDefault;
 
-use glam::Vec3;
+use glam::{Vec3, Vec3A};
 use rayon::prelude::*;
 
 use super::{
@@ -92,12 +92,12 @@ impl LevelBlocks {
 }
 
 /// The samples (c0.., r0..) of a level as one row-major array `width`
-/// wide: a block itself, or a copy of the samples from several.
+/// wide, copied out of the blocks.
 pub(super) struct SampleView<'a> {
     pub(super) col: i64,
     pub(super) row: i64,
     pub(super) width: usize,
-    pub(super) samples: &'a [Vec3],
+    pub(super) samples: &'a [Vec3A],
 }
 
 /// The last blocks a region's rows came from, by the parity of their key
@@ -316,33 +316,21 @@ impl SampleBuffer {
 
     /// The samples of `level` in `bounds` (rows clamped to the lattice,
     /// columns wrapped around the turn), every block of which
-    /// [`SampleBuffer::assemble_blocks`] assembled: the block itself when
-    /// they lie in one, else copied into `window`.
+    /// [`SampleBuffer::assemble_blocks`] assembled, copied into `window`
+    /// as 16-byte samples. Copied even when they lie in one block: the
+    /// copy's loads overlap where the filter's, in place, wait one by one,
+    /// and the filter then works on whole vectors.
     pub(super) fn view<'a>(
         &'a self,
         level: Level,
         bounds: &SampleBox,
-        window: &'a mut Vec<Vec3>,
+        window: &'a mut Vec<Vec3A>,
     ) -> SampleView<'a> {
         let blocks = &self.blocks[level.index()];
         let columns = self.lattice.columns(level.x);
         let last_row = self.lattice.last_row(level.y);
-        let (key, _) = block_key(bounds.c0, bounds.r0);
-        let inside = bounds.r0 >= 0
-            && bounds.r1 <= last_row
-            && bounds.c0 >= 0
-            && bounds.c1 < columns
-            && block_key(bounds.c1, bounds.r1).0 == key;
-        if let Some(block) = blocks.block(key).filter(|_| inside) {
-            return SampleView {
-                col: key.0 << BLOCK_SHIFT,
-                row: key.1 << BLOCK_SHIFT,
-                width: BLOCK as usize,
-                samples: blocks.samples(block),
-            };
-        }
         let (width, height) = (bounds.width(), bounds.height());
-        window.resize(width * height, Vec3::ZERO);
+        window.resize(width * height, Vec3A::ZERO);
         let mut cache = BlockCache::new();
         let mut at = 0;
         // Column runs outside, rows inside: every row of a run copies the
@@ -356,7 +344,7 @@ impl SampleBuffer {
                 match cache.block(blocks, key) {
                     u32::MAX => {
                         debug_assert!(false, "block {key:?} of {level:?} was not assembled");
-                        out.fill(Vec3::ZERO);
+                        out.fill(Vec3A::ZERO);
                     }
                     block => copy_samples(out, &blocks.samples(block)[sample..sample + run]),
                 }
@@ -372,24 +360,12 @@ impl SampleBuffer {
     }
 }
 
-/// `source` into `out` (as long), in fixed-size pieces the compiler
-/// copies inline rather than through a call whose branches depend on the
-/// length.
+/// `source` into `out` (as long), inline rather than through a call
+/// whose branches depend on the length.
 #[inline(always)]
-fn copy_samples(out: &mut [Vec3], source: &[Vec3]) {
-    const PIECE: usize = 4;
-    let mut out_pieces = out.chunks_exact_mut(PIECE);
-    let mut source_pieces = source.chunks_exact(PIECE);
-    for (o, s) in (&mut out_pieces).zip(&mut source_pieces) {
-        let piece: [Vec3; PIECE] = s.try_into().expect("a whole piece");
-        o.copy_from_slice(&piece);
-    }
-    for (o, s) in out_pieces
-        .into_remainder()
-        .iter_mut()
-        .zip(source_pieces.remainder())
-    {
-        *o = *s;
+fn copy_samples(out: &mut [Vec3A], source: &[Vec3]) {
+    for (o, s) in out.iter_mut().zip(source) {
+        *o = Vec3A::from(*s);
     }
 }
 

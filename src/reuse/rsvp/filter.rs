@@ -1,8 +1,6 @@
 //! Reconstruction: the filters a viewport pixel is made with, the knobs
 //! of the level choice, and the exact sub-sample grid both passes share.
 
-use glam::Vec3;
-
 /// How a viewport pixel's colour is made from buffer samples.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
 #[serde(rename_all = "kebab-case")]
@@ -86,7 +84,10 @@ impl RsvpKnobs {
 /// finite and not negative), so a pixel exactly on a sample shows it bit for
 /// bit; no branches, so the loop over a region's pixels stays straight.
 #[inline(always)]
-pub(super) fn bilinear(s: [Vec3; 4], fx: f32, fy: f32) -> Vec3 {
+pub(super) fn bilinear<T>(s: [T; 4], fx: f32, fy: f32) -> T
+where
+    T: Copy + std::ops::Mul<f32, Output = T> + std::ops::Add<Output = T>,
+{
     let (gx, gy) = (1.0 - fx, 1.0 - fy);
     s[0] * (gx * gy) + s[1] * (fx * gy) + s[2] * (gx * fy) + s[3] * (fx * fy)
 }

@@ -2,7 +2,7 @@
 //! filter reads, through the assembled blocks of its region's level,
 //! converted to 8 bits.
 
-use glam::{DVec2, Vec3};
+use glam::{DVec2, Vec3, Vec3A};
 use rayon::prelude::*;
 
 use super::{
@@ -86,7 +86,7 @@ impl SampleBuffer {
                         let colors = &mut colors[..cols * rows];
                         // The pixels' own box: a grid's points bound its
                         // pixels', so it is often smaller than pass 1's, and
-                        // more often inside one block.
+                        // copies fewer samples.
                         match region.blocks.and(pixels_box(filter, coords)) {
                             Some(bounds) => {
                                 let view = self.view(level, &bounds, window);
@@ -159,8 +159,8 @@ impl SampleBuffer {
 /// What pass 2 reuses from region to region.
 #[derive(Default)]
 struct BandScratch {
-    /// A region's samples when they span several blocks.
-    window: Vec<Vec3>,
+    /// A region's samples, copied out of the blocks.
+    window: Vec<Vec3A>,
     /// A region's pixels' lattice coordinates.
     coords: Vec<DVec2>,
 }
@@ -204,21 +204,21 @@ fn gather_region(window: &SampleView, filter: Filter, coords: &[DVec2], out: &mu
     match filter {
         Filter::Nearest => {
             for (slot, &k) in out.iter_mut().zip(index) {
-                *slot = samples[k as usize];
+                *slot = samples[k as usize].into();
             }
         }
         Filter::Box => {
             for (slot, &k) in out.iter_mut().zip(index) {
                 let k = k as usize;
                 let (top, bottom) = (&samples[k..k + 2], &samples[k + wd..k + wd + 2]);
-                *slot = (top[0] + top[1] + bottom[0] + bottom[1]) * 0.25;
+                *slot = ((top[0] + top[1] + bottom[0] + bottom[1]) * 0.25).into();
             }
         }
         Filter::Bilinear => {
             for (((slot, &k), &fx), &fy) in out.iter_mut().zip(index).zip(wx).zip(wy) {
                 let k = k as usize;
                 let (top, bottom) = (&samples[k..k + 2], &samples[k + wd..k + wd + 2]);
-                *slot = bilinear([top[0], top[1], bottom[0], bottom[1]], fx, fy);
+                *slot = bilinear([top[0], top[1], bottom[0], bottom[1]], fx, fy).into();
             }
         }
     }
