@@ -25,9 +25,8 @@ use crate::ray::PACKET_WIDTH;
 use crate::render::SampleGroup;
 
 /// Positions per side of a block: a 16x16-pixel region reads 17-40 samples
-/// a side, so on E2 about a fifth of regions read one block in place and
-/// the rest copy a few rows from two to four (128-wide blocks saved few
-/// copies and cost four times the assembly).
+/// a side, so on E2 about a fifth of regions copy from one block and the
+/// rest from two to four (128-wide blocks cost four times the assembly).
 const BLOCK_SHIFT: u32 = 6;
 const BLOCK: i64 = 1 << BLOCK_SHIFT;
 const BLOCK_SAMPLES: usize = (BLOCK * BLOCK) as usize;
