@@ -19,7 +19,7 @@ use super::{
     map::SampleBox,
     same_bits,
     store::{tile_key, TileCache, TileHasher, TILE_COLS, TILE_SAMPLES},
-    Level, SampleBuffer,
+    Level, SampleBuffer, SampleLattice,
 };
 use crate::ray::PACKET_WIDTH;
 use crate::render::SampleGroup;
@@ -274,45 +274,6 @@ impl SampleBuffer {
         stale
     }
 
-    /// Writes freshly traced groups (sorted by level, as `trace` keeps
-    /// them) into every assembled block holding their positions: at their
-    /// own level and at every finer one.
-    pub(super) fn follow_traced(
-        &mut self,
-        groups: &[(Level, SampleGroup, usize)],
-        colors: &[[Vec3; PACKET_WIDTH]],
-    ) {
-        let lattice = &self.lattice;
-        self.blocks
-            .par_iter_mut()
-            .enumerate()
-            .filter(|(_, blocks)| !blocks.index.is_empty())
-            .for_each(|(index, blocks)| {
-                let level = Level::from_index(index);
-                let mut recent = ((i64::MIN, i64::MIN), None);
-                for (&(owner, group, _), colors) in groups.iter().zip(colors) {
-                    if owner.x > level.x || owner.y > level.y {
-                        continue;
-                    }
-                    let (sx, sy) = (level.x - owner.x, level.y - owner.y);
-                    let last = lattice.last_slot_row(owner);
-                    for (lane, (col, row)) in group.lane_samples().into_iter().enumerate() {
-                        if row > last {
-                            continue;
-                        }
-                        let (col, row) = lattice.slot_position(owner, col, row);
-                        let (key, sample) = block_key(col << sx, row << sy);
-                        if recent.0 != key {
-                            recent = (key, blocks.block(key));
-                        }
-                        if let Some(block) = recent.1 {
-                            blocks.blocks[block as usize][sample] = colors[lane];
-                        }
-                    }
-                }
-            });
-    }
-
     /// The samples of `level` in `bounds` (rows clamped to the lattice,
     /// columns wrapped around the turn), every block of which
     /// [`SampleBuffer::assemble_blocks`] assembled, copied into `window`
@@ -366,6 +327,46 @@ fn copy_samples(out: &mut [Vec3A], source: &[Vec3]) {
     for (o, s) in out.iter_mut().zip(source) {
         *o = Vec3A::from(*s);
     }
+}
+
+/// Writes freshly traced groups (sorted by level, as `trace` keeps them)
+/// into every assembled block of `blocks` (by level index) holding their
+/// positions: at their own level and at every finer one. A free function
+/// so that it can run beside the stores keeping the same groups.
+pub(super) fn follow_traced(
+    blocks: &mut [LevelBlocks],
+    lattice: &SampleLattice,
+    groups: &[(Level, SampleGroup, usize)],
+    colors: &[[Vec3; PACKET_WIDTH]],
+) {
+    blocks
+        .par_iter_mut()
+        .enumerate()
+        .filter(|(_, blocks)| !blocks.index.is_empty())
+        .for_each(|(index, blocks)| {
+            let level = Level::from_index(index);
+            let mut recent = ((i64::MIN, i64::MIN), None);
+            for (&(owner, group, _), colors) in groups.iter().zip(colors) {
+                if owner.x > level.x || owner.y > level.y {
+                    continue;
+                }
+                let (sx, sy) = (level.x - owner.x, level.y - owner.y);
+                let last = lattice.last_slot_row(owner);
+                for (lane, (col, row)) in group.lane_samples().into_iter().enumerate() {
+                    if row > last {
+                        continue;
+                    }
+                    let (col, row) = lattice.slot_position(owner, col, row);
+                    let (key, sample) = block_key(col << sx, row << sy);
+                    if recent.0 != key {
+                        recent = (key, blocks.block(key));
+                    }
+                    if let Some(block) = recent.1 {
+                        blocks.blocks[block as usize][sample] = colors[lane];
+                    }
+                }
+            }
+        });
 }
 
 /// A run's worth of black, for the samples of a tile never allocated.

@@ -345,27 +345,32 @@ impl SampleBuffer {
         });
         // Each level's store keeps its own groups, on its own thread: frame
         // 0 stores ~85k groups, and growing the stores (fresh pages, each a
-        // fault) took 15-18 ms on one thread, 12-14 ms this way.
-        let lattice = &self.lattice;
-        let kept: Vec<Vec<(u64, RayCounts)>> = self
-            .levels
-            .par_iter_mut()
-            .enumerate()
-            .filter_map(|(index, store)| {
-                let first = all.partition_point(|g| g.0.index() < index);
-                let end = all.partition_point(|g| g.0.index() <= index);
-                (first < end).then(|| {
-                    let traced = TracedGroups {
-                        groups: &all[first..end],
-                        colors: &colors[first..end],
-                        rays: &rays[first..end],
-                    };
-                    let last = lattice.last_slot_row(Level::from_index(index));
-                    store.keep(traced, last, requests.len())
-                })
-            })
-            .collect();
-        self.follow_traced(&all, &colors);
+        // fault) took 15-18 ms on one thread, 12-14 ms this way. The blocks
+        // follow the same groups meanwhile: a steady frame's groups fall in
+        // one or two levels, so either alone would leave a thread idle.
+        let (levels, blocks, lattice) = (&mut self.levels, &mut self.blocks, &self.lattice);
+        let (kept, ()): (Vec<Vec<(u64, RayCounts)>>, ()) = rayon::join(
+            || {
+                levels
+                    .par_iter_mut()
+                    .enumerate()
+                    .filter_map(|(index, store)| {
+                        let first = all.partition_point(|g| g.0.index() < index);
+                        let end = all.partition_point(|g| g.0.index() <= index);
+                        (first < end).then(|| {
+                            let traced = TracedGroups {
+                                groups: &all[first..end],
+                                colors: &colors[first..end],
+                                rays: &rays[first..end],
+                            };
+                            let last = lattice.last_slot_row(Level::from_index(index));
+                            store.keep(traced, last, requests.len())
+                        })
+                    })
+                    .collect()
+            },
+            || blocks::follow_traced(blocks, lattice, &all, &colors),
+        );
         // Keeping the samples (above) counts as tracing them.
         let per_group = start.elapsed().as_secs_f64() * 1e3 / all.len() as f64;
         for level in kept {
