@@ -1654,11 +1654,11 @@ fn main() -> ExitCode {
             return ExitCode::FAILURE;
         }
     }
-    // The command runs on a worker thread of the pool: each parallel step
-    // then starts at once on this thread while the other workers wake.
-    // Called from outside the pool, every step waited for a sleeping
-    // worker first: ~0.2 ms a step here (2 vCPUs), which an RSVP frame,
-    // five steps of 0.2-2 ms, paid several times over.
+    // The command runs on a worker thread of the pool, so each parallel
+    // step starts at once on this thread while the other workers wake.
+    // Called from outside the pool, every step first waited for a sleeping
+    // worker, ~0.2 ms here (2 vCPUs); an RSVP frame has five steps of
+    // 0.2-2 ms each, so it paid that wait five times a frame.
     let result = rayon::scope(|_| match cli.command {
         Command::Render(args) => render(args),
         Command::Animate(args) => animate(args),
