@@ -18,7 +18,7 @@ use super::{
     lattice::{owned_positions, wrap},
     map::SampleBox,
     same_bits,
-    store::{tile_key, TileCache, TileHasher, TILE_COLS, TILE_SAMPLES},
+    store::{tile_key, TileCache, TileHasher, TILE_COLS},
     Level, SampleBuffer, SampleLattice,
 };
 use crate::ray::PACKET_WIDTH;
@@ -240,10 +240,7 @@ impl SampleBuffer {
                 .min((TILE_COLS - (wc & (TILE_COLS - 1))) as usize)
                 .min((columns - wc) as usize);
             let tile = cache.tile(store, level, key);
-            let source = (tile != u32::MAX).then(|| {
-                let start = tile as usize * TILE_SAMPLES + sample;
-                &store.colors[start..start + run]
-            });
+            let source = (tile != u32::MAX).then(|| &store.tile_colors(tile)[sample..sample + run]);
             match (source, stride) {
                 (None, 1) => out[i..i + run].fill(Vec3::ZERO),
                 (Some(source), 1) => out[i..i + run].copy_from_slice(source),

@@ -9,7 +9,7 @@ use super::{
     blocks::SampleView,
     filter::{bilinear, filter_split},
     map::{nan_filled, Mapped, SampleBox},
-    store::{tile_key, TileCache, TILE_SAMPLES},
+    store::{tile_key, TileCache},
     viewport::PixelMap,
     Filter, Level, SampleBuffer, ViewportPose, REGION,
 };
@@ -25,7 +25,7 @@ impl SampleBuffer {
         let store = &self.levels[owner.index()];
         match cache.tile(store, owner, key) {
             u32::MAX => Vec3::ZERO,
-            tile => store.colors[tile as usize * TILE_SAMPLES + sample],
+            tile => store.tile_colors(tile)[sample],
         }
     }
 

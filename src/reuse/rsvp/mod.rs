@@ -65,7 +65,7 @@ use lattice::wrap;
 use map::nan_filled;
 use store::{
     group_key, key_group, tile_key, traced_groups, LevelSamples, TracedGroups, TILE_COLS,
-    TILE_COL_SHIFT, TILE_ROW_SHIFT, TILE_SAMPLES,
+    TILE_COL_SHIFT, TILE_ROW_SHIFT,
 };
 use viewport::PixelMap;
 
@@ -203,7 +203,7 @@ impl SampleBuffer {
                         continue;
                     }
                     let (_, sample, _) = tile_key(col, row);
-                    let kept = store.colors[tile * TILE_SAMPLES + sample];
+                    let kept = store.tile_colors(*tile as u32)[sample];
                     compared += 1;
                     differing += u64::from(!same_bits(kept, colors[lane]));
                 }
@@ -292,7 +292,7 @@ impl SampleBuffer {
         let store = &self.levels[owner.index()];
         let (key, sample, bit) = tile_key(col, row);
         let tile = store.tile(key)? as usize;
-        (store.traced[tile] >> bit & 1 == 1).then(|| store.colors[tile * TILE_SAMPLES + sample])
+        (store.traced[tile] >> bit & 1 == 1).then(|| store.tile_colors(tile as u32)[sample])
     }
 
     /// Whether `group` of `level`'s slots was traced.

@@ -23,11 +23,20 @@ pub(super) const TILE_SAMPLES: usize = (TILE_COLS * TILE_ROWS) as usize;
 const _: () = assert!(TILE_COLS / GROUP_WIDTH as i64 == 64);
 const _: () = assert!(1 << TILE_COL_SHIFT == TILE_COLS && 1 << TILE_ROW_SHIFT == TILE_ROWS);
 
+/// Tiles per chunk of a store's samples: 192 KB, which the allocator maps
+/// fresh (zeroed by the kernel, each page faulted in only when a sample on
+/// it is kept) and never moves.
+const CHUNK_TILES: usize = 32;
+
 /// One level's traced samples, by slot, in tiles allocated on first touch.
 #[derive(Default)]
 pub(super) struct LevelSamples {
     pub(super) tiles: HashMap<(i64, i64), u32, BuildHasherDefault<TileHasher>>,
-    pub(super) colors: Vec<Vec3>,
+    /// The tiles' samples, [`CHUNK_TILES`] tiles a chunk. One growing array
+    /// instead cost a copy of everything kept at each doubling, its fresh
+    /// pages faulting in as they were copied to (a fifth of an E2 run's
+    /// page faults).
+    chunks: Vec<Box<[[f32; 3]]>>,
     /// Per tile, one bit per 4x2 group: traced yet?
     pub(super) traced: Vec<u64>,
 }
@@ -48,6 +57,12 @@ impl Hasher for TileHasher {
     fn write_i64(&mut self, v: i64) {
         self.0 = (self.0.rotate_left(29) ^ v as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15);
     }
+}
+
+/// The chunk holding tile `tile`, and where in it the tile starts.
+fn chunk_of(tile: u32) -> (usize, usize) {
+    let tile = tile as usize;
+    (tile / CHUNK_TILES, tile % CHUNK_TILES * TILE_SAMPLES)
 }
 
 pub(super) fn tile_key(col: i64, row: i64) -> ((i64, i64), usize, u32) {
@@ -123,11 +138,25 @@ impl LevelSamples {
         let next = self.traced.len() as u32;
         let index = *self.tiles.entry(key).or_insert(next);
         if index == next {
+            if self.traced.len() % CHUNK_TILES == 0 {
+                // Zeros of a primitive type: allocated zeroed, not filled.
+                let chunk = vec![[0f32; 3]; CHUNK_TILES * TILE_SAMPLES];
+                self.chunks.push(chunk.into_boxed_slice());
+            }
             self.traced.push(0);
-            self.colors
-                .resize(self.colors.len() + TILE_SAMPLES, Vec3::ZERO);
         }
         index
+    }
+
+    /// The samples of tile `tile`, by [`tile_key`]'s sample index.
+    pub(super) fn tile_colors(&self, tile: u32) -> &[Vec3] {
+        let (chunk, at) = chunk_of(tile);
+        bytemuck::cast_slice(&self.chunks[chunk][at..at + TILE_SAMPLES])
+    }
+
+    fn tile_colors_mut(&mut self, tile: u32) -> &mut [Vec3] {
+        let (chunk, at) = chunk_of(tile);
+        bytemuck::cast_slice_mut(&mut self.chunks[chunk][at..at + TILE_SAMPLES])
     }
 
     /// Keeps freshly traced groups of this level, sorted by row and
@@ -153,9 +182,10 @@ impl LevelSamples {
             recent = Some((key, tile));
             self.traced[tile] |= 1u64 << bit;
             let mut owned = 0u64;
+            let tile_colors = self.tile_colors_mut(tile as u32);
             for (lane, (col, row)) in group.lane_samples().into_iter().enumerate() {
                 let (_, sample, _) = tile_key(col, row);
-                self.colors[tile * TILE_SAMPLES + sample] = colors[lane];
+                tile_colors[sample] = colors[lane];
                 owned += u64::from((0..=last_row).contains(&row));
             }
             kept[who].0 += owned;
