@@ -343,9 +343,19 @@ pub fn render_view(
     intersector: &dyn Intersector,
 ) -> (Frame, RayCounts) {
     let shader = Shader::new(scene, intersector);
-    let table = RayTable::new(camera);
-    let width = camera.width as usize;
-    let mut frame = Frame::new(camera.width, camera.height);
+    render_image(&shader, &RayTable::new(camera), camera.width, camera.height)
+}
+
+/// Traces every pixel of a `width` x `height` image, pixel (x, y) from
+/// `source`'s ray (x, y).
+pub fn render_image(
+    shader: &Shader,
+    source: &dyn PrimaryRays,
+    width: u32,
+    height: u32,
+) -> (Frame, RayCounts) {
+    let mut frame = Frame::new(width, height);
+    let width = width as usize;
     // Each band of GROUP_HEIGHT rows is written in place by the worker that
     // traces it: no per-frame list of groups or of their colours (at 640x480
     // those were megabytes, fresh pages to fault in on every frame).
@@ -360,7 +370,7 @@ pub fn render_view(
             let group_width = GROUP_WIDTH as usize;
             for x in (0..width).step_by(group_width) {
                 let group = SampleGroup { col: x as i64, row };
-                let colors = trace_group(&shader, &table, group, &mut counts, None);
+                let colors = trace_group(shader, source, group, &mut counts, None);
                 // Lanes run along rows of the group (`lane_samples`): each
                 // row is one slice copy, cut at the image's right edge; the
                 // band's last rows may be missing at its bottom edge.

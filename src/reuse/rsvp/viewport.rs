@@ -9,7 +9,7 @@ use glam::{DMat2, DVec2, DVec3};
 use super::{fast_atan2, SampleLattice, MAX_ZOOM, MIN_ZOOM};
 use crate::camera::{Camera, Projection};
 use crate::ray::Ray;
-use crate::render::{trace_groups, Frame, PrimaryRays};
+use crate::render::{Frame, PrimaryRays};
 use crate::shade::{RayCounts, Shader};
 
 /// A viewport: its own image size, projection and field of view, looking
@@ -311,17 +311,7 @@ impl PrimaryRays for ViewportRays<'_> {
 /// Traces every pixel of the viewport through its own rays.
 pub fn render_direct(shader: &Shader, pose: &ViewportPose) -> (Frame, RayCounts) {
     let (w, h) = (pose.camera.width, pose.camera.height);
-    let groups = crate::render::image_groups(w, h);
-    let (colors, counts) = trace_groups(shader, &ViewportRays { pose }, &groups);
-    let mut frame = Frame::new(w, h);
-    for (group, colors) in groups.iter().zip(&colors) {
-        for (lane, (col, row)) in group.lane_samples().into_iter().enumerate() {
-            if col < i64::from(w) && row < i64::from(h) {
-                frame.pixels[row as usize * w as usize + col as usize] = colors[lane];
-            }
-        }
-    }
-    (frame, counts)
+    crate::render::render_image(shader, &ViewportRays { pose }, w, h)
 }
 
 /// Maps viewport pixels to world angles cheaply: perspective and
