@@ -23,9 +23,9 @@ pub(super) const TILE_SAMPLES: usize = (TILE_COLS * TILE_ROWS) as usize;
 const _: () = assert!(TILE_COLS / GROUP_WIDTH as i64 == 64);
 const _: () = assert!(1 << TILE_COL_SHIFT == TILE_COLS && 1 << TILE_ROW_SHIFT == TILE_ROWS);
 
-/// Tiles per chunk of a store's samples: 192 KB, which the allocator maps
-/// fresh (zeroed by the kernel, each page faulted in only when a sample on
-/// it is kept) and never moves.
+/// Tiles per chunk of a store's samples: 192 KB, allocated zeroed (memory
+/// fresh from the system stays untouched until a sample on its page is
+/// kept) and never moved.
 const CHUNK_TILES: usize = 32;
 
 /// One level's traced samples, by slot, in tiles allocated on first touch.
