@@ -9,7 +9,7 @@ use glam::{DMat2, DVec2, DVec3};
 use super::{fast_atan2, SampleLattice, MAX_ZOOM, MIN_ZOOM};
 use crate::camera::{Camera, Projection};
 use crate::ray::Ray;
-use crate::render::{Frame, PrimaryRays};
+use crate::render::{render_image, Frame, PrimaryRays};
 use crate::shade::{RayCounts, Shader};
 
 /// A viewport: its own image size, projection and field of view, looking
@@ -311,7 +311,7 @@ impl PrimaryRays for ViewportRays<'_> {
 /// Traces every pixel of the viewport through its own rays.
 pub fn render_direct(shader: &Shader, pose: &ViewportPose) -> (Frame, RayCounts) {
     let (w, h) = (pose.camera.width, pose.camera.height);
-    crate::render::render_image(shader, &ViewportRays { pose }, w, h)
+    render_image(shader, &ViewportRays { pose }, w, h)
 }
 
 /// Maps viewport pixels to world angles cheaply: perspective and
