@@ -415,11 +415,18 @@ impl Ostc {
     /// footprint overlaps (the walk is a supercover, the voxel range and
     /// the footprints are rounded outward).
     pub fn dirty_for(&self, volumes: &[Footprint]) -> RegionSet {
+        let candidates: Vec<usize> = self.candidates_for(volumes).iter().collect();
+        // Testing the segments was most of E3's bookkeeping on one thread
+        // (0.3 ms a frame); regions are independent.
+        let found: Vec<usize> = candidates
+            .into_par_iter()
+            .filter(|&region| {
+                self.with_segments(region, |all| all.iter().any(|s| s.may_change(volumes)))
+            })
+            .collect();
         let mut dirty = RegionSet::empty(self.layout.count());
-        for region in self.candidates_for(volumes).iter() {
-            if self.with_segments(region, |all| all.iter().any(|s| s.may_change(volumes))) {
-                dirty.insert(region);
-            }
+        for region in found {
+            dirty.insert(region);
         }
         dirty
     }
