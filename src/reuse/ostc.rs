@@ -56,9 +56,9 @@ use crate::geometry::Aabb;
 use glam::Vec3;
 use rayon::prelude::*;
 
-use crate::rng::SplitMix64;
 use crate::ray::{lanes, LaneMask, Ray, RayPacket, PACKET_WIDTH};
 use crate::render::{SampleGroup, GROUP_HEIGHT, GROUP_WIDTH};
+use crate::rng::SplitMix64;
 use crate::shade::{RayKind, RayObserver};
 
 /// How the screen is cut into regions: `n` x `n` regions over the camera's

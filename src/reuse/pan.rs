@@ -203,50 +203,72 @@ fn wrap_into(x: i64, turn: i64) -> i64 {
     }
 }
 
-/// The groups covering a window, with their columns wrapped into one turn,
-/// each once, that `keep` accepts.
-pub fn window_groups_where<L: Lattice>(
-    lattice: &L,
-    window: &Window,
-    mut keep: impl FnMut(SampleGroup) -> bool,
-) -> Vec<SampleGroup> {
-    let cols = window.col..window.col + i64::from(window.width);
-    let rows = window.row..window.row + i64::from(window.height);
-    let (Some(first), Some(last)) = (
-        (!cols.is_empty() && !rows.is_empty())
-            .then(|| SampleGroup::containing(cols.start, rows.start)),
-        (!cols.is_empty() && !rows.is_empty())
-            .then(|| SampleGroup::containing(cols.end - 1, rows.end - 1)),
-    ) else {
-        return Vec::new();
-    };
-    let (gw, gh) = (i64::from(GROUP_WIDTH), i64::from(GROUP_HEIGHT));
-    // A window wider than a turn would meet some groups twice.
-    let period = lattice.period();
-    let group_cols = ((last.col - first.col) / gw + 1).min(period / gw);
-    let first_col = lattice.wrap(first.col);
-    let mut groups = Vec::new();
-    for row in (first.row..=last.row).step_by(gh as usize) {
-        // Wrapped by hand (no division per group): `gw` divides the
-        // period, so a step that wraps lands exactly on it.
-        let mut col = first_col;
-        for _ in 0..group_cols {
-            let group = SampleGroup { col, row };
-            if keep(group) {
-                groups.push(group);
-            }
-            col += gw;
-            if col == period {
-                col = 0;
-            }
-        }
-    }
-    groups
+/// The groups a window covers: on each of its group rows, `count` groups
+/// from `first_col` on (wrapped into one turn; never more than a turn).
+struct GroupSpan {
+    first_row: i64,
+    last_row: i64,
+    first_col: i64,
+    count: i64,
 }
 
-/// The groups covering a window, with their columns wrapped into one turn.
+impl GroupSpan {
+    fn of<L: Lattice>(lattice: &L, window: &Window) -> Option<GroupSpan> {
+        if window.width == 0 || window.height == 0 {
+            return None;
+        }
+        let first = SampleGroup::containing(window.col, window.row);
+        let last = SampleGroup::containing(
+            window.col + i64::from(window.width) - 1,
+            window.row + i64::from(window.height) - 1,
+        );
+        let gw = i64::from(GROUP_WIDTH);
+        Some(GroupSpan {
+            first_row: first.row,
+            last_row: last.row,
+            first_col: lattice.wrap(first.col),
+            // A window wider than a turn would meet some groups twice.
+            count: ((last.col - first.col) / gw + 1).min(lattice.period() / gw),
+        })
+    }
+
+    fn rows(&self) -> impl Iterator<Item = i64> {
+        (self.first_row..=self.last_row).step_by(GROUP_HEIGHT as usize)
+    }
+
+    /// The span's group columns, as indices of groups in a row of a turn
+    /// of `per_row`: one range, or two where it wraps.
+    fn column_ranges(&self, per_row: usize) -> [std::ops::Range<usize>; 2] {
+        let first = (self.first_col / i64::from(GROUP_WIDTH)) as usize;
+        let end = first + self.count as usize;
+        if end <= per_row {
+            [first..end, 0..0]
+        } else {
+            [first..per_row, 0..end - per_row]
+        }
+    }
+}
+
+/// The groups covering a window, with their columns wrapped into one turn,
+/// each once, row by row.
 pub fn window_groups<L: Lattice>(lattice: &L, window: &Window) -> Vec<SampleGroup> {
-    window_groups_where(lattice, window, |_| true)
+    let Some(span) = GroupSpan::of(lattice, window) else {
+        return Vec::new();
+    };
+    let gw = i64::from(GROUP_WIDTH);
+    let ranges = span.column_ranges((lattice.period() / gw) as usize);
+    span.rows()
+        .flat_map(|row| {
+            ranges
+                .clone()
+                .into_iter()
+                .flatten()
+                .map(move |index| SampleGroup {
+                    col: index as i64 * gw,
+                    row,
+                })
+        })
+        .collect()
 }
 
 /// Renders the window fresh (nothing kept): the reference a shifted frame
@@ -365,6 +387,35 @@ impl<L: Lattice> PanBuffer<L> {
         (group_row * per_row + group.col / i64::from(GROUP_WIDTH)) as usize
     }
 
+    /// The window's groups not traced yet, in the order of
+    /// [`window_groups`]: a row whose flags are all set is passed
+    /// over in one sweep (testing each group took a steady E3 frame
+    /// 0.06 ms, and E1's 5%).
+    fn untraced_groups(&self, window: &Window) -> Vec<SampleGroup> {
+        let Some(span) = GroupSpan::of(&self.lattice, window) else {
+            return Vec::new();
+        };
+        let (gw, gh) = (i64::from(GROUP_WIDTH), i64::from(GROUP_HEIGHT));
+        let per_row = (self.lattice.period() / gw) as usize;
+        let ranges = span.column_ranges(per_row);
+        let mut missing = Vec::new();
+        for row in span.rows() {
+            let base = ((row - self.first_row) / gh) as usize * per_row;
+            let flags = &self.traced[base..base + per_row];
+            for range in ranges.iter().cloned() {
+                if flags[range.clone()].iter().all(|&traced| traced) {
+                    continue;
+                }
+                let untraced = range.filter(|&index| !flags[index]);
+                missing.extend(untraced.map(|index| SampleGroup {
+                    col: index as i64 * gw,
+                    row,
+                }));
+            }
+        }
+        missing
+    }
+
     fn sample_index(&self, col: i64, row: i64) -> usize {
         ((row - self.first_row) * self.lattice.period() + self.lattice.wrap(col)) as usize
     }
@@ -399,8 +450,7 @@ impl<L: Lattice> PanBuffer<L> {
         ostc: Option<&Ostc>,
     ) -> (u64, RayCounts, Vec<SampleGroup>) {
         assert!(self.covers(window), "window rows outside the pan buffer");
-        let missing =
-            window_groups_where(&self.lattice, window, |g| !self.traced[self.group_index(g)]);
+        let missing = self.untraced_groups(window);
         let (colors, rays) = trace_groups_observed(shader, &self.lattice, &missing, |g| {
             ostc.map(|o| o.marker(g))
         });
