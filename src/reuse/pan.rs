@@ -17,15 +17,16 @@
 use std::f64::consts::{FRAC_PI_2, TAU};
 
 use glam::{DVec3, Vec3};
+use rayon::prelude::*;
 
 use crate::camera::{Camera, Projection};
-use crate::ray::Ray;
+use crate::ray::{Ray, PACKET_WIDTH};
 use crate::render::{
-    srgb_table, trace_groups, trace_groups_observed, Frame, PrimaryRays, SampleGroup, GROUP_HEIGHT,
+    srgb_table, trace_group, trace_groups, Frame, PrimaryRays, SampleGroup, GROUP_HEIGHT,
     GROUP_WIDTH,
 };
 use crate::reuse::ostc::{Ostc, RegionLayout, RegionSet};
-use crate::shade::{RayCounts, Shader};
+use crate::shade::{RayCounts, RayObserver, Shader};
 
 /// The world-fixed equal-angle sample lattice around one eye position.
 #[derive(Clone, Debug)]
@@ -342,6 +343,17 @@ pub struct PanBuffer<L: Lattice = EqualAngleLattice> {
     traced: Vec<bool>,
 }
 
+/// One group row of a buffer's stores, and the groups to trace in it.
+struct Band<'a> {
+    groups: &'a [SampleGroup],
+    first_row: i64,
+    turn: usize,
+    colors: &'a mut [Vec3],
+    bytes: &'a mut [[u8; 3]],
+    /// The row's group flags.
+    traced: &'a mut [bool],
+}
+
 /// What one frame of a pan cost.
 #[derive(Clone, Debug, Default, serde::Serialize)]
 pub struct PanFrameStats {
@@ -451,22 +463,80 @@ impl<L: Lattice> PanBuffer<L> {
     ) -> (u64, RayCounts, Vec<SampleGroup>) {
         assert!(self.covers(window), "window rows outside the pan buffer");
         let missing = self.untraced_groups(window);
-        let (colors, rays) = trace_groups_observed(shader, &self.lattice, &missing, |g| {
-            ostc.map(|o| o.marker(g))
-        });
         let srgb = srgb_table();
-        let mut fresh_pixels = 0u64;
-        for (group, colors) in missing.iter().zip(&colors) {
-            let index = self.group_index(*group);
-            self.traced[index] = true;
-            for (lane, (col, row)) in group.lane_samples().into_iter().enumerate() {
-                let sample = self.sample_index(col, row);
-                self.colors[sample] = colors[lane];
-                self.bytes[sample] = colors[lane].to_array().map(|c| srgb.encode(c));
-                fresh_pixels += window_positions(&self.lattice, window, col, row).count() as u64;
-            }
-        }
+        // Each group row's groups are traced and kept in its own band of
+        // the stores, bands in parallel and the groups of a band too (a
+        // pitch pan's new rows are one or two bands). A first frame kept
+        // its 38k groups on one thread after tracing them all into a list
+        // (3.7 MB of fresh pages): 4.7 ms more than tracing alone.
+        let (lattice, bands) = self.bands_of(&missing);
+        let (rays, fresh_pixels) = bands
+            .into_par_iter()
+            .map(|band| {
+                let traced: Vec<([Vec3; PACKET_WIDTH], RayCounts)> = band
+                    .groups
+                    .par_iter()
+                    .with_min_len(16)
+                    .map(|&group| {
+                        let mut rays = RayCounts::default();
+                        let mut marker = ostc.map(|o| o.marker(group));
+                        let observer = marker.as_mut().map(|m| m as &mut dyn RayObserver);
+                        let colors = trace_group(shader, lattice, group, &mut rays, observer);
+                        (colors, rays)
+                    })
+                    .collect();
+                let (mut rays, mut fresh) = (RayCounts::default(), 0u64);
+                for (group, (colors, group_rays)) in band.groups.iter().zip(traced) {
+                    rays += group_rays;
+                    band.traced[(group.col / i64::from(GROUP_WIDTH)) as usize] = true;
+                    for (lane, (col, row)) in group.lane_samples().into_iter().enumerate() {
+                        let sample = (row - band.first_row) as usize * band.turn + col as usize;
+                        band.colors[sample] = colors[lane];
+                        band.bytes[sample] = colors[lane].to_array().map(|c| srgb.encode(c));
+                        fresh += window_positions(lattice, window, col, row).count() as u64;
+                    }
+                }
+                (rays, fresh)
+            })
+            .reduce(
+                || (RayCounts::default(), 0),
+                |(a, m), (b, n)| (a + b, m + n),
+            );
         (fresh_pixels, rays, missing)
+    }
+
+    /// `groups` (sorted by row, columns within one turn) cut by group row,
+    /// each run with its band of the stores; and the lattice, still to be
+    /// read meanwhile.
+    fn bands_of<'a>(&'a mut self, groups: &'a [SampleGroup]) -> (&'a L, Vec<Band<'a>>) {
+        let turn = self.lattice.period() as usize;
+        let gh = i64::from(GROUP_HEIGHT);
+        let band_samples = turn * GROUP_HEIGHT as usize;
+        let per_row = turn / GROUP_WIDTH as usize;
+        let mut colors = self.colors.chunks_mut(band_samples).enumerate();
+        let mut bytes = self.bytes.chunks_mut(band_samples);
+        let mut flags = self.traced.chunks_mut(per_row);
+        let mut bands = Vec::new();
+        for run in groups.chunk_by(|a, b| a.row == b.row) {
+            let index = ((run[0].row - self.first_row) / gh) as usize;
+            // Bands come in order: skip to this run's.
+            let (colors, bytes, traced) = loop {
+                let (at, colors) = colors.next().expect("group rows inside the buffer");
+                let (bytes, traced) = (bytes.next(), flags.next());
+                if at == index {
+                    break (colors, bytes.expect("as many"), traced.expect("as many"));
+                }
+            };
+            bands.push(Band {
+                groups: run,
+                first_row: run[0].row,
+                turn,
+                colors,
+                bytes,
+                traced,
+            });
+        }
+        (&self.lattice, bands)
     }
 
     /// Paints black, in `image` (a view of `window`), every sample of
