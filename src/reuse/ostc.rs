@@ -397,7 +397,7 @@ impl Ostc {
             walked: 0,
             nanos: 0,
             recent: [0; RECENT_SLOTS],
-            segments: Vec::new(),
+            segments: SPARE_SEGMENTS.with(|spare| spare.take()),
         }
     }
 
@@ -770,6 +770,10 @@ const RECENT_SLOTS: usize = 64;
 const TIMED_EVERY: u64 = 8;
 
 thread_local! {
+    /// An empty list with room, for this thread's next marker: a steady E3
+    /// frame's groups record ~55 segments each, and growing a fresh list
+    /// for each took five allocations.
+    static SPARE_SEGMENTS: std::cell::Cell<Vec<RecordedSegment>> = const { std::cell::Cell::new(Vec::new()) };
     /// This thread's draws of which recorded packet to time.
     static TIMING_DRAW: std::cell::Cell<u64> = const { std::cell::Cell::new(0) };
 }
@@ -878,6 +882,7 @@ impl Drop for RegionMarker<'_> {
                     .unwrap_or_else(PoisonError::into_inner)
                     .append(&mut self.segments);
             }
+            SPARE_SEGMENTS.with(|spare| spare.set(std::mem::take(&mut self.segments)));
         }
         // Most groups' rays pass nowhere near the grid: nothing to add.
         if self.walked == 0 && self.nanos == 0 {
