@@ -8,7 +8,7 @@ use rayon::prelude::*;
 use super::{
     blocks::SampleView,
     filter::{bilinear, filter_split},
-    map::{nan_filled, Mapped, SampleBox},
+    map::{nan_filled, Mapped, SampleBox, GRID_SPACING},
     store::{tile_key, TileCache},
     viewport::PixelMap,
     Filter, Level, SampleBuffer, ViewportPose, REGION,
@@ -87,7 +87,16 @@ impl SampleBuffer {
                         // The pixels' own box: a grid's points bound its
                         // pixels', so it is often smaller than pass 1's, and
                         // copies fewer samples.
-                        match region.blocks.and(pixels_box(filter, coords)) {
+                        let bounds = match grid {
+                            // Within pass 1's box, whose blocks are the
+                            // ones assembled, whatever its slack adds.
+                            Some(_) => region.blocks.and_then(|assembled| {
+                                grid_pixels_box(filter, coords, cols)
+                                    .map(|b| b.intersection(&assembled))
+                            }),
+                            None => region.blocks.and(pixels_box(filter, coords)),
+                        };
+                        match bounds {
                             Some(bounds) => {
                                 let view = self.view(level, &bounds, window);
                                 gather_region(&view, filter, coords, colors);
@@ -177,6 +186,36 @@ fn pixels_box(filter: Filter, coords: &[DVec2]) -> Option<SampleBox> {
     (lo.x <= hi.x).then(|| SampleBox::read_by(filter, lo, hi))
 }
 
+/// [`pixels_box`] of a grid-mapped region's pixels (`coords`, `cols`
+/// wide, none NaN) from a few of them: within each grid cell a pixel's
+/// coordinates interpolate the cell's corners, so the pixels on grid
+/// points and on the region's last column and row bound the rest, up to
+/// the interpolation's rounding, which the box is grown by (a sample more
+/// at most, and that rarely).
+fn grid_pixels_box(filter: Filter, coords: &[DVec2], cols: usize) -> Option<SampleBox> {
+    let rows = coords.len() / cols;
+    let (mut lo, mut hi) = (DVec2::INFINITY, DVec2::NEG_INFINITY);
+    let mut take = |c: DVec2| {
+        lo = lo.min(c);
+        hi = hi.max(c);
+    };
+    let s = GRID_SPACING as usize;
+    for j in (0..rows).step_by(s).chain([rows - 1]) {
+        let line = &coords[j * cols..(j + 1) * cols];
+        for i in (0..cols).step_by(s).chain([cols - 1]) {
+            take(line[i]);
+        }
+    }
+    for j in 0..rows {
+        take(coords[j * cols + cols - 1]);
+    }
+    for i in 0..cols {
+        take(coords[(rows - 1) * cols + i]);
+    }
+    let slack = (lo.abs().max(hi.abs()) * 1e-12).max(DVec2::splat(1e-12));
+    (lo.x <= hi.x).then(|| SampleBox::read_by(filter, lo - slack, hi + slack))
+}
+
 /// Filters one region's pixels (`coords`: their lattice coordinates at the
 /// window's level, NaN for no ray) from `window`, which holds every sample
 /// they read, into `out` (`coords`' length).
@@ -228,5 +267,70 @@ fn gather_region(window: &SampleView, filter: Filter, coords: &[DVec2], out: &mu
                 *slot = Vec3::ZERO;
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::camera::{Camera, Projection};
+    use crate::reuse::rsvp::fixtures::*;
+    use crate::reuse::rsvp::{RsvpKnobs, ViewTransform};
+
+    #[test]
+    fn a_grid_regions_box_from_its_corners_and_edges_holds_every_pixel() {
+        let buffer = SampleBuffer::new(lattice());
+        let knobs = RsvpKnobs::default();
+        let base = Camera {
+            pitch: -9f64.to_radians(),
+            ..camera(Projection::Perspective)
+        };
+        let transforms = [
+            (1.0, 0.0, [0.0, 0.0]),
+            (2.5557, 0.0, [0.0, 0.0]),
+            (1.7, 0.5, [0.2, -0.1]),
+            (40.0, -2.0, [0.0, 0.3]),
+        ];
+        let mut checked = 0;
+        for (zoom, rotate, shear) in transforms {
+            let transform = ViewTransform {
+                zoom,
+                rotate,
+                shear,
+                translate: [7.0, -3.0],
+            };
+            let pose = ViewportPose::new(base.clone(), transform);
+            let mapped = buffer.map(&pose, &knobs);
+            let map = PixelMap::new(&pose);
+            let mut coords = Vec::new();
+            for (index, region) in mapped.regions.iter().enumerate() {
+                let Some(grid) = region.grid.as_ref() else {
+                    continue;
+                };
+                let x0 = (index % mapped.regions_x) as u32 * REGION;
+                let y0 = (index / mapped.regions_x) as u32 * REGION;
+                let cols = (pose.camera.width - x0).min(REGION) as usize;
+                let rows = (pose.camera.height - y0).min(REGION) as usize;
+                let out = nan_filled(&mut coords, cols * rows);
+                let level = region.level;
+                buffer.region_coords(&pose, &map, level, Some(grid), (x0, y0), cols, out);
+                for filter in [Filter::Nearest, Filter::Bilinear, Filter::Box] {
+                    let every = pixels_box(filter, &coords).expect("a grid maps every pixel");
+                    let quick = grid_pixels_box(filter, &coords, cols).expect("likewise");
+                    assert!(
+                        quick.c0 <= every.c0
+                            && quick.r0 <= every.r0
+                            && quick.c1 >= every.c1
+                            && quick.r1 >= every.r1,
+                        "region ({x0}, {y0}), {filter}: {quick:?} misses some of {every:?}"
+                    );
+                    // Grown only by the interpolation's rounding.
+                    assert!(quick.c1 - quick.c0 <= every.c1 - every.c0 + 2);
+                    assert!(quick.r1 - quick.r0 <= every.r1 - every.r0 + 2);
+                }
+                checked += 1;
+            }
+        }
+        assert!(checked > 3000, "{checked} regions");
     }
 }

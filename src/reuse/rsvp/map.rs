@@ -19,7 +19,7 @@ use crate::render::{SampleGroup, GROUP_HEIGHT, GROUP_WIDTH};
 
 /// Pixels between exactly mapped points of a region's grid; the pixels
 /// between are interpolated.
-const GRID_SPACING: u32 = 4;
+pub(super) const GRID_SPACING: u32 = 4;
 const GRID_POINTS: usize = (REGION / GRID_SPACING) as usize + 1;
 const _: () = assert!(REGION % GRID_SPACING == 0);
 
@@ -68,6 +68,16 @@ impl SampleBox {
             r0,
             c1: c1 + extra,
             r1: r1 + extra,
+        }
+    }
+
+    /// The samples in both boxes (rows unclamped, as boxes are).
+    pub(super) fn intersection(&self, other: &SampleBox) -> SampleBox {
+        SampleBox {
+            c0: self.c0.max(other.c0),
+            r0: self.r0.max(other.r0),
+            c1: self.c1.min(other.c1),
+            r1: self.r1.min(other.r1),
         }
     }
 
