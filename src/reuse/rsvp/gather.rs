@@ -273,18 +273,13 @@ fn gather_region(window: &SampleView, filter: Filter, coords: &[DVec2], out: &mu
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::camera::{Camera, Projection};
     use crate::reuse::rsvp::fixtures::*;
-    use crate::reuse::rsvp::{RsvpKnobs, ViewTransform};
+    use crate::reuse::rsvp::RsvpKnobs;
 
     #[test]
     fn a_grid_regions_box_from_its_corners_and_edges_holds_every_pixel() {
         let buffer = SampleBuffer::new(lattice());
         let knobs = RsvpKnobs::default();
-        let base = Camera {
-            pitch: -9f64.to_radians(),
-            ..camera(Projection::Perspective)
-        };
         let transforms = [
             (1.0, 0.0, [0.0, 0.0]),
             (2.5557, 0.0, [0.0, 0.0]),
@@ -293,13 +288,7 @@ mod tests {
         ];
         let mut checked = 0;
         for (zoom, rotate, shear) in transforms {
-            let transform = ViewTransform {
-                zoom,
-                rotate,
-                shear,
-                translate: [7.0, -3.0],
-            };
-            let pose = ViewportPose::new(base.clone(), transform);
+            let pose = ViewportPose::new(tilted_camera(), off_centre(zoom, rotate, shear));
             let mapped = buffer.map(&pose, &knobs);
             let map = PixelMap::new(&pose);
             let mut coords = Vec::new();

@@ -741,16 +741,8 @@ mod tests {
     fn interpolated_regions_stay_within_their_tolerance() {
         let buffer = SampleBuffer::new(lattice());
         let knobs = RsvpKnobs::default();
-        let base = Camera {
-            pitch: -9f64.to_radians(),
-            ..camera(Projection::Perspective)
-        };
-        let transform = |zoom, rotate, shear| ViewTransform {
-            zoom,
-            rotate,
-            shear,
-            translate: [7.0, -3.0],
-        };
+        let base = tilted_camera();
+        let transform = off_centre;
         let cases = [
             // E2's ends, then rotation and shear, a view straight down
             // (the pole), a view wider than a turn (the back seam) and an

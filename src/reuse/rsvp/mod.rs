@@ -559,4 +559,22 @@ mod fixtures {
     pub(super) fn lattice() -> SampleLattice {
         SampleLattice::for_camera(&camera(Projection::EqualAngle))
     }
+
+    /// The paper's perspective camera, pitched 9 degrees down.
+    pub(super) fn tilted_camera() -> Camera {
+        Camera {
+            pitch: -9f64.to_radians(),
+            ..camera(Projection::Perspective)
+        }
+    }
+
+    /// A viewport transform moved off centre.
+    pub(super) fn off_centre(zoom: f64, rotate: f64, shear: [f64; 2]) -> ViewTransform {
+        ViewTransform {
+            zoom,
+            rotate,
+            shear,
+            translate: [7.0, -3.0],
+        }
+    }
 }
