@@ -1,7 +1,8 @@
 //! Pass 2's copy of the buffer: each level's samples at every one of its
 //! positions (its own and those its coarser owners traced), assembled into
-//! square blocks, so a region's samples are a few rows of one or two plain
-//! arrays instead of strided runs from every owner.
+//! square blocks of sample codes ([`SampleCode`]: what the filters blend),
+//! so a region's samples are a few rows of one or two plain arrays instead
+//! of strided runs from every owner.
 //!
 //! Derived data: a block is assembled from the stores the first time a
 //! frame reads it, and from then on follows every traced group. It holds
@@ -11,13 +12,13 @@
 use std::collections::HashMap;
 use std::hash::BuildHasherDefault;
 
-use glam::{Vec3, Vec3A};
+use glam::Vec3;
 use rayon::prelude::*;
 
 use super::{
+    filter::{encode, SampleCode},
     lattice::{owned_positions, wrap},
     map::SampleBox,
-    same_bits,
     store::{tile_key, TileCache, TileHasher, TILE_COLS},
     Level, SampleBuffer, SampleLattice,
 };
@@ -36,7 +37,7 @@ const BLOCK_SAMPLES: usize = (BLOCK * BLOCK) as usize;
 pub(super) struct LevelBlocks {
     index: HashMap<(i64, i64), u32, BuildHasherDefault<TileHasher>>,
     /// By slot; a slot given up holds an empty box until it is reused.
-    blocks: Vec<Box<[Vec3]>>,
+    blocks: Vec<Box<[SampleCode]>>,
     /// The frame each slot was last read in.
     read_in: Vec<u64>,
     free: Vec<u32>,
@@ -55,12 +56,12 @@ impl LevelBlocks {
         self.index.get(&key).copied()
     }
 
-    fn samples(&self, block: u32) -> &[Vec3] {
+    fn samples(&self, block: u32) -> &[SampleCode] {
         &self.blocks[block as usize]
     }
 
     /// Keeps the assembled `samples` of block `key`, read in `frame`.
-    fn add(&mut self, key: (i64, i64), samples: Box<[Vec3]>, frame: u64) {
+    fn add(&mut self, key: (i64, i64), samples: Box<[SampleCode]>, frame: u64) {
         let slot = match self.free.pop() {
             Some(slot) => {
                 self.blocks[slot as usize] = samples;
@@ -77,7 +78,7 @@ impl LevelBlocks {
     }
 
     /// Gives every block last read before frame `since` to `spare`.
-    fn give_up_unread(&mut self, since: u64, spare: &mut Vec<Box<[Vec3]>>) {
+    fn give_up_unread(&mut self, since: u64, spare: &mut Vec<Box<[SampleCode]>>) {
         let (blocks, read_in, free) = (&mut self.blocks, &self.read_in, &mut self.free);
         self.index.retain(|_, &mut slot| {
             let keep = read_in[slot as usize] >= since;
@@ -96,7 +97,7 @@ pub(super) struct SampleView<'a> {
     pub(super) col: i64,
     pub(super) row: i64,
     pub(super) width: usize,
-    pub(super) samples: &'a [Vec3A],
+    pub(super) samples: &'a [SampleCode],
 }
 
 /// The last blocks a region's rows came from, by the parity of their key
@@ -152,12 +153,12 @@ impl SampleBuffer {
         }
         // New blocks are assembled before they join their levels, so the
         // stores can be read while they are written.
-        let mut fresh: Vec<Box<[Vec3]>> = wanted
+        let mut fresh: Vec<Box<[SampleCode]>> = wanted
             .iter()
             .map(|_| {
                 self.spare_blocks
                     .pop()
-                    .unwrap_or_else(|| vec![Vec3::ZERO; BLOCK_SAMPLES].into_boxed_slice())
+                    .unwrap_or_else(|| vec![0; BLOCK_SAMPLES].into_boxed_slice())
             })
             .collect();
         let this = &*self;
@@ -175,8 +176,10 @@ impl SampleBuffer {
     /// Block `key` of `level` from the stores: each row owner by owner.
     /// Rows past the pole and columns past the turn are black (no read
     /// reaches them: reads clamp rows and wrap columns).
-    fn assemble_block(&self, level: Level, key: (i64, i64), out: &mut [Vec3]) {
+    fn assemble_block(&self, level: Level, key: (i64, i64), out: &mut [SampleCode]) {
         let mut cache = TileCache::new();
+        let srgb = crate::render::srgb_table();
+        let mut linear = [Vec3::ZERO; BLOCK as usize];
         let c0 = key.0 << BLOCK_SHIFT;
         let width = (self.lattice.columns(level.x) - c0).min(BLOCK) as usize;
         let last_row = self.lattice.last_row(level.y);
@@ -184,11 +187,15 @@ impl SampleBuffer {
             let row = (key.1 << BLOCK_SHIFT) + j as i64;
             let (mine, past_turn) = line.split_at_mut(width);
             // A reused block's old samples stay nowhere a read can reach.
-            past_turn.fill(Vec3::ZERO);
+            past_turn.fill(0);
             if row > last_row {
-                mine.fill(Vec3::ZERO);
+                mine.fill(0);
             } else {
-                self.copy_row(&mut cache, level, c0, row, mine);
+                let linear = &mut linear[..width];
+                self.copy_row(&mut cache, level, c0, row, linear);
+                for (o, c) in mine.iter_mut().zip(linear.iter()) {
+                    *o = encode(srgb, *c);
+                }
             }
         }
     }
@@ -255,17 +262,13 @@ impl SampleBuffer {
     /// assembling the blocks again from the stores: none, unless a traced
     /// group was not followed.
     pub(super) fn stale_block_samples(&self) -> u64 {
-        let mut fresh = vec![Vec3::ZERO; BLOCK_SAMPLES];
+        let mut fresh: Vec<SampleCode> = vec![0; BLOCK_SAMPLES];
         let mut stale = 0;
         for (index, blocks) in self.blocks.iter().enumerate() {
             for (&key, &slot) in &blocks.index {
                 self.assemble_block(Level::from_index(index), key, &mut fresh);
                 let kept = blocks.samples(slot);
-                stale += kept
-                    .iter()
-                    .zip(&fresh)
-                    .filter(|(&a, &b)| !same_bits(a, b))
-                    .count() as u64;
+                stale += kept.iter().zip(&fresh).filter(|(&a, &b)| a != b).count() as u64;
             }
         }
         stale
@@ -273,21 +276,21 @@ impl SampleBuffer {
 
     /// The samples of `level` in `bounds` (rows clamped to the lattice,
     /// columns wrapped around the turn), every block of which
-    /// [`SampleBuffer::assemble_blocks`] assembled, copied into `window`
-    /// as 16-byte samples. Copied even when they lie in one block: the
-    /// copy's loads overlap where the filter's, in place, wait one by one,
-    /// and the filter then works on whole vectors.
+    /// [`SampleBuffer::assemble_blocks`] assembled, copied into `window`.
+    /// Copied even when they lie in one block: the copy's loads overlap
+    /// where the filter's, in place, wait one by one, and the filter then
+    /// reads one array of a fixed width.
     pub(super) fn view<'a>(
         &'a self,
         level: Level,
         bounds: &SampleBox,
-        window: &'a mut Vec<Vec3A>,
+        window: &'a mut Vec<SampleCode>,
     ) -> SampleView<'a> {
         let blocks = &self.blocks[level.index()];
         let columns = self.lattice.columns(level.x);
         let last_row = self.lattice.last_row(level.y);
         let (width, height) = (bounds.width(), bounds.height());
-        window.resize(width * height, Vec3A::ZERO);
+        window.resize(width * height, 0);
         let mut cache = BlockCache::new();
         let mut at = 0;
         // Column runs outside, rows inside: every row of a run copies the
@@ -301,7 +304,7 @@ impl SampleBuffer {
                 match cache.block(blocks, key) {
                     u32::MAX => {
                         debug_assert!(false, "block {key:?} of {level:?} was not assembled");
-                        out.fill(Vec3A::ZERO);
+                        out.fill(0);
                     }
                     block => copy_samples(out, &blocks.samples(block)[sample..sample + run]),
                 }
@@ -317,12 +320,18 @@ impl SampleBuffer {
     }
 }
 
-/// `source` into `out` (as long), inline rather than through a call
-/// whose branches depend on the length.
+/// `source` into `out` (as long) in whole vectors, inline: a call to
+/// `memcpy` per row, whose branches depend on the length, cost more.
 #[inline(always)]
-fn copy_samples(out: &mut [Vec3A], source: &[Vec3]) {
-    for (o, s) in out.iter_mut().zip(source) {
-        *o = Vec3A::from(*s);
+fn copy_samples(out: &mut [SampleCode], source: &[SampleCode]) {
+    let mut out = out.chunks_exact_mut(8);
+    let mut source = source.chunks_exact(8);
+    for (o, s) in (&mut out).zip(&mut source) {
+        let s: &[SampleCode; 8] = s.try_into().expect("chunks of 8");
+        o.copy_from_slice(s);
+    }
+    for (o, s) in out.into_remainder().iter_mut().zip(source.remainder()) {
+        *o = *s;
     }
 }
 
@@ -342,6 +351,7 @@ pub(super) fn follow_traced(
         .filter(|(_, blocks)| !blocks.index.is_empty())
         .for_each(|(index, blocks)| {
             let level = Level::from_index(index);
+            let srgb = crate::render::srgb_table();
             let mut recent = ((i64::MIN, i64::MIN), None);
             for (&(owner, group, _), colors) in groups.iter().zip(colors) {
                 if owner.x > level.x || owner.y > level.y {
@@ -359,7 +369,7 @@ pub(super) fn follow_traced(
                         recent = (key, blocks.block(key));
                     }
                     if let Some(block) = recent.1 {
-                        blocks.blocks[block as usize][sample] = colors[lane];
+                        blocks.blocks[block as usize][sample] = encode(srgb, colors[lane]);
                     }
                 }
             }

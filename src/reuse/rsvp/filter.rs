@@ -1,5 +1,10 @@
 //! Reconstruction: the filters a viewport pixel is made with, the knobs
-//! of the level choice, and the exact sub-sample grid both passes share.
+//! of the level choice, the exact sub-sample grid both passes share, and
+//! the sample codes pass 2 blends.
+
+use glam::Vec3;
+
+use crate::render::SrgbTable;
 
 /// How a viewport pixel's colour is made from buffer samples.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
@@ -80,16 +85,87 @@ impl RsvpKnobs {
     }
 }
 
-/// Weighted by distance. A zero weight adds an exact +0 (samples are
-/// finite and not negative), so a pixel exactly on a sample shows it bit for
-/// bit; no branches, so the loop over a region's pixels stays straight.
+/// A sample as pass 2 keeps and blends it: each channel's sRGB quarter
+/// code ([`SrgbTable::encode_quarters`], 10 bits), red lowest, in one
+/// word. A third of three f32's bytes to copy, blended a channel at a time
+/// over whole lanes, and a shift from the 8-bit output, where three f32
+/// each took a table lookup: over E2 in, frames 1-99 15% faster.
+///
+/// Filters so blend in sRGB, not linear, space. That alone (tried in f32)
+/// changed nothing measurable over E2 in: worst PSNR 25.48 dB against
+/// 25.49, pixels differing from the direct render in 8 bits 14.30%
+/// against 14.27%. The codes' quarter steps cost a little: 16.2% differ
+/// (by one step, where a gradient's exact value lies near a byte's
+/// edge), mean error +2.7%, the same PSNR; whole bytes made it 18.1%.
+/// Exact where it was: a pixel on a sample, or amid equal ones, shows
+/// that sample's own byte.
+pub(super) type SampleCode = u32;
+
+const CODE_BITS: u32 = 10;
+const CODE_MASK: u32 = (1 << CODE_BITS) - 1;
+/// Where each channel's code starts.
+const CODE_SHIFTS: [u32; 3] = [0, CODE_BITS, 2 * CODE_BITS];
+
+/// A linear colour's code.
 #[inline(always)]
-pub(super) fn bilinear<T>(s: [T; 4], fx: f32, fy: f32) -> T
-where
-    T: Copy + std::ops::Mul<f32, Output = T> + std::ops::Add<Output = T>,
-{
-    let (gx, gy) = (1.0 - fx, 1.0 - fy);
-    s[0] * (gx * gy) + s[1] * (fx * gy) + s[2] * (gx * fy) + s[3] * (fx * fy)
+pub(super) fn encode(srgb: &SrgbTable, c: Vec3) -> SampleCode {
+    srgb.encode_quarters(c.x)
+        | srgb.encode_quarters(c.y) << CODE_SHIFTS[1]
+        | srgb.encode_quarters(c.z) << CODE_SHIFTS[2]
+}
+
+/// The 8-bit sRGB pixel a code (a sample's, or a blend's) shows.
+#[inline(always)]
+pub(super) fn rgb8(code: SampleCode) -> [u8; 3] {
+    CODE_SHIFTS.map(|shift| ((code >> shift & CODE_MASK) >> 2) as u8)
+}
+
+/// The linear colour a code stands for.
+pub(super) fn decode(srgb: &SrgbTable, code: SampleCode) -> Vec3 {
+    Vec3::from_array(CODE_SHIFTS.map(|shift| srgb.decode_quarters(code >> shift & CODE_MASK)))
+}
+
+/// One channel of a code, as a float (exact).
+#[inline(always)]
+fn channel(code: SampleCode, shift: u32) -> f32 {
+    (code >> shift & CODE_MASK) as i32 as f32
+}
+
+/// A channel's bilinear blend of codes `a b` (top) and `c d` (bottom),
+/// rounded to a code. A zero weight and equal samples both give a sample's
+/// code exactly, so a pixel on a sample, or amid equal ones, shows the
+/// sample's byte. Straight-line float code, so loops of it vectorise.
+#[inline(always)]
+fn bilinear_channel(a: f32, b: f32, c: f32, d: f32, fx: f32, fy: f32) -> SampleCode {
+    let top = a + (b - a) * fx;
+    let bottom = c + (d - c) * fx;
+    let v = top + (bottom - top) * fy;
+    // Round to nearest: v (0..1024) plus 2^23 holds it in its low bits,
+    // where `as` would saturate one lane at a time.
+    (v + 8_388_608.0).to_bits() & CODE_MASK
+}
+
+/// The bilinear blend of four codes (top left, top right, bottom left,
+/// bottom right).
+#[inline(always)]
+pub(super) fn bilinear(s: [SampleCode; 4], fx: f32, fy: f32) -> SampleCode {
+    let mut blend = 0;
+    for shift in CODE_SHIFTS {
+        let [a, b, c, d] = s.map(|code| channel(code, shift));
+        blend |= bilinear_channel(a, b, c, d, fx, fy) << shift;
+    }
+    blend
+}
+
+/// The mean of four codes, rounded (exact in integers).
+#[inline(always)]
+pub(super) fn mean(s: [SampleCode; 4]) -> SampleCode {
+    let mut blend = 0;
+    for shift in CODE_SHIFTS {
+        let sum: u32 = s.iter().map(|code| code >> shift & CODE_MASK).sum();
+        blend |= (sum + 2) >> 2 << shift;
+    }
+    blend
 }
 
 /// Sub-sample steps per sample on the filter's grid.

@@ -2,18 +2,18 @@
 //! filter reads, through the assembled blocks of its region's level,
 //! converted to 8 bits.
 
-use glam::{DVec2, Vec3, Vec3A};
+use glam::{DVec2, Vec3};
 use rayon::prelude::*;
 
 use super::{
     blocks::SampleView,
-    filter::{bilinear, filter_split},
+    filter::{bilinear, decode, encode, filter_split, mean, rgb8, SampleCode},
     map::{nan_filled, Mapped, SampleBox, GRID_SPACING},
     store::{tile_key, TileCache},
     viewport::PixelMap,
     Filter, Level, SampleBuffer, ViewportPose, REGION,
 };
-use crate::render::{srgb_table, Frame};
+use crate::render::{srgb_table, Frame, SrgbTable};
 
 impl SampleBuffer {
     /// A traced (or null: black) sample, with the tile cache.
@@ -62,7 +62,7 @@ impl SampleBuffer {
                 |scratch, (band_index, (out, linear_out))| {
                     let BandScratch { window, coords } = scratch;
                     let mut cache = TileCache::new();
-                    let mut colors = [Vec3::ZERO; (REGION * REGION) as usize];
+                    let mut colors: [SampleCode; (REGION * REGION) as usize] = [0; _];
                     let srgb = srgb_table();
                     let y0 = band_index * REGION as usize;
                     let rows = (h - y0).min(REGION as usize);
@@ -104,9 +104,9 @@ impl SampleBuffer {
                             None => {
                                 for (slot, c) in colors.iter_mut().zip(coords.iter()) {
                                     *slot = if c.x.is_nan() {
-                                        Vec3::ZERO
+                                        0
                                     } else {
-                                        self.filter(&mut cache, level, filter, c.x, c.y)
+                                        self.filter(&mut cache, srgb, level, filter, c.x, c.y)
                                     };
                                 }
                             }
@@ -117,12 +117,12 @@ impl SampleBuffer {
                             for (byte, c) in
                                 out[p * 3..(p + cols) * 3].chunks_exact_mut(3).zip(line)
                             {
-                                byte[0] = srgb.encode(c.x);
-                                byte[1] = srgb.encode(c.y);
-                                byte[2] = srgb.encode(c.z);
+                                byte.copy_from_slice(&rgb8(*c));
                             }
                             if let Some(slots) = linear_out.get_mut(p..p + cols) {
-                                slots.copy_from_slice(line);
+                                for (slot, c) in slots.iter_mut().zip(line) {
+                                    *slot = decode(srgb, *c);
+                                }
                             }
                         }
                     }
@@ -138,25 +138,35 @@ impl SampleBuffer {
         (frame, image)
     }
 
+    /// A pixel's code at lattice coordinates (x, y), from the stores: as
+    /// [`gather_region`] makes it from the blocks.
     #[inline(always)]
-    fn filter(&self, cache: &mut TileCache, level: Level, filter: Filter, x: f64, y: f64) -> Vec3 {
+    fn filter(
+        &self,
+        cache: &mut TileCache,
+        srgb: &SrgbTable,
+        level: Level,
+        filter: Filter,
+        x: f64,
+        y: f64,
+    ) -> SampleCode {
         let ((c, fx), (r, fy)) = (filter_split(filter, x), filter_split(filter, y));
         let (c, r) = (c as i64, r as i64);
+        let mut code = |c, r| encode(srgb, self.read(cache, level, c, r));
         match filter {
-            Filter::Nearest => self.read(cache, level, c, r),
-            Filter::Box => {
-                (self.read(cache, level, c, r)
-                    + self.read(cache, level, c + 1, r)
-                    + self.read(cache, level, c, r + 1)
-                    + self.read(cache, level, c + 1, r + 1))
-                    * 0.25
-            }
+            Filter::Nearest => code(c, r),
+            Filter::Box => mean([
+                code(c, r),
+                code(c + 1, r),
+                code(c, r + 1),
+                code(c + 1, r + 1),
+            ]),
             Filter::Bilinear => bilinear(
                 [
-                    self.read(cache, level, c, r),
-                    self.read(cache, level, c + 1, r),
-                    self.read(cache, level, c, r + 1),
-                    self.read(cache, level, c + 1, r + 1),
+                    code(c, r),
+                    code(c + 1, r),
+                    code(c, r + 1),
+                    code(c + 1, r + 1),
                 ],
                 fx as f32,
                 fy as f32,
@@ -169,7 +179,7 @@ impl SampleBuffer {
 #[derive(Default)]
 struct BandScratch {
     /// A region's samples, copied out of the blocks.
-    window: Vec<Vec3A>,
+    window: Vec<SampleCode>,
     /// A region's pixels' lattice coordinates.
     coords: Vec<DVec2>,
 }
@@ -219,7 +229,7 @@ fn grid_pixels_box(filter: Filter, coords: &[DVec2], cols: usize) -> Option<Samp
 /// Filters one region's pixels (`coords`: their lattice coordinates at the
 /// window's level, NaN for no ray) from `window`, which holds every sample
 /// they read, into `out` (`coords`' length).
-fn gather_region(window: &SampleView, filter: Filter, coords: &[DVec2], out: &mut [Vec3]) {
+fn gather_region(window: &SampleView, filter: Filter, coords: &[DVec2], out: &mut [SampleCode]) {
     let wd = window.width;
     let samples = window.samples;
     // Window index and weights of every pixel first, in straight-line f64
@@ -233,7 +243,10 @@ fn gather_region(window: &SampleView, filter: Filter, coords: &[DVec2], out: &mu
         has_nan |= c.x.is_nan();
         let (ox, x) = filter_split(filter, c.x);
         let (oy, y) = filter_split(filter, c.y);
-        *k = ((oy - r0f) * wdf + (ox - c0f)) as u32;
+        // A whole number in 0..2^32 (NaN: 0), read from the mantissa of
+        // itself plus 2^52: `as u32` saturates one lane at a time.
+        let k_exact = ((oy - r0f) * wdf + (ox - c0f)).max(0.0);
+        *k = (k_exact + 4_503_599_627_370_496.0).to_bits() as u32;
         *fx = x as f32;
         *fy = y as f32;
     }
@@ -243,28 +256,38 @@ fn gather_region(window: &SampleView, filter: Filter, coords: &[DVec2], out: &mu
     match filter {
         Filter::Nearest => {
             for (slot, &k) in out.iter_mut().zip(index) {
-                *slot = samples[k as usize].into();
+                *slot = samples[k as usize];
             }
         }
         Filter::Box => {
             for (slot, &k) in out.iter_mut().zip(index) {
                 let k = k as usize;
                 let (top, bottom) = (&samples[k..k + 2], &samples[k + wd..k + wd + 2]);
-                *slot = ((top[0] + top[1] + bottom[0] + bottom[1]) * 0.25).into();
+                *slot = mean([top[0], top[1], bottom[0], bottom[1]]);
             }
         }
         Filter::Bilinear => {
-            for (((slot, &k), &fx), &fy) in out.iter_mut().zip(index).zip(wx).zip(wy) {
+            // Every pixel's pairs of samples first, each pair one copy,
+            // then the blends, which so vectorise.
+            let mut pairs = [[0; 2 * N]; 2];
+            for (i, &k) in index.iter().enumerate() {
                 let k = k as usize;
-                let (top, bottom) = (&samples[k..k + 2], &samples[k + wd..k + wd + 2]);
-                *slot = bilinear([top[0], top[1], bottom[0], bottom[1]], fx, fy).into();
+                pairs[0][2 * i..2 * i + 2].copy_from_slice(&samples[k..k + 2]);
+                pairs[1][2 * i..2 * i + 2].copy_from_slice(&samples[k + wd..k + wd + 2]);
+            }
+            let [top, bottom] = &pairs;
+            let (top, bottom) = (&top[..2 * n], &bottom[..2 * n]);
+            let out = &mut out[..n];
+            for i in 0..n {
+                let s = [top[2 * i], top[2 * i + 1], bottom[2 * i], bottom[2 * i + 1]];
+                out[i] = bilinear(s, wx[i], wy[i]);
             }
         }
     }
     if has_nan {
         for (slot, c) in out.iter_mut().zip(coords) {
             if c.x.is_nan() {
-                *slot = Vec3::ZERO;
+                *slot = 0;
             }
         }
     }

@@ -61,6 +61,7 @@ use crate::reuse::ostc::{Ostc, RegionLayout, RegionSet};
 use crate::shade::{RayCounts, Shader};
 use blocks::LevelBlocks;
 use filter::filter_reads;
+use filter::SampleCode;
 use lattice::wrap;
 use map::nan_filled;
 use store::{
@@ -108,7 +109,7 @@ pub struct SampleBuffer {
     /// [`Level::index`].
     blocks: Vec<LevelBlocks>,
     /// Blocks given up, for new ones to reuse.
-    spare_blocks: Vec<Box<[Vec3]>>,
+    spare_blocks: Vec<Box<[SampleCode]>>,
     /// Frames rendered: when each block was last read.
     frame: u64,
     samples_traced: u64,
