@@ -23,7 +23,7 @@ use super::{
     Level, SampleBuffer, SampleLattice,
 };
 use crate::ray::PACKET_WIDTH;
-use crate::render::SampleGroup;
+use crate::render::{SampleGroup, GROUP_HEIGHT, GROUP_WIDTH};
 
 /// Positions per side of a block: a 16x16-pixel region reads 17-40 samples
 /// a side, so on E2 about a fifth of regions copy from one block and the
@@ -212,7 +212,7 @@ impl SampleBuffer {
         for ox in 0..=level.x {
             let sx = level.x - ox;
             let (period, offset) = owned_positions(level.x, ox);
-            let first = col + (offset - col).rem_euclid(period);
+            let first = col + ((offset - col) & (period - 1));
             if first - col >= n {
                 continue;
             }
@@ -345,20 +345,50 @@ pub(super) fn follow_traced(
     groups: &[(Level, SampleGroup, usize)],
     colors: &[[Vec3; PACKET_WIDTH]],
 ) {
+    if blocks.iter().all(|blocks| blocks.index.is_empty()) {
+        return;
+    }
+    // Encoded once, not once per level holding them.
+    let srgb = crate::render::srgb_table();
+    let codes: Vec<[SampleCode; PACKET_WIDTH]> = colors
+        .par_iter()
+        .map(|colors| colors.map(|c| encode(srgb, c)))
+        .collect();
     blocks
         .par_iter_mut()
         .enumerate()
         .filter(|(_, blocks)| !blocks.index.is_empty())
         .for_each(|(index, blocks)| {
             let level = Level::from_index(index);
-            let srgb = crate::render::srgb_table();
             let mut recent = ((i64::MIN, i64::MIN), None);
-            for (&(owner, group, _), colors) in groups.iter().zip(colors) {
+            for (&(owner, group, _), codes) in groups.iter().zip(&codes) {
                 if owner.x > level.x || owner.y > level.y {
                     continue;
                 }
                 let (sx, sy) = (level.x - owner.x, level.y - owner.y);
                 let last = lattice.last_slot_row(owner);
+                // Mostly the whole group lies in one block: its lanes then
+                // go in at fixed steps, with no lookup each.
+                let (c0, r0) = lattice.slot_position(owner, group.col, group.row);
+                let (col, row) = (c0 << sx, r0 << sy);
+                let step = |k: u32, s: u32| (1usize + usize::from(k > 0)) << s;
+                let (step_x, step_y) = (step(owner.x, sx), step(owner.y, sy));
+                let (key, first) = block_key(col, row);
+                let width = (GROUP_WIDTH - 1) as usize;
+                let (corner, _) = block_key(col + (width * step_x) as i64, row + step_y as i64);
+                if corner == key && group.row + i64::from(GROUP_HEIGHT) - 1 <= last {
+                    if recent.0 != key {
+                        recent = (key, blocks.block(key));
+                    }
+                    if let Some(block) = recent.1 {
+                        let out = &mut blocks.blocks[block as usize];
+                        for (lane, &code) in codes.iter().enumerate() {
+                            let (i, j) = (lane % GROUP_WIDTH as usize, lane / GROUP_WIDTH as usize);
+                            out[first + j * step_y * BLOCK as usize + i * step_x] = code;
+                        }
+                    }
+                    continue;
+                }
                 for (lane, (col, row)) in group.lane_samples().into_iter().enumerate() {
                     if row > last {
                         continue;
@@ -369,7 +399,7 @@ pub(super) fn follow_traced(
                         recent = (key, blocks.block(key));
                     }
                     if let Some(block) = recent.1 {
-                        blocks.blocks[block as usize][sample] = encode(srgb, colors[lane]);
+                        blocks.blocks[block as usize][sample] = codes[lane];
                     }
                 }
             }
@@ -410,7 +440,7 @@ fn scatter_by<const STRIDE: usize>(out: &mut [Vec3], source: &[Vec3]) {
 fn for_each_run(c0: i64, c1: i64, columns: i64, mut each: impl FnMut(i64, usize)) {
     let mut col = c0;
     while col <= c1 {
-        let wc = col.rem_euclid(columns);
+        let wc = wrap(col, columns);
         let run = (c1 - col + 1)
             .min(BLOCK - (wc & (BLOCK - 1)))
             .min(columns - wc);

@@ -223,6 +223,9 @@ impl SampleLattice {
 /// `owner` (0..=k) of that axis owns are those congruent to `offset` modulo
 /// `period`: level 0 every 2^k-th, a finer level the odd multiples of
 /// 2^(k - owner) (as [`SampleLattice::owner`] decides by trailing zeros).
+/// The period is a power of two: `x & (period - 1)` is `x.rem_euclid(period)`
+/// without a division (two of them per run of marked samples cost pass 1
+/// more than the rest of asking for the run's groups).
 #[inline]
 pub(super) fn owned_positions(k: u32, owner: u32) -> (i64, i64) {
     let shift = k - owner;

@@ -521,8 +521,8 @@ impl SampleBuffer {
         for ox in 0..=level.x {
             let sx = level.x - ox;
             let (period, offset) = owned_positions(level.x, ox);
-            let first = from + (offset - from).rem_euclid(period);
-            let last = to - (to - offset).rem_euclid(period);
+            let first = from + ((offset - from) & (period - 1));
+            let last = to - ((to - offset) & (period - 1));
             if first > last {
                 continue;
             }
