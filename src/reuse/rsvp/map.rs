@@ -11,7 +11,7 @@ use super::{
     fast_atan2,
     filter::{filter_origin, filter_reads},
     lattice::{owned_positions, wrap},
-    store::{tile_key, TILE_COLS},
+    store::{tile_key, TILE_COLS, TILE_COL_SHIFT, TILE_ROW_SHIFT},
     viewport::PixelMap,
     Filter, Level, RsvpKnobs, SampleBuffer, ViewportPose, MAX_LEVEL, REGION,
 };
@@ -379,7 +379,7 @@ impl SampleBuffer {
                 )
             })
             .unzip_into_vecs(&mut regions, &mut requests);
-        // Frame 0 asks for ~115k groups (85k once neighbours' are merged):
+        // Frame 0 asks for ~120k groups (85k once neighbours' are merged):
         // sorted by tuple, on one thread, that took ~9 ms; by a key
         // computed in each comparison, on both, 5.5 (and 1.1 more to
         // dedup the tuples). Sorting the keys themselves cut frame 0's
@@ -407,23 +407,10 @@ impl SampleBuffer {
     fn run_traced(&self, owner: Level, row: i64, c_from: i64, c_to: i64) -> bool {
         let store = &self.levels[owner.index()];
         let columns = self.lattice.slot_columns(owner);
-        let gw = i64::from(GROUP_WIDTH);
-        let mut col = c_from;
-        while col <= c_to {
-            let wc = wrap(col, columns);
-            let run = (c_to - col + 1)
-                .min(TILE_COLS - (wc & (TILE_COLS - 1)))
-                .min(columns - wc);
-            let (key, _, first) = tile_key(wc, row);
-            let last = ((wc + run - 1) & (TILE_COLS - 1)) / gw;
-            let wanted = (u64::MAX >> (63 - last as u32)) & (u64::MAX << first);
+        tile_spans(columns, row, c_from, c_to, |key, wanted| {
             let traced = store.tile(key).map_or(0, |t| store.traced[t as usize]);
-            if traced & wanted != wanted {
-                return false;
-            }
-            col += run;
-        }
-        true
+            traced & wanted == wanted
+        })
     }
 
     /// Whether every sample of `level` in columns `c0..=c1` and rows
@@ -501,7 +488,6 @@ impl SampleBuffer {
                 }
             });
         }
-        requests.finish();
     }
 
     /// Asks for the groups holding samples `from..=to` of row `row` of
@@ -517,7 +503,6 @@ impl SampleBuffer {
         let sy = row.trailing_zeros().min(level.y);
         let oy = level.y - sy;
         let slot_row = (row >> sy) >> u32::from(oy > 0);
-        let gw = i64::from(GROUP_WIDTH);
         for ox in 0..=level.x {
             let sx = level.x - ox;
             let (period, offset) = owned_positions(level.x, ox);
@@ -527,23 +512,20 @@ impl SampleBuffer {
                 continue;
             }
             let slot = |col: i64| (col >> sx) >> u32::from(ox > 0);
-            let owner = Level::new(ox, oy);
-            let first_group = SampleGroup::containing(slot(first), slot_row);
-            let last_col = SampleGroup::containing(slot(last), slot_row).col;
-            for col in (first_group.col..=last_col).step_by(gw as usize) {
-                requests.add(owner, SampleGroup { col, ..first_group });
-            }
+            requests.add_span(Level::new(ox, oy), slot_row, slot(first), slot(last));
         }
     }
 }
 
 /// The untraced groups a region asks for, appended to the frame's list:
-/// each once, and none already traced.
+/// none already traced, and mostly each once (a group is asked for again
+/// only once its tile left the cache); the frame's sort drops the rest,
+/// and those its neighbours asked for too. (Sorting each region's list
+/// first cost frame 0's pass 1 1.5 ms of its 9.8.)
 struct GroupRequests<'a> {
     buffer: &'a SampleBuffer,
     /// As [`trace_order`] keys.
     missing: &'a mut Vec<u128>,
-    before: usize,
     /// Consecutive groups mostly share a tile: its traced mask is kept. A
     /// pixel reads two rows, which may lie in neighbouring tile rows: one
     /// slot per owning level and tile row parity, distinct for owners
@@ -555,7 +537,6 @@ impl<'a> GroupRequests<'a> {
     fn new(buffer: &'a SampleBuffer, missing: &'a mut Vec<u128>) -> Self {
         GroupRequests {
             buffer,
-            before: missing.len(),
             missing,
             cached: [(usize::MAX, (i64::MIN, i64::MIN), 0u64); 32],
         }
@@ -563,11 +544,36 @@ impl<'a> GroupRequests<'a> {
 
     /// Asks for `group` of `owner`'s slots (its column in any turn).
     fn add(&mut self, owner: Level, group: SampleGroup) {
-        let group = SampleGroup {
-            col: wrap(group.col, self.buffer.lattice.slot_columns(owner)),
-            row: group.row,
-        };
-        let (key, _, bit) = tile_key(group.col, group.row);
+        self.add_span(owner, group.row, group.col, group.col);
+    }
+
+    /// Asks for the groups of `owner`'s slot row `row` holding slot
+    /// columns `from..=to` (in any turn): a tile's worth at a time, as
+    /// masks.
+    fn add_span(&mut self, owner: Level, row: i64, from: i64, to: i64) {
+        let columns = self.buffer.lattice.slot_columns(owner);
+        tile_spans(columns, row, from, to, |key, wanted| {
+            let asked = self.asked(owner, key);
+            // A group asked for counts as traced in the cached mask, so
+            // later asks skip it.
+            let mut fresh = wanted & !*asked;
+            *asked |= wanted;
+            while fresh != 0 {
+                let bit = i64::from(fresh.trailing_zeros());
+                fresh &= fresh - 1;
+                let group = SampleGroup {
+                    col: (key.0 << TILE_COL_SHIFT) + bit * i64::from(GROUP_WIDTH),
+                    row: key.1 << TILE_ROW_SHIFT,
+                };
+                self.missing.push(trace_order(owner, group));
+            }
+            true
+        });
+    }
+
+    /// The cached mask of tile `key` of `owner`: its groups traced or
+    /// asked for.
+    fn asked(&mut self, owner: Level, key: (i64, i64)) -> &mut u64 {
         let index = owner.index();
         let slot_index = (((owner.x & 3) * 4 + (owner.y & 3)) * 2) as usize + (key.1 & 1) as usize;
         let slot = &mut self.cached[slot_index];
@@ -579,29 +585,7 @@ impl<'a> GroupRequests<'a> {
                 store.tile(key).map_or(0, |t| store.traced[t as usize]),
             );
         }
-        // A group asked for counts as traced in the cached mask, so later
-        // asks skip it.
-        if slot.2 >> bit & 1 == 0 {
-            slot.2 |= 1 << bit;
-            self.missing.push(trace_order(owner, group));
-        }
-    }
-
-    /// Sorts and dedups this region's part of the list: neighbouring rows
-    /// share groups, and a small sort here keeps the frame's list short.
-    fn finish(self) {
-        let before = self.before;
-        let missing = self.missing;
-        let region = &mut missing[before..];
-        region.sort_unstable();
-        let mut kept = before;
-        for i in before..missing.len() {
-            if kept == before || missing[kept - 1] != missing[i] {
-                missing[kept] = missing[i];
-                kept += 1;
-            }
-        }
-        missing.truncate(kept);
+        &mut slot.2
     }
 }
 
@@ -675,6 +659,33 @@ impl SampleMarks {
             }
         }
     }
+}
+
+/// Slot columns `from..=to` (in any turn of `columns`) of slot row `row`
+/// as tiles: `each(key, mask of the groups)`, while it returns true;
+/// whether it always did.
+fn tile_spans(
+    columns: i64,
+    row: i64,
+    from: i64,
+    to: i64,
+    mut each: impl FnMut((i64, i64), u64) -> bool,
+) -> bool {
+    let gw = i64::from(GROUP_WIDTH);
+    let mut col = from;
+    while col <= to {
+        let wc = wrap(col, columns);
+        let run = (to - col + 1)
+            .min(TILE_COLS - (wc & (TILE_COLS - 1)))
+            .min(columns - wc);
+        let (key, _, first) = tile_key(wc, row);
+        let last = ((wc + run - 1) & (TILE_COLS - 1)) / gw;
+        if !each(key, (u64::MAX >> (63 - last as u32)) & (u64::MAX << first)) {
+            return false;
+        }
+        col += run;
+    }
+    true
 }
 
 /// The order groups are traced in, (level, row, column), as one integer:
