@@ -219,6 +219,39 @@ pub(super) fn filter_reads(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::render::{encode_srgb, srgb_table};
+
+    #[test]
+    fn blends_show_a_sample_s_own_byte_where_it_alone_counts() {
+        let srgb = srgb_table();
+        let mut rng = crate::rng::SplitMix64(17);
+        let colour = |rng: &mut crate::rng::SplitMix64| {
+            Vec3::new(rng.unit(), rng.unit(), rng.unit()).powf(2.2)
+        };
+        for _ in 0..2000 {
+            let c = colour(&mut rng);
+            let others = [colour(&mut rng), colour(&mut rng), colour(&mut rng)];
+            let code = encode(srgb, c);
+            assert_eq!(rgb8(code), c.to_array().map(encode_srgb), "{c}");
+            assert_eq!(rgb8(encode(srgb, decode(srgb, code))), rgb8(code));
+            let [x, y, z] = others.map(|o| encode(srgb, o));
+            // A zero weight, or four equal samples: the sample's code.
+            assert_eq!(bilinear([code, x, y, z], 0.0, 0.0), code);
+            assert_eq!(bilinear([x, code, y, z], 1.0, 0.0), code);
+            assert_eq!(bilinear([x, y, z, code], 1.0, 1.0), code);
+            let (fx, fy) = (rng.unit(), rng.unit());
+            assert_eq!(bilinear([code; 4], fx, fy), code);
+            assert_eq!(mean([code; 4]), code);
+            // Otherwise each channel lies between its samples'.
+            let blend = bilinear([code, x, y, z], fx, fy);
+            for shift in CODE_SHIFTS {
+                let all = [code, x, y, z].map(|s| s >> shift & CODE_MASK);
+                let one = blend >> shift & CODE_MASK;
+                let (lo, hi) = (all.iter().min().unwrap(), all.iter().max().unwrap());
+                assert!((*lo..=*hi).contains(&one), "{one} outside {all:?}");
+            }
+        }
+    }
 
     #[test]
     fn changes_name_only_the_knobs_moved_from_their_defaults() {
