@@ -17,7 +17,7 @@ use rayon::prelude::*;
 
 use super::{
     filter::{encode, SampleCode},
-    lattice::{owned_positions, wrap},
+    lattice::{column_runs, owned_positions, wrap},
     map::SampleBox,
     store::{tile_key, TileCache, TileHasher, TILE_COLS},
     Level, SampleBuffer, SampleLattice,
@@ -438,15 +438,10 @@ fn scatter_by<const STRIDE: usize>(out: &mut [Vec3], source: &[Vec3]) {
 /// Columns `c0..=c1` (in any turn of `columns`) as runs (first column in
 /// the turn, length) that stay within one block and one turn.
 fn for_each_run(c0: i64, c1: i64, columns: i64, mut each: impl FnMut(i64, usize)) {
-    let mut col = c0;
-    while col <= c1 {
-        let wc = wrap(col, columns);
-        let run = (c1 - col + 1)
-            .min(BLOCK - (wc & (BLOCK - 1)))
-            .min(columns - wc);
-        each(wc, run as usize);
-        col += run;
-    }
+    column_runs(c0, c1, columns, BLOCK, |col, run| {
+        each(col, run as usize);
+        true
+    });
 }
 
 #[cfg(test)]

@@ -236,6 +236,31 @@ pub(super) fn owned_positions(k: u32, owner: u32) -> (i64, i64) {
     }
 }
 
+/// Columns `from..=to` (in any turn of `columns`) as runs that stay within
+/// one turn and one aligned `chunk` (a power of two: a tile, a block):
+/// `each(first column in the turn, length)`, while it returns true;
+/// whether it always did.
+pub(super) fn column_runs(
+    from: i64,
+    to: i64,
+    columns: i64,
+    chunk: i64,
+    mut each: impl FnMut(i64, i64) -> bool,
+) -> bool {
+    let mut col = from;
+    while col <= to {
+        let wc = wrap(col, columns);
+        let run = (to - col + 1)
+            .min(chunk - (wc & (chunk - 1)))
+            .min(columns - wc);
+        if !each(wc, run) {
+            return false;
+        }
+        col += run;
+    }
+    true
+}
+
 /// `v` modulo `n`, cheaply when it is at most a turn away.
 #[inline(always)]
 pub(super) fn wrap(v: i64, n: i64) -> i64 {

@@ -10,7 +10,7 @@ use rayon::prelude::*;
 use super::{
     fast_atan2,
     filter::{filter_origin, filter_reads},
-    lattice::{owned_positions, wrap},
+    lattice::{column_runs, owned_positions},
     store::{tile_key, TILE_COLS, TILE_COL_SHIFT, TILE_ROW_SHIFT},
     viewport::PixelMap,
     Filter, Level, RsvpKnobs, SampleBuffer, ViewportPose, MAX_LEVEL, REGION,
@@ -672,20 +672,11 @@ fn tile_spans(
     mut each: impl FnMut((i64, i64), u64) -> bool,
 ) -> bool {
     let gw = i64::from(GROUP_WIDTH);
-    let mut col = from;
-    while col <= to {
-        let wc = wrap(col, columns);
-        let run = (to - col + 1)
-            .min(TILE_COLS - (wc & (TILE_COLS - 1)))
-            .min(columns - wc);
-        let (key, _, first) = tile_key(wc, row);
-        let last = ((wc + run - 1) & (TILE_COLS - 1)) / gw;
-        if !each(key, (u64::MAX >> (63 - last as u32)) & (u64::MAX << first)) {
-            return false;
-        }
-        col += run;
-    }
-    true
+    column_runs(from, to, columns, TILE_COLS, |col, run| {
+        let (key, _, first) = tile_key(col, row);
+        let last = ((col + run - 1) & (TILE_COLS - 1)) / gw;
+        each(key, (u64::MAX >> (63 - last as u32)) & (u64::MAX << first))
+    })
 }
 
 /// The order groups are traced in, (level, row, column), as one integer:
