@@ -272,6 +272,16 @@ pub const QUARTER_CODES: u32 = 1024;
 /// the curve a bucket then spans far less than one byte step.
 const SRGB_BUCKET_SHIFT: u32 = 13;
 
+/// For each bucket of the f32 bit patterns of [0, 1], the step (byte or
+/// quarter code) its low end falls in, given each step's least pattern.
+fn bucket_starts(thresholds: &[u32]) -> impl Iterator<Item = usize> + '_ {
+    let count = (1.0f32.to_bits() >> SRGB_BUCKET_SHIFT) + 1;
+    (0..count).map(move |bucket| {
+        let low = bucket << SRGB_BUCKET_SHIFT;
+        thresholds.partition_point(|&t| t <= low) - 1
+    })
+}
+
 impl SrgbTable {
     fn new() -> SrgbTable {
         let mut thresholds = [u32::MAX; 257];
@@ -289,13 +299,7 @@ impl SrgbTable {
             }
             *threshold = lo;
         }
-        let count = (1.0f32.to_bits() >> SRGB_BUCKET_SHIFT) as usize + 1;
-        let buckets: Vec<u8> = (0..count)
-            .map(|bucket| {
-                let low = (bucket as u32) << SRGB_BUCKET_SHIFT;
-                (thresholds.partition_point(|&t| t <= low) - 1) as u8
-            })
-            .collect();
+        let buckets = bucket_starts(&thresholds).map(|b| b as u8).collect();
         // A byte's span of linear values, thresholds[b]..thresholds[b + 1],
         // cut in four equal parts; 255's reaches past 1.0, where encoding
         // stops, as far again as from its threshold (1.0 is then at its
@@ -312,11 +316,8 @@ impl SrgbTable {
                     (lo + quarter as f32 * 0.25 * (hi - lo)).to_bits();
             }
         }
-        let quarter_buckets = (0..count)
-            .map(|bucket| {
-                let low = (bucket as u32) << SRGB_BUCKET_SHIFT;
-                (quarter_thresholds.partition_point(|&t| t <= low) - 1) as u16
-            })
+        let quarter_buckets = bucket_starts(&quarter_thresholds)
+            .map(|code| code as u16)
             .collect();
         let quarter_linear = quarter_thresholds
             .windows(2)
@@ -479,17 +480,26 @@ mod tests {
         assert_eq!(image_groups(640, 480).len(), 160 * 240);
     }
 
+    /// Each bucket's step at its low end (`starts`) against the step of
+    /// its last bit pattern (`step_of`): one compare settles a lookup only
+    /// if they are at most one step apart.
+    fn assert_buckets_span_one_step(
+        starts: impl Iterator<Item = usize>,
+        step_of: impl Fn(u32) -> usize,
+    ) {
+        for (bucket, first) in starts.enumerate() {
+            let high = (((bucket as u32 + 1) << SRGB_BUCKET_SHIFT) - 1).min(1.0f32.to_bits());
+            let last = step_of(high);
+            assert!(last <= first + 1, "bucket {bucket}: {first}..{last}");
+        }
+    }
+
     #[test]
     fn srgb_buckets_span_at_most_one_byte_step() {
         let table = srgb_table();
-        for (bucket, &byte) in table.buckets.iter().enumerate() {
-            let high = (((bucket as u32 + 1) << SRGB_BUCKET_SHIFT) - 1).min(1.0f32.to_bits());
-            let last = encode_srgb(f32::from_bits(high));
-            assert!(
-                u16::from(last) <= u16::from(byte) + 1,
-                "bucket {bucket}: {byte}..{last}"
-            );
-        }
+        assert_buckets_span_one_step(table.buckets.iter().map(|&b| usize::from(b)), |bits| {
+            usize::from(encode_srgb(f32::from_bits(bits)))
+        });
     }
 
     #[test]
@@ -516,15 +526,12 @@ mod tests {
     #[test]
     fn srgb_buckets_span_at_most_one_quarter_step() {
         let table = srgb_table();
-        for (bucket, &code) in table.quarter_buckets.iter().enumerate() {
-            let high = (((bucket as u32 + 1) << SRGB_BUCKET_SHIFT) - 1).min(1.0f32.to_bits());
-            // The code of the bucket's last value, by search.
-            let last = table.quarter_thresholds.partition_point(|&t| t <= high) - 1;
-            assert!(
-                last <= usize::from(code) + 1,
-                "bucket {bucket}: {code}..{last}"
-            );
-        }
+        // A pattern's code by search of the quarter thresholds.
+        let thresholds = &table.quarter_thresholds;
+        assert_buckets_span_one_step(
+            table.quarter_buckets.iter().map(|&c| usize::from(c)),
+            |bits| thresholds.partition_point(|&t| t <= bits) - 1,
+        );
     }
 
     #[test]
