@@ -2,6 +2,7 @@
 //! which level owns a sample, and the rays of a level's own samples.
 
 use std::f64::consts::{FRAC_PI_2, FRAC_PI_4, PI, TAU};
+use std::sync::OnceLock;
 
 use glam::DVec3;
 
@@ -113,6 +114,57 @@ pub struct SampleLattice {
     /// Per elevation level: the last row (a division saved on every sample
     /// read).
     last_rows: [i64; MAX_LEVEL as usize + 1],
+    /// Sines and cosines of the coarse levels' angles, made on first use.
+    angles: AngleTables,
+}
+
+/// Per level, the sine and cosine of every column's azimuth and every
+/// row's elevation, exactly as `f64::sin_cos` gives them: what the libm
+/// calls of [`LevelRays::primary_group`] (2% of E4) would compute again
+/// for every group. Only levels with at most [`TABLED_ANGLES`] columns are
+/// tabled; finer ones, read by extreme zooms only, call libm.
+#[derive(Clone, Default)]
+struct AngleTables {
+    azimuths: [SinCosTable; MAX_LEVEL as usize + 1],
+    elevations: [SinCosTable; MAX_LEVEL as usize + 1],
+}
+
+/// One level's `(sin, cos)` pairs, by column or row.
+type SinCosTable = OnceLock<Box<[(f64, f64)]>>;
+
+/// The most angles a level's table holds (1 MiB of pairs).
+const TABLED_ANGLES: i64 = 1 << 16;
+
+impl AngleTables {
+    /// `angle(i).sin_cos()`, from level `level`'s table of `count` angles
+    /// when it is small enough to keep.
+    fn sin_cos(
+        tables: &[SinCosTable],
+        level: u32,
+        count: i64,
+        i: i64,
+        angle: impl Fn(i64) -> f64,
+    ) -> (f64, f64) {
+        if count > TABLED_ANGLES || !(0..count).contains(&i) {
+            return angle(i).sin_cos();
+        }
+        let table =
+            tables[level as usize].get_or_init(|| (0..count).map(|k| angle(k).sin_cos()).collect());
+        table[i as usize]
+    }
+}
+
+/// Derived data: two lattices are equal when their angles are.
+impl PartialEq for AngleTables {
+    fn eq(&self, _: &AngleTables) -> bool {
+        true
+    }
+}
+
+impl std::fmt::Debug for AngleTables {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("AngleTables")
+    }
 }
 
 impl SampleLattice {
@@ -135,6 +187,7 @@ impl SampleLattice {
             last_rows: std::array::from_fn(|level| {
                 (PI / (step / f64::from(1u32 << level))).floor() as i64
             }),
+            angles: AngleTables::default(),
         }
     }
 
@@ -157,6 +210,23 @@ impl SampleLattice {
     /// `col` brought into the turn at azimuth level `x`.
     pub fn wrap_column(&self, x: u32, col: i64) -> i64 {
         wrap(col, self.columns(x))
+    }
+
+    /// Sine and cosine of the azimuth of column `col` (in the turn) at
+    /// azimuth level `x`.
+    fn azimuth_sin_cos(&self, x: u32, col: i64) -> (f64, f64) {
+        let step = self.step(x);
+        AngleTables::sin_cos(&self.angles.azimuths, x, self.columns(x), col, |c| {
+            c as f64 * step
+        })
+    }
+
+    /// Sine and cosine of the elevation of row `row` at elevation level `y`.
+    fn elevation_sin_cos(&self, y: u32, row: i64) -> (f64, f64) {
+        let step = self.step(y);
+        AngleTables::sin_cos(&self.angles.elevations, y, self.last_row(y) + 1, row, |r| {
+            FRAC_PI_2 - r as f64 * step
+        })
     }
 
     /// Unit direction of sample (col, row) of `level`; None beyond the poles.
@@ -296,16 +366,15 @@ impl PrimaryRays for LevelRays<'_> {
     /// libm calls were a tenth of a steady frame.
     fn primary_group(&self, group: SampleGroup) -> (RayPacket, LaneMask) {
         let (lattice, level) = (self.lattice, self.level);
-        let (step_x, step_y) = (lattice.step(level.x), lattice.step(level.y));
         let origin = lattice.position.as_vec3();
         let az: [(f64, f64); GROUP_WIDTH as usize] = std::array::from_fn(|i| {
             let (col, _) = lattice.slot_position(level, group.col + i as i64, 0);
-            (lattice.wrap_column(level.x, col) as f64 * step_x).sin_cos()
+            lattice.azimuth_sin_cos(level.x, lattice.wrap_column(level.x, col))
         });
         let rows: [i64; GROUP_HEIGHT as usize] =
             std::array::from_fn(|j| lattice.slot_position(level, 0, group.row + j as i64).1);
         let el: [(f64, f64); GROUP_HEIGHT as usize] =
-            std::array::from_fn(|j| (FRAC_PI_2 - rows[j] as f64 * step_y).sin_cos());
+            std::array::from_fn(|j| lattice.elevation_sin_cos(level.y, rows[j]));
         let last_row = lattice.last_row(level.y);
         let mut packet = [Ray::INACTIVE; PACKET_WIDTH];
         let mut mask: LaneMask = 0;
@@ -398,20 +467,36 @@ mod tests {
                 assert_eq!(lattice.owner(level, c, r), (level, col, row), "{level}");
             }
             // A group of slots is eight rays, the same lane by lane as one
-            // by one.
+            // by one: inside the turn, wrapping round it, and at the south
+            // pole (tabled angles on the coarse levels, libm on 7x7).
             let source = LevelRays {
                 lattice: &lattice,
                 level,
             };
-            let group = SampleGroup { col: 8, row: 6 };
-            let (packet, mask) = source.primary_group(group);
-            assert_eq!(mask, 0xff, "{level}");
-            for (lane, (col, row)) in group.lane_samples().into_iter().enumerate() {
-                let ray = source.primary(col, row).unwrap();
-                assert_eq!(
-                    ray.dir.to_array().map(f32::to_bits),
-                    packet[lane].dir.to_array().map(f32::to_bits)
-                );
+            // Slot rows straddling the last row (slot v is row 2v + 1 on a
+            // finer level).
+            let pole = if y == 0 {
+                lattice.last_row(0)
+            } else {
+                lattice.last_row(y) / 2 - 1
+            };
+            for group in [
+                SampleGroup { col: 8, row: 6 },
+                SampleGroup { col: -4, row: 2 },
+                SampleGroup { col: 16, row: pole },
+            ] {
+                let (packet, mask) = source.primary_group(group);
+                assert_eq!(mask == 0xff, group.row != pole, "{level} {group:?}");
+                for (lane, (col, row)) in group.lane_samples().into_iter().enumerate() {
+                    let ray = source.primary(col, row);
+                    assert_eq!(mask >> lane & 1 == 1, ray.is_some(), "{level} {group:?}");
+                    if let Some(ray) = ray {
+                        assert_eq!(
+                            ray.dir.to_array().map(f32::to_bits),
+                            packet[lane].dir.to_array().map(f32::to_bits)
+                        );
+                    }
+                }
             }
         }
     }
