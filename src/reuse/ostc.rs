@@ -53,7 +53,7 @@ use std::time::Instant;
 
 use crate::accel::grid::{GridSpec, GridWalker};
 use crate::geometry::Aabb;
-use glam::Vec3;
+use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 
 use crate::ray::{lanes, LaneMask, Ray, RayPacket, PACKET_WIDTH};
@@ -277,8 +277,9 @@ impl RecordedSegment {
     /// through it well inside), it was blocked and still is, whatever else
     /// lies on it. On E3 that spares the core of the ball's shadows, where
     /// both the old and the new ball block the way to the light.
-    fn may_change(&self, volumes: &[Footprint]) -> bool {
-        volumes.iter().any(|volume| volume.meets_segment(&self.ray))
+    fn may_change(&self, volumes: &[Footprint], reach: &Reach) -> bool {
+        reach.may_meet(&self.ray)
+            && volumes.iter().any(|volume| volume.meets_segment(&self.ray))
             && !(self.shadow && volumes.iter().all(|volume| volume.surely_blocks(&self.ray)))
     }
 }
@@ -417,12 +418,15 @@ impl Ostc {
     /// the footprints are rounded outward).
     pub fn dirty_for(&self, volumes: &[Footprint]) -> RegionSet {
         let candidates: Vec<usize> = self.candidates_for(volumes).iter().collect();
+        let reach = Reach::around(volumes);
         // Testing the segments was most of E3's bookkeeping on one thread
         // (0.3 ms a frame); regions are independent.
         let found: Vec<usize> = candidates
             .into_par_iter()
             .filter(|&region| {
-                self.with_segments(region, |all| all.iter().any(|s| s.may_change(volumes)))
+                self.with_segments(region, |all| {
+                    all.iter().any(|s| s.may_change(volumes, &reach))
+                })
             })
             .collect();
         let mut dirty = RegionSet::empty(self.layout.count());
@@ -439,6 +443,7 @@ impl Ostc {
     /// samples on level k, nearly all of them untouched.
     pub fn dirty_groups_for(&self, volumes: &[Footprint]) -> (RegionSet, Vec<u128>) {
         let candidates: Vec<usize> = self.candidates_for(volumes).iter().collect();
+        let reach = Reach::around(volumes);
         // Every segment of a dirty region is tested (E4: 640M instructions
         // over the sequence), one region per task.
         let found: Vec<(usize, Vec<u128>)> = candidates
@@ -449,7 +454,7 @@ impl Ostc {
                     // A group's segments come in one run (its marker adds
                     // them at once): once one may change, skip the rest.
                     for run in all.chunk_by(|a, b| a.group == b.group) {
-                        if run.iter().any(|s| s.may_change(volumes)) {
+                        if run.iter().any(|s| s.may_change(volumes, &reach)) {
                             groups.push(run[0].group.key());
                         }
                     }
@@ -729,6 +734,60 @@ impl Footprint {
         let half_chord = (grown * grown - distance * distance).sqrt() / dd.sqrt();
         let room = slack / dd.sqrt();
         closest - half_chord > t0 + room && closest + half_chord < t1 - room
+    }
+}
+
+/// A ball around every footprint of a move, for a quick first test of the
+/// recorded segments: a segment whose whole line passes outside it meets
+/// none of them. No division and no root: on E4 most segments of the
+/// candidate regions pass a ball's length or more from the moving ball.
+struct Reach {
+    center: DVec3,
+    radius_squared: f64,
+}
+
+impl Reach {
+    /// Around the footprints' padded bounds, grown far beyond the slack
+    /// [`Footprint::meets_segment`] allows (a hundredth of the size and
+    /// 1e-4 of the distance from the origin, against its 1e-3 and 1e-5).
+    fn around(volumes: &[Footprint]) -> Reach {
+        let bounds = volumes
+            .iter()
+            .map(|volume| padded_outward(volume.bounds()))
+            .reduce(Aabb::union)
+            .unwrap_or(Aabb {
+                min: Vec3::ZERO,
+                max: Vec3::ZERO,
+            });
+        let (min, max) = (bounds.min.as_dvec3(), bounds.max.as_dvec3());
+        let center = (min + max) * 0.5;
+        let half_diagonal = (max - min).length() * 0.5;
+        let radius = half_diagonal * 1.01 + (center.abs().max_element() + half_diagonal) * 1e-4;
+        Reach {
+            center,
+            // No footprint (or a NaN in one): nothing is ruled out.
+            radius_squared: if radius.is_finite() && !volumes.is_empty() {
+                radius * radius
+            } else {
+                f64::INFINITY
+            },
+        }
+    }
+
+    /// False only if the line of `ray` surely passes outside the ball (a
+    /// segment the exact test would keep whatever it is, empty or NaN,
+    /// is kept).
+    fn may_meet(&self, ray: &Ray) -> bool {
+        if !(ray.tmin <= ray.tmax && ray.tmin.is_finite()) {
+            return true;
+        }
+        let to_center = self.center - ray.origin.as_dvec3();
+        let dir = ray.dir.as_dvec3();
+        let (dd, along) = (dir.length_squared(), to_center.dot(dir));
+        // |to_center|^2 - along^2 / dd is the squared distance from the line;
+        // times dd, so no division (dd = 0 keeps the segment, as do NaNs).
+        let outside = to_center.length_squared() * dd - along * along > self.radius_squared * dd;
+        !outside
     }
 }
 
@@ -1128,6 +1187,38 @@ mod tests {
             rays[3] = Ray { origin, dir, tmin: 0.0, tmax: t1 };
             let crossing = voxels.spec.bounds.crossing_lanes(&rays, 1 << 3, &[t1; PACKET_WIDTH]);
             proptest::prop_assert!(!walked || crossing == 1 << 3);
+        }
+    }
+
+    proptest::proptest! {
+        /// The quick ball around a move's footprints never rules out a
+        /// segment the exact test keeps: balls and boxes, far from the
+        /// origin and near, segments grazing them or from afar.
+        #[test]
+        fn reach_rules_out_only_segments_that_miss_every_footprint(
+            center in proptest::array::uniform3(-50.0f32..50.0),
+            offset in proptest::array::uniform3(-1.0f32..1.0),
+            radius in 0.01f32..3.0,
+            boxed in proptest::bool::ANY,
+            origin in proptest::array::uniform3(-200.0f32..200.0),
+            aim in proptest::array::uniform3(-4.0f32..4.0),
+            t1 in prop_oneof![0.0f32..2.0, Just(f32::INFINITY)],
+        ) {
+            let center = Vec3::from(center);
+            let places = [center, center + Vec3::from(offset) * radius * 2.0];
+            let volumes: Vec<Footprint> = places
+                .iter()
+                .map(|&c| if boxed {
+                    Footprint::Box(Aabb { min: c - Vec3::splat(radius), max: c + Vec3::splat(radius) })
+                } else {
+                    Footprint::Ball { center: c, radius }
+                })
+                .collect();
+            let origin = Vec3::from(origin);
+            // Aimed near the first place, so many segments graze it.
+            let ray = Ray { origin, dir: center + Vec3::from(aim) * radius - origin, tmin: 0.0, tmax: t1 };
+            let meets = volumes.iter().any(|v| v.meets_segment(&ray));
+            proptest::prop_assert!(!meets || Reach::around(&volumes).may_meet(&ray));
         }
     }
 
