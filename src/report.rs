@@ -165,8 +165,12 @@ impl ExperimentResult {
         let oracle_speedup = oracle_samples.map(|n| all_pixels / n.max(1) as f64);
         let measured = bench.profile.iter().any(|p| p.psnr_db.is_some());
         let worst_psnr_db = measured.then_some(bench.worst_psnr_db);
+        // The mean beside the worst: a knob that trades accuracy for speed
+        // (oversampling, level bias) may leave the worst frame as it was.
+        let mean = bench.mean_psnr_db;
         let psnr = match worst_psnr_db {
             Some(db) if db.is_infinite() => "identical to direct".to_string(),
+            Some(db) if mean.is_finite() => format!("PSNR {db:.1} dB worst, {mean:.1} mean"),
             Some(db) => format!("PSNR {db:.1} dB worst"),
             None => "error not measured".to_string(),
         };
