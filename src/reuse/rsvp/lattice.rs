@@ -154,7 +154,8 @@ impl AngleTables {
     }
 }
 
-/// Derived data: two lattices are equal when their angles are.
+/// The tables follow from the lattice's other fields: they never make two
+/// lattices differ.
 impl PartialEq for AngleTables {
     fn eq(&self, _: &AngleTables) -> bool {
         true
@@ -362,8 +363,9 @@ impl PrimaryRays for LevelRays<'_> {
     }
 
     /// As `primary` lane by lane, bit for bit, but with one sine and cosine
-    /// per column and per row of the group rather than two per lane: the
-    /// libm calls were a tenth of a steady frame.
+    /// per column and per row of the group rather than two per lane (the
+    /// libm calls were a tenth of a steady frame), read from the lattice's
+    /// tables where the level has them.
     fn primary_group(&self, group: SampleGroup) -> (RayPacket, LaneMask) {
         let (lattice, level) = (self.lattice, self.level);
         let origin = lattice.position.as_vec3();
