@@ -125,31 +125,29 @@ pub struct SampleLattice {
 /// tabled; finer ones, read by extreme zooms only, call libm.
 #[derive(Clone, Default)]
 struct AngleTables {
-    azimuths: [SinCosTable; MAX_LEVEL as usize + 1],
-    elevations: [SinCosTable; MAX_LEVEL as usize + 1],
+    azimuths: LevelAngles,
+    elevations: LevelAngles,
 }
 
-/// One level's `(sin, cos)` pairs, by column or row.
-type SinCosTable = OnceLock<Box<[(f64, f64)]>>;
+/// Per level, its angles' sines and cosines, by column or row.
+#[derive(Clone, Default)]
+struct LevelAngles([OnceLock<Box<[SinCos]>>; MAX_LEVEL as usize + 1]);
+
+/// `(sin, cos)` of one angle.
+type SinCos = (f64, f64);
 
 /// The most angles a level's table holds (1 MiB of pairs).
 const TABLED_ANGLES: i64 = 1 << 16;
 
-impl AngleTables {
+impl LevelAngles {
     /// `angle(i).sin_cos()`, from level `level`'s table of `count` angles
     /// when it is small enough to keep.
-    fn sin_cos(
-        tables: &[SinCosTable],
-        level: u32,
-        count: i64,
-        i: i64,
-        angle: impl Fn(i64) -> f64,
-    ) -> (f64, f64) {
+    fn sin_cos(&self, level: u32, count: i64, i: i64, angle: impl Fn(i64) -> f64) -> (f64, f64) {
         if count > TABLED_ANGLES || !(0..count).contains(&i) {
             return angle(i).sin_cos();
         }
         let table =
-            tables[level as usize].get_or_init(|| (0..count).map(|k| angle(k).sin_cos()).collect());
+            self.0[level as usize].get_or_init(|| (0..count).map(|k| angle(k).sin_cos()).collect());
         table[i as usize]
     }
 }
@@ -217,17 +215,19 @@ impl SampleLattice {
     /// azimuth level `x`.
     fn azimuth_sin_cos(&self, x: u32, col: i64) -> (f64, f64) {
         let step = self.step(x);
-        AngleTables::sin_cos(&self.angles.azimuths, x, self.columns(x), col, |c| {
-            c as f64 * step
-        })
+        self.angles
+            .azimuths
+            .sin_cos(x, self.columns(x), col, |c| c as f64 * step)
     }
 
     /// Sine and cosine of the elevation of row `row` at elevation level `y`.
     fn elevation_sin_cos(&self, y: u32, row: i64) -> (f64, f64) {
         let step = self.step(y);
-        AngleTables::sin_cos(&self.angles.elevations, y, self.last_row(y) + 1, row, |r| {
-            FRAC_PI_2 - r as f64 * step
-        })
+        self.angles
+            .elevations
+            .sin_cos(y, self.last_row(y) + 1, row, |r| {
+                FRAC_PI_2 - r as f64 * step
+            })
     }
 
     /// Unit direction of sample (col, row) of `level`; None beyond the poles.
