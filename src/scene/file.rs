@@ -493,6 +493,33 @@ fn colour(values: [f32; 3]) -> Result<Vec3, String> {
     Ok(v)
 }
 
+/// `path` as the user wrote it: `Spanned<T>` shows up in serde's path as a
+/// private key (anywhere, last too, when the spanned table itself lacks a
+/// field), which no scene file has.
+fn user_path(path: &serde_path_to_error::Path) -> String {
+    use serde_path_to_error::Segment;
+    let mut out = String::new();
+    for segment in path.iter() {
+        match segment {
+            Segment::Seq { index } => out.push_str(&format!("[{index}]")),
+            Segment::Map { key } if key.starts_with("$__serde_spanned") => {}
+            Segment::Map { key } | Segment::Enum { variant: key } => {
+                if !out.is_empty() {
+                    out.push('.');
+                }
+                out.push_str(key);
+            }
+            Segment::Unknown => {
+                if !out.is_empty() {
+                    out.push('.');
+                }
+                out.push('?');
+            }
+        }
+    }
+    out
+}
+
 pub fn parse_scene_str(
     text: &str,
     path: &Path,
@@ -502,18 +529,14 @@ pub fn parse_scene_str(
     let text = source.text.as_str();
     let deserializer = toml::Deserializer::new(text);
     let file: SceneFile = serde_path_to_error::deserialize(deserializer).map_err(|err| {
-        // Spanned<T> shows up in the path as a private key; users never wrote it.
-        let field = err
-            .path()
-            .to_string()
-            .replace("$__serde_spanned_private_value.", "");
+        let field = user_path(err.path());
         let inner = err.into_inner();
         let mut e = SceneError::new(path, inner.message().to_string());
         if let Some(span) = inner.span() {
             let (file, line) = source.locate(line_of(text, span.start));
             e = SceneError::new(file, inner.message().to_string()).at_line(line);
         }
-        if field != "." && !field.is_empty() {
+        if !field.is_empty() {
             e = e.field(field);
         }
         e
@@ -1443,6 +1466,17 @@ mod tests {
         ))
         .unwrap_err();
         assert!(err.message.contains("centre"), "{err}");
+    }
+
+    #[test]
+    fn missing_fields_name_their_table_not_serde_internals() {
+        let err = parse("[camera]\nfov = 60\n").unwrap_err();
+        assert_eq!(err.field.as_deref(), Some("camera"), "{err}");
+        assert!(err.message.contains("missing field `position`"), "{err}");
+        assert!(!err.to_string().contains("serde"), "{err}");
+        let err = parse(&format!("{CAMERA}[[light]]\ncolor = [1, 1, 1]\n")).unwrap_err();
+        assert_eq!(err.field.as_deref(), Some("light[0]"), "{err}");
+        assert!(err.message.contains("missing field `position`"), "{err}");
     }
 
     #[test]
