@@ -72,12 +72,23 @@ pub enum CameraError {
         max: u32,
         max_pixels: u64,
     },
-    #[error("field of view {fov} degrees: must be a number above 0 and {limit}")]
+    #[error("field of view {} degrees: must be a number above 0 and {limit}", tidy_degrees(*fov))]
     FieldOfView { fov: f64, limit: &'static str },
     #[error("equal-angle view spans elevation {low:.3}..{high:.3} degrees: must stay within -90..90 (lower the pitch, the field of view or the height)")]
     ElevationOutOfRange { low: f64, high: f64 },
     #[error("{field} must be finite, got {value}")]
     NotFinite { field: &'static str, value: f64 },
+}
+
+/// Degrees that went through radians, without the round trip's last-digit
+/// noise (500 rather than 500.00000000000006).
+fn tidy_degrees(degrees: f64) -> f64 {
+    let tidy = (degrees * 1e9).round() / 1e9;
+    if tidy.is_finite() {
+        tidy
+    } else {
+        degrees
+    }
 }
 
 /// Largest accepted image side: 32k pixels, and 256 Mpixel in all, checked

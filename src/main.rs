@@ -1643,6 +1643,19 @@ fn tradeoff(args: TradeoffArgs) -> Result<()> {
     Ok(())
 }
 
+/// `err` and its causes, each said once: an error that prints its source
+/// itself (`path: cannot write: No such file`) would otherwise repeat it.
+fn error_text(err: &anyhow::Error) -> String {
+    let mut text = err.to_string();
+    for cause in err.chain().skip(1) {
+        let cause = cause.to_string();
+        if !text.contains(&cause) {
+            text = format!("{text}: {cause}");
+        }
+    }
+    text
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
     if let Some(threads) = cli.threads {
@@ -1669,11 +1682,7 @@ fn main() -> ExitCode {
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(err) => {
-            eprint!("error: {err}");
-            for cause in err.chain().skip(1) {
-                eprint!(": {cause}");
-            }
-            eprintln!();
+            eprintln!("error: {}", error_text(&err));
             ExitCode::FAILURE
         }
     }

@@ -222,8 +222,12 @@ fn image_size_zero_or_absurd() {
     let case = Case::new(&[("s.toml", CAMERA)]);
     case.assert_fails(
         &case.render("s.toml", &["--width", "0"]),
-        &["render.width/height", "at least 1"],
+        &["--width/--height", "at least 1"],
     );
+    // The file's own size keeps its table's name.
+    let case = Case::new(&[("s.toml", &format!("[render]\nwidth = 0\n{CAMERA}"))]);
+    let out = retrace(&["render", "s.toml", "-o", "out.png"], case.dir.path());
+    case.assert_fails(&out, &["s.toml:", "render.width/height", "at least 1"]);
     let out = case.render("s.toml", &["--width", "1000000", "--height", "1000000"]);
     case.assert_fails(&out, &["too large"]);
 }
@@ -233,7 +237,7 @@ fn field_of_view_out_of_range() {
     let case = Case::new(&[("s.toml", CAMERA)]);
     for fov in ["0", "-10", "180", "200"] {
         let out = case.render("s.toml", &["--fov", fov]);
-        case.assert_fails(&out, &["camera.fov", "field of view"]);
+        case.assert_fails(&out, &["--fov", &format!("field of view {fov} degrees")]);
     }
     // Wide is fine below 180 for perspective, and up to 360 for equal-angle.
     case.assert_renders(&case.render("s.toml", &["--fov", "179"]));
@@ -243,6 +247,18 @@ fn field_of_view_out_of_range() {
         &["--fov", "360", "--camera", "equal-angle", "--height", "12"],
     );
     assert!(out.status.success(), "{}", stderr(&out));
+}
+
+#[test]
+fn unwritable_output_says_why_once() {
+    let case = Case::new(&[("s.toml", CAMERA)]);
+    // A folder where the image should go: the final rename fails.
+    std::fs::create_dir(case.path("out.png")).unwrap();
+    let out = case.render("s.toml", &[]);
+    let err = stderr(&out);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(err.contains("out.png: cannot write"), "{err}");
+    assert_eq!(err.matches("os error").count(), 1, "{err}");
 }
 
 #[test]

@@ -121,14 +121,15 @@ on_every_backend! {
             assert_eq!(top, sky, "{projection:?}: top of the image should be sky");
             assert_ne!(bottom, sky, "{projection:?}: bottom of the image should be ground");
         }
-        // And the limits are enforced.
+        // And the limits are enforced (a value given as an override is named
+        // by its flag).
         let err = paper_scene(&SceneOverrides {
             projection: Some(Projection::Perspective),
             fov: Some(180.0),
             ..SceneOverrides::default()
         })
         .unwrap_err();
-        assert_eq!(err.field.as_deref(), Some("camera.fov"));
+        assert_eq!(err.field.as_deref(), Some("--fov"));
     }
 
     closed_mesh_is_watertight(backend) {

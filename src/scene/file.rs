@@ -1163,14 +1163,25 @@ fn convert_camera(
         height: overrides.height.unwrap_or(render.height),
     };
     camera.validate().map_err(|err| {
-        let field = match err {
-            crate::camera::CameraError::EmptyImage { .. }
-            | crate::camera::CameraError::ImageTooLarge { .. } => "render.width/height",
-            crate::camera::CameraError::FieldOfView { .. } => "camera.fov",
-            crate::camera::CameraError::ElevationOutOfRange { .. } => "camera.pitch",
-            crate::camera::CameraError::NotFinite { field, .. } => field,
+        use crate::camera::CameraError;
+        // A value from the command line is named by its flag: the file's
+        // line did not cause it.
+        let (field, flag) = match err {
+            CameraError::EmptyImage { .. } | CameraError::ImageTooLarge { .. } => (
+                "render.width/height",
+                (overrides.width.is_some() || overrides.height.is_some())
+                    .then_some("--width/--height"),
+            ),
+            CameraError::FieldOfView { .. } => {
+                ("camera.fov", overrides.fov.is_some().then_some("--fov"))
+            }
+            CameraError::ElevationOutOfRange { .. } => ("camera.pitch", None),
+            CameraError::NotFinite { field, .. } => (field, None),
         };
-        ctx.error(def.span(), field, err.to_string())
+        match flag {
+            Some(flag) => SceneError::new(ctx.file_of(def.span()), err.to_string()).field(flag),
+            None => ctx.error(def.span(), field, err.to_string()),
+        }
     })?;
     Ok(camera)
 }
@@ -1466,6 +1477,35 @@ mod tests {
         ))
         .unwrap_err();
         assert!(err.message.contains("centre"), "{err}");
+    }
+
+    #[test]
+    fn bad_command_line_overrides_name_their_flag() {
+        let text = CAMERA;
+        let overrides = SceneOverrides {
+            fov: Some(500.0),
+            ..SceneOverrides::default()
+        };
+        let err = parse_scene_str(text, Path::new("t.toml"), &overrides).unwrap_err();
+        assert_eq!(
+            (err.field.as_deref(), err.line),
+            (Some("--fov"), None),
+            "{err}"
+        );
+        assert!(err.message.contains("field of view 500 degrees"), "{err}");
+        let overrides = SceneOverrides {
+            width: Some(0),
+            ..SceneOverrides::default()
+        };
+        let err = parse_scene_str(text, Path::new("t.toml"), &overrides).unwrap_err();
+        assert_eq!(err.field.as_deref(), Some("--width/--height"), "{err}");
+        // The file's own bad value keeps its line.
+        let err = parse("[camera]\nposition = [0, 1, 5]\nfov = 500\n").unwrap_err();
+        assert_eq!(
+            (err.field.as_deref(), err.line),
+            (Some("camera.fov"), Some(1)),
+            "{err}"
+        );
     }
 
     #[test]
