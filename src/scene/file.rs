@@ -49,9 +49,10 @@ struct SceneFile {
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct AnimationDef {
-    frames: u32,
-    #[serde(default = "default_fps")]
-    fps: f64,
+    frames: Spanned<u32>,
+    /// Frames per second, 25 when not given.
+    #[serde(default)]
+    fps: Option<Spanned<f64>>,
     #[serde(default)]
     camera: Vec<Spanned<CameraKeyDef>>,
     #[serde(default)]
@@ -139,9 +140,7 @@ struct LightKeyDef {
     ease: Ease,
 }
 
-fn default_fps() -> f64 {
-    25.0
-}
+const DEFAULT_FPS: f64 = 25.0;
 
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -334,11 +333,6 @@ impl Source {
         }
         let (file, first, _) = self.pieces.last().expect("a source has a piece");
         (file, line.saturating_sub(*first) + 1)
-    }
-
-    /// The file the scene was loaded from (the last, including piece).
-    fn main_file(&self) -> &Path {
-        &self.pieces.last().expect("a source has a piece").0
     }
 }
 
@@ -825,20 +819,14 @@ fn convert_animation(
     def: &AnimationDef,
     base: &Camera,
 ) -> Result<Animation, SceneError> {
-    let no_span = || SceneError::new(ctx.source.main_file(), "");
-    if def.frames == 0 {
-        return Err(SceneError {
-            message: "must be at least 1".into(),
-            ..no_span()
-        }
-        .field("animation.frames"));
+    let frames = *def.frames.get_ref();
+    let fps = def.fps.as_ref().map_or(DEFAULT_FPS, |fps| *fps.get_ref());
+    if frames == 0 {
+        return Err(ctx.error(def.frames.span(), "animation.frames", "must be at least 1"));
     }
-    if !(def.fps.is_finite() && def.fps > 0.0) {
-        return Err(SceneError {
-            message: format!("must be above 0, got {}", def.fps),
-            ..no_span()
-        }
-        .field("animation.fps"));
+    if !(fps.is_finite() && fps > 0.0) {
+        let span = def.fps.as_ref().map_or(0..0, Spanned::span);
+        return Err(ctx.error(span, "animation.fps", format!("must be above 0, got {fps}")));
     }
     let mut keys: Vec<CameraKey> = Vec::with_capacity(def.camera.len());
     for (i, key) in def.camera.iter().enumerate() {
@@ -881,7 +869,7 @@ fn convert_animation(
         resolved.frame = k.frame;
         keys.push(resolved);
     }
-    Ok(Animation::camera_only(def.frames, def.fps, keys))
+    Ok(Animation::camera_only(frames, fps, keys))
 }
 
 /// Keys with a `frame`, for [`check_key_order`].
@@ -1568,6 +1556,8 @@ mod tests {
                 "object[0].vertices",
             ),
             ("[[light]]\nposition = [0, nan, 0]\n", "light[0].position"),
+            ("[animation]\nframes = 0\n", "animation.frames"),
+            ("[animation]\nframes = 2\nfps = 0\n", "animation.fps"),
         ] {
             let err = parse(&format!("{CAMERA}{body}")).unwrap_err();
             assert_eq!(err.field.as_deref(), Some(field), "{err}");
