@@ -1138,10 +1138,15 @@ fn stats_csv(stats: &[retrace::anim::FrameStats]) -> Result<String> {
 fn animate(args: AnimateArgs) -> Result<()> {
     let frame_path = frame_namer(&args.output)?;
     let dirty_path = args.dirty_image.as_deref().map(frame_namer).transpose()?;
+    let extension = |path: &Path| path.extension().map(|e| e.to_string_lossy().to_lowercase());
     if let Some(path) = &args.stats {
-        let ext = path.extension().map(|e| e.to_string_lossy().to_lowercase());
-        if !matches!(ext.as_deref(), Some("csv" | "json")) {
+        if !matches!(extension(path).as_deref(), Some("csv" | "json")) {
             anyhow::bail!("--stats {}: use a .csv or .json file", path.display());
+        }
+    }
+    if let Some(path) = &args.gif {
+        if extension(path).as_deref() != Some("gif") {
+            anyhow::bail!("--gif {}: use a .gif file", path.display());
         }
     }
     let scene = load(&args.scene)?;

@@ -193,7 +193,7 @@ fn animate_writes_frames_gif_and_stats_and_verifies() {
 #[test]
 fn animate_rejects_bad_input_cleanly() {
     let dir = pan_case("");
-    let cases: [(&[&str], &str); 4] = [
+    let cases: [(&[&str], &str); 6] = [
         (
             &["animate", "pan.toml", "-o", "out/frame.png"],
             "no # for the frame number",
@@ -223,6 +223,28 @@ fn animate_rejects_bad_input_cleanly() {
         (
             &["animate", "pan.toml", "-o", "/proc/forbidden/f_#.png"],
             "output folder",
+        ),
+        (
+            &[
+                "animate",
+                "pan.toml",
+                "-o",
+                "out/f_#.png",
+                "--gif",
+                "out/a.png",
+            ],
+            "--gif out/a.png: use a .gif file",
+        ),
+        (
+            &[
+                "animate",
+                "pan.toml",
+                "-o",
+                "out/f_#.png",
+                "--stats",
+                "out/s.txt",
+            ],
+            "--stats out/s.txt: use a .csv or .json file",
         ),
     ];
     for (args, needle) in cases {
