@@ -198,6 +198,28 @@ fn degenerate_triangles_are_skipped_with_a_warning() {
 }
 
 #[test]
+fn a_missing_material_library_warns_and_renders() {
+    let obj = format!("mtllib gone.mtl\nusemtl red\n{TRIANGLE_OBJ}");
+    let case = Case::new(&[("m.obj", &obj)]);
+    let out = case.render("m.obj", &[]);
+    case.assert_renders(&out);
+    let err = stderr(&out);
+    assert!(
+        err.contains("m.obj: material library not loaded (gone.mtl"),
+        "{err}"
+    );
+    // A model that names no library says nothing about one.
+    let case = Case::new(&[("m.obj", TRIANGLE_OBJ)]);
+    let out = case.render("m.obj", &[]);
+    case.assert_renders(&out);
+    assert!(
+        !stderr(&out).contains("material library"),
+        "{}",
+        stderr(&out)
+    );
+}
+
+#[test]
 fn empty_mesh() {
     let case = Case::new(&[("empty.obj", "# nothing\nv 0 0 0\n")]);
     case.assert_fails(

@@ -1337,13 +1337,7 @@ fn convert_object(
                 .unwrap_or(Path::new("."))
                 .join(file);
             let loaded = super::load_obj_mesh(&obj_path)?;
-            if loaded.dropped_degenerate > 0 {
-                warnings.push(format!(
-                    "{}: dropped {} degenerate triangle(s) (zero area or repeated vertices)",
-                    obj_path.display(),
-                    loaded.dropped_degenerate
-                ));
-            }
+            warnings.extend(loaded.warnings(&obj_path));
             if loaded.triangle_count() == 0 {
                 warnings.push(format!("{}: mesh has no triangles", obj_path.display()));
             }

@@ -24,9 +24,31 @@ pub struct ObjMesh {
     pub parts: Vec<ObjPart>,
     /// Zero-area triangles (repeated vertices, collinear points) left out.
     pub dropped_degenerate: usize,
+    /// Why the material library the model names did not load, if it did
+    /// not: the model then renders with the scene's material.
+    pub material_problem: Option<String>,
 }
 
 impl ObjMesh {
+    /// What a user should hear about loading `path` (this model).
+    pub fn warnings(&self, path: &Path) -> Vec<String> {
+        let mut warnings = Vec::new();
+        if self.dropped_degenerate > 0 {
+            warnings.push(format!(
+                "{}: dropped {} degenerate triangle(s) (zero area or repeated vertices)",
+                path.display(),
+                self.dropped_degenerate
+            ));
+        }
+        if let Some(problem) = &self.material_problem {
+            warnings.push(format!(
+                "{}: material library not loaded ({problem}); the model uses the default material",
+                path.display()
+            ));
+        }
+        warnings
+    }
+
     pub fn triangle_count(&self) -> usize {
         self.parts.iter().map(|p| p.mesh.triangles.len()).sum()
     }
@@ -144,8 +166,18 @@ pub fn load_obj_mesh(path: &Path) -> Result<ObjMesh, SceneError> {
     let (models, materials) = tobj::load_obj(path, &options)
         .map_err(|err| SceneError::new(path, format!("cannot parse OBJ: {err}")))?;
     // A missing or broken MTL is not fatal: the model renders with the
-    // scene's material instead.
-    let materials = materials.unwrap_or_default();
+    // scene's material instead (and the user is told).
+    let (materials, material_problem) = match materials {
+        Ok(materials) => (materials, None),
+        Err(err) => {
+            let named: Vec<&str> = text
+                .lines()
+                .filter_map(|line| line.trim().strip_prefix("mtllib "))
+                .map(str::trim)
+                .collect();
+            (Vec::new(), Some(format!("{}: {err}", named.join(" "))))
+        }
+    };
 
     let mut dropped_degenerate = 0;
     let mut parts: Vec<ObjPart> = Vec::new();
@@ -191,6 +223,7 @@ pub fn load_obj_mesh(path: &Path) -> Result<ObjMesh, SceneError> {
     Ok(ObjMesh {
         parts,
         dropped_degenerate,
+        material_problem,
     })
 }
 
@@ -216,14 +249,7 @@ pub(super) fn scene_around_obj(
     overrides: &SceneOverrides,
 ) -> Result<Scene, SceneError> {
     let loaded = load_obj_mesh(path)?;
-    let mut warnings = Vec::new();
-    if loaded.dropped_degenerate > 0 {
-        warnings.push(format!(
-            "{}: dropped {} degenerate triangle(s) (zero area or repeated vertices)",
-            path.display(),
-            loaded.dropped_degenerate
-        ));
-    }
+    let warnings = loaded.warnings(path);
     let bounds = loaded.bounds();
     if loaded.triangle_count() == 0 || !bounds.is_finite() {
         return Err(SceneError::new(
