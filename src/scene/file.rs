@@ -1158,12 +1158,27 @@ fn convert_camera(
             CameraError::EmptyImage { .. } | CameraError::ImageTooLarge { .. } => (
                 "render.width/height",
                 (overrides.width.is_some() || overrides.height.is_some())
-                    .then_some("--width/--height"),
+                    .then(|| "--width/--height".to_string()),
             ),
-            CameraError::FieldOfView { .. } => {
-                ("camera.fov", overrides.fov.is_some().then_some("--fov"))
+            CameraError::FieldOfView { .. } => (
+                "camera.fov",
+                overrides.fov.is_some().then(|| "--fov".to_string()),
+            ),
+            // The pitch, field of view, projection and height together.
+            CameraError::ElevationOutOfRange { .. } => {
+                let given: Vec<&str> = [
+                    (overrides.projection.is_some(), "--camera"),
+                    (overrides.fov.is_some(), "--fov"),
+                    (overrides.height.is_some(), "--height"),
+                ]
+                .into_iter()
+                .filter_map(|(given, flag)| given.then_some(flag))
+                .collect();
+                (
+                    "camera.pitch",
+                    (!given.is_empty()).then(|| format!("camera.pitch with {}", given.join(", "))),
+                )
             }
-            CameraError::ElevationOutOfRange { .. } => ("camera.pitch", None),
             CameraError::NotFinite { field, .. } => (field, None),
         };
         match flag {
@@ -1481,6 +1496,17 @@ mod tests {
         };
         let err = parse_scene_str(text, Path::new("t.toml"), &overrides).unwrap_err();
         assert_eq!(err.field.as_deref(), Some("--width/--height"), "{err}");
+        let overrides = SceneOverrides {
+            projection: Some(Projection::EqualAngle),
+            fov: Some(360.0),
+            ..SceneOverrides::default()
+        };
+        let err = parse_scene_str(text, Path::new("t.toml"), &overrides).unwrap_err();
+        assert_eq!(
+            err.field.as_deref(),
+            Some("camera.pitch with --camera, --fov"),
+            "{err}"
+        );
         // The file's own bad value keeps its line.
         let err = parse("[camera]\nposition = [0, 1, 5]\nfov = 500\n").unwrap_err();
         assert_eq!(
