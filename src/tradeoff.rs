@@ -176,10 +176,13 @@ fn ostc_settings() -> Vec<(&'static str, String, OstcSettings)> {
             OstcSettings { regions, ..default },
         ));
     }
-    for voxels in [64, DEFAULT_VOXELS, 4096, 32_768] {
+    let mut voxel_counts = vec![64, DEFAULT_VOXELS, 4096, 32_768];
+    voxel_counts.sort_unstable();
+    voxel_counts.dedup();
+    for voxels in voxel_counts {
         settings.push((
             "OSTC voxel grid",
-            format!("{voxels} voxels"),
+            format!("{voxels} voxel{}", if voxels == 1 { "" } else { "s" }),
             OstcSettings { voxels, ..default },
         ));
     }
