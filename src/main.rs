@@ -10,7 +10,7 @@ use clap::{Args, Parser, Subcommand};
 use retrace::accel::{Accelerator, BackendKind};
 use retrace::anim::{Animator, Techniques};
 use retrace::camera::Projection;
-use retrace::output::save_image;
+use retrace::output::{save_image, PendingFile};
 use retrace::render::render_frame;
 use retrace::scene::{load_scene, paper_scene, Scene, SceneOverrides};
 
@@ -986,9 +986,10 @@ fn check_writable(dir: &Path) -> Result<()> {
 }
 
 struct GifWriter {
-    /// None once finished.
+    /// None once finished. Declared first: dropped (closing the file)
+    /// before `file` removes an unfinished one.
     encoder: Option<image::codecs::gif::GifEncoder<std::io::BufWriter<std::fs::File>>>,
-    temp: PathBuf,
+    file: PendingFile,
     path: PathBuf,
     delay: image::Delay,
 }
@@ -996,22 +997,16 @@ struct GifWriter {
 impl GifWriter {
     fn create(path: &Path, fps: f64) -> Result<GifWriter> {
         ensure_parent(path)?;
-        let temp = path.with_file_name(format!(
-            ".{}.{}.tmp",
-            path.file_name()
-                .map(|n| n.to_string_lossy())
-                .unwrap_or_default(),
-            std::process::id()
-        ));
-        let file = std::fs::File::create(&temp)
+        let file = PendingFile::beside(path);
+        let out = std::fs::File::create(file.temp())
             .with_context(|| format!("cannot write {}", path.display()))?;
         // Speed 20 of 30: quantization good enough for previews, several times faster than the default.
         let mut encoder =
-            image::codecs::gif::GifEncoder::new_with_speed(std::io::BufWriter::new(file), 20);
+            image::codecs::gif::GifEncoder::new_with_speed(std::io::BufWriter::new(out), 20);
         encoder.set_repeat(image::codecs::gif::Repeat::Infinite)?;
         Ok(GifWriter {
             encoder: Some(encoder),
-            temp,
+            file,
             path: path.to_path_buf(),
             delay: image::Delay::from_numer_denom_ms(1000, fps.round().max(1.0) as u32),
         })
@@ -1029,18 +1024,7 @@ impl GifWriter {
     fn finish(mut self) -> Result<()> {
         // Dropping the encoder writes the trailer and flushes the file.
         drop(self.encoder.take());
-        std::fs::rename(&self.temp, &self.path)
-            .with_context(|| format!("cannot write {}", self.path.display()))
-    }
-}
-
-impl Drop for GifWriter {
-    fn drop(&mut self) {
-        // An unfinished GIF (an error stopped the run) leaves no file behind.
-        if self.encoder.is_some() {
-            drop(self.encoder.take());
-            let _ = std::fs::remove_file(&self.temp);
-        }
+        Ok(self.file.commit()?)
     }
 }
 
@@ -1663,6 +1647,15 @@ fn error_text(err: &anyhow::Error) -> String {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    // Ctrl-C stops at once, leaving finished files and no unfinished ones
+    // (frames, GIFs, reports are written under temporary names).
+    let interrupted = ctrlc::set_handler(|| {
+        eprintln!("\ninterrupted");
+        retrace::output::remove_unfinished_and_exit(130)
+    });
+    if let Err(err) = interrupted {
+        eprintln!("warning: Ctrl-C will not clean up unfinished files: {err}");
+    }
     if let Some(threads) = cli.threads {
         if let Err(err) = rayon::ThreadPoolBuilder::new()
             .num_threads(threads.max(1))

@@ -340,3 +340,60 @@ fn resampled_pans_match_snapped_ones_on_whole_samples_and_measure_their_error() 
     );
     assert!(error.mean_abs < 0.1, "{error:?}");
 }
+
+#[test]
+fn an_interrupted_run_leaves_finished_files_only() {
+    use std::process::{Command, Stdio};
+    use std::time::{Duration, Instant};
+    let dir = tempfile::tempdir().unwrap();
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/paper-bounce.toml");
+    let mut child = Command::new(env!("CARGO_BIN_EXE_retrace"))
+        .arg("animate")
+        .args([scene.to_str().unwrap(), "--width", "320", "--height", "240"])
+        .args(["-o", "out/f_####.png", "--gif", "out/a.gif"])
+        .current_dir(dir.path())
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let out = dir.path().join("out");
+    let names = || -> Vec<String> {
+        std::fs::read_dir(&out)
+            .map(|d| {
+                d.filter_map(|e| e.ok())
+                    .map(|e| e.file_name().to_string_lossy().into_owned())
+                    .collect()
+            })
+            .unwrap_or_default()
+    };
+    // Interrupt once a few frames are out and the GIF is being written.
+    let start = Instant::now();
+    while names().iter().filter(|n| n.ends_with(".png")).count() < 3 {
+        assert!(
+            child.try_wait().unwrap().is_none(),
+            "finished before the interrupt"
+        );
+        assert!(
+            start.elapsed() < Duration::from_secs(120),
+            "no frames written"
+        );
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    assert!(names().iter().any(|n| n.ends_with(".tmp")), "{:?}", names());
+    let kill = Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(kill.success());
+    let result = child.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&result.stderr);
+    assert_eq!(result.status.code(), Some(130), "{err}");
+    assert!(err.contains("interrupted"), "{err}");
+    let left = names();
+    assert!(!left.iter().any(|n| n.ends_with(".tmp")), "{left:?}");
+    assert!(!left.contains(&"a.gif".to_string()), "{left:?}");
+    // Every frame that is there is whole.
+    for name in left {
+        image::open(out.join(&name)).unwrap_or_else(|e| panic!("{name}: {e}"));
+    }
+}
