@@ -1021,6 +1021,14 @@ impl GifWriter {
             .with_context(|| format!("cannot encode {}", self.path.display()))
     }
 
+    /// A frame written by an earlier run (`--skip-existing`), read back so
+    /// that the GIF still shows every frame.
+    fn add_file(&mut self, path: &Path) -> Result<()> {
+        let image = image::open(path)
+            .with_context(|| format!("cannot read {} back for the GIF", path.display()))?;
+        self.add(&image.to_rgb8())
+    }
+
     fn finish(mut self) -> Result<()> {
         // Dropping the encoder writes the trailer and flushes the file.
         drop(self.encoder.take());
@@ -1191,9 +1199,14 @@ fn animate(args: AnimateArgs) -> Result<()> {
         .regions
         .region_size(scene.camera.width, scene.camera.height);
     let mut write_ms = 0.0;
+    let mut skipped = 0;
     for frame in range.clone() {
         let path = frame_path(frame);
         if args.skip_existing && path.exists() {
+            if let Some(gif) = &mut gif {
+                gif.add_file(&path)?;
+            }
+            skipped += 1;
             bar.inc(1);
             continue;
         }
@@ -1251,7 +1264,7 @@ fn animate(args: AnimateArgs) -> Result<()> {
     for reason in refusals {
         eprintln!("warning: rendered in full: {reason}");
     }
-    let what = format!("{} frames", all_stats.len());
+    let what = format!("{} frames{}", all_stats.len(), skipped_note(skipped));
     say!(
         "{}: {what} {}",
         scene_name(&args.scene),
@@ -1348,12 +1361,17 @@ fn animate_viewports(
     let mut write_ms = 0.0;
     // (frames checked, samples compared, samples differing)
     let mut buffer_check = (0u32, 0u64, 0u64);
+    let mut skipped = 0;
     for frame in range.clone() {
         if args.skip_existing
             && names
                 .iter()
                 .all(|n| viewport_path(&pattern, frame, n).exists())
         {
+            if let Some(gif) = &mut gif {
+                gif.add_file(&viewport_path(&pattern, frame, &names[0]))?;
+            }
+            skipped += 1;
             bar.inc(1);
             continue;
         }
@@ -1431,10 +1449,11 @@ fn animate_viewports(
         }
     }
     let what = format!(
-        "{} frames x {} viewports ({})",
-        range.end() - range.start() + 1,
+        "{} frames x {} viewports ({}){}",
+        range.end() - range.start() + 1 - skipped,
         names.len(),
-        names.join(", ")
+        names.join(", "),
+        skipped_note(skipped)
     );
     say!(
         "{}: {what} {}",
@@ -1454,9 +1473,19 @@ fn animate_viewports(
     Ok(())
 }
 
+/// Says how many frames `--skip-existing` left as they were, if any.
+fn skipped_note(skipped: u32) -> String {
+    if skipped == 0 {
+        String::new()
+    } else {
+        format!(" ({skipped} more skipped: their files exist)")
+    }
+}
+
 /// Time spent, and samples traced against pixels shown, over a run.
 fn run_summary(stats: &[retrace::anim::FrameStats], write_ms: f64) -> String {
-    let total: f64 = stats.iter().map(|s| s.total_ms).sum();
+    // A float sum starts at -0.0: no frame rendered would say "-0.0 ms".
+    let total: f64 = stats.iter().map(|s| s.total_ms).sum::<f64>() + 0.0;
     let traced: u64 = stats.iter().map(|s| s.samples_traced).sum();
     let pixels: u64 = stats.iter().map(|s| s.pixels).sum();
     format!(

@@ -188,6 +188,43 @@ fn animate_writes_frames_gif_and_stats_and_verifies() {
         serde_json::from_str(&std::fs::read_to_string(dir.path().join("out/s.json")).unwrap())
             .unwrap();
     assert_eq!(json.as_array().unwrap().len(), 0, "both frames existed");
+    assert!(
+        String::from_utf8_lossy(&out.stdout).contains("0 frames (2 more skipped"),
+        "{}",
+        String::from_utf8_lossy(&out.stdout)
+    );
+
+    // Resuming with a GIF: the frames already there go into it too, so it
+    // equals the first run's.
+    std::fs::remove_file(dir.path().join("out/f_003.png")).unwrap();
+    let out = retrace(
+        &[
+            "animate",
+            "pan.toml",
+            "--width",
+            "48",
+            "--height",
+            "32",
+            "-o",
+            "out/f_###.png",
+            "--skip-existing",
+            "--gif",
+            "out/b.gif",
+        ],
+        dir.path(),
+    );
+    assert!(out.status.success(), "{}", stderr(&out));
+    let resumed = std::fs::read(dir.path().join("out/b.gif")).unwrap();
+    let frames = |bytes: &[u8]| {
+        use image::AnimationDecoder;
+        let decoder = image::codecs::gif::GifDecoder::new(std::io::Cursor::new(bytes)).unwrap();
+        decoder
+            .into_frames()
+            .map(|f| f.unwrap().into_buffer())
+            .collect::<Vec<_>>()
+    };
+    assert_eq!(frames(&resumed).len(), 6);
+    assert!(frames(&resumed) == frames(&gif), "the resumed GIF differs");
 }
 
 #[test]
