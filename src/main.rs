@@ -106,10 +106,11 @@ struct ValidateArgs {
 struct SceneArgs {
     /// Scene file (.toml) or OBJ model; the built-in paper scene if omitted.
     scene: Option<PathBuf>,
-    /// Image width in pixels.
+    /// Image width in pixels: the camera's (RSVP viewports keep their own
+    /// sizes; `bench` gives its viewport experiments' viewport this size too).
     #[arg(long)]
     width: Option<u32>,
-    /// Image height in pixels.
+    /// Image height in pixels (as for --width).
     #[arg(long)]
     height: Option<u32>,
     /// Camera projection.
