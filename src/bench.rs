@@ -345,6 +345,9 @@ pub struct SequenceBench {
     pub max_yaw_error_deg: f64,
     pub rounds: usize,
     pub threads: usize,
+    /// Why accelerated frames were rendered in full, where reuse could not
+    /// apply (a pan on a camera that is not equal-angle, say), each once.
+    pub full_reasons: Vec<String>,
     /// Per frame: times are medians over the rounds.
     pub profile: Vec<FrameProfile>,
 }
@@ -571,6 +574,7 @@ pub fn bench_sequence(
     let mut exact = true;
     let mut samples_traced = 0;
     let mut max_yaw_error: f64 = 0.0;
+    let mut full_reasons: Vec<String> = Vec::new();
     let mut pixels_per_frame = 0;
     let mut bookkeeping_ms = 0.0;
     let mut oracle = Oracle::new(region_size);
@@ -642,6 +646,12 @@ pub fn bench_sequence(
             row.bookkeeping_ms = stats.bookkeeping_ms;
             row.accelerated_trace_ms = stats.trace_ms;
             row.accelerated_copy_ms = stats.copy_ms;
+            if stats.mode == "full"
+                && !stats.reason.is_empty()
+                && !full_reasons.contains(&stats.reason)
+            {
+                full_reasons.push(stats.reason.clone());
+            }
             progress();
         }
         fast_times.push(elapsed);
@@ -683,6 +693,7 @@ pub fn bench_sequence(
         max_yaw_error_deg: max_yaw_error,
         rounds,
         threads: rayon::current_num_threads(),
+        full_reasons,
         profile,
     }
 }

@@ -760,6 +760,9 @@ fn run_experiment(
                 args.repeats.unwrap_or(1) as usize,
                 tick,
             );
+            for reason in &result.full_reasons {
+                bar.suspend(|| eprintln!("warning: {}: rendered in full: {reason}", info.id));
+            }
             ExperimentResult::from_sequence(info, result, experiment == Experiment::E3)
         }
         Experiment::E2In | Experiment::E2Out | Experiment::E4 => {

@@ -354,6 +354,33 @@ fn bench(out: &Path, extra: &[&str]) -> Output {
 }
 
 #[test]
+fn bench_says_when_reuse_could_not_apply() {
+    let dir = tempfile::tempdir().unwrap();
+    // The bunny scene's camera is a perspective one: E1's pan cannot shift it.
+    let out = bench(
+        &dir.path().join("bench"),
+        &["--only", "E1", "--frames", "0-1", "scenes/bunny.toml"],
+    );
+    let err = stderr(&out);
+    assert!(out.status.success(), "{err}");
+    assert!(
+        err.contains("warning: E1: rendered in full: the perspective camera moves"),
+        "{err}"
+    );
+    // The paper's own E1 has nothing to say.
+    let out = bench(
+        &dir.path().join("bench"),
+        &["--only", "E1", "--frames", "0-1"],
+    );
+    assert!(out.status.success());
+    assert!(
+        !stderr(&out).contains("rendered in full"),
+        "{}",
+        stderr(&out)
+    );
+}
+
+#[test]
 fn bench_repeats_viewport_experiments_too() {
     let dir = tempfile::tempdir().unwrap();
     let out_dir = dir.path().join("bench");
