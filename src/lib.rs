@@ -8,6 +8,7 @@ pub mod accel;
 pub mod anim;
 pub mod bench;
 pub mod camera;
+pub mod chunk;
 pub mod geometry;
 pub mod output;
 pub mod plot;

@@ -232,6 +232,17 @@ struct AnimateArgs {
     /// Leave frames whose file already exists (to resume a run).
     #[arg(long)]
     skip_existing: bool,
+    /// For array jobs on a render farm: cut the frames into N contiguous
+    /// chunks and render one, starting from a full frame. Which one:
+    /// --chunk-index, else the scheduler's task index (SLURM_ARRAY_TASK_ID
+    /// from SLURM_ARRAY_TASK_MIN, JOB_COMPLETION_INDEX of a Kubernetes
+    /// indexed Job, AWS_BATCH_JOB_ARRAY_INDEX). The frames equal those of
+    /// one run; --stats files get the chunk's number (stats.chunk03.csv).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
+    chunks: Option<u32>,
+    /// With --chunks: this task's chunk, from 0.
+    #[arg(long, requires = "chunks")]
+    chunk_index: Option<u32>,
 }
 
 #[derive(Args)]
@@ -1131,6 +1142,61 @@ fn stats_csv(stats: &[retrace::anim::FrameStats]) -> Result<String> {
     Ok(csv)
 }
 
+/// The frames this task renders and where its statistics go: all of
+/// `range`, or with `--chunks` this task's chunk of it (None: the chunk is
+/// empty, nothing to do).
+fn chunk_of(
+    args: &AnimateArgs,
+    range: std::ops::RangeInclusive<u32>,
+) -> Result<Option<(std::ops::RangeInclusive<u32>, Option<PathBuf>)>> {
+    use retrace::chunk::{chunk_frames, chunk_path, index_from_env, IndexSource};
+    let Some(count) = args.chunks else {
+        return Ok(Some((range, args.stats.clone())));
+    };
+    let (index, source) = match args.chunk_index {
+        Some(index) => (index, IndexSource::Flag),
+        None => index_from_env(|name| std::env::var(name).ok())
+            .map_err(|err| anyhow::anyhow!("--chunks {count}: {err}"))?
+            .ok_or_else(|| {
+                anyhow::anyhow!(
+                    "--chunks {count}: which chunk is this task's? Give --chunk-index, or run it as \
+                     a Slurm array task, a Kubernetes indexed Job or an AWS Batch array job"
+                )
+            })?,
+    };
+    if index >= count {
+        anyhow::bail!(
+            "--chunks {count}: chunk {index} (from {source}) is not one of 0-{}",
+            count - 1
+        );
+    }
+    if count > 1 && args.gif.is_some() {
+        anyhow::bail!(
+            "--gif with --chunks {count}: each task has only its chunk's frames; make the GIF \
+             from all the frame files once the tasks are done"
+        );
+    }
+    let stats = args
+        .stats
+        .as_deref()
+        .map(|path| chunk_path(path, count, index));
+    let what = format!(
+        "chunk {index} of {count} (from {source}) of frames {}-{}",
+        range.start(),
+        range.end()
+    );
+    match chunk_frames(&range, count, index) {
+        Some(frames) => {
+            eprintln!("{what}: frames {}-{}", frames.start(), frames.end());
+            Ok(Some((frames, stats)))
+        }
+        None => {
+            eprintln!("{what}: no frames (more chunks than frames)");
+            Ok(None)
+        }
+    }
+}
+
 fn animate(args: AnimateArgs) -> Result<()> {
     let frame_path = frame_namer(&args.output)?;
     let dirty_path = args.dirty_image.as_deref().map(frame_namer).transpose()?;
@@ -1151,6 +1217,9 @@ fn animate(args: AnimateArgs) -> Result<()> {
         .as_ref()
         .map_or((1, 25.0), |a| (a.frames, a.fps));
     let range = parse_frame_range(args.frames.as_deref(), count)?;
+    let Some((range, stats_path)) = chunk_of(&args, range)? else {
+        return Ok(());
+    };
     let out_dir = frame_path(*range.start())
         .parent()
         .filter(|d| !d.as_os_str().is_empty())
@@ -1182,7 +1251,7 @@ fn animate(args: AnimateArgs) -> Result<()> {
     animator.set_traced_image(dirty_path.is_some());
     if animator.has_viewports() {
         animator.set_rsvp_knobs(args.rsvp.knobs()?);
-        return animate_viewports(&args, &scene, animator, range, gif);
+        return animate_viewports(&args, &scene, animator, range, gif, stats_path.as_deref());
     }
     if args.buffer_image.is_some() {
         anyhow::bail!("--buffer-image needs a scene with [[viewport]] tables (RSVP)");
@@ -1257,7 +1326,7 @@ fn animate(args: AnimateArgs) -> Result<()> {
         bar.inc(1);
     }
     bar.finish_and_clear();
-    finish_outputs(gif, args.stats.as_deref(), &all_stats)?;
+    finish_outputs(gif, stats_path.as_deref(), &all_stats)?;
     // Reuse that was asked for but could not apply is worth a word.
     let mut refusals: Vec<&str> = all_stats
         .iter()
@@ -1336,6 +1405,7 @@ fn animate_viewports(
     mut animator: Animator,
     range: std::ops::RangeInclusive<u32>,
     mut gif: Option<GifWriter>,
+    stats_path: Option<&Path>,
 ) -> Result<()> {
     let pattern = frame_pattern(&args.output)?;
     let buffer_pattern = args
@@ -1437,7 +1507,7 @@ fn animate_viewports(
         bar.inc(1);
     }
     bar.finish_and_clear();
-    finish_outputs(gif, args.stats.as_deref(), &all_stats)?;
+    finish_outputs(gif, stats_path, &all_stats)?;
     if buffer_check.0 > 0 {
         say!(
             "verify: buffer samples re-traced at {} frame(s): {} compared, {} differ",

@@ -434,3 +434,84 @@ fn an_interrupted_run_leaves_finished_files_only() {
         image::open(out.join(&name)).unwrap_or_else(|e| panic!("{name}: {e}"));
     }
 }
+
+#[test]
+fn chunks_of_an_array_job_render_the_frames_of_one_run() {
+    // Pan, a bouncing ball and a viewport at once, small.
+    let dir = tempfile::tempdir().unwrap();
+    let paper = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/paper.toml");
+    std::fs::copy(paper, dir.path().join("paper.toml")).unwrap();
+    let text = format!(
+        "include = \"paper.toml\"\n\n[render]\nwidth = 64\nheight = 48\n\n\
+         [[object]]\ntype = \"sphere\"\nname = \"ball\"\ncenter = [-2.6, 0.5, 3.0]\nradius = 0.5\n\n\
+         [[viewport]]\nname = \"view\"\nwidth = 40\nheight = 30\n\n\
+         [animation]\nframes = 7\n\n{}{}\
+         [[animation.viewport]]\nframe = 0\nzoom = 1.0\n\n\
+         [[animation.viewport]]\nframe = 6\nzoom = 1.5\n\n\
+         [[animation.bounce]]\nobject = \"ball\"\nheight = 1.0\nperiod = 4\n",
+        key(0, "yaw = 0.0"),
+        key(6, "yaw = 20.0")
+    );
+    std::fs::write(dir.path().join("all.toml"), text).unwrap();
+    let run = |out: &str, extra: &[&str], env: &[(&str, &str)]| {
+        let mut command = std::process::Command::new(env!("CARGO_BIN_EXE_retrace"));
+        command
+            .args(["animate", "all.toml", "-o", out])
+            .args(extra)
+            .current_dir(dir.path());
+        for var in [
+            "SLURM_ARRAY_TASK_ID",
+            "SLURM_ARRAY_TASK_MIN",
+            "JOB_COMPLETION_INDEX",
+        ] {
+            command.env_remove(var);
+        }
+        command.envs(env.iter().copied());
+        let out = command.output().unwrap();
+        assert!(out.status.success(), "{extra:?} {env:?}: {}", stderr(&out));
+        stderr(&out)
+    };
+    run("one/f_#.png", &[], &[]);
+    // Three tasks, each told its index a different way.
+    let said = run(
+        "chunked/f_#.png",
+        &["--chunks", "3", "--stats", "chunked/s.csv"],
+        &[("SLURM_ARRAY_TASK_ID", "1"), ("SLURM_ARRAY_TASK_MIN", "1")],
+    );
+    assert!(
+        said.contains("chunk 0 of 3") && said.contains("frames 0-1"),
+        "{said}"
+    );
+    let said = run(
+        "chunked/f_#.png",
+        &["--chunks", "3", "--stats", "chunked/s.csv"],
+        &[("JOB_COMPLETION_INDEX", "1")],
+    );
+    assert!(said.contains("frames 2-3"), "{said}");
+    run(
+        "chunked/f_#.png",
+        &[
+            "--chunks",
+            "3",
+            "--chunk-index",
+            "2",
+            "--stats",
+            "chunked/s.csv",
+        ],
+        &[],
+    );
+    for frame in 0..7 {
+        let name = format!("f_{frame}_view.png");
+        let one = std::fs::read(dir.path().join("one").join(&name)).unwrap();
+        let chunked = std::fs::read(dir.path().join("chunked").join(&name)).unwrap();
+        assert!(one == chunked, "{name} differs");
+    }
+    // Each task's statistics, its own frames' rows; the first frame of each
+    // chunk traced from scratch.
+    for (index, rows) in [(0, 2), (1, 2), (2, 3)] {
+        let csv = std::fs::read_to_string(dir.path().join(format!("chunked/s.chunk{index}.csv")))
+            .unwrap();
+        assert_eq!(csv.lines().count(), 1 + rows, "chunk {index}");
+        assert!(csv.lines().nth(1).unwrap().contains("first frame"), "{csv}");
+    }
+}
