@@ -1,0 +1,679 @@
+//! `retrace animate`: an animation's frames, re-tracing only what changed,
+//! and what a run writes besides them (GIF, statistics, chunks).
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::{Context, Result};
+use clap::Args;
+
+use retrace::anim::{Animator, Techniques};
+use retrace::output::{save_image, PendingFile};
+use retrace::scene::Scene;
+
+use super::{
+    check_writable, ensure_parent, frame_namer, frame_pattern, load, parse_frame_range, scene_name,
+    BackendArg, OstcArgs, RsvpKnobArgs, SceneArgs,
+};
+
+#[derive(Args)]
+pub(crate) struct AnimateArgs {
+    #[command(flatten)]
+    scene: SceneArgs,
+    #[command(flatten)]
+    backend: BackendArg,
+    /// Frames to render: A-B (inclusive) or A; default: the whole animation.
+    #[arg(long)]
+    frames: Option<String>,
+    /// Frame files (.png or .tga); a run of # becomes the zero-padded frame
+    /// number. A scene with RSVP viewports writes one file per viewport,
+    /// its name added before the extension: out/frame_0007_zoomed.png.
+    #[arg(short, long, default_value = "out/frame_####.png")]
+    output: String,
+    /// RSVP: also write the camera's sample buffer per frame (e.g.
+    /// out/buffer_####.png), never-traced samples black (paper, figure 5a).
+    #[arg(long)]
+    buffer_image: Option<String>,
+    #[command(flatten)]
+    rsvp: RsvpKnobArgs,
+    /// Also write the frames as an animated GIF here (with RSVP viewports:
+    /// the first viewport's frames).
+    #[arg(long)]
+    gif: Option<PathBuf>,
+    /// Per-frame statistics: .csv or .json.
+    #[arg(long)]
+    stats: Option<PathBuf>,
+    /// Also write each frame with the samples it re-traced painted black
+    /// (like the paper's figure 4), e.g. out/dirty_####.png.
+    #[arg(long)]
+    dirty_image: Option<String>,
+    /// full (no reuse), auto (every technique the timeline allows), or a
+    /// comma list of techniques: pan (camera pans shift the image), ostc
+    /// (moving objects and lights re-trace only their regions), rsvp
+    /// (viewports resample the camera's lazily traced sample buffer; with
+    /// viewports, full traces each viewport's own rays).
+    #[arg(long, default_value = "auto", value_parser = Techniques::parse)]
+    mode: Techniques,
+    #[command(flatten)]
+    ostc: OstcArgs,
+    /// How a pan by a fraction of a sample is shown: snap (to whole samples:
+    /// exact, the angle off by at most half a sample) or resample (the true
+    /// angle, bilinear from the buffer: slightly blurred).
+    #[arg(long, default_value = "snap")]
+    fractional_pan: retrace::anim::FractionalPan,
+    /// Also render every frame in full: exact (snapped) frames must equal
+    /// it bit for bit; resampled frames (and RSVP viewports) report their
+    /// error against it.
+    #[arg(long)]
+    verify: bool,
+    /// Leave frames whose file already exists (to resume a run).
+    #[arg(long)]
+    skip_existing: bool,
+    /// For array jobs on a render farm: cut the frames into N contiguous
+    /// chunks and render one, starting from a full frame. Which one:
+    /// --chunk-index, else the scheduler's task index (SLURM_ARRAY_TASK_ID
+    /// from SLURM_ARRAY_TASK_MIN, JOB_COMPLETION_INDEX of a Kubernetes
+    /// indexed Job, AWS_BATCH_JOB_ARRAY_INDEX). The frames equal those of
+    /// one run; --stats files get the chunk's number (stats.chunk03.csv).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
+    chunks: Option<u32>,
+    /// With --chunks: this task's chunk, from 0.
+    #[arg(long, requires = "chunks")]
+    chunk_index: Option<u32>,
+}
+
+struct GifWriter {
+    /// None once finished. Declared first: dropped (closing the file)
+    /// before `file` removes an unfinished one.
+    encoder: Option<image::codecs::gif::GifEncoder<std::io::BufWriter<std::fs::File>>>,
+    file: PendingFile,
+    path: PathBuf,
+    delay: image::Delay,
+}
+
+impl GifWriter {
+    fn create(path: &Path, fps: f64) -> Result<GifWriter> {
+        ensure_parent(path)?;
+        let file = PendingFile::beside(path);
+        let out = std::fs::File::create(file.temp())
+            .with_context(|| format!("cannot write {}", path.display()))?;
+        // Speed 20 of 30: quantization good enough for previews, several times faster than the default.
+        let mut encoder =
+            image::codecs::gif::GifEncoder::new_with_speed(std::io::BufWriter::new(out), 20);
+        encoder.set_repeat(image::codecs::gif::Repeat::Infinite)?;
+        Ok(GifWriter {
+            encoder: Some(encoder),
+            file,
+            path: path.to_path_buf(),
+            delay: image::Delay::from_numer_denom_ms(1000, fps.round().max(1.0) as u32),
+        })
+    }
+
+    fn add(&mut self, image: &image::RgbImage) -> Result<()> {
+        let rgba = image::DynamicImage::ImageRgb8(image.clone()).to_rgba8();
+        self.encoder
+            .as_mut()
+            .expect("frames are added before finish")
+            .encode_frame(image::Frame::from_parts(rgba, 0, 0, self.delay))
+            .with_context(|| format!("cannot encode {}", self.path.display()))
+    }
+
+    /// A frame written by an earlier run (`--skip-existing`), read back so
+    /// that the GIF still shows every frame.
+    fn add_file(&mut self, path: &Path) -> Result<()> {
+        let image = image::open(path)
+            .with_context(|| format!("cannot read {} back for the GIF", path.display()))?;
+        self.add(&image.to_rgb8())
+    }
+
+    fn finish(mut self) -> Result<()> {
+        // Dropping the encoder writes the trailer and flushes the file.
+        drop(self.encoder.take());
+        Ok(self.file.commit()?)
+    }
+}
+
+/// Closes what an animation run writes besides its frames.
+fn finish_outputs(
+    gif: Option<GifWriter>,
+    stats_path: Option<&Path>,
+    stats: &[retrace::anim::FrameStats],
+) -> Result<()> {
+    if let Some(gif) = gif {
+        gif.finish()?;
+    }
+    if let Some(path) = stats_path {
+        write_stats(path, stats)?;
+    }
+    Ok(())
+}
+
+fn write_stats(path: &Path, stats: &[retrace::anim::FrameStats]) -> Result<()> {
+    let is_json = path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("json"));
+    let text = if is_json {
+        serde_json::to_string_pretty(stats)?
+    } else {
+        stats_csv(stats)?
+    };
+    ensure_parent(path)?;
+    retrace::output::save_text(path, &text)?;
+    Ok(())
+}
+
+/// The stats as CSV, one column per field (nested fields as `error.psnr_db`),
+/// in the order `FrameStats` declares them, so CSV and JSON never drift apart.
+fn stats_csv(stats: &[retrace::anim::FrameStats]) -> Result<String> {
+    fn flatten(prefix: &str, value: &serde_json::Value, out: &mut Vec<(String, String)>) {
+        match value {
+            serde_json::Value::Object(map) => {
+                for (key, inner) in map {
+                    let name = if prefix.is_empty() {
+                        key.clone()
+                    } else {
+                        format!("{prefix}.{key}")
+                    };
+                    flatten(&name, inner, out);
+                }
+            }
+            serde_json::Value::Null => out.push((prefix.to_string(), String::new())),
+            serde_json::Value::String(text) => {
+                let cell = if text.contains([',', '"', '\n']) {
+                    format!("\"{}\"", text.replace('"', "\"\""))
+                } else {
+                    text.clone()
+                };
+                out.push((prefix.to_string(), cell))
+            }
+            serde_json::Value::Number(n) => out.push((
+                prefix.to_string(),
+                match n.as_f64() {
+                    Some(x) if n.is_f64() => format!("{x:.6}"),
+                    _ => n.to_string(),
+                },
+            )),
+            other => out.push((prefix.to_string(), other.to_string())),
+        }
+    }
+    // Optional nested values are null in some rows: the columns of a row
+    // with every value present name them all.
+    let template = retrace::anim::FrameStats {
+        error: Some(retrace::anim::ImageError::default()),
+        ..Default::default()
+    };
+    let mut header = Vec::new();
+    flatten("", &serde_json::to_value(&template)?, &mut header);
+    let mut csv = header
+        .iter()
+        .map(|(name, _)| name.as_str())
+        .collect::<Vec<_>>()
+        .join(",");
+    csv.push('\n');
+    for s in stats {
+        let mut row = Vec::new();
+        flatten("", &serde_json::to_value(s)?, &mut row);
+        let cells: std::collections::HashMap<_, _> = row.into_iter().collect();
+        let line: Vec<&str> = header
+            .iter()
+            .map(|(name, _)| cells.get(name).map_or("", String::as_str))
+            .collect();
+        csv.push_str(&line.join(","));
+        csv.push('\n');
+    }
+    Ok(csv)
+}
+
+/// The frames this task renders and where its statistics go: all of
+/// `range`, or with `--chunks` this task's chunk of it (None: the chunk is
+/// empty, nothing to do).
+fn chunk_of(
+    args: &AnimateArgs,
+    range: std::ops::RangeInclusive<u32>,
+) -> Result<Option<(std::ops::RangeInclusive<u32>, Option<PathBuf>)>> {
+    use retrace::chunk::{chunk_frames, chunk_path, index_from_env, IndexSource};
+    let Some(count) = args.chunks else {
+        return Ok(Some((range, args.stats.clone())));
+    };
+    let (index, source) = match args.chunk_index {
+        Some(index) => (index, IndexSource::Flag),
+        None => index_from_env(|name| std::env::var(name).ok())
+            .map_err(|err| anyhow::anyhow!("--chunks {count}: {err}"))?
+            .ok_or_else(|| {
+                anyhow::anyhow!(
+                    "--chunks {count}: which chunk is this task's? Give --chunk-index, or run it as \
+                     a Slurm array task, a Kubernetes indexed Job or an AWS Batch array job"
+                )
+            })?,
+    };
+    if index >= count {
+        anyhow::bail!(
+            "--chunks {count}: chunk {index} (from {source}) is not one of 0-{}",
+            count - 1
+        );
+    }
+    if count > 1 && args.gif.is_some() {
+        anyhow::bail!(
+            "--gif with --chunks {count}: each task has only its chunk's frames; make the GIF \
+             from all the frame files once the tasks are done"
+        );
+    }
+    let stats = args
+        .stats
+        .as_deref()
+        .map(|path| chunk_path(path, count, index));
+    let what = format!(
+        "chunk {index} of {count} (from {source}) of frames {}-{}",
+        range.start(),
+        range.end()
+    );
+    match chunk_frames(&range, count, index) {
+        Some(frames) => {
+            eprintln!("{what}: frames {}-{}", frames.start(), frames.end());
+            Ok(Some((frames, stats)))
+        }
+        None => {
+            eprintln!("{what}: no frames (more chunks than frames)");
+            Ok(None)
+        }
+    }
+}
+
+pub(crate) fn animate(args: AnimateArgs) -> Result<()> {
+    let frame_path = frame_namer(&args.output)?;
+    let dirty_path = args.dirty_image.as_deref().map(frame_namer).transpose()?;
+    let extension = |path: &Path| path.extension().map(|e| e.to_string_lossy().to_lowercase());
+    if let Some(path) = &args.stats {
+        if !matches!(extension(path).as_deref(), Some("csv" | "json")) {
+            anyhow::bail!("--stats {}: use a .csv or .json file", path.display());
+        }
+    }
+    if let Some(path) = &args.gif {
+        if extension(path).as_deref() != Some("gif") {
+            anyhow::bail!("--gif {}: use a .gif file", path.display());
+        }
+    }
+    let scene = load(&args.scene)?;
+    let (count, fps) = scene
+        .animation
+        .as_ref()
+        .map_or((1, 25.0), |a| (a.frames, a.fps));
+    let range = parse_frame_range(args.frames.as_deref(), count)?;
+    let Some((range, stats_path)) = chunk_of(&args, range)? else {
+        return Ok(());
+    };
+    let out_dir = frame_path(*range.start())
+        .parent()
+        .filter(|d| !d.as_os_str().is_empty())
+        .map_or(PathBuf::from("."), Path::to_path_buf);
+    check_writable(&out_dir)?;
+    if let Some(dirty_path) = &dirty_path {
+        if let Some(dir) = dirty_path(*range.start()).parent() {
+            check_writable(&if dir.as_os_str().is_empty() {
+                PathBuf::from(".")
+            } else {
+                dir.to_path_buf()
+            })?;
+        }
+    }
+    let mut gif = match &args.gif {
+        Some(path) => Some(GifWriter::create(path, fps)?),
+        None => None,
+    };
+    let mut accel = args.backend.build(&scene)?;
+    let mut animator = Animator::new(
+        &scene,
+        &mut accel,
+        args.mode,
+        *range.start()..*range.end() + 1,
+    );
+    animator.set_linear_output(args.verify);
+    animator.set_fractional_pan(args.fractional_pan);
+    animator.set_ostc(args.ostc.settings());
+    animator.set_traced_image(dirty_path.is_some());
+    if animator.has_viewports() {
+        animator.set_rsvp_knobs(args.rsvp.knobs()?);
+        return animate_viewports(&args, &scene, animator, range, gif, stats_path.as_deref());
+    }
+    if args.buffer_image.is_some() {
+        anyhow::bail!("--buffer-image needs a scene with [[viewport]] tables (RSVP)");
+    }
+
+    let bar = indicatif::ProgressBar::new(u64::from(range.end() - range.start() + 1)).with_style(
+        indicatif::ProgressStyle::with_template(
+            "{bar:30} {pos}/{len} frames {msg} [{elapsed} < {eta}]",
+        )
+        .expect("static template"),
+    );
+    let mut all_stats = Vec::new();
+    let mut failed_frames = Vec::new();
+    let mut previous_reference: Option<retrace::render::Frame> = None;
+    let region_size = args
+        .ostc
+        .settings()
+        .regions
+        .region_size(scene.camera.width, scene.camera.height);
+    let mut write_ms = 0.0;
+    let mut skipped = 0;
+    for frame in range.clone() {
+        let path = frame_path(frame);
+        if args.skip_existing && path.exists() {
+            if let Some(gif) = &mut gif {
+                gif.add_file(&path)?;
+            }
+            skipped += 1;
+            bar.inc(1);
+            continue;
+        }
+        let (image, rgb, mut stats) = animator.render(frame);
+        if args.verify {
+            let start = Instant::now();
+            let (reference, _) = animator.render_reference(frame);
+            let full_ms = start.elapsed().as_secs_f64() * 1e3;
+            let image = image.expect("verification keeps linear colour");
+            let differing = retrace::anim::count_differences(&image, &reference);
+            stats.full_ms = Some(full_ms);
+            stats.speedup = Some(full_ms / stats.total_ms);
+            stats.differing_pixels = Some(differing);
+            if let Some(previous) = &previous_reference {
+                stats.changed_regions = Some(retrace::anim::changed_regions(
+                    previous,
+                    &reference,
+                    region_size,
+                ));
+            }
+            if animator.is_exact() {
+                if differing > 0 {
+                    failed_frames.push((frame, differing));
+                }
+                // What snapping costs against the true (unsnapped) view.
+                let (true_view, _) = animator.render_true_view(frame);
+                stats.error = Some(retrace::anim::image_error(&image, &true_view));
+            } else {
+                stats.error = Some(retrace::anim::image_error(&image, &reference));
+            }
+            previous_reference = Some(reference);
+        }
+        let write_start = Instant::now();
+        save_image(&path, &rgb)?;
+        if let (Some(dirty_path), Some(dirty)) = (&dirty_path, animator.take_traced_image()) {
+            save_image(&dirty_path(frame), &dirty)?;
+        }
+        if let Some(gif) = &mut gif {
+            gif.add(&rgb)?;
+        }
+        write_ms += write_start.elapsed().as_secs_f64() * 1e3;
+        bar.set_message(format!("{} {:.0} ms", stats.mode, stats.total_ms));
+        all_stats.push(stats);
+        bar.inc(1);
+    }
+    bar.finish_and_clear();
+    finish_outputs(gif, stats_path.as_deref(), &all_stats)?;
+    // Reuse that was asked for but could not apply is worth a word.
+    let mut refusals: Vec<&str> = all_stats
+        .iter()
+        .filter(|s| s.mode == "full" && !s.reason.is_empty())
+        .map(|s| s.reason.as_str())
+        .collect();
+    refusals.dedup();
+    for reason in refusals {
+        eprintln!("warning: rendered in full: {reason}");
+    }
+    let what = format!("{} frames{}", all_stats.len(), skipped_note(skipped));
+    say!(
+        "{}: {what} {}",
+        scene_name(&args.scene),
+        run_summary(&all_stats, write_ms)
+    );
+    if args.verify {
+        say!("verify: full renders {}", verify_timing(&all_stats));
+        if !failed_frames.is_empty() {
+            let list: Vec<String> = failed_frames
+                .iter()
+                .map(|(f, d)| format!("frame {f}: {d} pixels"))
+                .collect();
+            anyhow::bail!(
+                "verification failed, frames differ from full renders: {}",
+                list.join(", ")
+            );
+        }
+        // Only a pan moves frames off the camera's own rays (snapped to
+        // the lattice, or resampled); without one the two checks agree.
+        let off_own_rays = all_stats
+            .iter()
+            .any(|s| s.yaw_error_deg != 0.0 || s.pitch_error_deg != 0.0);
+        if animator.is_exact() {
+            say!(
+                "verify: every frame equals its full render bit for bit{}",
+                if off_own_rays {
+                    " (a pan: of the snapped view)"
+                } else {
+                    ""
+                }
+            );
+        }
+        if off_own_rays || !animator.is_exact() {
+            say!(
+                "verify ({}, against the camera's own unsnapped rays): {}",
+                if animator.is_exact() {
+                    "snapped"
+                } else {
+                    "resampled"
+                },
+                error_summary(all_stats.iter())
+            );
+        }
+    }
+    Ok(())
+}
+
+/// `pattern`'s file for `frame` and viewport `name`: the name goes before
+/// the extension (out/frame_####.png -> out/frame_0007_zoomed.png).
+fn viewport_path(pattern: &(String, usize, String), frame: u32, name: &str) -> PathBuf {
+    let (prefix, digits, suffix) = pattern;
+    let (stem, ext) = match suffix.rfind('.') {
+        Some(dot) if !suffix[dot..].contains('/') => suffix.split_at(dot),
+        _ => (suffix.as_str(), ""),
+    };
+    PathBuf::from(format!("{prefix}{frame:0digits$}{stem}_{name}{ext}"))
+}
+
+/// The frame loop for a scene whose output is its RSVP viewports: one file
+/// per viewport per frame, the buffer image on request, per-viewport stats
+/// and, with --verify, each viewport's error against its own rays.
+fn animate_viewports(
+    args: &AnimateArgs,
+    scene: &Scene,
+    mut animator: Animator,
+    range: std::ops::RangeInclusive<u32>,
+    mut gif: Option<GifWriter>,
+    stats_path: Option<&Path>,
+) -> Result<()> {
+    let pattern = frame_pattern(&args.output)?;
+    let buffer_pattern = args
+        .buffer_image
+        .as_deref()
+        .map(frame_pattern)
+        .transpose()?;
+    if let Some((prefix, digits, suffix)) = &buffer_pattern {
+        retrace::output::format_for(Path::new(&format!("{prefix}{:0digits$}{suffix}", 0)))?;
+    }
+    let dirty_pattern = args.dirty_image.as_deref().map(frame_pattern).transpose()?;
+    if let Some(pattern) = &dirty_pattern {
+        retrace::output::format_for(&viewport_path(pattern, 0, "view"))?;
+    }
+    let names: Vec<String> = scene
+        .viewports
+        .iter()
+        .map(|t| t.viewport.name.clone())
+        .collect();
+    let bar = indicatif::ProgressBar::new(u64::from(range.end() - range.start() + 1)).with_style(
+        indicatif::ProgressStyle::with_template(
+            "{bar:30} {pos}/{len} frames {msg} [{elapsed} < {eta}]",
+        )
+        .expect("static template"),
+    );
+    let mut all_stats = Vec::new();
+    let mut write_ms = 0.0;
+    // (frames checked, samples compared, samples differing)
+    let mut buffer_check = (0u32, 0u64, 0u64);
+    let mut skipped = 0;
+    for frame in range.clone() {
+        if args.skip_existing
+            && names
+                .iter()
+                .all(|n| viewport_path(&pattern, frame, n).exists())
+        {
+            if let Some(gif) = &mut gif {
+                gif.add_file(&viewport_path(&pattern, frame, &names[0]))?;
+            }
+            skipped += 1;
+            bar.inc(1);
+            continue;
+        }
+        let outputs = animator.render_viewports(frame);
+        let mut frame_ms = 0.0;
+        for (index, mut output) in outputs.into_iter().enumerate() {
+            if args.verify {
+                let start = Instant::now();
+                let (reference, _) = animator.render_viewport_direct(frame, index);
+                let full_ms = start.elapsed().as_secs_f64() * 1e3;
+                let image = output
+                    .frame
+                    .as_ref()
+                    .expect("verification keeps linear colour");
+                output.stats.full_ms = Some(full_ms);
+                output.stats.speedup = Some(full_ms / output.stats.total_ms);
+                output.stats.differing_pixels =
+                    Some(retrace::anim::count_differences(image, &reference));
+                output.stats.error = Some(retrace::anim::image_error(image, &reference));
+            }
+            let write_start = Instant::now();
+            save_image(&viewport_path(&pattern, frame, &output.name), &output.image)?;
+            if let Some(dirty) = &dirty_pattern {
+                if let Some(image) = animator.viewport_fresh_image(frame, index, &output.image) {
+                    save_image(&viewport_path(dirty, frame, &output.name), &image)?;
+                }
+            }
+            if index == 0 {
+                if let Some(gif) = &mut gif {
+                    gif.add(&output.image)?;
+                }
+            }
+            write_ms += write_start.elapsed().as_secs_f64() * 1e3;
+            frame_ms += output.stats.total_ms;
+            all_stats.push(output.stats);
+        }
+        if let Some((prefix, digits, suffix)) = &buffer_pattern {
+            if let Some(image) = animator.buffer_image(frame) {
+                let write_start = Instant::now();
+                save_image(
+                    Path::new(&format!("{prefix}{frame:0digits$}{suffix}")),
+                    &image,
+                )?;
+                write_ms += write_start.elapsed().as_secs_f64() * 1e3;
+            }
+        }
+        // The buffer's samples must be exactly what a fresh trace gives,
+        // however objects moved: re-trace them all (every 10th frame and
+        // the last, as it costs a full trace of the buffer).
+        let checkpoint = (frame - range.start()) % 10 == 9 || frame == *range.end();
+        if args.verify && checkpoint {
+            if let Some((compared, differing)) = animator.verify_sample_buffer() {
+                buffer_check.0 += 1;
+                buffer_check.1 += compared;
+                buffer_check.2 += differing;
+            }
+        }
+        bar.set_message(format!("{frame_ms:.0} ms"));
+        bar.inc(1);
+    }
+    bar.finish_and_clear();
+    finish_outputs(gif, stats_path, &all_stats)?;
+    if buffer_check.0 > 0 {
+        say!(
+            "verify: buffer samples re-traced at {} frame(s): {} compared, {} differ",
+            buffer_check.0,
+            buffer_check.1,
+            buffer_check.2
+        );
+        if buffer_check.2 > 0 {
+            anyhow::bail!(
+                "verification failed: {} buffer samples differ from a fresh trace",
+                buffer_check.2
+            );
+        }
+    }
+    let what = format!(
+        "{} frames x {} viewports ({}){}",
+        range.end() - range.start() + 1 - skipped,
+        names.len(),
+        names.join(", "),
+        skipped_note(skipped)
+    );
+    say!(
+        "{}: {what} {}",
+        scene_name(&args.scene),
+        run_summary(&all_stats, write_ms)
+    );
+    if args.verify {
+        say!("verify: direct renders {}", verify_timing(&all_stats));
+        for name in &names {
+            let rows = all_stats.iter().filter(|s| &s.viewport == name);
+            say!(
+                "verify {name} (against its own rays): {}",
+                error_summary(rows)
+            );
+        }
+    }
+    Ok(())
+}
+
+/// Says how many frames `--skip-existing` left as they were, if any.
+fn skipped_note(skipped: u32) -> String {
+    if skipped == 0 {
+        String::new()
+    } else {
+        format!(" ({skipped} more skipped: their files exist)")
+    }
+}
+
+/// Time spent, and samples traced against pixels shown, over a run.
+fn run_summary(stats: &[retrace::anim::FrameStats], write_ms: f64) -> String {
+    // A float sum starts at -0.0: no frame rendered would say "-0.0 ms".
+    let total: f64 = stats.iter().map(|s| s.total_ms).sum::<f64>() + 0.0;
+    let traced: u64 = stats.iter().map(|s| s.samples_traced).sum();
+    let pixels: u64 = stats.iter().map(|s| s.pixels).sum();
+    format!(
+        "in {total:.1} ms rendering ({write_ms:.1} ms writing); traced {traced} samples for {pixels} pixels ({:.1}%)",
+        100.0 * traced as f64 / pixels.max(1) as f64
+    )
+}
+
+/// The reference renders' time and the speedup against them.
+fn verify_timing(stats: &[retrace::anim::FrameStats]) -> String {
+    let total: f64 = stats.iter().map(|s| s.total_ms).sum();
+    let full: f64 = stats.iter().filter_map(|s| s.full_ms).sum();
+    format!("{full:.1} ms, speedup {:.2}x", full / total.max(1e-9))
+}
+
+/// Worst and mean PSNR, largest and mean absolute error and share of
+/// differing pixels over the rows that measured an error.
+fn error_summary<'a>(rows: impl Iterator<Item = &'a retrace::anim::FrameStats>) -> String {
+    let errors: Vec<_> = rows.filter_map(|s| s.error).collect();
+    let count = errors.len().max(1) as f64;
+    let worst_psnr = errors
+        .iter()
+        .map(|e| e.psnr_db)
+        .fold(f64::INFINITY, f64::min);
+    // Identical frames have infinite PSNR: cap them so the mean stays finite.
+    let mean_psnr = errors.iter().map(|e| e.psnr_db.min(100.0)).sum::<f64>() / count;
+    let max_abs = errors.iter().map(|e| e.max_abs).fold(0.0f32, f32::max);
+    let mean = errors.iter().map(|e| e.mean_abs).sum::<f64>() / count;
+    let share = errors.iter().map(|e| e.differing_share).sum::<f64>() / count;
+    format!(
+        "PSNR worst {worst_psnr:.2} dB, mean {mean_psnr:.2} dB; max abs error {max_abs:.4}, \
+         mean abs error {mean:.5}, {:.2}% of pixels differ in 8 bits",
+        share * 100.0
+    )
+}

@@ -1,0 +1,596 @@
+//! `retrace bench`: the paper's experiments and the single measurements,
+//! full against accelerated in one run.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::Result;
+use clap::Args;
+
+use retrace::anim::Techniques;
+use retrace::scene::Scene;
+
+use super::{
+    check_writable, load, parse_frame_range, scene_name, write_json, BackendArg, OstcArgs,
+    RsvpKnobArgs, SceneArgs,
+};
+
+#[derive(Args)]
+pub(crate) struct BenchArgs {
+    #[command(flatten)]
+    scene: SceneArgs,
+    #[command(flatten)]
+    backend: BackendArg,
+    /// What to measure: `all` (the paper's table: E1, E2 in and out, E3,
+    /// E4), one experiment of it (`E1`, `E2`, `E3`, `E4`), `scaling` (the
+    /// experiments on a larger scene and at 1280x960), `frame` (a full
+    /// frame against bare Embree on the same ray packets), `backends` (the
+    /// grid against Embree on the same ray packets), `E4nomotion` (pan 3.6
+    /// deg/frame and zoom together) or `knobs` (RSVP filter, oversampling
+    /// and level bias: cost and error).
+    #[arg(long, default_value = "all")]
+    only: String,
+    /// Frames of every experiment, `A-B` or `A` (default: all 100).
+    #[arg(long)]
+    frames: Option<String>,
+    /// Also run the scaling rows (a scene of about a million triangles,
+    /// and 1280x960) after the paper's table.
+    #[arg(long)]
+    scaling: bool,
+    /// Folder for the table (bench.csv, bench.json), per-frame CSVs, plots
+    /// and report.md.
+    #[arg(long, default_value = "out/bench")]
+    out: PathBuf,
+    /// Timed repetitions, the median reported (default: 15 for `frame`
+    /// and `backends`, one run of each sequence for the experiments; with
+    /// more, an experiment alternates full and accelerated runs).
+    #[arg(long, value_parser = clap::value_parser!(u64).range(1..=1000))]
+    repeats: Option<u64>,
+    /// Also write the result as JSON here (`frame`, `backends`, `E4nomotion`, `knobs`).
+    #[arg(long)]
+    json: Option<PathBuf>,
+    #[command(flatten)]
+    ostc: OstcArgs,
+    /// The RSVP knobs of the viewport experiments (E2, E4, E4nomotion);
+    /// `knobs` sweeps its own.
+    #[command(flatten)]
+    rsvp: RsvpKnobArgs,
+}
+
+impl BenchArgs {
+    /// Repetitions of a single-frame measurement.
+    fn frame_repeats(&self) -> usize {
+        self.repeats.unwrap_or(15) as usize
+    }
+}
+
+pub(crate) fn bench(args: BenchArgs) -> Result<()> {
+    if cfg!(debug_assertions) {
+        eprintln!(
+            "warning: this is a debug build; timings mean little (use `cargo run --release`)"
+        );
+    }
+    // Before any work, like the frames.
+    args.rsvp.knobs()?;
+    let bar = indicatif::ProgressBar::new(args.frame_repeats() as u64).with_style(
+        indicatif::ProgressStyle::with_template("{msg} {bar:30} {pos}/{len} {elapsed}")
+            .expect("static template"),
+    );
+    let paper = [
+        Experiment::E1,
+        Experiment::E2In,
+        Experiment::E2Out,
+        Experiment::E3,
+        Experiment::E4,
+    ];
+    let mut suite = match args.only.to_ascii_lowercase().as_str() {
+        "all" => paper.to_vec(),
+        "e1" => vec![Experiment::E1],
+        "e2" => vec![Experiment::E2In, Experiment::E2Out],
+        "e3" => vec![Experiment::E3],
+        "e4" => vec![Experiment::E4],
+        "scaling" => Vec::new(),
+        "frame" => return bench_frame(&args, &load(&args.scene)?, bar),
+        "backends" => return bench_backends(&args, &load(&args.scene)?, bar),
+        "e4nomotion" => {
+            return bench_e2(
+                &args,
+                load(&args.scene)?,
+                bar,
+                retrace::bench::E4_PAN_DEG_PER_FRAME,
+            )
+        }
+        "knobs" => return bench_knobs(&args, load(&args.scene)?, bar),
+        _ => {
+            anyhow::bail!(
+                "unknown measurement '{}' for --only (available: all, E1, E2, E3, E4, scaling, frame, backends, E4nomotion, knobs)",
+                args.only
+            )
+        }
+    };
+    let scaling = args.scaling || args.only.eq_ignore_ascii_case("scaling");
+    let mut planned = Vec::new();
+    for experiment in suite.drain(..) {
+        planned.push(plan_experiment(&args, experiment, None)?);
+    }
+    if scaling {
+        for (experiment, variant) in SCALING_ROWS {
+            planned.push(plan_experiment(&args, experiment, Some(variant))?);
+        }
+    }
+    bench_suite(&args, planned, bar)
+}
+
+/// The experiments of the paper's table.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Experiment {
+    E1,
+    E2In,
+    E2Out,
+    E3,
+    E4,
+}
+
+/// Where a scaling row runs instead of the paper scene at its own size.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum ScalingVariant {
+    /// scenes/bunnies.toml: the bouncing-ball scene among 256 bunnies.
+    Bunnies,
+    /// The paper's scenes at 1280x960.
+    Large,
+}
+
+/// The rows `--scaling` adds: the experiments on a million triangles,
+/// and the paper's table at four times the pixels (E2 out behaves as E2 in
+/// does, so once is enough).
+const SCALING_ROWS: [(Experiment, ScalingVariant); 8] = [
+    (Experiment::E1, ScalingVariant::Bunnies),
+    (Experiment::E2In, ScalingVariant::Bunnies),
+    (Experiment::E3, ScalingVariant::Bunnies),
+    (Experiment::E4, ScalingVariant::Bunnies),
+    (Experiment::E1, ScalingVariant::Large),
+    (Experiment::E2In, ScalingVariant::Large),
+    (Experiment::E3, ScalingVariant::Large),
+    (Experiment::E4, ScalingVariant::Large),
+];
+
+/// An experiment ready to run: its scene, frames and row heading.
+struct PlannedExperiment {
+    experiment: Experiment,
+    info: retrace::report::ExperimentInfo,
+    scene: Scene,
+    frames: std::ops::Range<u32>,
+}
+
+impl PlannedExperiment {
+    /// Progress steps: both sides of a camera sequence, each of `rounds`
+    /// times; for viewports also the error pass and the oracle pass.
+    fn steps(&self, rounds: u64) -> u64 {
+        let frames = u64::from(self.frames.end - self.frames.start);
+        match self.experiment {
+            Experiment::E1 | Experiment::E3 => 2 * rounds * frames,
+            _ => (2 * rounds + 2) * frames,
+        }
+    }
+}
+
+/// Loads and checks an experiment's scene and frames before anything runs,
+/// so bad input costs no measuring time.
+fn plan_experiment(
+    args: &BenchArgs,
+    experiment: Experiment,
+    variant: Option<ScalingVariant>,
+) -> Result<PlannedExperiment> {
+    use retrace::bench::{e1_scene, e2_scene, e4_scene, ZoomDirection};
+    let mut scene_args = args.scene.clone();
+    let mut label = None;
+    match variant {
+        Some(ScalingVariant::Bunnies) => {
+            scene_args.scene = Some(PathBuf::from("scenes/bunnies.toml"));
+            label = Some("bunnies".to_string());
+        }
+        Some(ScalingVariant::Large) => {
+            scene_args.width = Some(1280);
+            scene_args.height = Some(960);
+        }
+        None => {}
+    }
+    let resized = scene_args.width.is_some() || scene_args.height.is_some();
+    let own = |file: &str| -> Result<Scene> {
+        if scene_args.scene.is_some() {
+            return load(&scene_args);
+        }
+        let path = Path::new(file);
+        if !path.exists() {
+            anyhow::bail!("{experiment:?} needs {file} (run from the repository) or a scene file");
+        }
+        load(&SceneArgs {
+            scene: Some(path.to_path_buf()),
+            ..scene_args.clone()
+        })
+    };
+    let (id, what, technique, paper, mut scene) = match experiment {
+        Experiment::E1 => (
+            "E1",
+            "pan 3.6 deg/frame, a whole turn",
+            "Panimation",
+            "~10x",
+            e1_scene(load(&scene_args)?),
+        ),
+        Experiment::E2In | Experiment::E2Out => {
+            let (id, what, direction) = if experiment == Experiment::E2In {
+                ("E2 in", "zoom in 100 -> 50 deg", ZoomDirection::In)
+            } else {
+                ("E2 out", "zoom out 50 -> 100 deg", ZoomDirection::Out)
+            };
+            (
+                id,
+                what,
+                "RSVP",
+                "~10x",
+                e2_scene(load(&scene_args)?, direction, 0.0),
+            )
+        }
+        Experiment::E3 => {
+            let scene = own("scenes/paper-bounce.toml")?;
+            if !matches!(&scene.animation, Some(a) if a.moves_scene()) {
+                anyhow::bail!("E3 needs a scene whose timeline moves objects or lights");
+            }
+            (
+                "E3",
+                "a small ball bounces, camera still",
+                "OSTC",
+                "~2x",
+                scene,
+            )
+        }
+        Experiment::E4 => {
+            let scene = own("scenes/paper-all.toml")?;
+            let moves = matches!(&scene.animation, Some(a) if a.moves_scene());
+            // A scene without viewports gets E4's pan and zoom on top of
+            // its own motion; one with viewports runs as it is.
+            let scene = match (scene.viewports.is_empty(), moves) {
+                (false, _) => scene,
+                (true, true) => e4_scene(scene),
+                (true, false) => anyhow::bail!(
+                    "E4 needs a scene with a [[viewport]], or one whose timeline moves objects or lights"
+                ),
+            };
+            (
+                "E4",
+                "pan + zoom in + bouncing ball, viewport",
+                "RSVP+OSTC",
+                "~2x",
+                scene,
+            )
+        }
+    };
+    if resized {
+        // The viewport takes the size asked for, as the camera does.
+        for track in &mut scene.viewports {
+            track.viewport.width = scene.camera.width;
+            track.viewport.height = scene.camera.height;
+        }
+    }
+    let count = scene.animation.as_ref().map_or(1, |a| a.frames);
+    let frames = parse_frame_range(args.frames.as_deref(), count)
+        .map_err(|err| anyhow::anyhow!("{id}: {err}"))?;
+    let (width, height) = scene
+        .viewports
+        .first()
+        .map_or((scene.camera.width, scene.camera.height), |track| {
+            (track.viewport.width, track.viewport.height)
+        });
+    let scene_label = label.unwrap_or_else(|| match &scene_args.scene {
+        Some(path) => path
+            .file_stem()
+            .map_or("scene".to_string(), |s| s.to_string_lossy().into_owned()),
+        None if experiment == Experiment::E3 => "paper-bounce".to_string(),
+        None if experiment == Experiment::E4 => "paper-all".to_string(),
+        None => "paper".to_string(),
+    });
+    let mut id = id.to_string();
+    if variant.is_some() {
+        id = format!("{id} {scene_label} {width}x{height}");
+    }
+    Ok(PlannedExperiment {
+        experiment,
+        info: retrace::report::ExperimentInfo {
+            id,
+            what: what.to_string(),
+            technique: technique.to_string(),
+            paper_speedup: paper.to_string(),
+            scene: scene_label,
+            triangles: retrace::report::triangles(&scene),
+            width,
+            height,
+        },
+        frames: *frames.start()..*frames.end() + 1,
+        scene,
+    })
+}
+
+/// Runs the planned experiments, prints the table and writes the bench
+/// folder; fails (after writing) when an exact experiment was not.
+fn bench_suite(
+    args: &BenchArgs,
+    planned: Vec<PlannedExperiment>,
+    bar: indicatif::ProgressBar,
+) -> Result<()> {
+    let load_at_start = load_average();
+    check_writable(&args.out)?;
+    let rounds = args.repeats.unwrap_or(1);
+    bar.set_length(planned.iter().map(|plan| plan.steps(rounds)).sum());
+    bar.set_position(0);
+    let mut results = Vec::new();
+    for plan in planned {
+        bar.set_message(format!("{} ({})", plan.info.id, plan.info.technique));
+        results.push(run_experiment(args, plan, &bar)?);
+    }
+    bar.finish_and_clear();
+    let rows: Vec<_> = results.iter().map(|r| r.row.clone()).collect();
+    say!(
+        "retrace bench: {} backend, {} threads, {}{}",
+        args.backend.backend,
+        rayon::current_num_threads(),
+        match rounds {
+            1 => "one run of each sequence".to_string(),
+            n => format!("median of {n} alternated runs of each sequence"),
+        },
+        if cfg!(debug_assertions) {
+            " (DEBUG BUILD)"
+        } else {
+            ""
+        }
+    );
+    say!("{}", retrace::report::table(&rows));
+    let run = retrace::report::RunInfo {
+        command: std::env::args()
+            .map(|a| if a.contains(' ') { format!("'{a}'") } else { a })
+            .collect::<Vec<_>>()
+            .join(" "),
+        backend: args.backend.backend.to_string(),
+        threads: rayon::current_num_threads(),
+        load: load_at_start.zip(load_average()),
+        release: !cfg!(debug_assertions),
+    };
+    let written = retrace::report::write_bench(&args.out, &run, &results, draw_chart)?;
+    say!(
+        "wrote {} files to {} (open {})",
+        written.len(),
+        args.out.display(),
+        args.out.join("report.md").display()
+    );
+    let inexact: Vec<&str> = rows
+        .iter()
+        .filter(|r| r.exact == Some(false))
+        .map(|r| r.info.id.as_str())
+        .collect();
+    if !inexact.is_empty() {
+        anyhow::bail!(
+            "{}: accelerated output differs from full renders",
+            inexact.join(", ")
+        );
+    }
+    Ok(())
+}
+
+/// Draws one of the bench's charts as a PNG.
+fn draw_chart(path: &Path, chart: &retrace::report::ChartSpec) -> Result<()> {
+    let series: Vec<retrace::plot::Series> = chart
+        .lines
+        .iter()
+        .map(|(label, points)| retrace::plot::Series {
+            label: label.clone(),
+            points: points.clone(),
+        })
+        .collect();
+    retrace::plot::line_chart(path, &chart.title, "frame", &chart.y_label, &series)?;
+    Ok(())
+}
+
+/// The one-minute load average, where the system tells it.
+fn load_average() -> Option<f64> {
+    std::fs::read_to_string("/proc/loadavg")
+        .ok()?
+        .split_whitespace()
+        .next()?
+        .parse()
+        .ok()
+}
+
+fn run_experiment(
+    args: &BenchArgs,
+    plan: PlannedExperiment,
+    bar: &indicatif::ProgressBar,
+) -> Result<retrace::report::ExperimentResult> {
+    use retrace::report::ExperimentResult;
+    let PlannedExperiment {
+        experiment,
+        mut info,
+        scene,
+        frames,
+    } = plan;
+    let knobs = args.rsvp.knobs()?;
+    if let (true, Some(changes)) = (info.uses_rsvp(), knobs.changes()) {
+        info.technique = format!("{}, {changes}", info.technique);
+    }
+    let mut accel = args.backend.build(&scene)?;
+    let tick = || bar.inc(1);
+    Ok(match experiment {
+        Experiment::E1 | Experiment::E3 => {
+            let result = retrace::bench::bench_sequence(
+                &scene,
+                &mut accel,
+                Techniques::AUTO,
+                args.ostc.settings(),
+                frames,
+                args.repeats.unwrap_or(1) as usize,
+                tick,
+            );
+            for reason in &result.full_reasons {
+                bar.suspend(|| eprintln!("warning: {}: rendered in full: {reason}", info.id));
+            }
+            ExperimentResult::from_sequence(info, result, experiment == Experiment::E3)
+        }
+        Experiment::E2In | Experiment::E2Out | Experiment::E4 => {
+            let result = retrace::bench::bench_viewport_sequence(
+                &scene,
+                &mut accel,
+                frames.clone(),
+                args.repeats.unwrap_or(1) as usize,
+                knobs,
+                true,
+                (experiment == Experiment::E4).then(|| args.ostc.settings()),
+                tick,
+            );
+            let oracle = retrace::bench::viewport_oracle(&scene, &mut accel, frames, tick);
+            ExperimentResult::from_viewports(info, result, Some(oracle))
+        }
+    })
+}
+
+fn print_packets(args: &BenchArgs, run: &retrace::bench::PacketRun) {
+    say!(
+        "{}: {}x{}, {} packets ({} primary, {} shadow, {} reflection rays), {} threads, median of {}",
+        scene_name(&args.scene),
+        run.width,
+        run.height,
+        run.packets,
+        run.rays.primary,
+        run.rays.shadow,
+        run.rays.reflection,
+        run.threads,
+        run.repeats,
+    );
+}
+
+fn bench_frame(args: &BenchArgs, scene: &Scene, bar: indicatif::ProgressBar) -> Result<()> {
+    let accel = args.backend.build(scene)?;
+    bar.set_message("frame vs bare Embree");
+    let result = retrace::bench::bench_frame(scene, &accel, args.frame_repeats(), || bar.inc(1))?;
+    bar.finish_and_clear();
+    print_packets(args, &result.run);
+    say!(
+        "full frame ({}):      {:8.2} ms",
+        accel.kind(),
+        result.full_ms
+    );
+    say!("bare Embree, same packets: {:8.2} ms", result.embree_ms);
+    say!("ratio:                     {:8.3}x", result.ratio);
+    if let Some(path) = &args.json {
+        write_json(path, &result)?;
+    }
+    Ok(())
+}
+
+fn print_viewport_bench(label: &str, r: &retrace::bench::ViewportSequenceBench) {
+    say!(
+        "{label}: full {:8.1} ms ({:6.2} ms/frame)  RSVP {:7.1} ms ({:5.2} ms/frame)  speedup {:6.2}x  \
+         PSNR worst {:5.2} dB mean {:5.2} dB  max abs {:.3}  mean abs {:.5}  differ {:5.2}%  traced {}",
+        r.full_ms,
+        r.full_ms / f64::from(r.frames),
+        r.rsvp_ms,
+        r.rsvp_ms / f64::from(r.frames),
+        r.speedup,
+        r.worst_psnr_db,
+        r.mean_psnr_db,
+        r.max_abs,
+        r.mean_abs,
+        r.differing_share * 100.0,
+        r.samples_traced,
+    );
+}
+
+/// E2 (zoom 100 <-> 50 degrees over 100 frames, both directions), or with
+/// a pan E4 without the moving ball.
+fn bench_e2(
+    args: &BenchArgs,
+    scene: Scene,
+    bar: indicatif::ProgressBar,
+    pan_deg_per_frame: f64,
+) -> Result<()> {
+    use retrace::bench::{bench_viewport_sequence, e2_scene, ZoomDirection};
+    let mut accel = args.backend.build(&scene)?;
+    bar.set_length(2 * 300);
+    let mut results = Vec::new();
+    for (label, direction) in [
+        ("zoom in ", ZoomDirection::In),
+        ("zoom out", ZoomDirection::Out),
+    ] {
+        bar.set_message(label);
+        let scene = e2_scene(scene.clone(), direction, pan_deg_per_frame);
+        let result = bench_viewport_sequence(
+            &scene,
+            &mut accel,
+            0..100,
+            1,
+            args.rsvp.knobs()?,
+            true,
+            None,
+            || bar.inc(1),
+        );
+        results.push((label, result));
+    }
+    bar.finish_and_clear();
+    say!(
+        "{} (perspective viewport 640x480, 100 <-> 50 deg over 100 frames{}), {} threads, one run, release",
+        if pan_deg_per_frame == 0.0 { "E2" } else { "E4 without motion" },
+        if pan_deg_per_frame == 0.0 {
+            String::new()
+        } else {
+            format!(", camera yaw {pan_deg_per_frame} deg/frame")
+        },
+        rayon::current_num_threads()
+    );
+    for (label, result) in &results {
+        print_viewport_bench(label, result);
+    }
+    if let Some(path) = &args.json {
+        let list: Vec<_> = results.iter().map(|(_, r)| r).collect();
+        write_json(path, &list)?;
+    }
+    Ok(())
+}
+
+/// RSVP knobs on E2's zoom in: each filter, oversampling and level bias,
+/// with its time and its error against direct renders.
+fn bench_knobs(args: &BenchArgs, scene: Scene, bar: indicatif::ProgressBar) -> Result<()> {
+    use retrace::bench::{e2_scene, ZoomDirection};
+    let mut accel = args.backend.build(&scene)?;
+    let scene = e2_scene(scene, ZoomDirection::In, 0.0);
+    let settings = retrace::tradeoff::rsvp_knob_settings();
+    bar.set_length((settings.len() * 300) as u64);
+    let results = retrace::tradeoff::sweep_rsvp_knobs(&scene, &mut accel, 0..100, || bar.inc(1));
+    bar.finish_and_clear();
+    say!(
+        "RSVP knobs on E2 zoom in (100 frames, 640x480), {} threads",
+        rayon::current_num_threads()
+    );
+    for r in &results {
+        let label = format!(
+            "{:8} oversample {:4.2} bias {:+}",
+            r.knobs.filter.to_string(),
+            r.knobs.oversample,
+            r.knobs.level_bias
+        );
+        print_viewport_bench(&label, r);
+    }
+    if let Some(path) = &args.json {
+        write_json(path, &results)?;
+    }
+    Ok(())
+}
+
+fn bench_backends(args: &BenchArgs, scene: &Scene, bar: indicatif::ProgressBar) -> Result<()> {
+    bar.set_message("grid vs Embree");
+    let result = retrace::bench::bench_backends(scene, args.frame_repeats(), || bar.inc(1))?;
+    bar.finish_and_clear();
+    print_packets(args, &result.run);
+    say!("Embree, recorded packets: {:8.2} ms", result.embree_ms);
+    say!("grid, same packets:       {:8.2} ms", result.grid_ms);
+    say!("ratio grid / Embree:      {:8.3}x", result.ratio);
+    if let Some(path) = &args.json {
+        write_json(path, &result)?;
+    }
+    Ok(())
+}

@@ -1,0 +1,238 @@
+//! The command line's parts: each subcommand in its own file, and here
+//! the arguments and helpers they share.
+
+pub(crate) mod animate;
+pub(crate) mod bench;
+pub(crate) mod render;
+pub(crate) mod tradeoff;
+pub(crate) mod validate;
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, Result};
+use clap::Args;
+
+use retrace::accel::{Accelerator, BackendKind};
+use retrace::camera::Projection;
+use retrace::scene::{load_scene, paper_scene, Scene, SceneOverrides};
+
+#[derive(Args, Clone)]
+struct SceneArgs {
+    /// Scene file (.toml) or OBJ model; the built-in paper scene if omitted.
+    scene: Option<PathBuf>,
+    /// Image width in pixels: the camera's (RSVP viewports keep their own
+    /// sizes; `bench` gives its viewport experiments' viewport this size too).
+    #[arg(long)]
+    width: Option<u32>,
+    /// Image height in pixels (as for --width).
+    #[arg(long)]
+    height: Option<u32>,
+    /// Camera projection.
+    #[arg(long, value_parser = parse_projection)]
+    camera: Option<Projection>,
+    /// Horizontal field of view in degrees.
+    #[arg(long, allow_negative_numbers = true)]
+    fov: Option<f64>,
+}
+
+#[derive(Args)]
+struct BackendArg {
+    /// Intersection backend: embree, or grid (the pure-Rust reference).
+    #[arg(long, default_value = "embree", value_parser = parse_backend)]
+    backend: BackendKind,
+    /// Grid backend: cells per axis of the world grid, N or XxYxZ (default:
+    /// chosen from the primitive count).
+    #[arg(long, value_parser = parse_resolution)]
+    grid_resolution: Option<[u32; 3]>,
+}
+
+impl BackendArg {
+    fn build(&self, scene: &Scene) -> Result<Accelerator> {
+        Ok(Accelerator::build_with(
+            self.backend,
+            &scene.objects,
+            self.grid_resolution,
+        )?)
+    }
+}
+
+fn parse_resolution(s: &str) -> Result<[u32; 3], String> {
+    let parts: Vec<&str> = s.split('x').collect();
+    let numbers: Vec<u32> = parts
+        .iter()
+        .map(|p| p.trim().parse::<u32>())
+        .collect::<Result<_, _>>()
+        .map_err(|_| format!("'{s}' is not N or XxYxZ"))?;
+    let resolution = match numbers[..] {
+        [n] => [n; 3],
+        [x, y, z] => [x, y, z],
+        _ => return Err(format!("'{s}' is not N or XxYxZ")),
+    };
+    if resolution.iter().any(|&n| n == 0 || n > 1024) {
+        return Err(format!("'{s}': each axis needs 1 to 1024 cells"));
+    }
+    Ok(resolution)
+}
+
+fn parse_projection(s: &str) -> Result<Projection, String> {
+    s.parse()
+}
+
+fn parse_backend(s: &str) -> Result<BackendKind, String> {
+    s.parse()
+}
+
+#[derive(Args)]
+struct RsvpKnobArgs {
+    /// RSVP reconstruction filter: nearest, bilinear or box.
+    #[arg(long, default_value = "bilinear")]
+    filter: retrace::reuse::rsvp::Filter,
+    /// RSVP: buffer samples per viewport pixel (per side) the pyramid level
+    /// is chosen for, at least.
+    #[arg(long, default_value_t = 1.0)]
+    oversample: f64,
+    /// RSVP: pyramid levels added to the chosen one (negative: coarser).
+    #[arg(long, default_value_t = 0, allow_negative_numbers = true)]
+    level_bias: i32,
+}
+
+impl RsvpKnobArgs {
+    fn knobs(&self) -> Result<retrace::reuse::rsvp::RsvpKnobs> {
+        if !(self.oversample.is_finite() && (0.01..=64.0).contains(&self.oversample)) {
+            anyhow::bail!("--oversample {}: must be within 0.01..64", self.oversample);
+        }
+        Ok(retrace::reuse::rsvp::RsvpKnobs {
+            filter: self.filter,
+            oversample: self.oversample,
+            level_bias: self.level_bias,
+        })
+    }
+}
+
+#[derive(Args)]
+struct OstcArgs {
+    /// OSTC: the screen is cut into N x N regions (the paper's 16: 40x30
+    /// pixels at 640x480; the default 160: 4x4); finer regions re-trace
+    /// less but take more memory for their bits.
+    #[arg(long, default_value_t = retrace::reuse::ostc::RegionGrid::default().0, value_parser = clap::value_parser!(u32).range(1..=256))]
+    regions: u32,
+    /// OSTC: about this many voxels in the grid over the moving objects'
+    /// swept volume.
+    #[arg(long, default_value_t = retrace::reuse::ostc::DEFAULT_VOXELS, value_parser = clap::value_parser!(u32).range(1..=16_777_216))]
+    ostc_voxels: u32,
+}
+
+impl OstcArgs {
+    fn settings(&self) -> retrace::anim::OstcSettings {
+        retrace::anim::OstcSettings {
+            regions: retrace::reuse::ostc::RegionGrid(self.regions),
+            voxels: self.ostc_voxels,
+        }
+    }
+}
+
+fn load(args: &SceneArgs) -> Result<Scene> {
+    let overrides = SceneOverrides {
+        width: args.width,
+        height: args.height,
+        projection: args.camera,
+        fov: args.fov,
+    };
+    let scene = match &args.scene {
+        Some(path) => load_scene(path, &overrides)?,
+        None => paper_scene(&overrides)?,
+    };
+    for warning in &scene.warnings {
+        eprintln!("warning: {warning}");
+    }
+    Ok(scene)
+}
+
+fn scene_name(args: &SceneArgs) -> String {
+    args.scene
+        .as_deref()
+        .map_or("built-in paper scene".to_string(), |p| {
+            p.display().to_string()
+        })
+}
+
+fn ensure_parent(path: &Path) -> Result<()> {
+    if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir)
+            .with_context(|| format!("cannot create output folder {}", dir.display()))?;
+    }
+    Ok(())
+}
+
+/// `A-B` or `A`, within `0..count`.
+fn parse_frame_range(text: Option<&str>, count: u32) -> Result<std::ops::RangeInclusive<u32>> {
+    let Some(text) = text else {
+        return Ok(0..=count - 1);
+    };
+    let parse = |s: &str| -> Result<u32> {
+        s.trim()
+            .parse()
+            .with_context(|| format!("--frames {text}: '{s}' is not a frame number"))
+    };
+    let (first, last) = match text.split_once('-') {
+        Some((a, b)) => (parse(a)?, parse(b)?),
+        None => {
+            let frame = parse(text)?;
+            (frame, frame)
+        }
+    };
+    if first > last {
+        anyhow::bail!("--frames {text}: the first frame comes after the last");
+    }
+    if last >= count {
+        anyhow::bail!("--frames {text}: the animation has frames 0-{}", count - 1);
+    }
+    Ok(first..=last)
+}
+
+/// The file name of each frame under `pattern` (a run of # becomes the
+/// zero-padded frame number), checked for a known image format.
+fn frame_namer(pattern: &str) -> Result<impl Fn(u32) -> PathBuf> {
+    let (prefix, digits, suffix) = frame_pattern(pattern)?;
+    let name = move |frame: u32| PathBuf::from(format!("{prefix}{frame:0digits$}{suffix}"));
+    retrace::output::format_for(&name(0))?;
+    Ok(name)
+}
+
+/// Splits a frame pattern around its run of `#`.
+fn frame_pattern(pattern: &str) -> Result<(String, usize, String)> {
+    let start = pattern.find('#').with_context(|| {
+        format!(
+            "output pattern '{pattern}' has no # for the frame number (e.g. out/frame_####.png)"
+        )
+    })?;
+    let width = pattern[start..].chars().take_while(|&c| c == '#').count();
+    let (prefix, suffix) = (&pattern[..start], &pattern[start + width..]);
+    if suffix.contains('#') {
+        anyhow::bail!("output pattern '{pattern}' has more than one run of #");
+    }
+    Ok((prefix.to_string(), width, suffix.to_string()))
+}
+
+/// Fails early, before any rendering, if `dir` cannot take new files.
+fn check_writable(dir: &Path) -> Result<()> {
+    std::fs::create_dir_all(dir)
+        .with_context(|| format!("cannot create output folder {}", dir.display()))?;
+    let probe = dir.join(format!(".retrace-probe-{}", std::process::id()));
+    std::fs::write(&probe, b"")
+        .with_context(|| format!("cannot write into output folder {}", dir.display()))?;
+    let _ = std::fs::remove_file(probe);
+    Ok(())
+}
+
+fn write_json(path: &Path, value: &impl serde::Serialize) -> Result<()> {
+    ensure_parent(path)?;
+    let text = serde_json::to_string_pretty(value)?;
+    retrace::output::write_atomically(path, |temp| {
+        std::fs::write(temp, &text).map_err(|source| retrace::output::OutputError::Write {
+            path: path.to_path_buf(),
+            source,
+        })
+    })?;
+    Ok(())
+}
