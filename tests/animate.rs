@@ -164,25 +164,22 @@ fn animate_writes_frames_gif_and_stats_and_verifies() {
     assert!(csv.lines().nth(2).unwrap().contains(",pan,"));
     assert!(String::from_utf8_lossy(&out.stdout).contains("bit for bit"));
 
+    // The same frames again, with more arguments.
+    let again = |extra: &[&str]| {
+        let size = ["animate", "pan.toml", "--width", "48", "--height", "32"];
+        retrace(
+            &[&size[..], &["-o", "out/f_###.png"], extra].concat(),
+            dir.path(),
+        )
+    };
     // --skip-existing leaves finished frames alone; JSON stats work too.
-    let out = retrace(
-        &[
-            "animate",
-            "pan.toml",
-            "--width",
-            "48",
-            "--height",
-            "32",
-            "-o",
-            "out/f_###.png",
-            "--skip-existing",
-            "--frames",
-            "4-5",
-            "--stats",
-            "out/s.json",
-        ],
-        dir.path(),
-    );
+    let out = again(&[
+        "--skip-existing",
+        "--frames",
+        "4-5",
+        "--stats",
+        "out/s.json",
+    ]);
     assert!(out.status.success(), "{}", stderr(&out));
     let json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(dir.path().join("out/s.json")).unwrap())
@@ -197,22 +194,7 @@ fn animate_writes_frames_gif_and_stats_and_verifies() {
     // Resuming with a GIF: the frames already there go into it too, so it
     // equals the first run's.
     std::fs::remove_file(dir.path().join("out/f_003.png")).unwrap();
-    let out = retrace(
-        &[
-            "animate",
-            "pan.toml",
-            "--width",
-            "48",
-            "--height",
-            "32",
-            "-o",
-            "out/f_###.png",
-            "--skip-existing",
-            "--gif",
-            "out/b.gif",
-        ],
-        dir.path(),
-    );
+    let out = again(&["--skip-existing", "--gif", "out/b.gif"]);
     assert!(out.status.success(), "{}", stderr(&out));
     let resumed = std::fs::read(dir.path().join("out/b.gif")).unwrap();
     let frames = |bytes: &[u8]| {

@@ -420,13 +420,8 @@ pub(crate) fn animate(args: AnimateArgs) -> Result<()> {
         eprintln!("warning: rendered in full: {reason}");
     }
     let what = format!("{} frames{}", all_stats.len(), skipped_note(skipped));
-    say!(
-        "{}: {what} {}",
-        scene_name(&args.scene),
-        run_summary(&all_stats, write_ms)
-    );
+    say_run(&args, &what, &all_stats, write_ms, "full renders");
     if args.verify {
-        say!("verify: full renders {}", verify_timing(&all_stats));
         if !failed_frames.is_empty() {
             let list: Vec<String> = failed_frames
                 .iter()
@@ -611,13 +606,8 @@ fn animate_viewports(
         names.join(", "),
         skipped_note(skipped)
     );
-    say!(
-        "{}: {what} {}",
-        scene_name(&args.scene),
-        run_summary(&all_stats, write_ms)
-    );
+    say_run(args, &what, &all_stats, write_ms, "direct renders");
     if args.verify {
-        say!("verify: direct renders {}", verify_timing(&all_stats));
         for name in &names {
             let rows = all_stats.iter().filter(|s| &s.viewport == name);
             say!(
@@ -627,6 +617,25 @@ fn animate_viewports(
         }
     }
     Ok(())
+}
+
+/// The run's last lines: what was rendered, in what time, and with
+/// `--verify` the time of the `references` it was checked against.
+fn say_run(
+    args: &AnimateArgs,
+    what: &str,
+    stats: &[retrace::anim::FrameStats],
+    write_ms: f64,
+    references: &str,
+) {
+    say!(
+        "{}: {what} {}",
+        scene_name(&args.scene),
+        run_summary(stats, write_ms)
+    );
+    if args.verify {
+        say!("verify: {references} {}", verify_timing(stats));
+    }
 }
 
 /// Says how many frames `--skip-existing` left as they were, if any.
