@@ -179,6 +179,7 @@ fn animate_writes_frames_gif_and_stats_and_verifies() {
         "4-5",
         "--stats",
         "out/s.json",
+        "--verify",
     ]);
     assert!(out.status.success(), "{}", stderr(&out));
     let json: serde_json::Value =
@@ -189,6 +190,15 @@ fn animate_writes_frames_gif_and_stats_and_verifies() {
         String::from_utf8_lossy(&out.stdout).contains("0 frames (2 more skipped"),
         "{}",
         String::from_utf8_lossy(&out.stdout)
+    );
+    let said = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        said.contains("verify: no frame rendered, nothing to check"),
+        "{said}"
+    );
+    assert!(
+        !said.contains("-0.0") && !said.contains("bit for bit"),
+        "{said}"
     );
 
     // Resuming with a GIF: the frames already there go into it too, so it

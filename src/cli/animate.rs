@@ -421,7 +421,7 @@ pub(crate) fn animate(args: AnimateArgs) -> Result<()> {
     }
     let what = format!("{} frames{}", all_stats.len(), skipped_note(skipped));
     say_run(&args, &what, &all_stats, write_ms, "full renders");
-    if args.verify {
+    if args.verify && !all_stats.is_empty() {
         if !failed_frames.is_empty() {
             let list: Vec<String> = failed_frames
                 .iter()
@@ -607,7 +607,7 @@ fn animate_viewports(
         skipped_note(skipped)
     );
     say_run(args, &what, &all_stats, write_ms, "direct renders");
-    if args.verify {
+    if args.verify && !all_stats.is_empty() {
         for name in &names {
             let rows = all_stats.iter().filter(|s| &s.viewport == name);
             say!(
@@ -633,7 +633,9 @@ fn say_run(
         scene_name(&args.scene),
         run_summary(stats, write_ms)
     );
-    if args.verify {
+    if args.verify && stats.is_empty() {
+        say!("verify: no frame rendered, nothing to check");
+    } else if args.verify {
         say!("verify: {references} {}", verify_timing(stats));
     }
 }
@@ -647,10 +649,15 @@ fn skipped_note(skipped: u32) -> String {
     }
 }
 
+/// Milliseconds added up from +0.0: `Iterator::sum` starts floats at -0.0,
+/// which prints as "-0.0 ms" when nothing was rendered.
+fn sum_ms(values: impl Iterator<Item = f64>) -> f64 {
+    values.fold(0.0, |total, ms| total + ms)
+}
+
 /// Time spent, and samples traced against pixels shown, over a run.
 fn run_summary(stats: &[retrace::anim::FrameStats], write_ms: f64) -> String {
-    // A float sum starts at -0.0: no frame rendered would say "-0.0 ms".
-    let total: f64 = stats.iter().map(|s| s.total_ms).sum::<f64>() + 0.0;
+    let total = sum_ms(stats.iter().map(|s| s.total_ms));
     let traced: u64 = stats.iter().map(|s| s.samples_traced).sum();
     let pixels: u64 = stats.iter().map(|s| s.pixels).sum();
     format!(
@@ -661,8 +668,8 @@ fn run_summary(stats: &[retrace::anim::FrameStats], write_ms: f64) -> String {
 
 /// The reference renders' time and the speedup against them.
 fn verify_timing(stats: &[retrace::anim::FrameStats]) -> String {
-    let total: f64 = stats.iter().map(|s| s.total_ms).sum();
-    let full: f64 = stats.iter().filter_map(|s| s.full_ms).sum();
+    let total = sum_ms(stats.iter().map(|s| s.total_ms));
+    let full = sum_ms(stats.iter().filter_map(|s| s.full_ms));
     format!("{full:.1} ms, speedup {:.2}x", full / total.max(1e-9))
 }
 
