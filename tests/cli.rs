@@ -167,6 +167,16 @@ fn obj_that_does_not_parse_names_file_and_line() {
     );
     let case = Case::new(&[("bad.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 7\n")]);
     case.assert_fails(&case.render("bad.obj", &[]), &["bad.obj:4", "out of range"]);
+    // The same errors through a scene file; a model that is not there is
+    // the scene's line.
+    let scene = format!("{CAMERA}[[object]]\ntype = \"mesh\"\nfile = \"bad.obj\"\n");
+    let case = Case::new(&[("s.toml", &scene), ("bad.obj", "v 0 0 0\nv 1 0 zero\n")]);
+    case.assert_fails(&case.render("s.toml", &[]), &["bad.obj:2", "'zero'"]);
+    let case = Case::new(&[("s.toml", &scene)]);
+    case.assert_fails(
+        &case.render("s.toml", &[]),
+        &["s.toml:5: object[0].file", "bad.obj: no such model file"],
+    );
 }
 
 #[test]

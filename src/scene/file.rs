@@ -1351,6 +1351,14 @@ fn convert_object(
                 .parent()
                 .unwrap_or(Path::new("."))
                 .join(file);
+            // A model that is not there is the scene's mistake: name its
+            // line. (Errors inside the model name the model's own line.)
+            if !obj_path.is_file() {
+                return Err(err(
+                    "file",
+                    format!("{}: no such model file", obj_path.display()),
+                ));
+            }
             let loaded = super::load_obj_mesh(&obj_path)?;
             warnings.extend(loaded.warnings(&obj_path));
             if loaded.triangle_count() == 0 {
