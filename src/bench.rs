@@ -389,7 +389,7 @@ struct Oracle {
     rays: OracleRays,
 }
 
-/// Ray totals of the oracle (see [`Oracle::rays`]).
+/// Ray totals of the oracle (see `Oracle::rays`).
 #[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
 pub struct OracleRays {
     pub all: u64,

@@ -351,7 +351,7 @@ impl<'a> Shader<'a> {
     ///
     /// Surfaces are reconstructed lane by lane (each lane may hit a
     /// different kind of object); lighting and reflection directions then
-    /// run on all eight lanes at once, by coordinate ([`Vec3Lanes`]), with
+    /// run on all eight lanes at once, by coordinate (`Vec3Lanes`), with
     /// the lane masks choosing which results are kept. Per lane that is the
     /// same arithmetic, in the same order, as shading one ray at a time.
     pub fn shade(

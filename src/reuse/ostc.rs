@@ -596,7 +596,7 @@ impl Ostc {
     }
 
     /// Voxel visits and recording time (estimated from one packet in
-    /// [`TIMED_EVERY`]) since the last call, then zeroes them.
+    /// `TIMED_EVERY`) since the last call, then zeroes them.
     pub fn take_counters(&self) -> (u64, f64) {
         (
             self.counters.voxels_walked.swap(0, Ordering::Relaxed),
