@@ -391,6 +391,12 @@ pub struct FrameStats {
 }
 
 impl FrameStats {
+    /// Why this frame was rendered in full though reuse was asked for (a
+    /// pan on a camera that is not equal-angle, say), if it was.
+    pub fn refusal(&self) -> Option<&str> {
+        (self.mode == "full" && !self.reason.is_empty()).then_some(self.reason.as_str())
+    }
+
     fn count_rays(&mut self, rays: RayCounts) {
         self.primary_rays = rays.primary;
         self.shadow_rays = rays.shadow;

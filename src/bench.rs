@@ -646,11 +646,10 @@ pub fn bench_sequence(
             row.bookkeeping_ms = stats.bookkeeping_ms;
             row.accelerated_trace_ms = stats.trace_ms;
             row.accelerated_copy_ms = stats.copy_ms;
-            if stats.mode == "full"
-                && !stats.reason.is_empty()
-                && !full_reasons.contains(&stats.reason)
-            {
-                full_reasons.push(stats.reason.clone());
+            if let Some(reason) = stats.refusal() {
+                if !full_reasons.iter().any(|r| r == reason) {
+                    full_reasons.push(reason.to_string());
+                }
             }
             progress();
         }

@@ -83,6 +83,11 @@ impl PendingFile {
         &self.temp
     }
 
+    /// Where the file goes once committed.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
     /// Moves the written file into place.
     pub fn commit(mut self) -> Result<(), OutputError> {
         // Under the lock, so an interrupt either removes the temporary

@@ -87,7 +87,6 @@ struct GifWriter {
     /// before `file` removes an unfinished one.
     encoder: Option<image::codecs::gif::GifEncoder<std::io::BufWriter<std::fs::File>>>,
     file: PendingFile,
-    path: PathBuf,
     delay: image::Delay,
 }
 
@@ -104,7 +103,6 @@ impl GifWriter {
         Ok(GifWriter {
             encoder: Some(encoder),
             file,
-            path: path.to_path_buf(),
             delay: image::Delay::from_numer_denom_ms(1000, fps.round().max(1.0) as u32),
         })
     }
@@ -115,7 +113,7 @@ impl GifWriter {
             .as_mut()
             .expect("frames are added before finish")
             .encode_frame(image::Frame::from_parts(rgba, 0, 0, self.delay))
-            .with_context(|| format!("cannot encode {}", self.path.display()))
+            .with_context(|| format!("cannot encode {}", self.file.path().display()))
     }
 
     /// A frame written by an earlier run (`--skip-existing`), read back so
@@ -410,11 +408,7 @@ pub(crate) fn animate(args: AnimateArgs) -> Result<()> {
     bar.finish_and_clear();
     finish_outputs(gif, stats_path.as_deref(), &all_stats)?;
     // Reuse that was asked for but could not apply is worth a word.
-    let mut refusals: Vec<&str> = all_stats
-        .iter()
-        .filter(|s| s.mode == "full" && !s.reason.is_empty())
-        .map(|s| s.reason.as_str())
-        .collect();
+    let mut refusals: Vec<&str> = all_stats.iter().filter_map(|s| s.refusal()).collect();
     refusals.dedup();
     for reason in refusals {
         eprintln!("warning: rendered in full: {reason}");
