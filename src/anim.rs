@@ -525,7 +525,7 @@ pub struct Animator<'a> {
     /// Whether to keep, per frame, the image with re-traced samples black.
     keep_traced_image: bool,
     traced_image: Option<image::RgbImage>,
-    /// Whether the camera changes at all over the run's frames.
+    /// Whether the camera changes at all over the timeline.
     camera_moves: bool,
     samples: Option<SampleBuffer>,
     /// The scene as it was when the sample buffer's samples were traced.
@@ -567,10 +567,13 @@ impl<'a> Animator<'a> {
             knobs: RsvpKnobs::default(),
             camera_moves: false,
         };
-        let first = animator.camera_at(animator.frame_range.start);
-        animator.camera_moves = animator
-            .frame_range
-            .clone()
+        // Over the whole timeline, not just this run: whether frames live on
+        // the lattice must not depend on which frames a run renders, or a
+        // chunk of a render farm's run would differ from one long run.
+        let timeline = scene.animation.as_ref().map_or(0..0, |a| 0..a.frames);
+        let first = animator.camera_at(0);
+        animator.camera_moves = timeline
+            .chain(animator.frame_range.clone())
             .any(|frame| animator.camera_at(frame) != first);
         animator
     }
@@ -905,7 +908,7 @@ impl<'a> Animator<'a> {
 
     /// Whether a full render of `camera` is taken on the pan lattice, so
     /// that a pan (by any animator of this timeline) compares with it bit
-    /// for bit: equal-angle cameras that move during the run.
+    /// for bit: equal-angle cameras of a timeline that moves the camera.
     fn on_lattice(&self, camera: &Camera) -> bool {
         camera.projection == Projection::EqualAngle && self.camera_moves
     }
@@ -924,23 +927,21 @@ impl<'a> Animator<'a> {
                 camera.projection
             ));
         }
-        // Without panning a camera keeps its own image, which holds only
-        // while it stands still.
+        // Without panning a buffer holds only while the camera stands still.
         let moves = |other: u32| self.camera_at(other) != *camera;
         let still = (frame == 0 || !moves(frame - 1)) && !moves(frame + 1);
-        (!still).then(|| {
-            format!(
-                "the {} camera moves: only equal-angle views pan",
-                camera.projection
-            )
+        (!still).then(|| match camera.projection {
+            Projection::EqualAngle => "the camera moves and pan is off".to_string(),
+            projection => format!("the {projection} camera moves: only equal-angle views pan"),
         })
     }
 
     /// A sample buffer for `camera`: the pan lattice, sized for every
-    /// window of this run that shares it, for equal-angle cameras; the
-    /// camera's own image otherwise.
+    /// window of this run that shares it, for the cameras whose frames live
+    /// there (with pan off too, so they equal full renders); the camera's
+    /// own image otherwise.
     fn new_store(&self, camera: &Camera) -> Store {
-        if !self.pans(camera) {
+        if !self.on_lattice(camera) {
             let table = RayTable::new(camera);
             let rows = table.rows();
             return Store::Image(PanBuffer::new(table, 0..rows));
@@ -1035,7 +1036,11 @@ impl<'a> Animator<'a> {
                 if !pan.lattice().fits(camera) {
                     return Some("eye or field of view changed: buffer restarted".to_string());
                 }
-                if !pan.covers(&pan.resample_window(camera).0) {
+                let read = match self.fractional {
+                    FractionalPan::Snap => pan.lattice().window(camera),
+                    FractionalPan::Resample => pan.resample_window(camera).0,
+                };
+                if !pan.covers(&read) {
                     return Some("view left the pan buffer's rows: restarted".to_string());
                 }
                 let window = pan.lattice().window(camera);

@@ -70,6 +70,17 @@ on_every_backend! {
         // One turn of columns (232) over the rows seen, whatever the turns.
         assert!(traced <= 232 * 48, "traced {traced}");
     }
+
+    ostc_without_pan_equals_full_renders_where_the_camera_stands_still(backend) {
+        // With pan off, the still frames of a timeline whose camera moves
+        // elsewhere are the lattice's frames, as full renders take them.
+        let scene = pan_then_still();
+        let ostc = Techniques { pan: false, rsvp: false, ostc: true };
+        let stats = common::run_exact(&scene, backend, ostc);
+        let modes: Vec<&str> = stats.iter().map(|s| s.mode).collect();
+        assert!(modes[6..].iter().all(|&m| m == "ostc"), "{modes:?}");
+        assert!(stats[6..].iter().all(|s| s.pixels_reused > 0), "{modes:?}");
+    }
 }
 
 #[test]
@@ -503,5 +514,82 @@ fn chunks_of_an_array_job_render_the_frames_of_one_run() {
             .unwrap();
         assert_eq!(csv.lines().count(), 1 + rows, "chunk {index}");
         assert!(csv.lines().nth(1).unwrap().contains("first frame"), "{csv}");
+    }
+}
+
+#[test]
+fn views_reaching_a_pole_keep_panning_in_both_pan_modes() {
+    use retrace::anim::FractionalPan;
+    // 90 degrees over 64 px: exactly 256 columns a turn and 128 rows from
+    // pole to pole. A 48-row view pitched -56.25 degrees ends on the last
+    // row; pitched +56.25 it starts on the first.
+    for pitch in ["-56.25", "56.25"] {
+        let keys = key(0, &format!("yaw = 0.0\npitch = {pitch}\nfov = 90.0"))
+            + &key(3, &format!("yaw = 12.0\npitch = {pitch}\nfov = 90.0"));
+        let mut scene = paper_with_keys(&keys, 4);
+        scene.camera.fov = 90f64.to_radians();
+        let stats = common::run_exact(
+            &scene,
+            retrace::accel::BackendKind::Embree,
+            Techniques::AUTO,
+        );
+        for s in &stats[1..] {
+            assert!(
+                s.mode == "pan" && s.pixels_reused > 0 && s.reason.is_empty(),
+                "pitch {pitch}, frame {}: {} {:?}, {} reused",
+                s.frame,
+                s.mode,
+                s.reason,
+                s.pixels_reused
+            );
+        }
+        let mut accel =
+            Accelerator::build(retrace::accel::BackendKind::Embree, &scene.objects).unwrap();
+        let mut resampled = Animator::new(&scene, &mut accel, Techniques::AUTO, 0..4);
+        resampled.set_fractional_pan(FractionalPan::Resample);
+        for frame in 0..4 {
+            let (image, _, stats) = resampled.render(frame);
+            let (truth, _) = resampled.render_true_view(frame);
+            let error = retrace::anim::image_error(&image.unwrap(), &truth);
+            assert!(
+                error.mean_abs < 0.1,
+                "pitch {pitch}, frame {frame}: {error:?}"
+            );
+            assert!(
+                frame == 0 || stats.pixels_reused > 0,
+                "pitch {pitch}, frame {frame}"
+            );
+        }
+    }
+}
+
+/// A camera that pans over frames 0-4 and then stands still, with a
+/// bouncing ball throughout.
+fn pan_then_still() -> Scene {
+    let keys = key(0, "yaw = 0.0") + &key(4, "yaw = 10.0") + &key(9, "yaw = 10.0");
+    let ball = "[[animation.bounce]]\nobject = \"ball\"\nheight = 1.0\nperiod = 4\n\n\
+                [[object]]\ntype = \"sphere\"\nname = \"ball\"\ncenter = [-2.6, 0.5, 3.0]\n\
+                radius = 0.5\nmaterial = \"red\"\n";
+    paper_with_keys(&(keys + ball), 10)
+}
+
+#[test]
+fn a_run_of_later_frames_equals_one_long_run() {
+    // Frames 5-9 stand still: alone they must still be the frames a run
+    // over the whole timeline makes (on the pan lattice).
+    let scene = pan_then_still();
+    let mut accel =
+        Accelerator::build(retrace::accel::BackendKind::Embree, &scene.objects).unwrap();
+    let mut long = Animator::new(&scene, &mut accel, Techniques::AUTO, 0..10);
+    let long_frames: Vec<_> = (0..10).map(|f| long.render(f).0.unwrap()).collect();
+    drop(long);
+    let mut late = Animator::new(&scene, &mut accel, Techniques::AUTO, 5..10);
+    for frame in 5..10 {
+        let image = late.render(frame).0.unwrap();
+        assert_eq!(
+            retrace::anim::count_differences(&image, &long_frames[frame as usize]),
+            0,
+            "frame {frame}"
+        );
     }
 }

@@ -608,18 +608,27 @@ impl<L: Lattice> PanBuffer<L> {
 impl PanBuffer<EqualAngleLattice> {
     /// The window a resampled view of `camera` reads: its unsnapped corner
     /// rounded down, one sample wider and taller (bilinear neighbours).
+    ///
+    /// A view that reaches a pole has its edge on the lattice's first or
+    /// last row, where rounding can put the exact corner a hair (up to
+    /// about a tenth of a sample) beyond it: the window then starts on the
+    /// edge row itself, and a view as tall as the lattice (or, rounded,
+    /// a row taller) reads its last row as its own neighbour.
     pub fn resample_window(&self, camera: &Camera) -> (Window, f64, f64) {
         let (col, row) = self.lattice.exact_corner(camera);
-        let (c0, r0) = (col.floor(), row.floor());
+        let rows = self.lattice.rows;
+        let height = (i64::from(camera.height) + 1).min(rows);
+        let c0 = col.floor();
+        let r0 = row.floor().clamp(0.0, (rows - height) as f64);
         let window = Window {
             col: c0 as i64,
             row: r0 as i64,
             width: camera.width + 1,
-            height: camera.height + 1,
+            height: height as u32,
             yaw_error: 0.0,
             pitch_error: 0.0,
         };
-        (window, col - c0, row - r0)
+        (window, col - c0, (row - r0).clamp(0.0, 1.0))
     }
 
     /// The unsnapped view of `camera`, resampled bilinearly from the buffer
@@ -645,14 +654,16 @@ impl PanBuffer<EqualAngleLattice> {
         let srgb = srgb_table();
         let mut pixels = Vec::with_capacity(if linear { width * height } else { 0 });
         let mut bytes: Vec<u8> = Vec::with_capacity(width * height * 3);
+        let last_row = window.row + i64::from(window.height) - 1;
         for y in 0..height as i64 {
-            let row = window.row + y;
+            let row = (window.row + y).min(last_row);
+            let below = (row + 1).min(last_row);
             for x in 0..width as i64 {
                 let col = window.col + x;
                 let c = self.colors[self.sample_index(col, row)] * weights[0]
                     + self.colors[self.sample_index(col + 1, row)] * weights[1]
-                    + self.colors[self.sample_index(col, row + 1)] * weights[2]
-                    + self.colors[self.sample_index(col + 1, row + 1)] * weights[3];
+                    + self.colors[self.sample_index(col, below)] * weights[2]
+                    + self.colors[self.sample_index(col + 1, below)] * weights[3];
                 bytes.extend(c.to_array().map(|v| srgb.encode(v)));
                 if linear {
                     pixels.push(c);
