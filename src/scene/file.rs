@@ -625,7 +625,7 @@ pub fn parse_scene_str(
         Some(def) => {
             let mut animation = convert_animation(&ctx, def, &camera)?;
             animation.objects = convert_object_tracks(&ctx, def, &objects)?;
-            animation.lights = convert_light_tracks(&ctx, def, &lights)?;
+            animation.lights = convert_light_tracks(&ctx, def, &file.light)?;
             Some(animation)
         }
     };
@@ -1039,16 +1039,18 @@ fn convert_object_tracks(
     Ok(tracks)
 }
 
+/// The keys of `def` for the scene's `lights` (their tables, already
+/// checked).
 fn convert_light_tracks(
     ctx: &Ctx,
     def: &AnimationDef,
-    lights: &[Light],
+    lights: &[Spanned<LightDef>],
 ) -> Result<Vec<LightTrack>, SceneError> {
     let mut tracks: Vec<LightTrack> = Vec::new();
     for (i, key) in def.light.iter().enumerate() {
         let k = key.get_ref();
         let field = |f: &str| format!("animation.light[{i}].{f}");
-        let Some(base) = lights.get(k.light) else {
+        let Some(base) = lights.get(k.light).map(Spanned::get_ref) else {
             return Err(ctx.error(
                 key.span(),
                 field("light"),
@@ -1073,13 +1075,13 @@ fn convert_light_tracks(
         let previous = track.keys.last().copied();
         let of = format!("of light {} ", k.light);
         check_key_order(ctx, key, field("frame"), &of, previous.map(|p| p.frame))?;
-        // The scene's light is the starting point: power = colour x intensity,
-        // so an unset colour or intensity carries over as a whole.
+        // The scene's light is the starting point: a key that leaves its
+        // colour or its intensity unset keeps the earlier one.
         let carried = previous.unwrap_or(LightKey {
             frame: 0,
-            position: base.position,
-            color: base.power,
-            intensity: 1.0,
+            position: Vec3::from(base.position),
+            color: Vec3::from(base.color),
+            intensity: base.intensity,
             ease: Ease::Linear,
         });
         let position = match k.position {
@@ -1454,6 +1456,24 @@ mod tests {
         assert_eq!(scene.objects.len(), 1);
         assert_eq!(scene.materials[scene.objects[0].material].name, "red");
         assert_eq!(scene.camera.width, 640);
+    }
+
+    #[test]
+    fn light_keys_carry_the_unset_colour_and_intensity_over() {
+        // Keys that restate the light, each part on its own, leave it as
+        // it was.
+        let scene = parse(&format!(
+            "{CAMERA}[[light]]\nposition = [0, 5, 0]\ncolor = [1, 0.5, 0.25]\nintensity = 0.5\n\
+             [animation]\nframes = 5\n\
+             [[animation.light]]\nlight = 0\nframe = 0\n\
+             [[animation.light]]\nlight = 0\nframe = 2\nintensity = 0.5\n\
+             [[animation.light]]\nlight = 0\nframe = 4\ncolor = [1, 0.5, 0.25]\n"
+        ))
+        .unwrap();
+        let track = &scene.animation.as_ref().unwrap().lights[0];
+        for frame in 0..5 {
+            assert_eq!(track.light_at(frame), scene.lights[0], "frame {frame}");
+        }
     }
 
     #[test]
