@@ -90,8 +90,13 @@ impl RayAgreement {
         1.0 - self.hit_miss_disagree as f64 / self.rays.max(1) as f64
     }
 
+    /// Of the rays both backends hit, the share that hit the same
+    /// primitive: all of them (vacuously) when none hit in both.
     pub fn same_primitive_share(&self) -> f64 {
-        self.same_primitive as f64 / self.both_hit.max(1) as f64
+        if self.both_hit == 0 {
+            return 1.0;
+        }
+        self.same_primitive as f64 / self.both_hit as f64
     }
 }
 
