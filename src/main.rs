@@ -76,14 +76,15 @@ fn error_text(err: &anyhow::Error) -> String {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
-    // Ctrl-C stops at once, leaving finished files and no unfinished ones
-    // (frames, GIFs, reports are written under temporary names).
+    // Ctrl-C, or a scheduler's SIGTERM (or SIGHUP), stops at once, leaving
+    // finished files and no unfinished ones (frames, GIFs, reports are
+    // written under temporary names).
     let interrupted = ctrlc::set_handler(|| {
         eprintln!("\ninterrupted");
         retrace::output::remove_unfinished_and_exit(130)
     });
     if let Err(err) = interrupted {
-        eprintln!("warning: Ctrl-C will not clean up unfinished files: {err}");
+        eprintln!("warning: an interrupt will not clean up unfinished files: {err}");
     }
     if let Some(threads) = cli.threads {
         if let Err(err) = rayon::ThreadPoolBuilder::new()

@@ -383,6 +383,17 @@ fn resampled_pans_match_snapped_ones_on_whole_samples_and_measure_their_error() 
 
 #[test]
 fn an_interrupted_run_leaves_finished_files_only() {
+    // As Ctrl-C does.
+    stop_leaves_finished_files_only(nix::sys::signal::Signal::SIGINT);
+}
+
+#[test]
+fn a_terminated_run_leaves_finished_files_only() {
+    // As a batch scheduler's cancel (Slurm's scancel, Kubernetes) does.
+    stop_leaves_finished_files_only(nix::sys::signal::Signal::SIGTERM);
+}
+
+fn stop_leaves_finished_files_only(signal: nix::sys::signal::Signal) {
     use std::process::{Command, Stdio};
     use std::time::{Duration, Instant};
     let dir = tempfile::tempdir().unwrap();
@@ -420,9 +431,9 @@ fn an_interrupted_run_leaves_finished_files_only() {
         std::thread::sleep(Duration::from_millis(5));
     }
     assert!(names().iter().any(|n| n.ends_with(".tmp")), "{:?}", names());
-    // As Ctrl-C does (no `kill` program needed: minimal systems lack one).
+    // No `kill` program needed: minimal systems lack one.
     let pid = nix::unistd::Pid::from_raw(child.id() as i32);
-    nix::sys::signal::kill(pid, nix::sys::signal::Signal::SIGINT).unwrap();
+    nix::sys::signal::kill(pid, signal).unwrap();
     let result = child.wait_with_output().unwrap();
     let err = String::from_utf8_lossy(&result.stderr);
     assert_eq!(result.status.code(), Some(130), "{err}");
