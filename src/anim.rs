@@ -506,6 +506,16 @@ struct Buffered {
     window: Window,
 }
 
+/// The most memory a pan buffer may take. A narrow equal-angle view keeps
+/// a whole turn of its fine samples (E1's: 17 MB; 0.1 degrees over 640 px:
+/// 13 GB): beyond this, frames are rendered in full, with the reason.
+pub const PAN_BUFFER_LIMIT_BYTES: f64 = 2e9;
+
+/// The most memory OSTC's region bits and grid may take (E3's: 1 MB). Fine
+/// regions over a narrow view's whole-turn buffer, or a huge voxel grid,
+/// would pass it: OSTC is then off, with the reason.
+pub const OSTC_LIMIT_BYTES: f64 = 2e9;
+
 /// Renders the frames of one animation, reusing what it may.
 pub struct Animator<'a> {
     /// The scene as loaded.
@@ -527,6 +537,10 @@ pub struct Animator<'a> {
     traced_image: Option<image::RgbImage>,
     /// Whether the camera changes at all over the timeline.
     camera_moves: bool,
+    /// The most a pan buffer of this timeline's views could take, in bytes.
+    pan_buffer_bytes: f64,
+    /// Why OSTC, asked for, could not be kept.
+    ostc_refusal: Option<String>,
     samples: Option<SampleBuffer>,
     /// The scene as it was when the sample buffer's samples were traced.
     samples_pose: Option<ScenePose>,
@@ -566,15 +580,27 @@ impl<'a> Animator<'a> {
             samples_pose: None,
             knobs: RsvpKnobs::default(),
             camera_moves: false,
+            pan_buffer_bytes: 0.0,
+            ostc_refusal: None,
         };
         // Over the whole timeline, not just this run: whether frames live on
         // the lattice must not depend on which frames a run renders, or a
         // chunk of a render farm's run would differ from one long run.
         let timeline = scene.animation.as_ref().map_or(0..0, |a| 0..a.frames);
         let first = animator.camera_at(0);
-        animator.camera_moves = timeline
-            .chain(animator.frame_range.clone())
-            .any(|frame| animator.camera_at(frame) != first);
+        let (mut rows, mut bytes) = (i64::MAX..i64::MIN, 0f64);
+        for frame in timeline.chain(animator.frame_range.clone()) {
+            let camera = animator.camera_at(frame);
+            animator.camera_moves |= camera != first;
+            if camera.projection == Projection::EqualAngle {
+                let seen = EqualAngleLattice::rows_seen(&camera);
+                rows = rows.start.min(seen.start)..rows.end.max(seen.end);
+                // Resampling reads a row more on either side.
+                let span = rows.end.saturating_sub(rows.start).saturating_add(2);
+                bytes = bytes.max(EqualAngleLattice::buffer_bytes(&camera, span));
+            }
+        }
+        animator.pan_buffer_bytes = bytes;
         animator
     }
 
@@ -687,15 +713,15 @@ impl<'a> Animator<'a> {
         let mut reason = String::new();
         let lattice = SampleLattice::for_camera(&self.scene.camera);
         let restart = match &self.samples {
-            None => Some("first frame"),
+            None => Some("first frame".to_string()),
             Some(buffer) if moved && buffer.ostc().is_none() => {
-                Some("objects or lights moved and ostc is off: sample buffer restarted")
+                Some(self.moved_without_ostc("sample buffer"))
             }
             Some(buffer) if buffer.lattice().position != camera.position => {
-                Some("eye moved: sample buffer restarted")
+                Some("eye moved: sample buffer restarted".to_string())
             }
             Some(buffer) if buffer.lattice().columns_per_turn != lattice.columns_per_turn => {
-                Some("buffer resolution changed: restarted")
+                Some("buffer resolution changed: restarted".to_string())
             }
             Some(_) => None,
         };
@@ -705,9 +731,10 @@ impl<'a> Animator<'a> {
                 camera.position,
                 lattice.columns_per_turn,
             ));
-            buffer.set_ostc(self.new_ostc(|size| buffer.regions(size)));
+            let ostc = self.new_ostc(|size| buffer.regions(size));
+            buffer.set_ostc(kept_ostc(&mut self.ostc_refusal, ostc));
             self.samples = Some(buffer);
-            reason = why.to_string();
+            reason = why;
         } else if moved {
             // OSTC: erase what the motion can change; viewports trace it
             // again when they read it.
@@ -910,13 +937,24 @@ impl<'a> Animator<'a> {
     /// that a pan (by any animator of this timeline) compares with it bit
     /// for bit: equal-angle cameras of a timeline that moves the camera.
     fn on_lattice(&self, camera: &Camera) -> bool {
-        camera.projection == Projection::EqualAngle && self.camera_moves
+        camera.projection == Projection::EqualAngle
+            && self.camera_moves
+            && self.pan_buffer_bytes <= PAN_BUFFER_LIMIT_BYTES
     }
 
     /// Why `camera` cannot use a sample buffer, if it cannot.
     fn buffer_refusal(&self, camera: &Camera, frame: u32) -> Option<String> {
         if !self.techniques.buffered() {
             return Some(String::new());
+        }
+        let equal_angle = camera.projection == Projection::EqualAngle;
+        if self.techniques.pan && equal_angle && self.camera_moves && !self.on_lattice(camera) {
+            return Some(format!(
+                "a pan buffer at this field of view (a whole turn of samples) would take \
+                 {:.1} GB; the limit is {:.0} GB",
+                self.pan_buffer_bytes / 1e9,
+                PAN_BUFFER_LIMIT_BYTES / 1e9
+            ));
         }
         if self.pans(camera) {
             return None;
@@ -966,12 +1004,26 @@ impl<'a> Animator<'a> {
     /// OSTC bookkeeping for `store`, when it is on and the timeline moves
     /// something (no grid when no object moves, no light bookkeeping when
     /// no light moves).
-    fn new_ostc(&self, regions: impl FnOnce((i64, i64)) -> RegionLayout) -> Option<Ostc> {
-        let animation = self.animation()?;
+    ///
+    /// Without it (off, or refused with a reason, which [`kept_ostc`] keeps
+    /// for [`Animator::ostc_refusal`]) a buffer restarts whenever something
+    /// moves, which is always exact.
+    fn new_ostc(
+        &self,
+        regions: impl FnOnce((i64, i64)) -> RegionLayout,
+    ) -> Result<Option<Ostc>, String> {
+        let Some(animation) = self.animation() else {
+            return Ok(None);
+        };
         if !self.techniques.ostc || !animation.moves_scene() {
-            return None;
+            return Ok(None);
         }
         let swept = (!animation.objects.is_empty()).then(|| swept_bounds(self.base, animation));
+        if swept.is_some_and(|b| !(b.max - b.min).is_finite()) {
+            return Err(
+                "the moving objects' swept bounds are not finite (no grid fits them)".into(),
+            );
+        }
         // Regions are cut from the scene camera's screen, whatever views it.
         let camera = &self.base.camera;
         let size = self
@@ -982,12 +1034,36 @@ impl<'a> Animator<'a> {
         for track in &animation.lights {
             animated_lights[track.light] = true;
         }
-        Some(Ostc::new(
-            regions(size),
-            swept,
-            self.ostc_settings.voxels,
-            &animated_lights,
-        ))
+        let layout = regions(size);
+        let voxels = self.ostc_settings.voxels;
+        let bytes = Ostc::bytes_for(layout.count(), voxels, swept.is_some());
+        if bytes > OSTC_LIMIT_BYTES {
+            return Err(format!(
+                "its bookkeeping ({} regions of {}x{} samples, {voxels} voxels) would take \
+                 {:.1} GB; the limit is {:.0} GB",
+                layout.count(),
+                size.0,
+                size.1,
+                bytes / 1e9,
+                OSTC_LIMIT_BYTES / 1e9
+            ));
+        }
+        Ok(Some(Ostc::new(layout, swept, voxels, &animated_lights)))
+    }
+
+    /// Why OSTC was asked for but not kept, if it was not: buffers then
+    /// restart whenever something moves.
+    pub fn ostc_refusal(&self) -> Option<&str> {
+        self.ostc_refusal.as_deref()
+    }
+
+    /// Why a buffer restarts when something moved.
+    fn moved_without_ostc(&self, what: &str) -> String {
+        let off = match self.ostc_refusal {
+            Some(_) => "OSTC was refused (see the run's warning)",
+            None => "ostc is off",
+        };
+        format!("objects or lights moved and {off}: {what} restarted")
     }
 
     /// Renders one frame with whatever reuse applies: the frame in linear
@@ -1060,7 +1136,7 @@ impl<'a> Animator<'a> {
             }
         }
         if buffered.pose != *pose && buffered.ostc.is_none() {
-            return Some("objects or lights moved and ostc is off: buffer restarted".to_string());
+            return Some(self.moved_without_ostc("buffer"));
         }
         None
     }
@@ -1089,6 +1165,7 @@ impl<'a> Animator<'a> {
         if let Some(reason) = self.restart_reason(camera, &pose) {
             let store = self.new_store(camera);
             let ostc = self.new_ostc(|size| store.regions(size));
+            let ostc = kept_ostc(&mut self.ostc_refusal, ostc);
             let window = store.window(camera);
             self.buffer = Some(Buffered {
                 store,
@@ -1159,6 +1236,15 @@ impl<'a> Animator<'a> {
         stats.count_rays(pan.rays);
         (image, rgb)
     }
+}
+
+/// The OSTC bookkeeping [`Animator::new_ostc`] made, if it made one; the
+/// reason it refused to, if it did, is kept in `refusal`.
+fn kept_ostc(refusal: &mut Option<String>, made: Result<Option<Ostc>, String>) -> Option<Ostc> {
+    made.unwrap_or_else(|why| {
+        *refusal = Some(why);
+        None
+    })
 }
 
 /// The regions whose samples the change from `old` to `new` can alter.

@@ -371,13 +371,16 @@ fn frame_hash(frame: &crate::render::Frame) -> u64 {
 /// samples needs tracing: what OSTC at that granularity could at best do).
 ///
 /// Equal-angle views are placed on their pan lattice, so a sample keeps its
-/// identity as the window moves; other views count every pixel of every
-/// frame (no reuse keeps them).
+/// identity as the window moves; other views (and views too narrow for a
+/// whole-turn lattice) keep the camera's own pixels while it stands still,
+/// and count every pixel when it moves (no reuse keeps them then).
 struct Oracle {
-    /// Per lattice sample (column-major within a whole turn): a hash of
-    /// the colour last shown, 0 for never.
+    /// Per lattice sample (row-major within a whole turn), or per pixel of
+    /// `image_camera`: a hash of the colour last shown, 0 for never.
     shown: Vec<u64>,
     lattice: Option<crate::reuse::pan::EqualAngleLattice>,
+    /// The camera whose own pixels `shown` holds, off the lattice.
+    image_camera: Option<crate::camera::Camera>,
     region_size: (i64, i64),
     samples: u64,
     region_samples: u64,
@@ -402,6 +405,7 @@ impl Oracle {
         Oracle {
             shown: Vec::new(),
             lattice: None,
+            image_camera: None,
             region_size,
             samples: 0,
             region_samples: 0,
@@ -420,37 +424,56 @@ impl Oracle {
         rays: &[u32],
     ) -> (u64, u64) {
         use crate::reuse::pan::EqualAngleLattice;
-        let pixels = frame.pixels.len() as u64;
         let all_rays: u64 = rays.iter().map(|&r| u64::from(r)).sum();
         self.rays.all += all_rays;
-        if camera.projection != crate::camera::Projection::EqualAngle {
-            self.samples += pixels;
-            self.region_samples += pixels;
-            self.rays.samples += all_rays;
-            self.rays.regions += all_rays;
-            self.region_pixels = vec![true; frame.pixels.len()];
-            return (pixels, pixels);
-        }
         let before = (self.samples, self.region_samples);
-        let fits = self.lattice.as_ref().is_some_and(|l| l.fits(camera));
-        if !fits {
-            let lattice = EqualAngleLattice::for_camera(camera);
-            self.shown = vec![0; (lattice.columns_per_turn * lattice.rows) as usize];
-            self.lattice = Some(lattice);
-        }
-        let lattice = self.lattice.as_ref().expect("lattice just ensured");
-        let window = lattice.window(camera);
+        // One hash per sample of a whole lattice: past the pan buffer's
+        // limit (a narrow view) no pan runs either.
+        let columns = EqualAngleLattice::columns_per_turn_for(camera) as f64;
+        let on_lattice = camera.projection == crate::camera::Projection::EqualAngle
+            && 8.0 * columns * columns / 2.0 <= crate::anim::PAN_BUFFER_LIMIT_BYTES;
         let (rw, rh) = self.region_size;
-        let regions_across = (lattice.columns_per_turn + rw - 1) / rw;
+        let width = i64::from(frame.width);
+        // Where each pixel's sample lives (a slot of `shown`, None for none)
+        // and its region.
+        let place: Box<dyn Fn(i64, i64) -> (Option<usize>, i64)> = if on_lattice {
+            if !self.lattice.as_ref().is_some_and(|l| l.fits(camera)) {
+                let lattice = EqualAngleLattice::for_camera(camera);
+                self.shown = vec![0; (lattice.columns_per_turn * lattice.rows) as usize];
+                self.lattice = Some(lattice);
+            }
+            let lattice = self.lattice.as_ref().expect("lattice just ensured");
+            let window = lattice.window(camera);
+            let regions_across = (lattice.columns_per_turn + rw - 1) / rw;
+            Box::new(move |x, y| {
+                let (col, row) = (lattice.wrap_column(window.col + x), window.row + y);
+                let slot = usize::try_from(row)
+                    .ok()
+                    .filter(|&r| (r as i64) < lattice.rows)
+                    .map(|r| r * lattice.columns_per_turn as usize + col as usize);
+                (slot, row.div_euclid(rh) * regions_across + col / rw)
+            })
+        } else {
+            // Off the lattice a sample is the camera's own pixel, kept while
+            // the camera stands still (as OSTC keeps it).
+            if self.image_camera.as_ref() != Some(camera) {
+                self.shown = vec![0; frame.pixels.len()];
+                self.image_camera = Some(camera.clone());
+                self.lattice = None;
+            }
+            let regions_across = (width + rw - 1) / rw;
+            Box::new(move |x, y| {
+                let slot = (y * width + x) as usize;
+                (Some(slot), (y / rh) * regions_across + x / rw)
+            })
+        };
+        if on_lattice {
+            self.image_camera = None;
+        }
         let mut dirty_regions = std::collections::HashSet::new();
         let mut region_of_pixel = Vec::with_capacity(frame.pixels.len());
         for (i, color) in frame.pixels.iter().enumerate() {
-            let (x, y) = (
-                i as i64 % i64::from(frame.width),
-                i as i64 / i64::from(frame.width),
-            );
-            let (col, row) = (lattice.wrap_column(window.col + x), window.row + y);
-            let region = row.div_euclid(rh) * regions_across + col / rw;
+            let (slot, region) = place(i as i64 % width, i as i64 / width);
             region_of_pixel.push(region);
             let hash = color
                 .to_array()
@@ -459,11 +482,7 @@ impl Oracle {
                     (h ^ u64::from(c.to_bits())).wrapping_mul(0x0100_0000_01b3)
                 })
                 | 1;
-            let Some(slot) = usize::try_from(row)
-                .ok()
-                .filter(|&r| (r as i64) < lattice.rows)
-                .map(|r| r * lattice.columns_per_turn as usize + col as usize)
-            else {
+            let Some(slot) = slot else {
                 continue;
             };
             if self.shown[slot] != hash {
@@ -1086,6 +1105,28 @@ mod tests {
         assert_eq!(oracle.rays.samples, all + u64::from(rays[pixel]));
         let region_rays = oracle.rays.regions - all;
         assert!(region_rays >= 16 * 8 && region_rays > u64::from(rays[pixel]));
+    }
+
+    #[test]
+    fn off_the_lattice_the_oracle_keeps_a_still_cameras_pixels() {
+        let (scene, frame, _, rays) = small_paper_traced();
+        let perspective = crate::camera::Camera {
+            projection: crate::camera::Projection::Perspective,
+            ..scene.camera.clone()
+        };
+        let mut oracle = Oracle::new((16, 8));
+        assert_eq!(oracle.add(&perspective, &frame, &rays), (64 * 48, 64 * 48));
+        assert_eq!(oracle.add(&perspective, &frame, &rays), (0, 0));
+        // Pixel (37, 20): its region is columns 32..48, rows 16..24.
+        let mut changed = frame.clone();
+        changed.pixels[20 * 64 + 37] += glam::Vec3::splat(0.25);
+        assert_eq!(oracle.add(&perspective, &changed, &rays), (1, 16 * 8));
+        // A moved camera shows every pixel anew.
+        let turned = crate::camera::Camera {
+            yaw: perspective.yaw + 0.1,
+            ..perspective
+        };
+        assert_eq!(oracle.add(&turned, &changed, &rays), (64 * 48, 64 * 48));
     }
 
     #[test]

@@ -604,3 +604,27 @@ fn a_run_of_later_frames_equals_one_long_run() {
         );
     }
 }
+
+#[test]
+fn a_pan_too_narrow_for_a_whole_turn_buffer_renders_in_full() {
+    // 0.001 degrees over 64 px: 23M columns a turn, 17 GB of pan buffer.
+    let keys = key(0, "yaw = 0.0\nfov = 0.001") + &key(2, "yaw = 0.002\nfov = 0.001");
+    let mut scene = paper_with_keys(&keys, 3);
+    scene.camera.fov = 0.001f64.to_radians();
+    let stats = common::run_exact(
+        &scene,
+        retrace::accel::BackendKind::Embree,
+        Techniques::AUTO,
+    );
+    for s in &stats {
+        assert_eq!(s.mode, "full", "frame {}", s.frame);
+        assert!(s.reason.contains("pan buffer"), "{}", s.reason);
+    }
+    // Not snapped to a lattice: the camera's own rays.
+    let mut accel =
+        Accelerator::build(retrace::accel::BackendKind::Embree, &scene.objects).unwrap();
+    let mut animator = Animator::new(&scene, &mut accel, Techniques::AUTO, 0..3);
+    let image = animator.render(1).0.unwrap();
+    let (truth, _) = animator.render_true_view(1);
+    assert_eq!(retrace::anim::count_differences(&image, &truth), 0);
+}

@@ -171,6 +171,45 @@ on_every_backend! {
 }
 
 #[test]
+fn ostc_too_big_for_memory_is_refused_and_frames_stay_exact() {
+    use retrace::accel::Accelerator;
+    use retrace::anim::{count_differences, Animator, OstcSettings};
+    let scene = paper_with(
+        &format!("{BALL}\n[animation]\nframes = 3\n[[animation.bounce]]\nobject = \"ball\"\nheight = 2.0\nperiod = 4\n"),
+        160,
+        120,
+    );
+    let mut accel = Accelerator::build(BackendKind::Embree, &scene.objects).unwrap();
+    let mut animator = Animator::new(&scene, &mut accel, Techniques::AUTO, 0..3);
+    // 40x60 regions of one group each: 38 words a voxel; 16M voxels, 10 GB.
+    animator.set_ostc(OstcSettings {
+        regions: retrace::reuse::ostc::RegionGrid(256),
+        voxels: 16_777_216,
+    });
+    for frame in 0..3 {
+        let (image, _, stats) = animator.render(frame);
+        let (reference, _) = animator.render_full(frame);
+        assert_eq!(
+            count_differences(&image.unwrap(), &reference),
+            0,
+            "frame {frame}"
+        );
+        if frame > 0 {
+            assert!(
+                stats.reason.contains("OSTC was refused"),
+                "{}",
+                stats.reason
+            );
+        }
+    }
+    let why = animator.ostc_refusal().expect("refused");
+    assert!(
+        why.contains("GB") && why.contains("16777216 voxels"),
+        "{why}"
+    );
+}
+
+#[test]
 fn still_scenes_build_no_ostc_bookkeeping() {
     let scene = paper_with(
         "[animation]\nframes = 3\n[[animation.camera]]\nframe = 0\nyaw = 0.0\n[[animation.camera]]\nframe = 2\nyaw = 10.0\n",

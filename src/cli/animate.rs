@@ -413,6 +413,7 @@ pub(crate) fn animate(args: AnimateArgs) -> Result<()> {
     for reason in refusals {
         eprintln!("warning: rendered in full: {reason}");
     }
+    warn_ostc_refused(&animator);
     let what = format!("{} frames{}", all_stats.len(), skipped_note(skipped));
     say_run(&args, &what, &all_stats, write_ms, "full renders");
     if args.verify && !all_stats.is_empty() {
@@ -579,6 +580,7 @@ fn animate_viewports(
     }
     bar.finish_and_clear();
     finish_outputs(gif, stats_path, &all_stats)?;
+    warn_ostc_refused(&animator);
     if buffer_check.0 > 0 {
         say!(
             "verify: buffer samples re-traced at {} frame(s): {} compared, {} differ",
@@ -611,6 +613,14 @@ fn animate_viewports(
         }
     }
     Ok(())
+}
+
+/// OSTC asked for but refused is worth a word: buffers restarted on every
+/// change instead.
+fn warn_ostc_refused(animator: &Animator) {
+    if let Some(why) = animator.ostc_refusal() {
+        eprintln!("warning: OSTC is off: {why}; buffers restart whenever something moves");
+    }
 }
 
 /// The run's last lines: what was rendered, in what time, and with

@@ -323,6 +323,21 @@ struct RecordCounters {
 pub const DEFAULT_VOXELS: u32 = 1;
 
 impl Ostc {
+    /// The bytes [`Ostc::new`] would allocate for `regions` regions and a
+    /// grid of about `voxels` voxels (when an object moves), before the
+    /// rays recorded into it: known before allocating them.
+    pub fn bytes_for(regions: usize, voxels: u32, objects_move: bool) -> f64 {
+        let words = regions.div_ceil(64) as f64;
+        let light_sets = 2.0 * words * 8.0;
+        if !objects_move {
+            return light_sets;
+        }
+        let per_region = std::mem::size_of::<Mutex<Vec<RecordedSegment>>>() as f64;
+        // A grid asked for N voxels rounds each axis, up to about twice N.
+        let grid = 2.0 * f64::from(voxels.max(1)) * words * 8.0;
+        light_sets + regions as f64 * per_region + grid
+    }
+
     /// Bookkeeping for a buffer tiled by `layout`: a grid of about `voxels`
     /// voxels over `swept` (the bounds every animated object passes through
     /// over the whole animation; None when no object moves), and the light

@@ -82,9 +82,30 @@ impl EqualAngleLattice {
         }
     }
 
+    /// The rows `camera`'s snapped window covers on its lattice, known
+    /// without making the lattice.
+    pub fn rows_seen(camera: &Camera) -> std::ops::Range<i64> {
+        let step = TAU / Self::columns_per_turn_for(camera) as f64;
+        let top = ((FRAC_PI_2 - camera.pitch) / step - 0.5 * f64::from(camera.height)).round();
+        let top = top.clamp(-1e15, 1e15) as i64;
+        top..top + i64::from(camera.height)
+    }
+
+    /// The bytes a pan buffer over `rows` rows of `camera`'s lattice takes,
+    /// with the lattice's tables: what [`PanBuffer::new`] would allocate,
+    /// known before allocating it.
+    pub fn buffer_bytes(camera: &Camera, rows: i64) -> f64 {
+        let columns = Self::columns_per_turn_for(camera) as f64;
+        let per_sample =
+            (std::mem::size_of::<Vec3>() + 3) as f64 + 1.0 / f64::from(GROUP_WIDTH * GROUP_HEIGHT);
+        // A sine and cosine per column, and per row from pole to pole.
+        let tables = 16.0 * 1.5 * columns;
+        columns * rows as f64 * per_sample + tables
+    }
+
     /// Columns per turn for a camera's angle per pixel, rounded to whole
     /// groups.
-    fn columns_per_turn_for(camera: &Camera) -> i64 {
+    pub fn columns_per_turn_for(camera: &Camera) -> i64 {
         let group = f64::from(GROUP_WIDTH);
         ((TAU / camera.angle_step() / group).round().max(1.0) * group) as i64
     }
