@@ -78,6 +78,11 @@ pub enum CameraError {
     ElevationOutOfRange { low: f64, high: f64 },
     #[error("{field} must be finite, got {value}")]
     NotFinite { field: &'static str, value: f64 },
+    #[error(
+        "{field} = {value:e} lies beyond the scene's extent (within ±{:e} of the origin)",
+        crate::geometry::WORLD_LIMIT
+    )]
+    TooFar { field: &'static str, value: f64 },
 }
 
 /// Degrees that went through radians, without the round trip's last-digit
@@ -157,6 +162,15 @@ impl Camera {
         ] {
             if !value.is_finite() {
                 return Err(CameraError::NotFinite { field, value });
+            }
+        }
+        for (field, value) in [
+            ("camera.position.x", self.position.x),
+            ("camera.position.y", self.position.y),
+            ("camera.position.z", self.position.z),
+        ] {
+            if (value as f32).abs() > crate::geometry::WORLD_LIMIT {
+                return Err(CameraError::TooFar { field, value });
             }
         }
         let fov_deg = self.fov.to_degrees();

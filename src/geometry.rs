@@ -8,6 +8,17 @@ use glam::{Affine3A, Mat3A, Vec3};
 
 use crate::ray::{LaneMask, Ray, RayPacket, PACKET_WIDTH};
 
+/// How far from the origin a scene may reach, on each axis. Beyond, f32
+/// positions lie more than 6e4 apart, and Embree refuses (aborts on) rays
+/// whose origin or direction passes 1.8e18: within this every ray, a
+/// shadow ray's unnormalised span included, stays far inside.
+pub const WORLD_LIMIT: f32 = 1e12;
+
+/// Whether `p` lies within [`WORLD_LIMIT`] of the origin on every axis.
+pub fn within_world(p: Vec3) -> bool {
+    p.abs().max_element() <= WORLD_LIMIT
+}
+
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Aabb {
     pub min: Vec3,

@@ -16,7 +16,9 @@ use crate::anim::{
     Animation, Bounce, CameraKey, Ease, LightKey, LightTrack, ObjectKey, ObjectTrack,
 };
 use crate::camera::{yaw_pitch_toward, Camera, Projection};
-use crate::geometry::{Object, Placement, Plane, Shape, Sphere, TriangleMesh};
+use crate::geometry::{
+    within_world, Object, Placement, Plane, Shape, Sphere, TriangleMesh, WORLD_LIMIT,
+};
 use crate::reuse::rsvp::{ViewTransform, Viewport, ViewportKey, ViewportTrack};
 
 /// Settings from the command line that replace the file's.
@@ -477,6 +479,18 @@ fn finite3(values: [f32; 3]) -> Result<Vec3, String> {
     }
 }
 
+/// A point of the scene: finite and within its extent.
+fn world3(values: [f32; 3]) -> Result<Vec3, String> {
+    let v = finite3(values)?;
+    if within_world(v) {
+        Ok(v)
+    } else {
+        Err(format!(
+            "{values:?} lies beyond the scene's extent (within ±{WORLD_LIMIT:e} of the origin)"
+        ))
+    }
+}
+
 fn colour(values: [f32; 3]) -> Result<Vec3, String> {
     let v = finite3(values)?;
     if v.min_element() < 0.0 {
@@ -569,7 +583,7 @@ pub fn parse_scene_str(
             let field = |f: &str| format!("light[{i}].{f}");
             let l = def.get_ref();
             let position =
-                finite3(l.position).map_err(|m| ctx.error(def.span(), field("position"), m))?;
+                world3(l.position).map_err(|m| ctx.error(def.span(), field("position"), m))?;
             let color = colour(l.color).map_err(|m| ctx.error(def.span(), field("color"), m))?;
             if !(l.intensity.is_finite() && l.intensity >= 0.0) {
                 return Err(ctx.error(
@@ -610,14 +624,26 @@ pub fn parse_scene_str(
                     )
                 })?,
         };
-        objects.extend(convert_object(
-            &ctx,
-            i,
-            def,
-            material,
-            &mut materials,
-            &mut warnings,
-        )?);
+        let converted = convert_object(&ctx, i, def, material, &mut materials, &mut warnings)?;
+        for object in &converted {
+            // A plane is unbounded: its point is checked where it is read.
+            if matches!(object.shape, Shape::Plane(_)) {
+                continue;
+            }
+            let bounds = object.shape.bounds();
+            if !(within_world(bounds.min) && within_world(bounds.max)) {
+                let reach = bounds.min.abs().max(bounds.max.abs()).max_element();
+                return Err(ctx.error(
+                    def.span(),
+                    format!("object[{i}]"),
+                    format!(
+                        "reaches {reach:e} from the origin, beyond the scene's extent \
+                         (within ±{WORLD_LIMIT:e})"
+                    ),
+                ));
+            }
+        }
+        objects.extend(converted);
     }
 
     let animation = match &file.animation {
@@ -863,9 +889,17 @@ fn convert_animation(
             return Err(ctx.error(key.span(), field("position"), "must be finite"));
         }
         let posed = resolved.apply(base);
-        posed
-            .validate()
-            .map_err(|err| ctx.error(key.span(), field("fov"), err.to_string()))?;
+        posed.validate().map_err(|err| {
+            use crate::camera::CameraError;
+            let name = match &err {
+                CameraError::ElevationOutOfRange { .. } => "pitch",
+                CameraError::NotFinite { field, .. } | CameraError::TooFar { field, .. } => {
+                    field.trim_start_matches("camera.")
+                }
+                _ => "fov",
+            };
+            ctx.error(key.span(), field(name), err.to_string())
+        })?;
         resolved.frame = k.frame;
         keys.push(resolved);
     }
@@ -993,7 +1027,7 @@ fn convert_object_tracks(
         });
         let value = |v: Option<[f32; 3]>, old: Vec3, name: &str| match v {
             None => Ok(old),
-            Some(v) => finite3(v).map_err(|m| ctx.error(key.span(), field(name), m)),
+            Some(v) => world3(v).map_err(|m| ctx.error(key.span(), field(name), m)),
         };
         track.keys.push(ObjectKey {
             frame: k.frame,
@@ -1006,11 +1040,14 @@ fn convert_object_tracks(
         let b = bounce.get_ref();
         let field = |f: &str| format!("animation.bounce[{i}].{f}");
         let index = track_for(&mut tracks, &b.object, bounce.span(), field("object"))?;
-        if !(b.height.is_finite() && b.height >= 0.0) {
+        if !(b.height.is_finite() && b.height >= 0.0 && b.height <= WORLD_LIMIT) {
             return Err(ctx.error(
                 bounce.span(),
                 field("height"),
-                format!("must be a finite number >= 0, got {}", b.height),
+                format!(
+                    "must be a finite number from 0 to {WORLD_LIMIT:e}, got {}",
+                    b.height
+                ),
             ));
         }
         if !(b.period.is_finite() && b.period > 0.0) {
@@ -1086,7 +1123,7 @@ fn convert_light_tracks(
         });
         let position = match k.position {
             None => carried.position,
-            Some(p) => finite3(p).map_err(|m| ctx.error(key.span(), field("position"), m))?,
+            Some(p) => world3(p).map_err(|m| ctx.error(key.span(), field("position"), m))?,
         };
         let color = match k.color {
             None => carried.color,
@@ -1181,7 +1218,9 @@ fn convert_camera(
                     (!given.is_empty()).then(|| format!("camera.pitch with {}", given.join(", "))),
                 )
             }
-            CameraError::NotFinite { field, .. } => (field, None),
+            CameraError::NotFinite { field, .. } | CameraError::TooFar { field, .. } => {
+                (field, None)
+            }
         };
         match flag {
             Some(flag) => SceneError::new(ctx.file_of(def.span()), err.to_string()).field(flag),
@@ -1263,7 +1302,7 @@ fn convert_object(
         finite3(v).map_err(|m| err(f, m))
     };
 
-    let translate = finite3(o.translate).map_err(|m| err("translate", m))?;
+    let translate = world3(o.translate).map_err(|m| err("translate", m))?;
     let rotate = finite3(o.rotate).map_err(|m| err("rotate", m))?;
     if !(o.scale.is_finite() && o.scale > 0.0) {
         return Err(err("scale", format!("must be above 0, got {}", o.scale)));
@@ -1295,6 +1334,12 @@ fn convert_object(
         }
         ObjectKind::Plane => {
             let point = transform.transform_point3(require(o.point, "point")?);
+            if !within_world(point) {
+                return Err(err(
+                    "point",
+                    format!("{point} lies beyond the scene's extent (within ±{WORLD_LIMIT:e})"),
+                ));
+            }
             let normal = transform.transform_vector3(require(o.normal, "normal")?);
             if normal.length_squared() == 0.0 {
                 return Err(err("normal", "must not be zero".into()));
@@ -1474,6 +1519,52 @@ mod tests {
         for frame in 0..5 {
             assert_eq!(track.light_at(frame), scene.lights[0], "frame {frame}");
         }
+    }
+
+    #[test]
+    fn a_scene_beyond_the_world_extent_is_refused_by_line_and_field() {
+        // Embree aborts on rays from or toward such points: each is named.
+        let sphere = "[[object]]\ntype = \"sphere\"\ncenter = [0, 0, 0]\nradius = 1\n";
+        let cases = [
+            (
+                format!("[camera]\nposition = [0, 1e13, 5]\nfov = 60\n{sphere}"),
+                1,
+                "camera.position.y",
+            ),
+            (
+                format!("{CAMERA}[[light]]\nposition = [1e19, 0, 0]\n{sphere}"),
+                4,
+                "light[0].position",
+            ),
+            (
+                format!("{CAMERA}[[object]]\ntype = \"sphere\"\ncenter = [0, 0, 0]\nradius = 1e13\n"),
+                4,
+                "object[0]",
+            ),
+            (
+                format!("{CAMERA}{sphere}[animation]\nframes = 2\n[[animation.camera]]\nframe = 1\nposition = [2e12, 0, 0]\n"),
+                10,
+                "animation.camera[0].position.x",
+            ),
+            (
+                format!("[camera]\nprojection = \"equal-angle\"\nposition = [0, 1, 5]\nfov = 100\n{sphere}[animation]\nframes = 2\n[[animation.camera]]\nframe = 1\npitch = 80\n"),
+                11,
+                "animation.camera[0].pitch",
+            ),
+        ];
+        for (text, line, field) in cases {
+            let err = parse(&text).unwrap_err();
+            assert_eq!(
+                (err.line, err.field.as_deref()),
+                (Some(line), Some(field)),
+                "{err}"
+            );
+        }
+        // At the extent's edge, a scene is fine.
+        parse(&format!(
+            "[camera]\nposition = [0, 1e12, 5]\nfov = 60\n{sphere}"
+        ))
+        .unwrap();
     }
 
     #[test]

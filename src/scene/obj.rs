@@ -9,7 +9,7 @@ use glam::{DVec3, Vec3};
 use super::file::SceneOverrides;
 use super::{Checker, Light, Material, Scene, SceneError};
 use crate::camera::{yaw_pitch_toward, Camera, Projection};
-use crate::geometry::{Aabb, Object, Placement, Plane, Shape, TriangleMesh};
+use crate::geometry::{Aabb, Object, Placement, Plane, Shape, TriangleMesh, WORLD_LIMIT};
 
 /// One material's worth of an OBJ file.
 #[derive(Clone, Debug)]
@@ -88,7 +88,16 @@ fn check_obj_text(path: &Path, text: &str) -> Result<(), SceneError> {
                     .take(if keyword == "v" { 3 } else { values.len() })
                 {
                     match word.parse::<f32>() {
-                        Ok(x) if x.is_finite() => {}
+                        Ok(x) if x.is_finite() && (keyword != "v" || x.abs() <= WORLD_LIMIT) => {}
+                        Ok(x) if x.is_finite() => {
+                            return fail(
+                                keyword,
+                                format!(
+                                    "coordinate '{word}' lies beyond the scene's extent \
+                                     (within ±{WORLD_LIMIT:e} of the origin)"
+                                ),
+                            )
+                        }
                         Ok(_) => {
                             return fail(keyword, format!("coordinate '{word}' is not finite"))
                         }
@@ -366,6 +375,11 @@ mod tests {
         let err = check("v 0 0 0\nv 1 nan 0\n").unwrap_err();
         assert_eq!(err.line, Some(2));
         assert!(err.message.contains("not finite"));
+        let err = check("v 0 0 0\nv 1 0 0\nv 0 0 -3e13\n").unwrap_err();
+        assert_eq!(err.line, Some(3));
+        assert!(err.message.contains("beyond the scene's extent"), "{err}");
+        // Texture coordinates and normals are not places.
+        check("v 0 0 0\nvn 0 2e13 0\n").unwrap();
         let err = check("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 4\n").unwrap_err();
         assert_eq!(err.line, Some(4));
         assert!(err.message.contains("out of range"));

@@ -167,6 +167,8 @@ impl Viewport {
                 crate::camera::CameraError::ElevationOutOfRange { .. } => "pitch",
                 crate::camera::CameraError::FieldOfView { .. } => "fov",
                 crate::camera::CameraError::NotFinite { .. } => "pitch",
+                // The viewport's eye is the camera's, checked with it.
+                crate::camera::CameraError::TooFar { .. } => "camera.position",
             },
             message: e.to_string(),
         })?;
