@@ -588,15 +588,16 @@ impl<'a> Animator<'a> {
         // chunk of a render farm's run would differ from one long run.
         let timeline = scene.animation.as_ref().map_or(0..0, |a| 0..a.frames);
         let first = animator.camera_at(0);
-        let (mut rows, mut bytes) = (i64::MAX..i64::MIN, 0f64);
+        // The rows every equal-angle view reaches, top and bottom.
+        let (mut top, mut bottom, mut bytes) = (i64::MAX, i64::MIN, 0f64);
         for frame in timeline.chain(animator.frame_range.clone()) {
             let camera = animator.camera_at(frame);
             animator.camera_moves |= camera != first;
             if camera.projection == Projection::EqualAngle {
                 let seen = EqualAngleLattice::rows_seen(&camera);
-                rows = rows.start.min(seen.start)..rows.end.max(seen.end);
+                (top, bottom) = (top.min(seen.start), bottom.max(seen.end));
                 // Resampling reads a row more on either side.
-                let span = rows.end.saturating_sub(rows.start).saturating_add(2);
+                let span = bottom.saturating_sub(top).saturating_add(2);
                 bytes = bytes.max(EqualAngleLattice::buffer_bytes(&camera, span));
             }
         }
