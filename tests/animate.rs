@@ -628,3 +628,41 @@ fn a_pan_too_narrow_for_a_whole_turn_buffer_renders_in_full() {
     let (truth, _) = animator.render_true_view(1);
     assert_eq!(retrace::anim::count_differences(&image, &truth), 0);
 }
+
+#[test]
+fn gif_frames_last_as_long_as_the_frame_rate_says() {
+    let dir = tempfile::tempdir().unwrap();
+    let paper = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/paper.toml");
+    std::fs::copy(paper, dir.path().join("paper.toml")).unwrap();
+    for (fps, ms) in [("0.5", 2000), ("25", 40), ("12.5", 80)] {
+        let text = format!("include = \"paper.toml\"\n\n[animation]\nframes = 2\nfps = {fps}\n");
+        std::fs::write(dir.path().join("slow.toml"), text).unwrap();
+        let out = retrace(
+            &[
+                "animate",
+                "slow.toml",
+                "--width",
+                "16",
+                "--height",
+                "12",
+                "-o",
+                "f_#.png",
+                "--gif",
+                "a.gif",
+            ],
+            dir.path(),
+        );
+        assert!(out.status.success(), "{}", stderr(&out));
+        use image::AnimationDecoder;
+        let bytes = std::fs::read(dir.path().join("a.gif")).unwrap();
+        let decoder = image::codecs::gif::GifDecoder::new(std::io::Cursor::new(bytes)).unwrap();
+        for frame in decoder.into_frames() {
+            let (numer, denom) = frame.unwrap().delay().numer_denom_ms();
+            assert_eq!(
+                f64::from(numer) / f64::from(denom),
+                f64::from(ms),
+                "{fps} fps"
+            );
+        }
+    }
+}

@@ -103,7 +103,12 @@ impl GifWriter {
         Ok(GifWriter {
             encoder: Some(encoder),
             file,
-            delay: image::Delay::from_numer_denom_ms(1000, fps.round().max(1.0) as u32),
+            // 1000/fps ms, to a thousandth of a frame per second (0.5 fps:
+            // 2 s a frame; GIF itself keeps hundredths of a second).
+            delay: image::Delay::from_numer_denom_ms(
+                1_000_000,
+                (fps * 1000.0).round().max(1.0) as u32,
+            ),
         })
     }
 
