@@ -233,7 +233,7 @@ fn animate_writes_frames_gif_and_stats_and_verifies() {
 #[test]
 fn animate_rejects_bad_input_cleanly() {
     let dir = pan_case("");
-    let cases: [(&[&str], &str); 6] = [
+    let cases: [(&[&str], &str); 9] = [
         (
             &["animate", "pan.toml", "-o", "out/frame.png"],
             "no # for the frame number",
@@ -285,6 +285,34 @@ fn animate_rejects_bad_input_cleanly() {
                 "out/s.txt",
             ],
             "--stats out/s.txt: use a .csv or .json file",
+        ),
+        (
+            &["animate", "pan.toml", "-o", "out/p##/f.png"],
+            "the # must be in the file name",
+        ),
+        (
+            &[
+                "animate",
+                "pan.toml",
+                "-o",
+                "out/f_#.png",
+                "--dirty-image",
+                "out/f_#.png",
+            ],
+            "-o and --dirty-image both write 'out/f_#.png'",
+        ),
+        (
+            // A folder that is a file: refused before any frame, not after
+            // the last.
+            &[
+                "animate",
+                "pan.toml",
+                "-o",
+                "out/f_#.png",
+                "--stats",
+                "pan.toml/s.csv",
+            ],
+            "cannot create output folder pan.toml",
         ),
     ];
     for (args, needle) in cases {

@@ -12,8 +12,8 @@ use retrace::output::{save_image, PendingFile};
 use retrace::scene::Scene;
 
 use super::{
-    check_writable, ensure_parent, frame_namer, frame_pattern, load, parse_frame_range, scene_name,
-    BackendArg, OstcArgs, RsvpKnobArgs, SceneArgs,
+    check_writable, ensure_parent, folder_of, frame_namer, frame_pattern, load, parse_frame_range,
+    scene_name, BackendArg, OstcArgs, RsvpKnobArgs, SceneArgs,
 };
 
 #[derive(Args)]
@@ -282,6 +282,36 @@ fn chunk_of(
     }
 }
 
+/// Fails before any rendering if two outputs share a pattern (one would
+/// overwrite the other) or an output's folder cannot take files: a run
+/// should not end, after its last frame, on a folder it could not write.
+fn check_outputs(args: &AnimateArgs, first_frame: &Path, stats: Option<&Path>) -> Result<()> {
+    let patterns = [
+        ("-o", Some(&args.output)),
+        ("--dirty-image", args.dirty_image.as_ref()),
+        ("--buffer-image", args.buffer_image.as_ref()),
+    ];
+    let patterns: Vec<(&str, &String)> = patterns
+        .into_iter()
+        .filter_map(|(flag, p)| p.map(|p| (flag, p)))
+        .collect();
+    for (i, (flag, pattern)) in patterns.iter().enumerate() {
+        if let Some((other, _)) = patterns[..i].iter().find(|(_, p)| p == pattern) {
+            anyhow::bail!("{other} and {flag} both write '{pattern}': give each its own name");
+        }
+        let (prefix, digits, suffix) = frame_pattern(pattern)?;
+        check_writable(&folder_of(Path::new(&format!(
+            "{prefix}{:0digits$}{suffix}",
+            0
+        ))))?;
+    }
+    check_writable(&folder_of(first_frame))?;
+    for path in [stats, args.gif.as_deref()].into_iter().flatten() {
+        check_writable(&folder_of(path))?;
+    }
+    Ok(())
+}
+
 pub(crate) fn animate(args: AnimateArgs) -> Result<()> {
     let frame_path = frame_namer(&args.output)?;
     let dirty_path = args.dirty_image.as_deref().map(frame_namer).transpose()?;
@@ -305,20 +335,7 @@ pub(crate) fn animate(args: AnimateArgs) -> Result<()> {
     let Some((range, stats_path)) = chunk_of(&args, range)? else {
         return Ok(());
     };
-    let out_dir = frame_path(*range.start())
-        .parent()
-        .filter(|d| !d.as_os_str().is_empty())
-        .map_or(PathBuf::from("."), Path::to_path_buf);
-    check_writable(&out_dir)?;
-    if let Some(dirty_path) = &dirty_path {
-        if let Some(dir) = dirty_path(*range.start()).parent() {
-            check_writable(&if dir.as_os_str().is_empty() {
-                PathBuf::from(".")
-            } else {
-                dir.to_path_buf()
-            })?;
-        }
-    }
+    check_outputs(&args, &frame_path(*range.start()), stats_path.as_deref())?;
     let mut gif = match &args.gif {
         Some(path) => Some(GifWriter::create(path, fps)?),
         None => None,

@@ -211,7 +211,19 @@ fn frame_pattern(pattern: &str) -> Result<(String, usize, String)> {
     if suffix.contains('#') {
         anyhow::bail!("output pattern '{pattern}' has more than one run of #");
     }
+    if suffix.contains(std::path::is_separator) {
+        anyhow::bail!(
+            "output pattern '{pattern}': the # must be in the file name, not in a folder's"
+        );
+    }
     Ok((prefix.to_string(), width, suffix.to_string()))
+}
+
+/// The folder `path` is written into ("." for a bare file name).
+fn folder_of(path: &Path) -> PathBuf {
+    path.parent()
+        .filter(|d| !d.as_os_str().is_empty())
+        .map_or(PathBuf::from("."), Path::to_path_buf)
 }
 
 /// Fails early, before any rendering, if `dir` cannot take new files.
