@@ -337,6 +337,14 @@ fn grid_backend_answers_the_same_at_any_resolution() {
         "clap rejects it as a usage error"
     );
     assert!(stderr(&out).contains("1 to 1024"));
+    // With Embree it would do nothing: said, not ignored.
+    let out = retrace(&["render", "--grid-resolution", "8"], case.dir.path());
+    assert_eq!(out.status.code(), Some(1));
+    assert!(
+        stderr(&out).contains("add --backend grid"),
+        "{}",
+        stderr(&out)
+    );
 }
 
 #[test]
@@ -377,10 +385,18 @@ fn bench_says_when_reuse_could_not_apply() {
         err.contains("warning: E1: rendered in full: the perspective camera moves"),
         "{err}"
     );
-    // The paper's own E1 has nothing to say.
+    // The paper's own E1 has nothing to say; its rows go to --json too.
+    let json = dir.path().join("e1.json");
     let out = bench(
         &dir.path().join("bench"),
-        &["--only", "E1", "--frames", "0-1"],
+        &[
+            "--only",
+            "E1",
+            "--frames",
+            "0-1",
+            "--json",
+            json.to_str().unwrap(),
+        ],
     );
     assert!(out.status.success());
     assert!(
@@ -388,6 +404,9 @@ fn bench_says_when_reuse_could_not_apply() {
         "{}",
         stderr(&out)
     );
+    let rows: serde_json::Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
+    assert_eq!(rows[0]["id"], "E1", "{rows}");
+    assert_eq!(rows[0]["frames"], 2, "{rows}");
 }
 
 #[test]

@@ -45,7 +45,8 @@ pub(crate) struct BenchArgs {
     /// more, an experiment alternates full and accelerated runs).
     #[arg(long, value_parser = clap::value_parser!(u64).range(1..=1000))]
     repeats: Option<u64>,
-    /// Also write the result as JSON here (`frame`, `backends`, `E4nomotion`, `knobs`).
+    /// Also write the result as JSON here (for the experiments, the rows of
+    /// the folder's bench.json).
     #[arg(long)]
     json: Option<PathBuf>,
     #[command(flatten)]
@@ -354,6 +355,10 @@ fn bench_suite(
         release: !cfg!(debug_assertions),
     };
     let written = retrace::report::write_bench(&args.out, &run, &results, draw_chart)?;
+    if let Some(path) = &args.json {
+        let rows: serde_json::Value = serde_json::from_str(&retrace::report::rows_json(&rows))?;
+        write_json(path, &rows)?;
+    }
     say!(
         "wrote {} files to {} (open {})",
         written.len(),

@@ -51,8 +51,20 @@ impl BackendArg {
         Ok(Accelerator::build_with(
             self.backend,
             &scene.objects,
-            self.grid_resolution,
+            self.grid_resolution()?,
         )?)
+    }
+
+    /// The grid's resolution asked for; refused with Embree, which would
+    /// ignore it.
+    fn grid_resolution(&self) -> Result<Option<[u32; 3]>> {
+        if self.grid_resolution.is_some() && self.backend != BackendKind::Grid {
+            anyhow::bail!(
+                "--grid-resolution sets the grid backend's cells: add --backend grid \
+                 (Embree builds its own hierarchy)"
+            );
+        }
+        Ok(self.grid_resolution)
     }
 }
 

@@ -62,7 +62,7 @@ pub(crate) fn tradeoff(args: TradeoffArgs) -> Result<()> {
     let rows = retrace::tradeoff::sweep(
         &scenes,
         args.backend.backend,
-        args.backend.grid_resolution,
+        args.backend.grid_resolution()?,
         frames.clone(),
         |what| {
             bar.set_message(what.to_string());
