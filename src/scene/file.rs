@@ -601,6 +601,7 @@ pub fn parse_scene_str(
 
     let mut warnings = Vec::new();
     let mut objects = Vec::with_capacity(file.object.len());
+    let mut names: std::collections::HashMap<String, usize> = std::collections::HashMap::new();
     for (i, def) in file.object.iter().enumerate() {
         let material = match &def.get_ref().material {
             None => default_material,
@@ -626,6 +627,18 @@ pub fn parse_scene_str(
         };
         let converted = convert_object(&ctx, i, def, material, &mut materials, &mut warnings)?;
         for object in &converted {
+            // Keys find objects by name (a mesh's parts by "name part k"):
+            // one name, one object.
+            if let Some(other) = names.insert(object.name.clone(), i) {
+                return Err(ctx.error(
+                    def.span(),
+                    format!("object[{i}].name"),
+                    format!(
+                        "'{}' already names object[{other}]: each object needs its own name",
+                        object.name
+                    ),
+                ));
+            }
             // A plane is unbounded: its point is checked where it is read.
             if matches!(object.shape, Shape::Plane(_)) {
                 continue;
@@ -1565,6 +1578,18 @@ mod tests {
             "[camera]\nposition = [0, 1e12, 5]\nfov = 60\n{sphere}"
         ))
         .unwrap();
+    }
+
+    #[test]
+    fn object_names_are_unique() {
+        let ball = |name: &str| {
+            format!("[[object]]\ntype = \"sphere\"\nname = \"{name}\"\ncenter = [0, 0, 0]\nradius = 1\n")
+        };
+        let err = parse(&format!("{CAMERA}{}{}", ball("ball"), ball("ball"))).unwrap_err();
+        assert_eq!(err.line, Some(9), "{err}");
+        assert_eq!(err.field.as_deref(), Some("object[1].name"), "{err}");
+        assert!(err.message.contains("already names object[0]"), "{err}");
+        parse(&format!("{CAMERA}{}{}", ball("ball"), ball("ball 2"))).unwrap();
     }
 
     #[test]
