@@ -1315,6 +1315,33 @@ fn convert_object(
         finite3(v).map_err(|m| err(f, m))
     };
 
+    // A field another type uses would be silently ignored: say so.
+    let given = [
+        ("center", o.center.is_some()),
+        ("radius", o.radius.is_some()),
+        ("point", o.point.is_some()),
+        ("normal", o.normal.is_some()),
+        ("size", o.size.is_some()),
+        ("vertices", o.vertices.is_some()),
+        ("file", o.file.is_some()),
+        ("smooth", o.smooth),
+    ];
+    let used: &[&str] = match o.kind {
+        ObjectKind::Sphere => &["center", "radius"],
+        ObjectKind::Plane => &["point", "normal", "size"],
+        ObjectKind::Quad | ObjectKind::Polygon => &["vertices"],
+        ObjectKind::Mesh => &["file", "smooth"],
+    };
+    if let Some((unused, _)) = given.iter().find(|(f, given)| *given && !used.contains(f)) {
+        return Err(err(
+            unused,
+            format!(
+                "not used by type = \"{}\" (it takes {})",
+                format!("{:?}", o.kind).to_lowercase(),
+                used.join(", ")
+            ),
+        ));
+    }
     let translate = world3(o.translate).map_err(|m| err("translate", m))?;
     let rotate = finite3(o.rotate).map_err(|m| err("rotate", m))?;
     if !(o.scale.is_finite() && o.scale > 0.0) {
@@ -1578,6 +1605,19 @@ mod tests {
             "[camera]\nposition = [0, 1e12, 5]\nfov = 60\n{sphere}"
         ))
         .unwrap();
+    }
+
+    #[test]
+    fn fields_of_another_object_type_are_refused() {
+        let err = parse(&format!(
+            "{CAMERA}[[object]]\ntype = \"sphere\"\ncenter = [0, 0, 0]\nradius = 1\nvertices = [[0, 0, 0]]\n"
+        ))
+        .unwrap_err();
+        assert_eq!(err.field.as_deref(), Some("object[0].vertices"), "{err}");
+        assert!(
+            err.message.contains("not used by type = \"sphere\""),
+            "{err}"
+        );
     }
 
     #[test]
