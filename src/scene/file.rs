@@ -321,35 +321,66 @@ const MAX_INCLUDE_DEPTH: usize = 8;
 /// line came from, so errors name the file and line the user wrote.
 struct Source {
     text: String,
-    /// (file, first line in `text`, number of lines), in order.
-    pieces: Vec<(std::path::PathBuf, usize, usize)>,
+    /// Runs of lines, in order: (file, first line in `text`, number of
+    /// lines, the file's line number of the first).
+    pieces: Vec<(std::path::PathBuf, usize, usize, usize)>,
 }
 
 impl Source {
     /// The file and line within it of a line of the spliced text.
     fn locate(&self, line: usize) -> (&Path, usize) {
-        for (file, first, count) in &self.pieces {
+        for (file, first, count, first_line) in &self.pieces {
             if line >= *first && line < first + count {
-                return (file, line - first + 1);
+                return (file, line - first + first_line);
             }
         }
-        let (file, first, _) = self.pieces.last().expect("a source has a piece");
-        (file, line.saturating_sub(*first) + 1)
+        let (file, first, _, first_line) = self.pieces.last().expect("a source has a piece");
+        (file, line.saturating_sub(*first) + first_line)
+    }
+
+    /// Appends `text`, lines `first_line..` of `file`.
+    fn push(&mut self, file: &Path, text: &str, first_line: usize) {
+        let first = line_of(&self.text, self.text.len());
+        self.text.push_str(text);
+        self.pieces
+            .push((file.to_path_buf(), first, text.lines().count(), first_line));
+    }
+
+    /// Appends another source, its lines mapped as they were.
+    fn append(&mut self, other: Source) {
+        let offset = line_of(&self.text, self.text.len()) - 1;
+        self.text.push_str(&other.text);
+        self.pieces.extend(
+            other
+                .pieces
+                .into_iter()
+                .map(|(file, first, count, line)| (file, first + offset, count, line)),
+        );
     }
 }
 
 /// Splices `include = "other.toml"` lines (top-level, before any table):
-/// the included scene comes first and this file adds its tables after it.
+/// this file's own top-level keys come first, then the included scene, then
+/// this file's tables, which add to it (or replace its tables of the same
+/// name). The keys stay top-level: after the included text they would
+/// fall into its last table.
 fn assemble(text: &str, path: &Path, depth: usize) -> Result<Source, SceneError> {
     let mut included = Source {
         text: String::new(),
         pieces: Vec::new(),
     };
-    let mut own = String::with_capacity(text.len());
+    let (mut preamble, mut tables) = (String::new(), String::with_capacity(text.len()));
+    let mut preamble_lines = 0;
     let mut in_tables = false;
     for (number, line) in text.lines().enumerate() {
         let trimmed = line.trim_start();
         in_tables |= trimmed.starts_with('[');
+        let own = if in_tables {
+            &mut tables
+        } else {
+            preamble_lines += 1;
+            &mut preamble
+        };
         let include = (!in_tables)
             .then(|| trimmed.strip_prefix("include"))
             .flatten()
@@ -381,24 +412,28 @@ fn assemble(text: &str, path: &Path, depth: usize) -> Result<Source, SceneError>
                 other.display()
             ))
         })?;
-        let nested = assemble(&other_text, &other, depth + 1)?;
-        let offset = line_of(&included.text, included.text.len()) - 1;
-        included.text.push_str(&nested.text);
-        included.pieces.extend(
-            nested
-                .pieces
-                .into_iter()
-                .map(|(file, first, count)| (file, first + offset, count)),
-        );
+        included.append(assemble(&other_text, &other, depth + 1)?);
         // Keeps this file's line numbers.
         own.push_str("# (include)\n");
     }
-    included.text = without_overridden(&included.text, &own);
-    let first = line_of(&included.text, included.text.len());
-    let count = own.lines().count();
-    included.text.push_str(&own);
-    included.pieces.push((path.to_path_buf(), first, count));
-    Ok(included)
+    // The tables this file defines again, by header or by a top-level key
+    // (`render = { width = 32 }`), replace the included ones.
+    let mut overridden: Vec<String> = tables
+        .lines()
+        .filter_map(table_header)
+        .filter(|(_, array)| !array)
+        .map(|(name, _)| name)
+        .collect();
+    overridden.extend(preamble.lines().filter_map(top_level_key));
+    included.text = without_overridden(&included.text, &overridden);
+    let mut source = Source {
+        text: String::new(),
+        pieces: Vec::new(),
+    };
+    source.push(path, &preamble, 1);
+    source.append(included);
+    source.push(path, &tables, preamble_lines + 1);
+    Ok(source)
 }
 
 /// The table name of a TOML header line (`[a.b]` or `[[a.b]]`), and
@@ -422,16 +457,22 @@ fn table_header(line: &str) -> Option<(String, bool)> {
     starts_like_a_key.then_some((name, array))
 }
 
-/// `included` with every table that `own` defines again (a `[name]`
-/// header) taken out, with its sub-tables, so the including file overrides
-/// it. Removed lines become comments: line numbers stay where they were.
-fn without_overridden(included: &str, own: &str) -> String {
-    let overridden: Vec<String> = own
-        .lines()
-        .filter_map(table_header)
-        .filter(|(_, array)| !array)
-        .map(|(name, _)| name)
-        .collect();
+/// The key a top-level `key = value` line sets (a bare key; not a dotted
+/// one, which sets part of a table).
+fn top_level_key(line: &str) -> Option<String> {
+    let (key, _) = line.split_once('=')?;
+    let key = key.trim();
+    let bare = !key.is_empty()
+        && key
+            .chars()
+            .all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-');
+    (bare && key != "include").then(|| key.to_string())
+}
+
+/// `included` with every table named in `overridden` taken out, with its
+/// sub-tables, so the including file overrides it. Removed lines become
+/// comments: line numbers stay where they were.
+fn without_overridden(included: &str, overridden: &[String]) -> String {
     if overridden.is_empty() {
         return included.to_string();
     }
@@ -1738,6 +1779,33 @@ mod tests {
             (top.clone(), Some(2)),
             "{err}"
         );
+    }
+
+    #[test]
+    fn top_level_keys_after_an_include_stay_top_level() {
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::write(
+            dir.path().join("base.toml"),
+            "[render]\nwidth = 320\nheight = 200\n[camera]\nposition = [0, 1, 5]\nfov = 60\n[[object]]\ntype = \"sphere\"\ncenter = [0, 0, 0]\nradius = 1\n",
+        )
+        .unwrap();
+        let top = dir.path().join("top.toml");
+        // An inline table replaces the included [render] as a [render]
+        // header would; it used to fall into the base's last table.
+        let text = "include = \"base.toml\"\nrender = { width = 32, height = 24 }\n\n[[light]]\nposition = [0, 5, 5]\n[[object]]\ntype = \"sphere\"\ncenter = [0, 0, 0]\nradius = -1\n";
+        std::fs::write(&top, text).unwrap();
+        let err = super::super::load_scene(&top, &SceneOverrides::default()).unwrap_err();
+        // Lines after the top-level keys still map to this file.
+        assert_eq!(
+            (err.file.clone(), err.line),
+            (top.clone(), Some(6)),
+            "{err}"
+        );
+        assert_eq!(err.field.as_deref(), Some("object[1].radius"), "{err}");
+        std::fs::write(&top, text.replace("radius = -1", "radius = 1")).unwrap();
+        let scene = super::super::load_scene(&top, &SceneOverrides::default()).unwrap();
+        assert_eq!((scene.camera.width, scene.camera.height), (32, 24));
+        assert_eq!((scene.objects.len(), scene.lights.len()), (2, 1));
     }
 
     #[test]
