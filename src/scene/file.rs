@@ -34,8 +34,7 @@ pub struct SceneOverrides {
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct SceneFile {
-    #[serde(default)]
-    render: RenderDef,
+    render: Option<Spanned<RenderDef>>,
     camera: Spanned<CameraDef>,
     #[serde(default)]
     light: Vec<Spanned<LightDef>>,
@@ -592,22 +591,27 @@ pub fn parse_scene_str(
     })?;
     let ctx = Ctx { source: &source };
 
-    let render = &file.render;
-    let to_err = |field: &str| {
-        let field = field.to_string();
-        move |message: String| SceneError::new(path, message).field(field.clone())
+    let default_render = RenderDef::default();
+    let render_span = file.render.as_ref().map(Spanned::span);
+    let render = file
+        .render
+        .as_ref()
+        .map_or(&default_render, Spanned::get_ref);
+    // A [render] table's errors name its line (in whichever file holds it).
+    let render_error = |field: &str, message: String| match &render_span {
+        Some(span) => ctx.error(span.clone(), field, message),
+        None => SceneError::new(path, message).field(field),
     };
-    let background = colour(render.background).map_err(to_err("render.background"))?;
-    let ambient = colour(render.ambient).map_err(to_err("render.ambient"))?;
+    let background = colour(render.background).map_err(|m| render_error("render.background", m))?;
+    let ambient = colour(render.ambient).map_err(|m| render_error("render.ambient", m))?;
     if render.max_depth > MAX_DEPTH_LIMIT {
-        return Err(SceneError::new(
-            path,
+        return Err(render_error(
+            "render.max_depth",
             format!("at most {MAX_DEPTH_LIMIT}, got {}", render.max_depth),
-        )
-        .field("render.max_depth"));
+        ));
     }
 
-    let camera = convert_camera(&ctx, &file.camera, render, overrides)?;
+    let camera = convert_camera(&ctx, &file.camera, render, render_span, overrides)?;
 
     let mut materials = Vec::with_capacity(file.material.len() + 1);
     for (name, def) in &file.material {
@@ -1202,10 +1206,13 @@ fn convert_light_tracks(
     Ok(tracks)
 }
 
+/// The camera of `def`, its image sized by `render` (the [render] table at
+/// `render_span`, when the file has one) or the command line.
 fn convert_camera(
     ctx: &Ctx,
     def: &Spanned<CameraDef>,
     render: &RenderDef,
+    render_span: Option<std::ops::Range<usize>>,
     overrides: &SceneOverrides,
 ) -> Result<Camera, SceneError> {
     let c = def.get_ref();
@@ -1220,6 +1227,13 @@ fn convert_camera(
         }
         (Some(target), None, None) => {
             let target = DVec3::from_array(target);
+            if !target.is_finite() {
+                return Err(ctx.error(
+                    def.span(),
+                    "camera.look_at",
+                    format!("must be finite, got {target}"),
+                ));
+            }
             if (target - position).length() == 0.0 {
                 return Err(ctx.error(
                     def.span(),
@@ -1276,9 +1290,16 @@ fn convert_camera(
                 (field, None)
             }
         };
+        // The image size is the [render] table's, if there is one.
+        let span = match (&err, &render_span) {
+            (CameraError::EmptyImage { .. } | CameraError::ImageTooLarge { .. }, Some(span)) => {
+                span.clone()
+            }
+            _ => def.span(),
+        };
         match flag {
             Some(flag) => SceneError::new(ctx.file_of(def.span()), err.to_string()).field(flag),
-            None => ctx.error(def.span(), field, err.to_string()),
+            None => ctx.error(span, field, err.to_string()),
         }
     })?;
     Ok(camera)
@@ -1806,6 +1827,32 @@ mod tests {
         let scene = super::super::load_scene(&top, &SceneOverrides::default()).unwrap();
         assert_eq!((scene.camera.width, scene.camera.height), (32, 24));
         assert_eq!((scene.objects.len(), scene.lights.len()), (2, 1));
+    }
+
+    #[test]
+    fn render_and_camera_errors_name_the_line_of_their_table() {
+        // [render] on line 4, [camera] on line 1.
+        let camera = "[camera]\nposition = [0, 1, 5]\nfov = 60\n";
+        for (render, field) in [
+            ("background = [nan, 0, 0]", "render.background"),
+            ("ambient = [-1, 0, 0]", "render.ambient"),
+            ("max_depth = 1000", "render.max_depth"),
+            ("width = 0", "render.width/height"),
+        ] {
+            let err = parse(&format!("{camera}[render]\n{render}\n")).unwrap_err();
+            assert_eq!(
+                (err.line, err.field.as_deref()),
+                (Some(4), Some(field)),
+                "{err}"
+            );
+        }
+        let err =
+            parse("[camera]\nposition = [0, 1, 5]\nfov = 60\nlook_at = [0, nan, 0]\n").unwrap_err();
+        assert_eq!(
+            (err.line, err.field.as_deref()),
+            (Some(1), Some("camera.look_at")),
+            "{err}"
+        );
     }
 
     #[test]
