@@ -61,9 +61,11 @@ impl ObjMesh {
 }
 
 /// Checks what tobj would accept silently or report without a line: numbers
-/// that do not parse, NaN/Inf coordinates, and face indices out of range.
+/// that do not parse, NaN/Inf coordinates, a vertex weight of 0, and face
+/// indices (of positions, texture coordinates and normals) out of range.
 fn check_obj_text(path: &Path, text: &str) -> Result<(), SceneError> {
-    let mut vertex_count: i64 = 0;
+    // Positions, texture coordinates, normals defined so far.
+    let (mut vertex_count, mut texcoord_count, mut normal_count): (i64, i64, i64) = (0, 0, 0);
     for (number, line) in text.lines().enumerate() {
         let line_no = number + 1;
         let fail = |field: &str, message: String| {
@@ -104,8 +106,15 @@ fn check_obj_text(path: &Path, text: &str) -> Result<(), SceneError> {
                         Err(_) => return fail(keyword, format!("'{word}' is not a number")),
                     }
                 }
-                if keyword == "v" {
-                    vertex_count += 1;
+                // `v x y z w`: tobj divides by w (6 or 7 numbers are a
+                // colour instead).
+                if keyword == "v" && values.len() == 4 && values[3].parse::<f32>() == Ok(0.0) {
+                    return fail("v", "a vertex weight (w) of 0 puts it at infinity".into());
+                }
+                match keyword {
+                    "v" => vertex_count += 1,
+                    "vt" => texcoord_count += 1,
+                    _ => normal_count += 1,
                 }
             }
             "f" => {
@@ -117,20 +126,28 @@ fn check_obj_text(path: &Path, text: &str) -> Result<(), SceneError> {
                     );
                 }
                 for r in refs {
-                    let index = r.split('/').next().unwrap_or("");
-                    let Ok(index) = index.parse::<i64>() else {
-                        return fail("f", format!("'{r}' is not a vertex index"));
-                    };
-                    let resolved = if index < 0 {
-                        vertex_count + index + 1
-                    } else {
-                        index
-                    };
-                    if index == 0 || resolved < 1 || resolved > vertex_count {
-                        return fail(
-                            "f",
-                            format!("vertex index {index} is out of range (1..={vertex_count} defined so far)"),
-                        );
+                    // v, v/vt, v//vn or v/vt/vn; only the position is needed.
+                    let kinds = [
+                        ("vertex", vertex_count),
+                        ("texture coordinate", texcoord_count),
+                        ("normal", normal_count),
+                    ];
+                    for (position, (index, (what, count))) in r.split('/').zip(kinds).enumerate() {
+                        // tobj ignores texture coordinates and normals a
+                        // file never defines.
+                        if position > 0 && (index.is_empty() || count == 0) {
+                            continue;
+                        }
+                        let Ok(index) = index.parse::<i64>() else {
+                            return fail("f", format!("'{r}': '{index}' is not a {what} index"));
+                        };
+                        let resolved = if index < 0 { count + index + 1 } else { index };
+                        if index == 0 || resolved < 1 || resolved > count {
+                            return fail(
+                                "f",
+                                format!("{what} index {index} is out of range (1..={count} defined so far)"),
+                            );
+                        }
                     }
                 }
             }
@@ -140,13 +157,24 @@ fn check_obj_text(path: &Path, text: &str) -> Result<(), SceneError> {
     Ok(())
 }
 
-fn material_from_mtl(m: &tobj::Material) -> Material {
+/// The material of an MTL entry; an error naming the value that is not a
+/// number (`Ns nan`), which clamping would keep.
+fn material_from_mtl(m: &tobj::Material) -> Result<Material, String> {
+    for (what, values) in [
+        ("Kd", m.diffuse.map(Vec::from)),
+        ("Ks", m.specular.map(Vec::from)),
+        ("Ns", m.shininess.map(|v| vec![v])),
+    ] {
+        if values.is_some_and(|v| v.iter().any(|x| !x.is_finite())) {
+            return Err(format!("material '{}': {what} must be finite", m.name));
+        }
+    }
     let rgb =
         |c: Option<[f32; 3]>, default: f32| c.map(Vec3::from_array).unwrap_or(Vec3::splat(default));
     let specular = rgb(m.specular, 0.0);
     // illum 3, 5 and 7 are the MTL modes with ray-traced reflection.
     let reflective = matches!(m.illumination_model, Some(3 | 5 | 7));
-    Material {
+    Ok(Material {
         name: m.name.clone(),
         diffuse: rgb(m.diffuse, 0.7).clamp(Vec3::ZERO, Vec3::ONE),
         checker: None,
@@ -157,7 +185,7 @@ fn material_from_mtl(m: &tobj::Material) -> Material {
         } else {
             0.0
         },
-    }
+    })
 }
 
 /// Loads an OBJ (and its MTL, when present) as triangle meshes, one part per
@@ -217,7 +245,9 @@ pub fn load_obj_mesh(path: &Path) -> Result<ObjMesh, SceneError> {
         let material = m
             .material_id
             .and_then(|id| materials.get(id))
-            .map(material_from_mtl);
+            .map(material_from_mtl)
+            .transpose()
+            .map_err(|message| SceneError::new(path, message).field("mtllib"))?;
         let mesh = TriangleMesh {
             positions,
             triangles,
@@ -380,6 +410,21 @@ mod tests {
         assert!(err.message.contains("beyond the scene's extent"), "{err}");
         // Texture coordinates and normals are not places.
         check("v 0 0 0\nvn 0 2e13 0\n").unwrap();
+        // Texture coordinate and normal indices, each against its own count.
+        let tri = "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvn 0 0 1\n";
+        check(&format!("{tri}f 1/1/1 2/1/1 3//1\n")).unwrap();
+        for (face, needle) in [
+            ("f 1/2 2/1 3/1", "texture coordinate index 2"),
+            ("f 1//1 2//1 3//-2", "normal index -2"),
+            ("f 1/a 2 3", "'a' is not a texture coordinate index"),
+        ] {
+            let err = check(&format!("{tri}{face}\n")).unwrap_err();
+            assert_eq!(err.line, Some(6), "{err}");
+            assert!(err.message.contains(needle), "{face}: {err}");
+        }
+        let err = check("v 0 0 0\nv 1 0 0 0\n").unwrap_err();
+        assert_eq!(err.line, Some(2), "{err}");
+        assert!(err.message.contains("weight"), "{err}");
         let err = check("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 4\n").unwrap_err();
         assert_eq!(err.line, Some(4));
         assert!(err.message.contains("out of range"));
@@ -388,5 +433,23 @@ mod tests {
         let err = check("v 0 0 inf\n").unwrap_err();
         assert_eq!(err.field.as_deref(), Some("v"));
         assert!(check("# c\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf -3 -2 -1\nf 1/1/1 2//2 3\n").is_ok());
+    }
+
+    #[test]
+    fn a_material_value_that_is_not_a_number_is_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let obj = dir.path().join("m.obj");
+        std::fs::write(
+            &obj,
+            "mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl shiny\nf 1 2 3\n",
+        )
+        .unwrap();
+        let mtl = |ns: &str| format!("newmtl shiny\nKd 0.5 0.5 0.5\nNs {ns}\n");
+        std::fs::write(dir.path().join("m.mtl"), mtl("nan")).unwrap();
+        let err = load_obj_mesh(&obj).unwrap_err();
+        assert!(err.message.contains("'shiny': Ns must be finite"), "{err}");
+        std::fs::write(dir.path().join("m.mtl"), mtl("20")).unwrap();
+        let mesh = load_obj_mesh(&obj).unwrap();
+        assert_eq!(mesh.parts[0].material.as_ref().unwrap().shininess, 20.0);
     }
 }
