@@ -541,6 +541,9 @@ pub struct Animator<'a> {
     pan_buffer_bytes: f64,
     /// Why OSTC, asked for, could not be kept.
     ostc_refusal: Option<String>,
+    /// Per pan lattice (see [`lattice_key`]), the rows the run's views of
+    /// it cover.
+    row_spans: std::collections::HashMap<LatticeKey, (i64, i64)>,
     samples: Option<SampleBuffer>,
     /// The scene as it was when the sample buffer's samples were traced.
     samples_pose: Option<ScenePose>,
@@ -582,6 +585,7 @@ impl<'a> Animator<'a> {
             camera_moves: false,
             pan_buffer_bytes: 0.0,
             ostc_refusal: None,
+            row_spans: std::collections::HashMap::new(),
         };
         // Over the whole timeline, not just this run: whether frames live on
         // the lattice must not depend on which frames a run renders, or a
@@ -602,6 +606,19 @@ impl<'a> Animator<'a> {
             }
         }
         animator.pan_buffer_bytes = bytes;
+        // Once, not at every restart: an eye that moves every frame
+        // restarts every frame.
+        for frame in animator.frame_range.clone() {
+            let camera = animator.camera_at(frame);
+            if camera.projection == Projection::EqualAngle {
+                let seen = EqualAngleLattice::rows_seen(&camera);
+                let span = animator
+                    .row_spans
+                    .entry(lattice_key(&camera))
+                    .or_insert((seen.start, seen.end));
+                *span = (span.0.min(seen.start), span.1.max(seen.end));
+            }
+        }
         animator
     }
 
@@ -986,18 +1003,11 @@ impl<'a> Animator<'a> {
             return Store::Image(PanBuffer::new(table, 0..rows));
         }
         let lattice = EqualAngleLattice::for_camera(camera);
-        let (mut low, mut high) = (i64::MAX, i64::MIN);
-        for frame in self.frame_range.clone() {
-            let other = self.camera_at(frame);
-            if lattice.fits(&other) {
-                let window = lattice.window(&other);
-                low = low.min(window.row);
-                high = high.max(window.row + i64::from(window.height));
-            }
-        }
         let window = lattice.window(camera);
-        low = low.min(window.row);
-        high = high.max(window.row + i64::from(window.height));
+        let (mut low, mut high) = (window.row, window.row + i64::from(window.height));
+        if let Some(&(top, bottom)) = self.row_spans.get(&lattice_key(camera)) {
+            (low, high) = (low.min(top), high.max(bottom));
+        }
         // A resampled view reads up to one row more on either side.
         Store::Lattice(PanBuffer::new(lattice, low - 1..high + 1))
     }
@@ -1237,6 +1247,18 @@ impl<'a> Animator<'a> {
         stats.count_rays(pan.rays);
         (image, rgb)
     }
+}
+
+/// Which pan lattice an equal-angle camera's views live on: its eye (to
+/// the bit) and its columns per turn, as [`EqualAngleLattice::fits`] tells.
+type LatticeKey = ([u64; 3], i64);
+
+fn lattice_key(camera: &Camera) -> LatticeKey {
+    (
+        // + 0.0: -0.0 and 0.0 are one eye, as `fits` compares them.
+        camera.position.to_array().map(|c| (c + 0.0).to_bits()),
+        EqualAngleLattice::columns_per_turn_for(camera),
+    )
 }
 
 /// The OSTC bookkeeping [`Animator::new_ostc`] made, if it made one; the

@@ -143,6 +143,9 @@ struct LightKeyDef {
 
 const DEFAULT_FPS: f64 = 25.0;
 
+/// The longest animation accepted, in frames.
+pub const MAX_FRAMES: u32 = 1_000_000;
+
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct CameraKeyDef {
@@ -907,6 +910,15 @@ fn convert_animation(
     let fps = def.fps.as_ref().map_or(DEFAULT_FPS, |fps| *fps.get_ref());
     if frames == 0 {
         return Err(ctx.error(def.frames.span(), "animation.frames", "must be at least 1"));
+    }
+    // A run walks the timeline once up front (the camera's path, the
+    // moving objects' swept bounds): bounded, as a run's length is.
+    if frames > MAX_FRAMES {
+        return Err(ctx.error(
+            def.frames.span(),
+            "animation.frames",
+            format!("at most {MAX_FRAMES} (11 hours at 25 fps), got {frames}"),
+        ));
     }
     if !(fps.is_finite() && fps > 0.0) {
         let span = def.fps.as_ref().map_or(0..0, Spanned::span);
@@ -1876,6 +1888,7 @@ mod tests {
             ),
             ("[[light]]\nposition = [0, nan, 0]\n", "light[0].position"),
             ("[animation]\nframes = 0\n", "animation.frames"),
+            ("[animation]\nframes = 4000000000\n", "animation.frames"),
             ("[animation]\nframes = 2\nfps = 0\n", "animation.fps"),
         ] {
             let err = parse(&format!("{CAMERA}{body}")).unwrap_err();
