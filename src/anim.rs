@@ -342,7 +342,9 @@ impl Techniques {
 #[derive(Clone, Debug, Default, serde::Serialize)]
 pub struct FrameStats {
     pub frame: u32,
-    /// `full`, `pan`, `ostc` or `pan+ostc`: how the frame was made.
+    /// How the frame was made: `full`; from a camera buffer, `pan`, `ostc`,
+    /// `pan+ostc` or `still` (a still camera's own image, nothing moving);
+    /// from viewports, `rsvp` or `rsvp+ostc`.
     pub mode: &'static str,
     /// Why a frame that could have reused did not (empty otherwise).
     pub reason: String,
@@ -375,8 +377,10 @@ pub struct FrameStats {
     pub speedup: Option<f64>,
     /// With verification: pixels differing from the full render.
     pub differing_pixels: Option<u64>,
-    /// With verification, OSTC: regions whose pixels truly changed since
-    /// the previous frame (the oracle for dirty_regions).
+    /// With verification: regions of the output image (the OSTC region
+    /// size, tiled from its corner) whose pixels truly changed since the
+    /// previous frame. What `dirty_regions` would be at best, though that
+    /// counts regions of the buffer (its whole turn, off-screen ones too).
     pub changed_regions: Option<u64>,
     /// With verification: the frame's error against the camera's own,
     /// unsnapped rays (what snapping or resampling costs).

@@ -392,7 +392,7 @@ impl Ostc {
 
     /// What a group's rays are recorded through, for a buffer that erases
     /// whole regions (every group under one key: the pan buffer's regions
-    /// are about a group each).
+    /// are a few groups each, two at the default size).
     pub fn marker(&self, group: SampleGroup) -> RegionMarker<'_> {
         self.marker_in(self.layout.region_of(group.col, group.row), 0)
     }

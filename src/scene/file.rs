@@ -692,7 +692,8 @@ pub fn parse_scene_str(
                 continue;
             }
             let bounds = object.shape.bounds();
-            if !(within_world(bounds.min) && within_world(bounds.max)) {
+            // An empty mesh is nowhere (and only a warning).
+            if !bounds.is_empty() && !(within_world(bounds.min) && within_world(bounds.max)) {
                 let reach = bounds.min.abs().max(bounds.max.abs()).max_element();
                 return Err(ctx.error(
                     def.span(),
