@@ -313,3 +313,26 @@ fn eye_moves_restart_the_buffer() {
     assert!(image_error(outputs[0].frame.as_ref().unwrap(), &direct).psnr_db > 15.0);
     let _ = DVec3::ZERO;
 }
+
+#[test]
+fn the_finest_pyramid_levels_resample_as_well_as_the_others() {
+    // Zoom 1000 with the level pushed to the finest (16 on both axes):
+    // levels past the 256th were traced into a coarser level's store and
+    // read back null (black).
+    let scene = paper_with(
+        "[animation]\nframes = 1\n[[viewport]]\nwidth = 16\nheight = 12\nzoom = 1000.0\n",
+    )
+    .unwrap();
+    let mut accel =
+        Accelerator::build(retrace::accel::BackendKind::Embree, &scene.objects).unwrap();
+    let mut animator = Animator::new(&scene, &mut accel, Techniques::AUTO, 0..1);
+    animator.set_rsvp_knobs(retrace::reuse::rsvp::RsvpKnobs {
+        level_bias: 8,
+        ..Default::default()
+    });
+    let outputs = animator.render_viewports(0);
+    assert_eq!(outputs[0].stats.finest_level, Some(16));
+    let (direct, _) = animator.render_viewport_direct(0, 0);
+    let error = image_error(outputs[0].frame.as_ref().unwrap(), &direct);
+    assert!(error.psnr_db > 30.0, "{error:?}");
+}

@@ -679,22 +679,33 @@ fn tile_spans(
     })
 }
 
+/// Bits of a row or column in a [`trace_order`] key; the level's index
+/// takes the bits above both.
+const ORDER_COORD_BITS: u32 = 59;
+const _: () = assert!(Level::COUNT <= 1 << (128 - 2 * ORDER_COORD_BITS));
+
 /// The order groups are traced in, (level, row, column), as one integer:
 /// requested groups lie in the turn and within the poles, so neither row
 /// nor column is negative.
 fn trace_order(level: Level, group: SampleGroup) -> u128 {
-    debug_assert!((0..1 << 60).contains(&group.row) && (0..1 << 60).contains(&group.col));
-    (level.index() as u128) << 120 | (group.row as u128) << 60 | group.col as u128
+    let fits = 0..1i64 << ORDER_COORD_BITS;
+    debug_assert!(fits.contains(&group.row) && fits.contains(&group.col));
+    (level.index() as u128) << (2 * ORDER_COORD_BITS)
+        | (group.row as u128) << ORDER_COORD_BITS
+        | group.col as u128
 }
 
 /// The level and group a [`trace_order`] key stands for.
 fn from_trace_order(key: u128) -> (Level, SampleGroup) {
-    const COORD: u128 = (1 << 60) - 1;
+    const COORD: u128 = (1 << ORDER_COORD_BITS) - 1;
     let group = SampleGroup {
         col: (key & COORD) as i64,
-        row: (key >> 60 & COORD) as i64,
+        row: (key >> ORDER_COORD_BITS & COORD) as i64,
     };
-    (Level::from_index((key >> 120) as usize), group)
+    (
+        Level::from_index((key >> (2 * ORDER_COORD_BITS)) as usize),
+        group,
+    )
 }
 
 /// `v` as `len` NaN coordinates, reusing its allocation.
@@ -759,6 +770,26 @@ mod tests {
     use crate::camera::{Camera, Projection};
     use crate::reuse::rsvp::fixtures::*;
     use crate::reuse::rsvp::ViewTransform;
+
+    #[test]
+    fn trace_order_keys_keep_every_level_and_sort_by_it() {
+        // Levels past index 255 (level 15 in azimuth and finer) lost their
+        // top bit and went to a coarser level's store.
+        let far = SampleGroup {
+            col: (1 << ORDER_COORD_BITS) - 4,
+            row: (1 << ORDER_COORD_BITS) - 2,
+        };
+        let mut keys = Vec::new();
+        for index in 0..Level::COUNT {
+            let level = Level::from_index(index);
+            for group in [SampleGroup { col: 0, row: 0 }, far] {
+                let key = trace_order(level, group);
+                assert_eq!(from_trace_order(key), (level, group), "level {index}");
+                keys.push(key);
+            }
+        }
+        assert!(keys.windows(2).all(|w| w[0] < w[1]));
+    }
 
     #[test]
     fn interpolated_regions_stay_within_their_tolerance() {
