@@ -584,15 +584,19 @@ fn bench_e3_and_e4_cut_regions_as_asked() {
 fn bench_rejects_bad_frames_before_any_work() {
     let dir = tempfile::tempdir().unwrap();
     let out_dir = dir.path().join("bench");
-    let cases: [(&[&str], &str); 6] = [
+    let cases: [(&[&str], &str); 7] = [
         (&["--frames", "5-2"], "first frame comes after the last"),
         (&["--frames", "0-100"], "frames 0-99"),
         (&["--frames", "x"], "'x' is not a frame number"),
         (
             &["--only", "E2", "--oversample", "0"],
-            "--oversample 0: must be within 0.01..64",
+            "--oversample 0: must be within 0.01..8",
         ),
         (&["--only", "E9"], "unknown measurement 'E9'"),
+        (
+            &["--only", "E2", "--level-bias", "16"],
+            "--level-bias 16: must be within -4..4",
+        ),
         // A still scene without a viewport gives E4 nothing to move or
         // resample.
         (

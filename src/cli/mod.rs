@@ -100,18 +100,26 @@ struct RsvpKnobArgs {
     #[arg(long, default_value = "bilinear")]
     filter: retrace::reuse::rsvp::Filter,
     /// RSVP: buffer samples per viewport pixel (per side) the pyramid level
-    /// is chosen for, at least.
+    /// is chosen for, at least (0.01 to 8).
     #[arg(long, default_value_t = 1.0)]
     oversample: f64,
-    /// RSVP: pyramid levels added to the chosen one (negative: coarser).
+    /// RSVP: pyramid levels added to the chosen one (negative: coarser;
+    /// -4 to 4).
     #[arg(long, default_value_t = 0, allow_negative_numbers = true)]
     level_bias: i32,
 }
 
 impl RsvpKnobArgs {
     fn knobs(&self) -> Result<retrace::reuse::rsvp::RsvpKnobs> {
-        if !(self.oversample.is_finite() && (0.01..=64.0).contains(&self.oversample)) {
-            anyhow::bail!("--oversample {}: must be within 0.01..64", self.oversample);
+        // Finer than 8 samples a pixel, or 4 levels past the one chosen, a
+        // pixel's reads land a tile of the store apart each: memory grows
+        // with the spacing (a 256x192 viewport took 1.1 GB at 64) and
+        // bilinear reads gain nothing.
+        if !(self.oversample.is_finite() && (0.01..=8.0).contains(&self.oversample)) {
+            anyhow::bail!("--oversample {}: must be within 0.01..8", self.oversample);
+        }
+        if !(-4..=4).contains(&self.level_bias) {
+            anyhow::bail!("--level-bias {}: must be within -4..4", self.level_bias);
         }
         Ok(retrace::reuse::rsvp::RsvpKnobs {
             filter: self.filter,
