@@ -693,7 +693,8 @@ pub fn parse_scene_str(
             }
             let bounds = object.shape.bounds();
             // An empty mesh is nowhere (and only a warning).
-            if !bounds.is_empty() && !(within_world(bounds.min) && within_world(bounds.max)) {
+            let inside = within_world(bounds.min) && within_world(bounds.max);
+            if !(bounds.is_empty() || inside) {
                 let reach = bounds.min.abs().max(bounds.max.abs()).max_element();
                 return Err(ctx.error(
                     def.span(),
