@@ -429,7 +429,7 @@ impl<'a> Shader<'a> {
 
         for (light_index, light) in scene.lights.iter().enumerate() {
             let h = &lanes_hit;
-            let (facing, to_light) = h.toward(light.position);
+            let (facing, lit_from, to_light) = h.toward(light.position);
             // A light behind the surface cannot light it: no ray needed.
             let lit_mask = hit_mask & lanes_where(|lane| facing[lane] > 0.0);
             if lit_mask == 0 {
@@ -457,7 +457,7 @@ impl<'a> Shader<'a> {
             if shaded == 0 {
                 continue;
             }
-            let (n_dot_l, r_dot_v) = h.cosines(&to_light);
+            let (n_dot_l, r_dot_v) = h.cosines(&lit_from);
             // Below the cutoff the highlight is under 1e-5: skip the powf.
             let mut specular = Vec3Lanes::default();
             for lane in lanes(shaded & lanes_where(|lane| r_dot_v[lane] > h.cutoff[lane])) {
@@ -762,19 +762,23 @@ struct HitLanes {
 
 impl HitLanes {
     /// Toward a light at `light`: the facing term `n_g . (light - point)`
-    /// (the light is in front where it is positive) and the shadow rays'
-    /// directions, from the spawn points to the light (so the segment ends
-    /// at t = 1).
+    /// (the light is in front where it is positive), the direction the
+    /// light falls from (from the points themselves: the spawn points sit
+    /// off the surface by an amount that grows with the distance from the
+    /// origin, 19 units at 1e7, which bent the cosines), and the shadow
+    /// rays' directions, from the spawn points to the light (so the
+    /// segment ends at t = 1).
     ///
     /// The lighting math is kept out of line (here, [`HitLanes::cosines`]
     /// and [`add_light`]): inlined into `shade_lanes`, LLVM's SLP vectorizer
     /// gave these lanes a different shape each time the code around them
     /// changed, up to twice the instructions (split halves, shuffles).
     #[inline(never)]
-    fn toward(&self, light: Vec3) -> (Lanes, Vec3Lanes) {
+    fn toward(&self, light: Vec3) -> (Lanes, Vec3Lanes, Vec3Lanes) {
         let light = Vec3Lanes::splat(light);
-        let facing = self.geometric_normal.dot(&light.sub(&self.point));
-        (facing, light.sub(&self.spawn_point))
+        let from_point = light.sub(&self.point);
+        let facing = self.geometric_normal.dot(&from_point);
+        (facing, from_point, light.sub(&self.spawn_point))
     }
 
     /// Where mirror reflections leave: the incoming direction mirrored

@@ -252,6 +252,32 @@ on_every_backend! {
         assert_eq!(accel.intersect(&Ray::new(Vec3::new(0.0, 0.0, 1.0), -Vec3::Z)).map(|h| h.prim), Some(2));
     }
 
+    a_scene_far_from_the_origin_is_lit_as_near_it(backend) {
+        // A lit sphere on a floor, at the origin and moved 1e6 and 1e7
+        // away. Spawn points sit off the surface by an amount that grows
+        // with the distance (19 units at 1e7): the light's cosines must come
+        // from the hit points themselves, or the floor goes dark.
+        let scene_at = |x: f64| {
+            let text = format!(
+                "[render]\nwidth = 48\nheight = 36\n\
+                 [camera]\nposition = [{x}, 2.0, 10.0]\nlook_at = [{x}, 0.5, 0.0]\nfov = 40\n\
+                 [[light]]\nposition = [{x}, 20.0, 10.0]\n\
+                 [material.m]\ndiffuse = [0.8, 0.2, 0.2]\nspecular = [0.5, 0.5, 0.5]\nshininess = 30.0\n\
+                 [[object]]\ntype = \"sphere\"\ncenter = [{x}, 1.0, 0.0]\nradius = 1.0\nmaterial = \"m\"\n\
+                 [[object]]\ntype = \"plane\"\npoint = [{x}, 0.0, 0.0]\nnormal = [0, 1, 0]\n"
+            );
+            retrace::scene::parse_scene_str(&text, std::path::Path::new("far.toml"), &SceneOverrides::default()).unwrap()
+        };
+        let render = |scene: &retrace::scene::Scene| render_frame(scene, &build(backend, &scene.objects)).0;
+        let near = render(&scene_at(0.0));
+        for x in [1e6, 1e7] {
+            let far = render(&scene_at(x));
+            let error = retrace::anim::image_error(&far, &near);
+            // f32 positions 1-2 units apart at 1e7 move edges, not shading.
+            assert!(error.mean_abs < 0.02, "{x}: {error:?}");
+        }
+    }
+
     spawned_rays_never_hit_their_own_surface(backend) {
         // pbrt's Reintersect: a ray leaving a hit point toward the side it
         // was hit from must not hit the same (flat or convex) primitive,
