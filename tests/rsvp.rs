@@ -251,6 +251,30 @@ fn bad_viewports_name_file_line_and_field() {
     assert!(e.contains("defined: v"), "{e}");
     let e = scene_error(&keys.replace("zoom = 0.0001", "shear = [1.0, 1.0]"));
     assert_names(&e, line + 6, "animation.viewport[0] (viewport 'v').shear");
+    // An equal-angle viewport moved, turned or zoomed out past a pole: its
+    // transform, statically or keyed (RSVP clamped to the pole row while
+    // its own rays went over it).
+    let ea = "width = 64\nheight = 48\nprojection = \"equal-angle\"";
+    for transform in [
+        "translate = [0.0, 60.0]",
+        "zoom = 0.25",
+        "fov = 170.0\nrotate = 90.0",
+    ] {
+        let e = scene_error(&view(&format!("{ea}\n{transform}")));
+        assert_names(&e, line, "viewport[0].zoom/rotate/translate");
+        assert!(e.contains("within -90..90"), "{e}");
+    }
+    let keyed = format!(
+        "{}[animation]\nframes = 10\n[[animation.viewport]]\nframe = 5\nzoom = 0.25\n",
+        view(ea)
+    );
+    let e = scene_error(&keyed);
+    assert_names(
+        &e,
+        line + 7,
+        "animation.viewport[0] (viewport 'v').zoom/rotate/translate",
+    );
+    paper_with(&view(&format!("{ea}\nzoom = 2.0\nrotate = 30.0"))).unwrap();
     // Zoom 1/1000 and 1000 are accepted.
     paper_with(&view("width = 10\nheight = 10\nzoom = 0.001")).unwrap();
     paper_with(&view("width = 10\nheight = 10\nzoom = 1000.0")).unwrap();

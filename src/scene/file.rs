@@ -886,14 +886,17 @@ fn convert_viewports(
             shear: k.shear.unwrap_or(carried.shear),
             translate: k.translate.unwrap_or(carried.translate),
         };
-        transform.validate().map_err(|err| {
-            transform_error(
-                ctx,
-                key.span(),
-                &format!("{field} (viewport '{}')", track.viewport.name),
-                err,
-            )
-        })?;
+        track
+            .viewport
+            .validate_transform(camera, &transform)
+            .map_err(|err| {
+                transform_error(
+                    ctx,
+                    key.span(),
+                    &format!("{field} (viewport '{}')", track.viewport.name),
+                    err,
+                )
+            })?;
         track.keys.push(ViewportKey {
             frame: k.frame,
             transform,

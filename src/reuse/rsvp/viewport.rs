@@ -172,7 +172,45 @@ impl Viewport {
             },
             message: e.to_string(),
         })?;
-        self.transform.validate()
+        self.validate_transform(base, &self.transform)
+    }
+
+    /// Checks `transform` for this viewport under the scene camera `base`:
+    /// its own checks, and an equal-angle view's elevation, which the
+    /// transform moves (shifted, rotated or zoomed out past a pole, its
+    /// pixels would look where the sample buffer has no rows).
+    pub fn validate_transform(
+        &self,
+        base: &Camera,
+        transform: &ViewTransform,
+    ) -> Result<(), TransformError> {
+        transform.validate()?;
+        let camera = self.camera(base);
+        if camera.projection != Projection::EqualAngle {
+            return Ok(());
+        }
+        let pose = ViewportPose::new(camera, *transform);
+        let (w, h) = (f64::from(self.width), f64::from(self.height));
+        // Elevation is linear in the unzoomed image's rows: the corners
+        // bound it.
+        let elevations = [(0.0, 0.0), (w, 0.0), (0.0, h), (w, h)].map(|(x, y)| {
+            let base_point = pose.base_point(DVec2::new(x, y));
+            pose.camera.pitch - (base_point.y - 0.5 * h) * pose.camera.angle_step()
+        });
+        let low = elevations.iter().copied().fold(f64::INFINITY, f64::min);
+        let high = elevations.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        if low < -FRAC_PI_2 - 1e-9 || high > FRAC_PI_2 + 1e-9 {
+            return Err(TransformError {
+                field: "zoom/rotate/translate",
+                message: format!(
+                    "the equal-angle viewport then spans elevation {:.3}..{:.3} degrees: \
+                     it must stay within -90..90",
+                    low.to_degrees(),
+                    high.to_degrees()
+                ),
+            });
+        }
+        Ok(())
     }
 
     /// The viewport's untransformed camera when the scene camera is `base`.
