@@ -74,6 +74,8 @@ pub enum CameraError {
     },
     #[error("field of view {} degrees: must be a number above 0 and {limit}", tidy_degrees(*fov))]
     FieldOfView { fov: f64, limit: &'static str },
+    #[error("field of view {} degrees over {width} pixels: a pixel spans under {:.2e} degrees, finer than the sample lattices count (at most 2^27 samples a turn)", tidy_degrees(*fov), 360.0 / MAX_SAMPLES_PER_TURN as f64)]
+    TooFine { fov: f64, width: u32 },
     #[error("equal-angle view spans elevation {low:.3}..{high:.3} degrees: must stay within -90..90 (lower the pitch, the field of view or the height)")]
     ElevationOutOfRange { low: f64, high: f64 },
     #[error("{field} must be finite, got {value}")]
@@ -89,12 +91,19 @@ pub enum CameraError {
 /// noise (500 rather than 500.00000000000006).
 fn tidy_degrees(degrees: f64) -> f64 {
     let tidy = (degrees * 1e9).round() / 1e9;
-    if tidy.is_finite() {
+    // Below a billionth of a degree the noise is all there is.
+    if tidy.is_finite() && (tidy != 0.0 || degrees == 0.0) {
         tidy
     } else {
         degrees
     }
 }
+
+/// Most samples a whole turn may hold at a camera's angle per pixel: the
+/// pan and RSVP lattices count a turn's columns, and the RSVP pyramid's
+/// finest level 2^16 times as many, in 43-bit keys. (0.01 degrees over
+/// 640 px is 2.3e7; a narrower pixel, 2.7e-6 degrees, is refused.)
+pub const MAX_SAMPLES_PER_TURN: i64 = 1 << 27;
 
 /// Largest accepted image side: 32k pixels, and 256 Mpixel in all, checked
 /// before any buffer is allocated.
@@ -188,6 +197,12 @@ impl Camera {
             return Err(CameraError::FieldOfView {
                 fov: fov_deg,
                 limit,
+            });
+        }
+        if TAU / self.angle_step() > MAX_SAMPLES_PER_TURN as f64 {
+            return Err(CameraError::TooFine {
+                fov: fov_deg,
+                width: w,
             });
         }
         if self.projection == Projection::EqualAngle {

@@ -1288,6 +1288,12 @@ fn convert_camera(
                 "camera.fov",
                 overrides.fov.is_some().then(|| "--fov".to_string()),
             ),
+            // The field of view over the width.
+            CameraError::TooFine { .. } => (
+                "camera.fov",
+                (overrides.fov.is_some() || overrides.width.is_some())
+                    .then(|| "--fov/--width".to_string()),
+            ),
             // The pitch, field of view, projection and height together.
             CameraError::ElevationOutOfRange { .. } => {
                 let given: Vec<&str> = [
@@ -1737,6 +1743,29 @@ mod tests {
         ))
         .unwrap_err();
         assert!(err.message.contains("centre"), "{err}");
+    }
+
+    #[test]
+    fn a_pixel_finer_than_the_lattices_count_is_refused() {
+        // 1e-14 degrees wrapped the lattices' column counts (a black image).
+        let err = parse("[camera]\nposition = [0, 1, 5]\nfov = 1e-14\n").unwrap_err();
+        assert_eq!(
+            (err.line, err.field.as_deref()),
+            (Some(1), Some("camera.fov")),
+            "{err}"
+        );
+        assert!(
+            err.message.contains("finer than the sample lattices count"),
+            "{err}"
+        );
+        let overrides = SceneOverrides {
+            fov: Some(1e-5),
+            ..SceneOverrides::default()
+        };
+        let err = parse_scene_str(CAMERA, Path::new("t.toml"), &overrides).unwrap_err();
+        assert_eq!(err.field.as_deref(), Some("--fov/--width"), "{err}");
+        // DESIGN's extreme: 0.01 degrees over 640 pixels.
+        parse("[camera]\nposition = [0, 1, 5]\nfov = 0.01\n").unwrap();
     }
 
     #[test]

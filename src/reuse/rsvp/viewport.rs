@@ -165,7 +165,8 @@ impl Viewport {
                 crate::camera::CameraError::EmptyImage { .. }
                 | crate::camera::CameraError::ImageTooLarge { .. } => "width/height",
                 crate::camera::CameraError::ElevationOutOfRange { .. } => "pitch",
-                crate::camera::CameraError::FieldOfView { .. } => "fov",
+                crate::camera::CameraError::FieldOfView { .. }
+                | crate::camera::CameraError::TooFine { .. } => "fov",
                 crate::camera::CameraError::NotFinite { .. } => "pitch",
                 // The viewport's eye is the camera's, checked with it.
                 crate::camera::CameraError::TooFar { .. } => "camera.position",
