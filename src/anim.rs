@@ -601,21 +601,17 @@ impl<'a> Animator<'a> {
         for frame in timeline.chain(animator.frame_range.clone()) {
             let camera = animator.camera_at(frame);
             animator.camera_moves |= camera != first;
-            if camera.projection == Projection::EqualAngle {
-                let seen = EqualAngleLattice::rows_seen(&camera);
-                (top, bottom) = (top.min(seen.start), bottom.max(seen.end));
-                // Resampling reads a row more on either side.
-                let span = bottom.saturating_sub(top).saturating_add(2);
-                bytes = bytes.max(EqualAngleLattice::buffer_bytes(&camera, span));
+            if camera.projection != Projection::EqualAngle {
+                continue;
             }
-        }
-        animator.pan_buffer_bytes = bytes;
-        // Once, not at every restart: an eye that moves every frame
-        // restarts every frame.
-        for frame in animator.frame_range.clone() {
-            let camera = animator.camera_at(frame);
-            if camera.projection == Projection::EqualAngle {
-                let seen = EqualAngleLattice::rows_seen(&camera);
+            let seen = EqualAngleLattice::rows_seen(&camera);
+            (top, bottom) = (top.min(seen.start), bottom.max(seen.end));
+            // Resampling reads a row more on either side.
+            let span = bottom.saturating_sub(top).saturating_add(2);
+            bytes = bytes.max(EqualAngleLattice::buffer_bytes(&camera, span));
+            // Each lattice's rows, found once here rather than at every
+            // restart (an eye that moves every frame restarts every frame).
+            if animator.frame_range.contains(&frame) {
                 let span = animator
                     .row_spans
                     .entry(lattice_key(&camera))
@@ -623,6 +619,7 @@ impl<'a> Animator<'a> {
                 *span = (span.0.min(seen.start), span.1.max(seen.end));
             }
         }
+        animator.pan_buffer_bytes = bytes;
         animator
     }
 

@@ -285,7 +285,7 @@ fn chunk_of(
 /// Fails before any rendering if two outputs share a pattern (one would
 /// overwrite the other) or an output's folder cannot take files: a run
 /// should not end, after its last frame, on a folder it could not write.
-fn check_outputs(args: &AnimateArgs, first_frame: &Path, stats: Option<&Path>) -> Result<()> {
+fn check_outputs(args: &AnimateArgs, stats: Option<&Path>) -> Result<()> {
     let patterns = [
         ("-o", Some(&args.output)),
         ("--dirty-image", args.dirty_image.as_ref()),
@@ -305,7 +305,6 @@ fn check_outputs(args: &AnimateArgs, first_frame: &Path, stats: Option<&Path>) -
             0
         ))))?;
     }
-    check_writable(&folder_of(first_frame))?;
     for path in [stats, args.gif.as_deref()].into_iter().flatten() {
         check_writable(&folder_of(path))?;
     }
@@ -335,7 +334,7 @@ pub(crate) fn animate(args: AnimateArgs) -> Result<()> {
     let Some((range, stats_path)) = chunk_of(&args, range)? else {
         return Ok(());
     };
-    check_outputs(&args, &frame_path(*range.start()), stats_path.as_deref())?;
+    check_outputs(&args, stats_path.as_deref())?;
     let mut gif = match &args.gif {
         Some(path) => Some(GifWriter::create(path, fps)?),
         None => None,
