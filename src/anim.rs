@@ -512,7 +512,7 @@ struct Buffered {
 
 /// The most memory a pan buffer may take. A narrow equal-angle view keeps
 /// a whole turn of its fine samples (E1's: 17 MB; 0.1 degrees over 640 px:
-/// 13 GB): beyond this, frames are rendered in full, with the reason.
+/// 17 GB): beyond this, frames are rendered in full, with the reason.
 pub const PAN_BUFFER_LIMIT_BYTES: f64 = 2e9;
 
 /// The most memory OSTC's region bits and grid may take (E3's: 1 MB). Fine
