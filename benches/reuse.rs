@@ -8,14 +8,13 @@ use criterion::{criterion_group, criterion_main, BatchSize, Criterion, Throughpu
 use glam::Vec3;
 use retrace::accel::{Accelerator, BackendKind};
 use retrace::camera::{Camera, Projection};
+use retrace::camera::{ViewTransform, ViewportPose};
 use retrace::geometry::Aabb;
 use retrace::ray::{Ray, PACKET_WIDTH};
 use retrace::render::{trace_groups, SampleGroup};
 use retrace::reuse::ostc::{Footprint, Ostc, RegionGrid, RegionSet, DEFAULT_VOXELS};
 use retrace::reuse::pan::{EqualAngleLattice, PanBuffer};
-use retrace::reuse::rsvp::{
-    Level, LevelRays, RsvpKnobs, SampleBuffer, SampleLattice, ViewTransform, ViewportPose,
-};
+use retrace::reuse::rsvp::{Level, LevelRays, RsvpKnobs, SampleBuffer, SampleLattice};
 use retrace::rng::SplitMix64;
 use retrace::scene::{paper_scene, SceneOverrides};
 use retrace::shade::{RayKind, RayObserver, Shader};
@@ -134,8 +133,8 @@ fn groups_in_view(scene: &retrace::scene::Scene, lattice: &SampleLattice) -> Vec
         (w / 2.0, 0.0),
         (w / 2.0, h),
     ] {
-        let (col, row) = pose
-            .lattice_coords(lattice, glam::DVec2::new(x, y))
+        let (col, row) = lattice
+            .viewport_coords(&pose, glam::DVec2::new(x, y))
             .expect("the view's corners look somewhere");
         cols = (cols.0.min(col), cols.1.max(col));
         rows = (rows.0.min(row), rows.1.max(row));

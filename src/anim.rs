@@ -7,262 +7,23 @@
 
 use std::time::Instant;
 
-use glam::{Affine3A, DVec3, EulerRot, Quat, Vec3};
+use glam::Affine3A;
 
 use crate::accel::Accelerator;
 use crate::camera::RayTable;
+use crate::camera::ViewportPose;
 use crate::camera::{Camera, Projection};
+use crate::geometry::Light;
 use crate::geometry::Placement;
 use crate::render::{render_view, Frame};
 use crate::reuse::ostc::{Footprint, Ostc, RegionGrid, RegionLayout, RegionSet, DEFAULT_VOXELS};
 use crate::reuse::pan::{
     image_window, render_window, EqualAngleLattice, Lattice, PanBuffer, Window,
 };
-use crate::reuse::rsvp::{render_direct, RsvpKnobs, SampleBuffer, SampleLattice, ViewportPose};
-use crate::scene::{Light, Scene};
+use crate::reuse::rsvp::{render_direct, RsvpKnobs, SampleBuffer, SampleLattice};
+use crate::scene::Scene;
 use crate::shade::{RayCounts, Shader};
-
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Deserialize, serde::Serialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum Ease {
-    /// Constant speed.
-    #[default]
-    Linear,
-    /// Smoothstep: starts and ends at rest.
-    EaseInOut,
-}
-
-impl Ease {
-    pub fn apply(self, t: f64) -> f64 {
-        match self {
-            Ease::Linear => t,
-            Ease::EaseInOut => t * t * (3.0 - 2.0 * t),
-        }
-    }
-}
-
-/// A camera keyframe, fully resolved (unset values carried over).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct CameraKey {
-    pub frame: u32,
-    /// Radians.
-    pub yaw: f64,
-    pub pitch: f64,
-    pub fov: f64,
-    pub position: DVec3,
-    /// How the segment from this key to the next is eased.
-    pub ease: Ease,
-}
-
-impl CameraKey {
-    /// `base` posed as this key says.
-    pub fn apply(&self, base: &Camera) -> Camera {
-        Camera {
-            yaw: self.yaw,
-            pitch: self.pitch,
-            fov: self.fov,
-            position: self.position,
-            ..base.clone()
-        }
-    }
-}
-
-/// Where `frame` falls among `keys` (in increasing frame order): the key at
-/// or before it (the first key before the first), and, strictly between two
-/// keys, the next key with the eased fraction of the way to it.
-fn key_segment<K>(
-    keys: &[K],
-    frame: u32,
-    frame_of: impl Fn(&K) -> u32,
-    ease_of: impl Fn(&K) -> Ease,
-) -> Option<(&K, Option<(&K, f64)>)> {
-    let first = keys.first()?;
-    let next = keys.partition_point(|k| frame_of(k) <= frame);
-    if next == 0 {
-        return Some((first, None));
-    }
-    let a = &keys[next - 1];
-    let Some(b) = keys.get(next) else {
-        return Some((a, None));
-    };
-    let (fa, fb) = (frame_of(a), frame_of(b));
-    let t = ease_of(a).apply(f64::from(frame - fa) / f64::from(fb - fa));
-    Some((a, Some((b, t))))
-}
-
-fn lerp3(a: Vec3, b: Vec3, t: f64) -> Vec3 {
-    (a.as_dvec3() + (b.as_dvec3() - a.as_dvec3()) * t).as_vec3()
-}
-
-/// An object keyframe, resolved (unset values carried over): the motion
-/// relative to where the scene file puts the object.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct ObjectKey {
-    pub frame: u32,
-    pub translate: Vec3,
-    /// Degrees about x, then y, then z, around the object's centre.
-    pub rotate: Vec3,
-    pub ease: Ease,
-}
-
-/// A ball's bounce: a parabola of `height` above the keyed position, one
-/// hop every `period` frames, touching down at whole periods (after
-/// `phase` periods' shift).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Bounce {
-    pub height: f32,
-    pub period: f64,
-    pub phase: f64,
-}
-
-impl Bounce {
-    pub fn lift(&self, frame: u32) -> f32 {
-        let p = (f64::from(frame) / self.period + self.phase).rem_euclid(1.0);
-        (f64::from(self.height) * 4.0 * p * (1.0 - p)) as f32
-    }
-}
-
-/// The motion of one named scene object (all its parts).
-#[derive(Clone, Debug, PartialEq)]
-pub struct ObjectTrack {
-    pub name: String,
-    /// Indices into `Scene::objects`.
-    pub objects: Vec<usize>,
-    /// Centre of the object at rest: rotations turn about it.
-    pub pivot: Vec3,
-    /// In increasing frame order; may be empty (a bounce alone).
-    pub keys: Vec<ObjectKey>,
-    pub bounce: Option<Bounce>,
-}
-
-impl ObjectTrack {
-    /// Object-to-world transform at `frame`, from the rest placement.
-    pub fn transform_at(&self, frame: u32) -> Affine3A {
-        let (translate, rotate) = match key_segment(&self.keys, frame, |k| k.frame, |k| k.ease) {
-            None => (Vec3::ZERO, Vec3::ZERO),
-            Some((a, None)) => (a.translate, a.rotate),
-            Some((a, Some((b, t)))) => (
-                lerp3(a.translate, b.translate, t),
-                lerp3(a.rotate, b.rotate, t),
-            ),
-        };
-        let lift = self.bounce.map_or(0.0, |b| b.lift(frame));
-        let rotation = Quat::from_euler(
-            EulerRot::ZYX,
-            rotate.z.to_radians(),
-            rotate.y.to_radians(),
-            rotate.x.to_radians(),
-        );
-        Affine3A::from_translation(self.pivot + translate + Vec3::Y * lift)
-            * Affine3A::from_quat(rotation)
-            * Affine3A::from_translation(-self.pivot)
-    }
-}
-
-/// A light keyframe, resolved (unset values carried over).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct LightKey {
-    pub frame: u32,
-    pub position: Vec3,
-    pub color: Vec3,
-    pub intensity: f32,
-    pub ease: Ease,
-}
-
-#[derive(Clone, Debug, PartialEq)]
-pub struct LightTrack {
-    /// Index into `Scene::lights`.
-    pub light: usize,
-    /// In increasing frame order, at least one.
-    pub keys: Vec<LightKey>,
-}
-
-impl LightTrack {
-    pub fn light_at(&self, frame: u32) -> Light {
-        let key = |k: &LightKey| Light {
-            position: k.position,
-            power: k.color * k.intensity,
-        };
-        match key_segment(&self.keys, frame, |k| k.frame, |k| k.ease) {
-            None => unreachable!("a light track has keys"),
-            Some((a, None)) => key(a),
-            Some((a, Some((b, t)))) => {
-                let intensity =
-                    f64::from(a.intensity) + (f64::from(b.intensity) - f64::from(a.intensity)) * t;
-                Light {
-                    position: lerp3(a.position, b.position, t),
-                    power: lerp3(a.color, b.color, t) * intensity as f32,
-                }
-            }
-        }
-    }
-}
-
-#[derive(Clone, Debug, PartialEq)]
-pub struct Animation {
-    pub frames: u32,
-    pub fps: f64,
-    /// In increasing frame order.
-    pub camera_keys: Vec<CameraKey>,
-    pub objects: Vec<ObjectTrack>,
-    pub lights: Vec<LightTrack>,
-}
-
-impl Animation {
-    /// A timeline of camera keys alone.
-    pub fn camera_only(frames: u32, fps: f64, camera_keys: Vec<CameraKey>) -> Animation {
-        Animation {
-            frames,
-            fps,
-            camera_keys,
-            objects: Vec::new(),
-            lights: Vec::new(),
-        }
-    }
-
-    /// The camera at `frame`: before the first key and after the last, the
-    /// nearest key; between two keys, interpolated (with the first key's ease).
-    pub fn camera_at(&self, base: &Camera, frame: u32) -> Camera {
-        match key_segment(&self.camera_keys, frame, |k| k.frame, |k| k.ease) {
-            None => base.clone(),
-            Some((a, None)) => a.apply(base),
-            Some((a, Some((b, t)))) => {
-                let lerp = |x: f64, y: f64| x + (y - x) * t;
-                Camera {
-                    yaw: lerp(a.yaw, b.yaw),
-                    pitch: lerp(a.pitch, b.pitch),
-                    fov: lerp(a.fov, b.fov),
-                    position: a.position + (b.position - a.position) * t,
-                    ..base.clone()
-                }
-            }
-        }
-    }
-
-    /// Whether anything but the camera moves.
-    pub fn moves_scene(&self) -> bool {
-        !self.objects.is_empty() || !self.lights.is_empty()
-    }
-
-    /// Puts `scene`'s animated objects and lights where they are at `frame`.
-    /// Returns the objects whose placement changed.
-    pub fn pose(&self, scene: &mut Scene, frame: u32) -> Vec<usize> {
-        let mut moved = Vec::new();
-        for track in &self.objects {
-            let placement = Placement::Instance(track.transform_at(frame));
-            for &object in &track.objects {
-                if scene.objects[object].placement != placement {
-                    scene.objects[object].placement = placement;
-                    moved.push(object);
-                }
-            }
-        }
-        for track in &self.lights {
-            scene.lights[track.light] = track.light_at(frame);
-        }
-        moved
-    }
-}
+use crate::timeline::Animation;
 
 /// How a pan by a fraction of a sample is shown.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -865,7 +626,7 @@ impl<'a> Animator<'a> {
             return;
         }
         if let Some(animation) = self.animation() {
-            let moved = animation.pose(&mut self.scene, frame);
+            let moved = animation.pose(&mut self.scene.objects, &mut self.scene.lights, frame);
             // The accelerator may be shared with another animator that left
             // it elsewhere: the first pose sets every animated object.
             let moved = match self.posed_frame {
@@ -1401,50 +1162,6 @@ pub fn count_differences(a: &Frame, b: &Frame) -> u64 {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    fn base() -> Camera {
-        Camera {
-            projection: Projection::EqualAngle,
-            position: DVec3::ZERO,
-            yaw: 0.0,
-            pitch: 0.0,
-            fov: 1.0,
-            width: 8,
-            height: 8,
-        }
-    }
-
-    fn key(frame: u32, yaw_deg: f64, ease: Ease) -> CameraKey {
-        CameraKey {
-            frame,
-            yaw: yaw_deg.to_radians(),
-            pitch: 0.0,
-            fov: 1.0,
-            position: DVec3::ZERO,
-            ease,
-        }
-    }
-
-    #[test]
-    fn interpolates_from_the_frame_number() {
-        let animation = Animation::camera_only(
-            100,
-            25.0,
-            vec![
-                key(10, 0.0, Ease::Linear),
-                key(110, 360.0, Ease::EaseInOut),
-                key(210, 0.0, Ease::Linear),
-            ],
-        );
-        let yaw = |f| animation.camera_at(&base(), f).yaw.to_degrees();
-        assert_eq!(yaw(0), 0.0);
-        assert!((yaw(60) - 180.0).abs() < 1e-9);
-        assert!((yaw(11) - 3.6).abs() < 1e-9);
-        // Eased segment: slow at both ends, halfway in the middle.
-        assert!((yaw(160) - 180.0).abs() < 1e-9);
-        assert!(360.0 - yaw(111) < 3.6 * 0.1);
-        assert_eq!(yaw(10_000), 0.0);
-    }
 
     #[test]
     fn modes_parse() {

@@ -719,7 +719,7 @@ pub fn bench_sequence(
 /// Experiment E1 of the paper: the paper scene (as given), yawing 3.6
 /// degrees per frame for 100 frames, a whole turn.
 pub fn e1_scene(mut scene: Scene) -> Scene {
-    use crate::anim::{Animation, CameraKey, Ease};
+    use crate::timeline::{Animation, CameraKey, Ease};
     let camera = &scene.camera;
     let key = |frame: u32, yaw_deg: f64| CameraKey {
         frame,
@@ -944,8 +944,8 @@ pub const E2_ZOOM: f64 = 2.555_723_8;
 /// steady rate) on the paper scene's camera buffer; with `pan_deg_per_frame`
 /// the camera also yaws (E4 without the moving ball).
 pub fn e2_scene(mut scene: Scene, direction: ZoomDirection, pan_deg_per_frame: f64) -> Scene {
-    use crate::anim::{Animation, CameraKey, Ease};
-    use crate::reuse::rsvp::{ViewTransform, Viewport, ViewportKey, ViewportTrack};
+    use crate::camera::{ViewTransform, Viewport};
+    use crate::timeline::{Animation, CameraKey, Ease, ViewportKey, ViewportTrack};
     let (from, to) = match direction {
         ZoomDirection::In => (1.0, E2_ZOOM),
         ZoomDirection::Out => (E2_ZOOM, 1.0),

@@ -259,6 +259,14 @@ impl Object {
     }
 }
 
+/// A point light.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Light {
+    pub position: Vec3,
+    /// Colour times intensity.
+    pub power: Vec3,
+}
+
 /// A surface normal carried through an affine transform (by the inverse
 /// transpose, so it stays perpendicular under non-uniform scaling); unit
 /// length, or zero for a zero normal.

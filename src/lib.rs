@@ -19,5 +19,6 @@ pub mod reuse;
 pub mod rng;
 pub mod scene;
 pub mod shade;
+pub mod timeline;
 pub mod tradeoff;
 pub mod validate;

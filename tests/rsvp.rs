@@ -7,11 +7,10 @@ use glam::DVec3;
 use retrace::accel::Accelerator;
 use retrace::anim::{image_error, Animator, Techniques};
 use retrace::camera::{Camera, Projection};
+use retrace::camera::{ViewTransform, ViewportPose};
 use retrace::render::SampleGroup;
 use retrace::render::{encode_srgb, trace_groups};
-use retrace::reuse::rsvp::{
-    Filter, Level, LevelRays, RsvpKnobs, SampleBuffer, SampleLattice, ViewTransform, ViewportPose,
-};
+use retrace::reuse::rsvp::{Filter, Level, LevelRays, RsvpKnobs, SampleBuffer, SampleLattice};
 use retrace::scene::{parse_scene_str, Scene, SceneOverrides};
 use retrace::shade::Shader;
 
@@ -93,7 +92,7 @@ on_every_backend! {
         for (x, y) in [(0, 0), (1, 0), (0, 1), (1, 1), (2, 1), (2, 2), (3, 3), (4, 4)] {
             let level = Level::new(x, y);
             // Samples around the view centre at this level.
-            let centre = poses[0].lattice_coords(&lattice, glam::DVec2::new(32.0, 24.0)).unwrap();
+            let centre = lattice.viewport_coords(&poses[0], glam::DVec2::new(32.0, 24.0)).unwrap();
             let (c0, r0) = ((centre.0 * f64::from(1u32 << x)) as i64, (centre.1 * f64::from(1u32 << y)) as i64);
             for (dc, dr) in [(0, 0), (1, 0), (0, 1), (1, 1), (3, 2), (-5, 4)] {
                 let (col, row) = (c0 + dc, r0 + dr);
@@ -136,7 +135,7 @@ on_every_backend! {
             let image = &view[0].image;
             for y in 0..48u32 {
                 for x in 0..64u32 {
-                    let (col, row) = pose.lattice_coords(&lattice, glam::DVec2::new(f64::from(x) + 0.5, f64::from(y) + 0.5)).unwrap();
+                    let (col, row) = lattice.viewport_coords(&pose, glam::DVec2::new(f64::from(x) + 0.5, f64::from(y) + 0.5)).unwrap();
                     let (col, row) = (col.round() as i64, row.round() as i64);
                     let sample = buffer.sample(Level::default(), col, row).expect("traced");
                     assert_eq!(image.get_pixel(x, y).0, sample.to_array().map(encode_srgb), "{filter} ({x}, {y})");

@@ -7,11 +7,11 @@ use std::path::Path;
 use glam::Vec3;
 use retrace::accel::embree::{EmbreeIntersector, StillSplit};
 use retrace::accel::Intersector;
-use retrace::anim::Animation;
 use retrace::geometry::{Object, Placement};
 use retrace::ray::{HitPacket, Ray, RayPacket, ALL_LANES, PACKET_WIDTH};
 use retrace::rng::SplitMix64;
 use retrace::scene::{parse_scene_str, Scene, SceneOverrides};
+use retrace::timeline::Animation;
 
 const PAPER: &str = include_str!("../scenes/paper.toml");
 

@@ -25,8 +25,9 @@ use glam::DVec2;
 use rayon::prelude::*;
 
 use crate::accel::Accelerator;
+use crate::camera::ViewportPose;
 use crate::render::{trace_groups, SampleGroup};
-use crate::reuse::rsvp::{Level, LevelRays, SampleLattice, ViewportPose, MAX_LEVEL};
+use crate::reuse::rsvp::{Level, LevelRays, SampleLattice, MAX_LEVEL};
 use crate::scene::Scene;
 use crate::shade::Shader;
 
@@ -72,11 +73,12 @@ fn for_each_pixel<T: Send>(
             let each = &each;
             (0..width).filter_map(move |x| {
                 let at = |dx: f64, dy: f64| {
-                    pose.lattice_coords(
-                        lattice,
-                        DVec2::new(f64::from(x) + 0.5 + dx, f64::from(y) + 0.5 + dy),
-                    )
-                    .map(|(c, r)| DVec2::new(c, r))
+                    lattice
+                        .viewport_coords(
+                            pose,
+                            DVec2::new(f64::from(x) + 0.5 + dx, f64::from(y) + 0.5 + dy),
+                        )
+                        .map(|(c, r)| DVec2::new(c, r))
                 };
                 let centre = at(0.0, 0.0)?;
                 let mut right = at(1.0, 0.0).unwrap_or(centre) - centre;
@@ -196,7 +198,7 @@ pub fn viewport_oracle(
             .collect();
         if moves {
             let animation = animation.expect("moves implies an animation");
-            let mut moved = animation.pose(&mut posed, frame);
+            let mut moved = animation.pose(&mut posed.objects, &mut posed.lights, frame);
             if first_pose {
                 // The accelerator may have been left posed anywhere.
                 moved = animation

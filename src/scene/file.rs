@@ -11,15 +11,15 @@ use glam::{Affine3A, DVec3, EulerRot, Quat, Vec3};
 use serde::Deserialize;
 use toml::Spanned;
 
-use super::{Checker, Light, Material, Scene, SceneError};
-use crate::anim::{
-    Animation, Bounce, CameraKey, Ease, LightKey, LightTrack, ObjectKey, ObjectTrack,
-};
-use crate::camera::{yaw_pitch_toward, Camera, Projection};
+use super::{Checker, Material, Scene, SceneError};
+use crate::camera::{yaw_pitch_toward, Camera, Projection, ViewTransform, Viewport};
 use crate::geometry::{
-    within_world, Object, Placement, Plane, Shape, Sphere, TriangleMesh, WORLD_LIMIT,
+    within_world, Light, Object, Placement, Plane, Shape, Sphere, TriangleMesh, WORLD_LIMIT,
 };
-use crate::reuse::rsvp::{ViewTransform, Viewport, ViewportKey, ViewportTrack};
+use crate::timeline::{
+    Animation, Bounce, CameraKey, Ease, LightKey, LightTrack, ObjectKey, ObjectTrack, ViewportKey,
+    ViewportTrack,
+};
 
 /// Settings from the command line that replace the file's.
 #[derive(Clone, Debug, Default)]
@@ -727,20 +727,7 @@ pub fn parse_scene_str(
                 objects[object].placement = Placement::Instance(Affine3A::IDENTITY);
             }
         }
-        let mut posed = Scene {
-            camera: camera.clone(),
-            objects,
-            materials: Vec::new(),
-            lights,
-            background,
-            ambient,
-            max_depth: 0,
-            warnings: Vec::new(),
-            animation: None,
-            viewports: Vec::new(),
-        };
-        animation.pose(&mut posed, 0);
-        (objects, lights) = (posed.objects, posed.lights);
+        animation.pose(&mut objects, &mut lights, 0);
     }
 
     let viewports = convert_viewports(&ctx, &file, &camera)?;
@@ -763,7 +750,7 @@ fn transform_error(
     ctx: &Ctx,
     span: std::ops::Range<usize>,
     prefix: &str,
-    err: crate::reuse::rsvp::TransformError,
+    err: crate::camera::TransformError,
 ) -> SceneError {
     ctx.error(span, format!("{prefix}.{}", err.field), err.message)
 }

@@ -12,7 +12,8 @@ use std::path::{Path, PathBuf};
 use glam::Vec3;
 
 use crate::camera::Camera;
-use crate::geometry::{Object, Shape};
+use crate::geometry::{Light, Object, Shape};
+use crate::timeline::{Animation, ViewportTrack};
 
 pub use file::{parse_scene_str, SceneOverrides};
 pub use obj::{load_obj_mesh, ObjMesh};
@@ -65,13 +66,6 @@ impl Material {
     }
 }
 
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Light {
-    pub position: Vec3,
-    /// Colour times intensity.
-    pub power: Vec3,
-}
-
 #[derive(Clone, Debug)]
 pub struct Scene {
     pub camera: Camera,
@@ -86,10 +80,10 @@ pub struct Scene {
     /// degenerate triangles).
     pub warnings: Vec<String>,
     /// The timeline, for scenes that animate.
-    pub animation: Option<crate::anim::Animation>,
+    pub animation: Option<Animation>,
     /// RSVP viewports onto the camera's sample buffer (none: the camera's
     /// own image is the output).
-    pub viewports: Vec<crate::reuse::rsvp::ViewportTrack>,
+    pub viewports: Vec<ViewportTrack>,
 }
 
 impl Scene {

@@ -7,8 +7,9 @@ use std::path::Path;
 use glam::{DVec3, Vec3};
 
 use super::file::SceneOverrides;
-use super::{Checker, Light, Material, Scene, SceneError};
+use super::{Checker, Material, Scene, SceneError};
 use crate::camera::{yaw_pitch_toward, Camera, Projection};
+use crate::geometry::Light;
 use crate::geometry::{Aabb, Object, Placement, Plane, Shape, TriangleMesh, WORLD_LIMIT};
 
 /// One material's worth of an OBJ file.

@@ -449,7 +449,8 @@ mod tests {
     use super::*;
     use crate::accel::{Accelerator, BackendKind};
     use crate::camera::{Camera, Projection};
-    use crate::reuse::rsvp::{RsvpKnobs, SampleLattice, ViewTransform, ViewportPose};
+    use crate::camera::{ViewTransform, ViewportPose};
+    use crate::reuse::rsvp::{RsvpKnobs, SampleLattice};
     use crate::scene::{paper_scene, SceneOverrides};
     use crate::shade::Shader;
 

@@ -11,8 +11,9 @@ use super::{
     map::{nan_filled, Mapped, SampleBox, GRID_SPACING},
     store::{tile_key, TileCache},
     viewport::PixelMap,
-    Filter, Level, SampleBuffer, ViewportPose, REGION,
+    Filter, Level, SampleBuffer, REGION,
 };
+use crate::camera::ViewportPose;
 use crate::render::{srgb_table, Frame, SrgbTable};
 
 impl SampleBuffer {

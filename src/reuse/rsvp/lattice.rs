@@ -4,9 +4,10 @@
 use std::f64::consts::{FRAC_PI_2, FRAC_PI_4, PI, TAU};
 use std::sync::OnceLock;
 
-use glam::DVec3;
+use glam::{DVec2, DVec3};
 
 use crate::camera::Camera;
+use crate::camera::ViewportPose;
 use crate::ray::{LaneMask, Ray, RayPacket, PACKET_WIDTH};
 use crate::render::{PrimaryRays, SampleGroup, GROUP_HEIGHT, GROUP_WIDTH};
 
@@ -167,6 +168,16 @@ impl std::fmt::Debug for AngleTables {
 }
 
 impl SampleLattice {
+    /// Level-0 coordinates of point `p` of viewport `pose`, by the exact
+    /// functions (for level choice and tests).
+    pub fn viewport_coords(&self, pose: &ViewportPose, p: DVec2) -> Option<(f64, f64)> {
+        let d = pose.direction(p)?;
+        let (s, c) = pose.camera.yaw.sin_cos();
+        let (x, z) = (d.x * c + d.z * s, d.z * c - d.x * s);
+        let (rel_az, el) = (x.atan2(-z), d.y.atan2(x.hypot(z)));
+        Some(self.coords(pose.camera.yaw + rel_az, el))
+    }
+
     /// Level 0 at the camera's angle per pixel, nudged so a whole turn
     /// holds whole groups (640 px over 100 degrees: 2304 columns).
     pub fn for_camera(camera: &Camera) -> SampleLattice {

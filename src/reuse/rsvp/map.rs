@@ -13,8 +13,9 @@ use super::{
     lattice::{column_runs, owned_positions},
     store::{tile_key, TILE_COLS, TILE_COL_SHIFT, TILE_ROW_SHIFT},
     viewport::PixelMap,
-    Filter, Level, RsvpKnobs, SampleBuffer, ViewportPose, MAX_LEVEL, REGION,
+    Filter, Level, RsvpKnobs, SampleBuffer, MAX_LEVEL, REGION,
 };
+use crate::camera::ViewportPose;
 use crate::render::{SampleGroup, GROUP_HEIGHT, GROUP_WIDTH};
 
 /// Pixels between exactly mapped points of a region's grid; the pixels
@@ -767,9 +768,9 @@ fn level_scale(level: Level) -> DVec2 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::camera::ViewTransform;
     use crate::camera::{Camera, Projection};
     use crate::reuse::rsvp::fixtures::*;
-    use crate::reuse::rsvp::ViewTransform;
 
     #[test]
     fn trace_order_keys_keep_every_level_and_sort_by_it() {

@@ -42,10 +42,7 @@ mod viewport;
 
 pub use filter::{Filter, RsvpKnobs};
 pub use lattice::{fast_atan2, Level, LevelRays, SampleLattice};
-pub use viewport::{
-    render_direct, TransformError, ViewTransform, Viewport, ViewportKey, ViewportPose,
-    ViewportRays, ViewportTrack,
-};
+pub use viewport::{render_direct, ViewportRays};
 
 use std::f64::consts::FRAC_PI_2;
 use std::time::Instant;
@@ -53,7 +50,7 @@ use std::time::Instant;
 use glam::Vec3;
 use rayon::prelude::*;
 
-use crate::camera::Camera;
+use crate::camera::{Camera, ViewportPose};
 use crate::render::{
     srgb_table, trace_each, trace_groups, Frame, PrimaryRays, SampleGroup, GROUP_WIDTH,
 };
@@ -73,10 +70,6 @@ use viewport::PixelMap;
 /// Finest pyramid level: 2^16 times the camera's angular resolution, enough
 /// for a zoom of 1000 with room for oversampling and level bias.
 pub const MAX_LEVEL: u32 = 16;
-
-/// Accepted zoom factors.
-pub const MIN_ZOOM: f64 = 1e-3;
-pub const MAX_ZOOM: f64 = 1e3;
 
 /// Viewport pixels per side of a region that shares one pyramid level.
 pub const REGION: u32 = 16;
@@ -542,7 +535,7 @@ mod fixtures {
     use glam::DVec3;
 
     use super::*;
-    use crate::camera::Projection;
+    use crate::camera::{Projection, ViewTransform};
 
     /// The paper camera's size and field of view, level, one unit up.
     pub(super) fn camera(projection: Projection) -> Camera {

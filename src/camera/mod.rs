@@ -24,6 +24,10 @@ use glam::{DVec2, DVec3, Vec3};
 
 use crate::ray::Ray;
 
+mod viewport;
+
+pub use viewport::{TransformError, ViewTransform, Viewport, ViewportPose, MAX_ZOOM, MIN_ZOOM};
+
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum Projection {
