@@ -227,7 +227,7 @@ fn voxel_walk(c: &mut Criterion) {
     let bounds = ostc.grid().expect("the fixture has a moving object").bounds;
     // The default grid is one voxel, which records without a walk: walk
     // the old default's 512 instead, as `--ostc-voxels 512` would.
-    let spec = retrace::accel::grid::GridSpec::with_cell_budget(bounds, 512.0);
+    let spec = retrace::voxel::GridSpec::with_cell_budget(bounds, 512.0);
     let mut group = c.benchmark_group("ostc");
     group.bench_function("walk 4096 packets (8 rays, to the exit), no marking", |b| {
         b.iter(|| {

@@ -22,3 +22,4 @@ pub mod shade;
 pub mod timeline;
 pub mod tradeoff;
 pub mod validate;
+pub mod voxel;

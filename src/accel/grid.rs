@@ -33,23 +33,22 @@
 //!   fine; primitives with non-finite coordinates are left out.
 //! - No allocation per ray; `Sync + Send`.
 //!
-//! [`GridSpec`] and the supercover [`VoxelWalk`] are independent of the
-//! intersector: the OSTC bookkeeping walks its own grid with them.
+//! The grid's cells and the supercover walk through them live in
+//! [`crate::voxel`], which the OSTC bookkeeping walks its own grid with.
 
 mod primitives;
 #[cfg(test)]
 mod tests;
-mod walk;
 
 use glam::{Affine3A, Vec3};
 use rayon::prelude::*;
 
 pub use primitives::{intersect_sphere, TriangleHit, WatertightRay};
-pub use walk::{walk_segment, GridSpec, GridWalker, VoxelWalk, MAX_RESOLUTION, WALK_SLACK_VOXELS};
 
 use super::{placed_sphere, Intersector};
 use crate::geometry::{Aabb, Object, Placement, Shape, Sphere};
 use crate::ray::{Hit, Ray};
+use crate::voxel::{padded, GridSpec};
 
 /// Cells per primitive when the resolution is chosen automatically (the
 /// lambda of Cleary & Wyvill / Wald et al.: 2..4 is the usual sweet spot).
@@ -385,7 +384,7 @@ impl Level {
             return;
         }
         let spec = match resolution {
-            Some(r) => GridSpec::new(walk::padded(world), r.map(|n| n.max(1))),
+            Some(r) => GridSpec::new(padded(world), r.map(|n| n.max(1))),
             None => GridSpec::with_cell_budget(world, CELLS_PER_PRIMITIVE * count as f64),
         };
         self.cells = Some(bin(prims, &bounds, spec));

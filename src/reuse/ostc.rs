@@ -51,8 +51,8 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Mutex, PoisonError};
 use std::time::Instant;
 
-use crate::accel::grid::{GridSpec, GridWalker};
 use crate::geometry::Aabb;
+use crate::voxel::{GridSpec, GridWalker};
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 

@@ -3,9 +3,8 @@
 //! projection and 2D transform.
 //!
 //! Owns: the sample lattice pyramid ([`SampleLattice`]), the samples traced
-//! so far ([`SampleBuffer`]), viewports and their 2D transforms
-//! ([`Viewport`], [`ViewTransform`], [`ViewportPose`]) and the resampling
-//! knobs ([`RsvpKnobs`]).
+//! so far ([`SampleBuffer`]), the resampling of viewports (described in
+//! [`crate::camera::Viewport`]) and its knobs ([`RsvpKnobs`]).
 //!
 //! Promises:
 //! - Level (x, y) of the pyramid puts column c at world azimuth
