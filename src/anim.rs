@@ -16,10 +16,11 @@ use crate::camera::{Camera, Projection};
 use crate::geometry::Light;
 use crate::geometry::Placement;
 use crate::render::{render_view, Frame};
-use crate::reuse::ostc::{Footprint, Ostc, RegionGrid, RegionLayout, RegionSet, DEFAULT_VOXELS};
+use crate::reuse::ostc::{Footprint, Ostc, DEFAULT_VOXELS};
 use crate::reuse::pan::{
     image_window, render_window, EqualAngleLattice, Lattice, PanBuffer, Window,
 };
+use crate::reuse::regions::{RegionGrid, RegionLayout, RegionSet};
 use crate::reuse::rsvp::{render_direct, RsvpKnobs, SampleBuffer, SampleLattice};
 use crate::scene::Scene;
 use crate::shade::{RayCounts, Shader};
@@ -233,7 +234,7 @@ enum Store {
 }
 
 impl Store {
-    fn regions(&self, size: (i64, i64)) -> crate::reuse::ostc::RegionLayout {
+    fn regions(&self, size: (i64, i64)) -> crate::reuse::regions::RegionLayout {
         match self {
             Store::Lattice(pan) => pan.regions(size),
             Store::Image(image) => image.regions(size),
@@ -242,8 +243,8 @@ impl Store {
 
     fn erase(
         &mut self,
-        layout: &crate::reuse::ostc::RegionLayout,
-        regions: &crate::reuse::ostc::RegionSet,
+        layout: &crate::reuse::regions::RegionLayout,
+        regions: &crate::reuse::regions::RegionSet,
     ) -> u64 {
         match self {
             Store::Lattice(pan) => pan.erase(layout, regions),

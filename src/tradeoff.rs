@@ -24,7 +24,8 @@ use crate::anim::{OstcSettings, Techniques};
 use crate::bench::{bench_viewport_sequence, ViewportSequenceBench};
 use crate::plot::{LabelledPoint, PlotError, ScatterGroup};
 use crate::render::Frame;
-use crate::reuse::ostc::{RegionGrid, DEFAULT_VOXELS};
+use crate::reuse::ostc::DEFAULT_VOXELS;
+use crate::reuse::regions::RegionGrid;
 use crate::reuse::rsvp::{Filter, RsvpKnobs};
 use crate::scene::{parse_scene_str, Scene, SceneError, SceneOverrides, PAPER_SCENE_TOML};
 

@@ -183,7 +183,7 @@ fn ostc_too_big_for_memory_is_refused_and_frames_stay_exact() {
     let mut animator = Animator::new(&scene, &mut accel, Techniques::AUTO, 0..3);
     // 40x60 regions of one group each: 38 words a voxel; 16M voxels, 10 GB.
     animator.set_ostc(OstcSettings {
-        regions: retrace::reuse::ostc::RegionGrid(256),
+        regions: retrace::reuse::regions::RegionGrid(256),
         voxels: 16_777_216,
     });
     for frame in 0..3 {

@@ -134,7 +134,7 @@ struct OstcArgs {
     /// OSTC: the screen is cut into N x N regions (the paper's 16: 40x30
     /// pixels at 640x480; the default 160: 4x4); finer regions re-trace
     /// less but take more memory for their bits.
-    #[arg(long, default_value_t = retrace::reuse::ostc::RegionGrid::default().0, value_parser = clap::value_parser!(u32).range(1..=256))]
+    #[arg(long, default_value_t = retrace::reuse::regions::RegionGrid::default().0, value_parser = clap::value_parser!(u32).range(1..=256))]
     regions: u32,
     /// OSTC: about this many voxels in the grid over the moving objects'
     /// swept volume.
@@ -145,7 +145,7 @@ struct OstcArgs {
 impl OstcArgs {
     fn settings(&self) -> retrace::anim::OstcSettings {
         retrace::anim::OstcSettings {
-            regions: retrace::reuse::ostc::RegionGrid(self.regions),
+            regions: retrace::reuse::regions::RegionGrid(self.regions),
             voxels: self.ostc_voxels,
         }
     }

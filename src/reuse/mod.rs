@@ -4,4 +4,5 @@
 
 pub mod ostc;
 pub mod pan;
+pub mod regions;
 pub mod rsvp;

@@ -25,7 +25,8 @@ use crate::render::{
     srgb_table, trace_group, trace_groups, Frame, PrimaryRays, SampleGroup, GROUP_HEIGHT,
     GROUP_WIDTH,
 };
-use crate::reuse::ostc::{Ostc, RegionLayout, RegionSet};
+use crate::reuse::ostc::Ostc;
+use crate::reuse::regions::{RegionLayout, RegionSet};
 use crate::shade::{RayCounts, RayObserver, Shader};
 
 /// The world-fixed equal-angle sample lattice around one eye position.

@@ -53,7 +53,8 @@ use crate::camera::{Camera, ViewportPose};
 use crate::render::{
     srgb_table, trace_each, trace_groups, Frame, PrimaryRays, SampleGroup, GROUP_WIDTH,
 };
-use crate::reuse::ostc::{Ostc, RegionLayout, RegionSet};
+use crate::reuse::ostc::Ostc;
+use crate::reuse::regions::{RegionLayout, RegionSet};
 use crate::shade::{RayCounts, Shader};
 use blocks::LevelBlocks;
 use filter::filter_reads;
