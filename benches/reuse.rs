@@ -43,8 +43,12 @@ fn pan_shift(c: &mut Criterion) {
 
 /// An OSTC grid over a 2x4x2 box and packets of rays through and around it.
 fn ostc_fixture() -> (Ostc, Vec<[Ray; PACKET_WIDTH]>) {
-    let layout =
-        retrace::reuse::ostc::RegionLayout::new(RegionGrid(16).region_size(640, 480), 2304, 0, 482);
+    let layout = retrace::reuse::regions::RegionLayout::new(
+        RegionGrid(16).region_size(640, 480),
+        2304,
+        0,
+        482,
+    );
     let swept = Aabb {
         min: Vec3::new(-1.0, 0.0, -1.0),
         max: Vec3::new(1.0, 4.0, 1.0),
