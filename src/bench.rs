@@ -787,7 +787,8 @@ pub fn bench_viewport_sequence(
     ostc: Option<crate::anim::OstcSettings>,
     mut progress: impl FnMut(),
 ) -> ViewportSequenceBench {
-    use crate::anim::{image_error, Animator, Techniques};
+    use crate::anim::{Animator, Techniques};
+    use crate::metrics::image_error;
     let rsvp_only = Techniques {
         rsvp: true,
         ostc: ostc.is_some(),

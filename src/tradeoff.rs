@@ -19,9 +19,10 @@ use std::path::Path;
 use std::time::Instant;
 
 use crate::accel::{AccelError, Accelerator, BackendKind};
-use crate::anim::{count_differences, image_error, Animator, FractionalPan, ImageError};
+use crate::anim::{Animator, FractionalPan};
 use crate::anim::{OstcSettings, Techniques};
 use crate::bench::{bench_viewport_sequence, ViewportSequenceBench};
+use crate::metrics::{count_differences, image_error, ImageError};
 use crate::plot::{LabelledPoint, PlotError, ScatterGroup};
 use crate::render::Frame;
 use crate::reuse::ostc::DEFAULT_VOXELS;

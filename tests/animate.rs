@@ -97,7 +97,7 @@ fn full_renders_are_the_same_reference_whatever_the_mode() {
     for (frame, panned) in panned.iter().enumerate() {
         let (reference, _) = full.render_full(frame as u32);
         assert_eq!(
-            retrace::anim::count_differences(panned, &reference),
+            retrace::metrics::count_differences(panned, &reference),
             0,
             "frame {frame}"
         );
@@ -368,7 +368,8 @@ fn pan_on_a_perspective_camera_warns_and_renders() {
 
 #[test]
 fn resampled_pans_match_snapped_ones_on_whole_samples_and_measure_their_error() {
-    use retrace::anim::{image_error, FractionalPan};
+    use retrace::anim::FractionalPan;
+    use retrace::metrics::image_error;
     // 90 degrees over 64 px: exactly 256 columns a turn; yaw steps of 4.21875
     // degrees are three whole samples, so resampling weighs one sample only.
     let mut scene = paper_with_keys(
@@ -589,7 +590,7 @@ fn views_reaching_a_pole_keep_panning_in_both_pan_modes() {
         for frame in 0..4 {
             let (image, _, stats) = resampled.render(frame);
             let (truth, _) = resampled.render_true_view(frame);
-            let error = retrace::anim::image_error(&image.unwrap(), &truth);
+            let error = retrace::metrics::image_error(&image.unwrap(), &truth);
             assert!(
                 error.mean_abs < 0.1,
                 "pitch {pitch}, frame {frame}: {error:?}"
@@ -626,7 +627,7 @@ fn a_run_of_later_frames_equals_one_long_run() {
     for frame in 5..10 {
         let image = late.render(frame).0.unwrap();
         assert_eq!(
-            retrace::anim::count_differences(&image, &long_frames[frame as usize]),
+            retrace::metrics::count_differences(&image, &long_frames[frame as usize]),
             0,
             "frame {frame}"
         );
@@ -654,7 +655,7 @@ fn a_pan_too_narrow_for_a_whole_turn_buffer_renders_in_full() {
     let mut animator = Animator::new(&scene, &mut accel, Techniques::AUTO, 0..3);
     let image = animator.render(1).0.unwrap();
     let (truth, _) = animator.render_true_view(1);
-    assert_eq!(retrace::anim::count_differences(&image, &truth), 0);
+    assert_eq!(retrace::metrics::count_differences(&image, &truth), 0);
 }
 
 #[test]

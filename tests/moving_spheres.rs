@@ -7,8 +7,8 @@ use std::path::Path;
 
 use glam::{Affine3A, Quat, Vec3};
 use retrace::accel::{placed_sphere, AccelError, Accelerator, BackendKind, Intersector};
-use retrace::anim::count_differences;
 use retrace::geometry::{Object, Placement, Shape, Sphere};
+use retrace::metrics::count_differences;
 use retrace::ray::{Hit, Ray, RayPacket, ALL_LANES, PACKET_WIDTH};
 use retrace::render::render_frame;
 use retrace::scene::{parse_scene_str, Scene, SceneOverrides};

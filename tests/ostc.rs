@@ -173,7 +173,8 @@ on_every_backend! {
 #[test]
 fn ostc_too_big_for_memory_is_refused_and_frames_stay_exact() {
     use retrace::accel::Accelerator;
-    use retrace::anim::{count_differences, Animator, OstcSettings};
+    use retrace::anim::{Animator, OstcSettings};
+    use retrace::metrics::count_differences;
     let scene = paper_with(
         &format!("{BALL}\n[animation]\nframes = 3\n[[animation.bounce]]\nobject = \"ball\"\nheight = 2.0\nperiod = 4\n"),
         160,

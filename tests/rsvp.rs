@@ -5,11 +5,13 @@ use std::path::Path;
 
 use glam::DVec3;
 use retrace::accel::Accelerator;
-use retrace::anim::{image_error, Animator, Techniques};
+use retrace::anim::{Animator, Techniques};
 use retrace::camera::{Camera, Projection};
 use retrace::camera::{ViewTransform, ViewportPose};
+use retrace::color::encode_srgb;
+use retrace::metrics::image_error;
+use retrace::render::trace_groups;
 use retrace::render::SampleGroup;
-use retrace::render::{encode_srgb, trace_groups};
 use retrace::reuse::rsvp::{Filter, Level, LevelRays, RsvpKnobs, SampleBuffer, SampleLattice};
 use retrace::scene::{parse_scene_str, Scene, SceneOverrides};
 use retrace::shade::Shader;

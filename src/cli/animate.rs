@@ -202,7 +202,7 @@ fn stats_csv(stats: &[retrace::anim::FrameStats]) -> Result<String> {
     // Optional nested values are null in some rows: the columns of a row
     // with every value present name them all.
     let template = retrace::anim::FrameStats {
-        error: Some(retrace::anim::ImageError::default()),
+        error: Some(retrace::metrics::ImageError::default()),
         ..Default::default()
     };
     let mut header = Vec::new();
@@ -390,12 +390,12 @@ pub(crate) fn animate(args: AnimateArgs) -> Result<()> {
             let (reference, _) = animator.render_reference(frame);
             let full_ms = start.elapsed().as_secs_f64() * 1e3;
             let image = image.expect("verification keeps linear colour");
-            let differing = retrace::anim::count_differences(&image, &reference);
+            let differing = retrace::metrics::count_differences(&image, &reference);
             stats.full_ms = Some(full_ms);
             stats.speedup = Some(full_ms / stats.total_ms);
             stats.differing_pixels = Some(differing);
             if let Some(previous) = &previous_reference {
-                stats.changed_regions = Some(retrace::anim::changed_regions(
+                stats.changed_regions = Some(retrace::metrics::changed_regions(
                     previous,
                     &reference,
                     region_size,
@@ -407,9 +407,9 @@ pub(crate) fn animate(args: AnimateArgs) -> Result<()> {
                 }
                 // What snapping costs against the true (unsnapped) view.
                 let (true_view, _) = animator.render_true_view(frame);
-                stats.error = Some(retrace::anim::image_error(&image, &true_view));
+                stats.error = Some(retrace::metrics::image_error(&image, &true_view));
             } else {
-                stats.error = Some(retrace::anim::image_error(&image, &reference));
+                stats.error = Some(retrace::metrics::image_error(&image, &reference));
             }
             previous_reference = Some(reference);
         }
@@ -556,8 +556,8 @@ fn animate_viewports(
                 output.stats.full_ms = Some(full_ms);
                 output.stats.speedup = Some(full_ms / output.stats.total_ms);
                 output.stats.differing_pixels =
-                    Some(retrace::anim::count_differences(image, &reference));
-                output.stats.error = Some(retrace::anim::image_error(image, &reference));
+                    Some(retrace::metrics::count_differences(image, &reference));
+                output.stats.error = Some(retrace::metrics::image_error(image, &reference));
             }
             let write_start = Instant::now();
             save_image(&viewport_path(&pattern, frame, &output.name), &output.image)?;

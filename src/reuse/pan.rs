@@ -20,10 +20,10 @@ use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 
 use crate::camera::{Camera, Projection};
+use crate::color::srgb_table;
 use crate::ray::{Ray, PACKET_WIDTH};
 use crate::render::{
-    srgb_table, trace_group, trace_groups, Frame, PrimaryRays, SampleGroup, GROUP_HEIGHT,
-    GROUP_WIDTH,
+    trace_group, trace_groups, Frame, PrimaryRays, SampleGroup, GROUP_HEIGHT, GROUP_WIDTH,
 };
 use crate::reuse::ostc::Ostc;
 use crate::reuse::regions::{RegionLayout, RegionSet};

@@ -5,7 +5,8 @@ use std::path::Path;
 use std::process::{Command, Output};
 
 use retrace::accel::{Accelerator, BackendKind};
-use retrace::anim::{count_differences, Animator, FrameStats, Techniques};
+use retrace::anim::{Animator, FrameStats, Techniques};
+use retrace::metrics::count_differences;
 use retrace::scene::Scene;
 
 /// Renders every frame of `scene`'s timeline with `techniques`, checks each

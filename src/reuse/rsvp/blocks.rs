@@ -178,7 +178,7 @@ impl SampleBuffer {
     /// reaches them: reads clamp rows and wrap columns).
     fn assemble_block(&self, level: Level, key: (i64, i64), out: &mut [SampleCode]) {
         let mut cache = TileCache::new();
-        let srgb = crate::render::srgb_table();
+        let srgb = crate::color::srgb_table();
         let mut linear = [Vec3::ZERO; BLOCK as usize];
         let c0 = key.0 << BLOCK_SHIFT;
         let width = (self.lattice.columns(level.x) - c0).min(BLOCK) as usize;
@@ -349,7 +349,7 @@ pub(super) fn follow_traced(
         return;
     }
     // Encoded once, not once per level holding them.
-    let srgb = crate::render::srgb_table();
+    let srgb = crate::color::srgb_table();
     let codes: Vec<[SampleCode; PACKET_WIDTH]> = colors
         .par_iter()
         .map(|colors| colors.map(|c| encode(srgb, c)))

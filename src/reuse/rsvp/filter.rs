@@ -4,7 +4,7 @@
 
 use glam::Vec3;
 
-use crate::render::SrgbTable;
+use crate::color::SrgbTable;
 
 /// How a viewport pixel's colour is made from buffer samples.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
@@ -219,7 +219,7 @@ pub(super) fn filter_reads(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::render::{encode_srgb, srgb_table};
+    use crate::color::{encode_srgb, srgb_table};
 
     #[test]
     fn blends_show_a_sample_s_own_byte_where_it_alone_counts() {

@@ -14,7 +14,8 @@ use super::{
     Filter, Level, SampleBuffer, REGION,
 };
 use crate::camera::ViewportPose;
-use crate::render::{srgb_table, Frame, SrgbTable};
+use crate::color::{srgb_table, SrgbTable};
+use crate::render::Frame;
 
 impl SampleBuffer {
     /// A traced (or null: black) sample, with the tile cache.

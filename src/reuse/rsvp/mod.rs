@@ -50,9 +50,8 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 use crate::camera::{Camera, ViewportPose};
-use crate::render::{
-    srgb_table, trace_each, trace_groups, Frame, PrimaryRays, SampleGroup, GROUP_WIDTH,
-};
+use crate::color::srgb_table;
+use crate::render::{trace_each, trace_groups, Frame, PrimaryRays, SampleGroup, GROUP_WIDTH};
 use crate::reuse::ostc::Ostc;
 use crate::reuse::regions::{RegionLayout, RegionSet};
 use crate::shade::{RayCounts, Shader};
