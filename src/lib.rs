@@ -6,22 +6,18 @@
 
 pub mod accel;
 pub mod anim;
-pub mod bench;
 pub mod camera;
 pub mod chunk;
 pub mod color;
 pub mod geometry;
+pub mod lab;
 pub mod metrics;
 pub mod output;
-pub mod plot;
 pub mod ray;
 pub mod render;
-pub mod report;
 pub mod reuse;
 pub mod rng;
 pub mod scene;
 pub mod shade;
 pub mod timeline;
-pub mod tradeoff;
-pub mod validate;
 pub mod voxel;

@@ -98,10 +98,10 @@ fn a_short_sweep_reports_every_knob_with_exact_ones_at_zero_error() {
     let plot = image::open(dir.path().join("sweep/tradeoff.png"))
         .unwrap()
         .to_rgb8();
-    assert_eq!(plot.dimensions(), retrace::plot::CHART_SIZE);
+    assert_eq!(plot.dimensions(), retrace::lab::plot::CHART_SIZE);
     // One dot colour per knob group is drawn.
     for group in 0..6 {
-        let color = retrace::plot::series_color(group);
+        let color = retrace::lab::plot::series_color(group);
         assert!(
             plot.pixels().any(|p| p.0 == color),
             "no point of group {group} in the plot"

@@ -97,7 +97,7 @@ pub(crate) fn bench(args: BenchArgs) -> Result<()> {
                 &args,
                 load(&args.scene)?,
                 bar,
-                retrace::bench::E4_PAN_DEG_PER_FRAME,
+                retrace::lab::bench::E4_PAN_DEG_PER_FRAME,
             )
         }
         "knobs" => return bench_knobs(&args, load(&args.scene)?, bar),
@@ -157,7 +157,7 @@ const SCALING_ROWS: [(Experiment, ScalingVariant); 8] = [
 /// An experiment ready to run: its scene, frames and row heading.
 struct PlannedExperiment {
     experiment: Experiment,
-    info: retrace::report::ExperimentInfo,
+    info: retrace::lab::report::ExperimentInfo,
     scene: Scene,
     frames: std::ops::Range<u32>,
 }
@@ -181,7 +181,7 @@ fn plan_experiment(
     experiment: Experiment,
     variant: Option<ScalingVariant>,
 ) -> Result<PlannedExperiment> {
-    use retrace::bench::{e1_scene, e2_scene, e4_scene, ZoomDirection};
+    use retrace::lab::bench::{e1_scene, e2_scene, e4_scene, ZoomDirection};
     let mut scene_args = args.scene.clone();
     let mut label = None;
     match variant {
@@ -295,13 +295,13 @@ fn plan_experiment(
     }
     Ok(PlannedExperiment {
         experiment,
-        info: retrace::report::ExperimentInfo {
+        info: retrace::lab::report::ExperimentInfo {
             id,
             what: what.to_string(),
             technique: technique.to_string(),
             paper_speedup: paper.to_string(),
             scene: scene_label,
-            triangles: retrace::report::triangles(&scene),
+            triangles: retrace::lab::report::triangles(&scene),
             width,
             height,
         },
@@ -343,8 +343,8 @@ fn bench_suite(
             ""
         }
     );
-    say!("{}", retrace::report::table(&rows));
-    let run = retrace::report::RunInfo {
+    say!("{}", retrace::lab::report::table(&rows));
+    let run = retrace::lab::report::RunInfo {
         command: std::env::args()
             .map(|a| if a.contains(' ') { format!("'{a}'") } else { a })
             .collect::<Vec<_>>()
@@ -354,9 +354,10 @@ fn bench_suite(
         load: load_at_start.zip(load_average()),
         release: !cfg!(debug_assertions),
     };
-    let written = retrace::report::write_bench(&args.out, &run, &results, draw_chart)?;
+    let written = retrace::lab::report::write_bench(&args.out, &run, &results, draw_chart)?;
     if let Some(path) = &args.json {
-        let rows: serde_json::Value = serde_json::from_str(&retrace::report::rows_json(&rows))?;
+        let rows: serde_json::Value =
+            serde_json::from_str(&retrace::lab::report::rows_json(&rows))?;
         write_json(path, &rows)?;
     }
     say!(
@@ -380,16 +381,16 @@ fn bench_suite(
 }
 
 /// Draws one of the bench's charts as a PNG.
-fn draw_chart(path: &Path, chart: &retrace::report::ChartSpec) -> Result<()> {
-    let series: Vec<retrace::plot::Series> = chart
+fn draw_chart(path: &Path, chart: &retrace::lab::report::ChartSpec) -> Result<()> {
+    let series: Vec<retrace::lab::plot::Series> = chart
         .lines
         .iter()
-        .map(|(label, points)| retrace::plot::Series {
+        .map(|(label, points)| retrace::lab::plot::Series {
             label: label.clone(),
             points: points.clone(),
         })
         .collect();
-    retrace::plot::line_chart(path, &chart.title, "frame", &chart.y_label, &series)?;
+    retrace::lab::plot::line_chart(path, &chart.title, "frame", &chart.y_label, &series)?;
     Ok(())
 }
 
@@ -407,8 +408,8 @@ fn run_experiment(
     args: &BenchArgs,
     plan: PlannedExperiment,
     bar: &indicatif::ProgressBar,
-) -> Result<retrace::report::ExperimentResult> {
-    use retrace::report::ExperimentResult;
+) -> Result<retrace::lab::report::ExperimentResult> {
+    use retrace::lab::report::ExperimentResult;
     let PlannedExperiment {
         experiment,
         mut info,
@@ -423,7 +424,7 @@ fn run_experiment(
     let tick = || bar.inc(1);
     Ok(match experiment {
         Experiment::E1 | Experiment::E3 => {
-            let result = retrace::bench::bench_sequence(
+            let result = retrace::lab::bench::bench_sequence(
                 &scene,
                 &mut accel,
                 Techniques::AUTO,
@@ -438,7 +439,7 @@ fn run_experiment(
             ExperimentResult::from_sequence(info, result, experiment == Experiment::E3)
         }
         Experiment::E2In | Experiment::E2Out | Experiment::E4 => {
-            let result = retrace::bench::bench_viewport_sequence(
+            let result = retrace::lab::bench::bench_viewport_sequence(
                 &scene,
                 &mut accel,
                 frames.clone(),
@@ -448,13 +449,13 @@ fn run_experiment(
                 (experiment == Experiment::E4).then(|| args.ostc.settings()),
                 tick,
             );
-            let oracle = retrace::bench::viewport_oracle(&scene, &mut accel, frames, tick);
+            let oracle = retrace::lab::bench::viewport_oracle(&scene, &mut accel, frames, tick);
             ExperimentResult::from_viewports(info, result, Some(oracle))
         }
     })
 }
 
-fn print_packets(args: &BenchArgs, run: &retrace::bench::PacketRun) {
+fn print_packets(args: &BenchArgs, run: &retrace::lab::bench::PacketRun) {
     say!(
         "{}: {}x{}, {} packets ({} primary, {} shadow, {} reflection rays), {} threads, median of {}",
         scene_name(&args.scene),
@@ -472,7 +473,8 @@ fn print_packets(args: &BenchArgs, run: &retrace::bench::PacketRun) {
 fn bench_frame(args: &BenchArgs, scene: &Scene, bar: indicatif::ProgressBar) -> Result<()> {
     let accel = args.backend.build(scene)?;
     bar.set_message("frame vs bare Embree");
-    let result = retrace::bench::bench_frame(scene, &accel, args.frame_repeats(), || bar.inc(1))?;
+    let result =
+        retrace::lab::bench::bench_frame(scene, &accel, args.frame_repeats(), || bar.inc(1))?;
     bar.finish_and_clear();
     print_packets(args, &result.run);
     say!(
@@ -488,7 +490,7 @@ fn bench_frame(args: &BenchArgs, scene: &Scene, bar: indicatif::ProgressBar) -> 
     Ok(())
 }
 
-fn print_viewport_bench(label: &str, r: &retrace::bench::ViewportSequenceBench) {
+fn print_viewport_bench(label: &str, r: &retrace::lab::bench::ViewportSequenceBench) {
     say!(
         "{label}: full {:8.1} ms ({:6.2} ms/frame)  RSVP {:7.1} ms ({:5.2} ms/frame)  speedup {:6.2}x  \
          PSNR worst {:5.2} dB mean {:5.2} dB  max abs {:.3}  mean abs {:.5}  differ {:5.2}%  traced {}",
@@ -514,7 +516,7 @@ fn bench_e2(
     bar: indicatif::ProgressBar,
     pan_deg_per_frame: f64,
 ) -> Result<()> {
-    use retrace::bench::{bench_viewport_sequence, e2_scene, ZoomDirection};
+    use retrace::lab::bench::{bench_viewport_sequence, e2_scene, ZoomDirection};
     let mut accel = args.backend.build(&scene)?;
     bar.set_length(2 * 300);
     let mut results = Vec::new();
@@ -560,12 +562,13 @@ fn bench_e2(
 /// RSVP knobs on E2's zoom in: each filter, oversampling and level bias,
 /// with its time and its error against direct renders.
 fn bench_knobs(args: &BenchArgs, scene: Scene, bar: indicatif::ProgressBar) -> Result<()> {
-    use retrace::bench::{e2_scene, ZoomDirection};
+    use retrace::lab::bench::{e2_scene, ZoomDirection};
     let mut accel = args.backend.build(&scene)?;
     let scene = e2_scene(scene, ZoomDirection::In, 0.0);
-    let settings = retrace::tradeoff::rsvp_knob_settings();
+    let settings = retrace::lab::tradeoff::rsvp_knob_settings();
     bar.set_length((settings.len() * 300) as u64);
-    let results = retrace::tradeoff::sweep_rsvp_knobs(&scene, &mut accel, 0..100, || bar.inc(1));
+    let results =
+        retrace::lab::tradeoff::sweep_rsvp_knobs(&scene, &mut accel, 0..100, || bar.inc(1));
     bar.finish_and_clear();
     say!(
         "RSVP knobs on E2 zoom in (100 frames, 640x480), {} threads",
@@ -588,7 +591,7 @@ fn bench_knobs(args: &BenchArgs, scene: Scene, bar: indicatif::ProgressBar) -> R
 
 fn bench_backends(args: &BenchArgs, scene: &Scene, bar: indicatif::ProgressBar) -> Result<()> {
     bar.set_message("grid vs Embree");
-    let result = retrace::bench::bench_backends(scene, args.frame_repeats(), || bar.inc(1))?;
+    let result = retrace::lab::bench::bench_backends(scene, args.frame_repeats(), || bar.inc(1))?;
     bar.finish_and_clear();
     print_packets(args, &result.run);
     say!("Embree, recorded packets: {:8.2} ms", result.embree_ms);

@@ -28,7 +28,7 @@ pub(crate) struct TradeoffArgs {
 }
 
 pub(crate) fn tradeoff(args: TradeoffArgs) -> Result<()> {
-    use retrace::tradeoff::{bouncing_ball_scene, TradeoffScenes};
+    use retrace::lab::tradeoff::{bouncing_ball_scene, TradeoffScenes};
     if cfg!(debug_assertions) {
         eprintln!(
             "warning: this is a debug build; timings mean little (use `cargo run --release`)"
@@ -59,7 +59,7 @@ pub(crate) fn tradeoff(args: TradeoffArgs) -> Result<()> {
         indicatif::ProgressStyle::with_template("{msg:28} {bar:30} {pos}/{len} {elapsed}")
             .expect("static template"),
     );
-    let rows = retrace::tradeoff::sweep(
+    let rows = retrace::lab::tradeoff::sweep(
         &scenes,
         args.backend.backend,
         args.backend.grid_resolution()?,
@@ -78,11 +78,11 @@ pub(crate) fn tradeoff(args: TradeoffArgs) -> Result<()> {
         args.backend.backend,
         rayon::current_num_threads()
     );
-    say!("{}", retrace::tradeoff::table(&rows).trim_end());
+    say!("{}", retrace::lab::tradeoff::table(&rows).trim_end());
     let csv = args.out.join("tradeoff.csv");
-    retrace::output::save_text(&csv, &retrace::tradeoff::csv(&rows))?;
+    retrace::output::save_text(&csv, &retrace::lab::tradeoff::csv(&rows))?;
     let png = args.out.join("tradeoff.png");
-    retrace::tradeoff::plot(&png, &rows)?;
+    retrace::lab::tradeoff::plot(&png, &rows)?;
     say!("wrote {} and {}", csv.display(), png.display());
     Ok(())
 }

@@ -35,7 +35,7 @@ pub(crate) fn validate(args: ValidateArgs) -> Result<()> {
     let embree = Accelerator::build(BackendKind::Embree, &scene.objects)?;
     let grid = Accelerator::build_with(BackendKind::Grid, &scene.objects, args.grid_resolution)?;
     let report =
-        retrace::validate::validate(&scene, &embree, &grid, args.rays, args.seed, args.show);
+        retrace::lab::validate::validate(&scene, &embree, &grid, args.rays, args.seed, args.show);
     say!("{}: Embree vs grid", scene_name(&args.scene));
     say!(
         "{:<12} {:>9} {:>15} {:>14} {:>12} {:>12}",
@@ -71,7 +71,7 @@ pub(crate) fn validate(args: ValidateArgs) -> Result<()> {
     if !report.disagreements.is_empty() {
         say!("disagreeing rays (first {}):", report.disagreements.len());
         for d in &report.disagreements {
-            let show = |h: &Option<retrace::validate::HitSummary>| {
+            let show = |h: &Option<retrace::lab::validate::HitSummary>| {
                 h.map_or("miss".to_string(), |h| {
                     format!("object {} prim {} t {}", h.object, h.prim, h.t)
                 })

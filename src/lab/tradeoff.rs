@@ -21,9 +21,9 @@ use std::time::Instant;
 use crate::accel::{AccelError, Accelerator, BackendKind};
 use crate::anim::{Animator, FractionalPan};
 use crate::anim::{OstcSettings, Techniques};
-use crate::bench::{bench_viewport_sequence, ViewportSequenceBench};
+use crate::lab::bench::{bench_viewport_sequence, ViewportSequenceBench};
+use crate::lab::plot::{LabelledPoint, PlotError, ScatterGroup};
 use crate::metrics::{count_differences, image_error, ImageError};
-use crate::plot::{LabelledPoint, PlotError, ScatterGroup};
 use crate::render::Frame;
 use crate::reuse::ostc::DEFAULT_VOXELS;
 use crate::reuse::regions::RegionGrid;
@@ -68,8 +68,8 @@ pub struct TradeoffScenes {
 impl TradeoffScenes {
     pub fn new(base: Scene, objects: Option<Scene>) -> TradeoffScenes {
         TradeoffScenes {
-            pan: crate::bench::e1_scene(base.clone()),
-            zoom: crate::bench::e2_scene(base, crate::bench::ZoomDirection::In, 0.0),
+            pan: crate::lab::bench::e1_scene(base.clone()),
+            zoom: crate::lab::bench::e2_scene(base, crate::lab::bench::ZoomDirection::In, 0.0),
             objects,
         }
     }
@@ -101,7 +101,7 @@ impl TradeoffScenes {
 /// (compiled in, like the paper scene) laid over it, so the OSTC knobs need
 /// no files on disk.
 pub fn bouncing_ball_scene(overrides: &SceneOverrides) -> Result<Scene, SceneError> {
-    const BOUNCE: &str = include_str!("../scenes/paper-bounce.toml");
+    const BOUNCE: &str = include_str!("../../scenes/paper-bounce.toml");
     let own: String = BOUNCE
         .lines()
         .filter(|line| !line.trim_start().starts_with("include"))
@@ -552,7 +552,7 @@ pub fn plot(path: &Path, rows: &[TradeoffRow]) -> Result<(), PlotError> {
             }),
         }
     }
-    crate::plot::scatter_chart(
+    crate::lab::plot::scatter_chart(
         path,
         "Error against speedup, per knob setting",
         "speedup over full renders",

@@ -12,7 +12,7 @@
 //!
 //! Experiments (E1-E4): a sequence rendered in full and accelerated in one
 //! run, with a per-frame profile of both sides and the oracle (the least
-//! tracing any reuse could do); [`crate::report`] turns them into the table.
+//! tracing any reuse could do); [`crate::lab::report`] turns them into the table.
 
 mod viewport_oracle;
 
@@ -1036,7 +1036,7 @@ mod tests {
     #[test]
     fn e4_on_a_moving_scene_is_paper_all_s_pan_and_zoom_over_its_motion() {
         let overrides = SceneOverrides::default();
-        let bouncing = crate::tradeoff::bouncing_ball_scene(&overrides).unwrap();
+        let bouncing = crate::lab::tradeoff::bouncing_ball_scene(&overrides).unwrap();
         let bounce = bouncing.animation.clone().unwrap().objects;
         assert!(!bounce.is_empty());
         let built = e4_scene(bouncing);

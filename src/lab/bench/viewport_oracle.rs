@@ -272,7 +272,7 @@ pub fn viewport_oracle(
 mod tests {
     use super::*;
     use crate::accel::BackendKind;
-    use crate::bench::{e2_scene, ZoomDirection};
+    use crate::lab::bench::{e2_scene, ZoomDirection};
     use crate::scene::{load_scene, paper_scene, SceneOverrides};
 
     const SMALL: SceneOverrides = SceneOverrides {

@@ -7,7 +7,7 @@
 //! in the table and an empty cell in CSV; nothing is made up to fill a
 //! column.
 
-use crate::bench::{FrameProfile, SequenceBench, ViewportSequenceBench};
+use crate::lab::bench::{FrameProfile, SequenceBench, ViewportSequenceBench};
 
 /// What an experiment is, before it is measured.
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
