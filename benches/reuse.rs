@@ -13,7 +13,7 @@ use retrace::geometry::Aabb;
 use retrace::ray::{Ray, PACKET_WIDTH};
 use retrace::render::{trace_groups, SampleGroup};
 use retrace::reuse::ostc::{Footprint, Ostc, DEFAULT_VOXELS};
-use retrace::reuse::pan::{EqualAngleLattice, PanBuffer};
+use retrace::reuse::pan::{EqualAngleLattice, LatticeBuffer};
 use retrace::reuse::regions::{RegionGrid, RegionSet};
 use retrace::reuse::rsvp::{Level, LevelRays, RsvpKnobs, SampleBuffer, SampleLattice};
 use retrace::rng::SplitMix64;
@@ -26,7 +26,7 @@ fn pan_shift(c: &mut Criterion) {
     let shader = Shader::new(&scene, &accel);
     let lattice = EqualAngleLattice::for_camera(&scene.camera);
     let window = lattice.window(&scene.camera);
-    let mut buffer = PanBuffer::new(lattice, window.row..window.row + 480);
+    let mut buffer = LatticeBuffer::new(lattice, window.row..window.row + 480);
     buffer.frame(&shader, &window, false, None);
     let mut shifted = window;
     shifted.col += 23;
@@ -211,13 +211,13 @@ fn rsvp_resample(c: &mut Criterion) {
         );
         let poses = std::slice::from_ref(&pose);
         let mut buffer = SampleBuffer::new(SampleLattice::for_camera(&scene.camera));
-        let first = buffer.render(&shader, poses, &knobs, false);
+        let first = buffer.render(&shader, poses, &knobs, false, None);
         assert!(first[0].samples_traced > 0, "the first frame traces");
         group.bench_function(name, |b| {
-            b.iter(|| buffer.render(&shader, poses, &knobs, false))
+            b.iter(|| buffer.render(&shader, poses, &knobs, false, None))
         });
         assert_eq!(
-            buffer.render(&shader, poses, &knobs, false)[0].samples_traced,
+            buffer.render(&shader, poses, &knobs, false, None)[0].samples_traced,
             0,
             "later frames of the same pose trace nothing"
         );

@@ -5,10 +5,10 @@
 //! Jevans (OSTC).
 
 pub mod accel;
-pub mod anim;
 pub mod camera;
 pub mod chunk;
 pub mod color;
+pub mod frame_loop;
 pub mod geometry;
 pub mod lab;
 pub mod metrics;

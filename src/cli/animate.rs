@@ -7,13 +7,12 @@ use std::time::Instant;
 use anyhow::{Context, Result};
 use clap::Args;
 
-use retrace::anim::{Animator, Techniques};
+use retrace::frame_loop::{Animator, Options, Techniques, ViewOutput};
 use retrace::output::{save_image, PendingFile};
-use retrace::scene::Scene;
 
 use super::{
-    check_writable, ensure_parent, folder_of, frame_namer, frame_pattern, load, parse_frame_range,
-    scene_name, BackendArg, OstcArgs, RsvpKnobArgs, SceneArgs,
+    check_writable, ensure_parent, folder_of, frame_pattern, load, parse_frame_range, scene_name,
+    BackendArg, FramePattern, OstcArgs, RsvpKnobArgs, SceneArgs,
 };
 
 #[derive(Args)]
@@ -60,7 +59,7 @@ pub(crate) struct AnimateArgs {
     /// exact, the angle off by at most half a sample) or resample (the true
     /// angle, bilinear from the buffer: slightly blurred).
     #[arg(long, default_value = "snap")]
-    fractional_pan: retrace::anim::FractionalPan,
+    fractional_pan: retrace::reuse::pan::FractionalPan,
     /// Also render every frame in full: exact (snapped) frames must equal
     /// it bit for bit; resampled frames (and RSVP viewports) report their
     /// error against it.
@@ -140,7 +139,7 @@ impl GifWriter {
 fn finish_outputs(
     gif: Option<GifWriter>,
     stats_path: Option<&Path>,
-    stats: &[retrace::anim::FrameStats],
+    stats: &[retrace::frame_loop::FrameStats],
 ) -> Result<()> {
     if let Some(gif) = gif {
         gif.finish()?;
@@ -151,7 +150,7 @@ fn finish_outputs(
     Ok(())
 }
 
-fn write_stats(path: &Path, stats: &[retrace::anim::FrameStats]) -> Result<()> {
+fn write_stats(path: &Path, stats: &[retrace::frame_loop::FrameStats]) -> Result<()> {
     let is_json = path
         .extension()
         .is_some_and(|e| e.eq_ignore_ascii_case("json"));
@@ -167,7 +166,7 @@ fn write_stats(path: &Path, stats: &[retrace::anim::FrameStats]) -> Result<()> {
 
 /// The stats as CSV, one column per field (nested fields as `error.psnr_db`),
 /// in the order `FrameStats` declares them, so CSV and JSON never drift apart.
-fn stats_csv(stats: &[retrace::anim::FrameStats]) -> Result<String> {
+fn stats_csv(stats: &[retrace::frame_loop::FrameStats]) -> Result<String> {
     fn flatten(prefix: &str, value: &serde_json::Value, out: &mut Vec<(String, String)>) {
         match value {
             serde_json::Value::Object(map) => {
@@ -201,7 +200,7 @@ fn stats_csv(stats: &[retrace::anim::FrameStats]) -> Result<String> {
     }
     // Optional nested values are null in some rows: the columns of a row
     // with every value present name them all.
-    let template = retrace::anim::FrameStats {
+    let template = retrace::frame_loop::FrameStats {
         error: Some(retrace::metrics::ImageError::default()),
         ..Default::default()
     };
@@ -312,8 +311,17 @@ fn check_outputs(args: &AnimateArgs, stats: Option<&Path>) -> Result<()> {
 }
 
 pub(crate) fn animate(args: AnimateArgs) -> Result<()> {
-    let frame_path = frame_namer(&args.output)?;
-    let dirty_path = args.dirty_image.as_deref().map(frame_namer).transpose()?;
+    let frame_files = FramePattern::parse(&args.output)?;
+    let traced_files = args
+        .dirty_image
+        .as_deref()
+        .map(FramePattern::parse)
+        .transpose()?;
+    let store_files = args
+        .buffer_image
+        .as_deref()
+        .map(FramePattern::parse)
+        .transpose()?;
     let extension = |path: &Path| path.extension().map(|e| e.to_string_lossy().to_lowercase());
     if let Some(path) = &args.stats {
         if !matches!(extension(path).as_deref(), Some("csv" | "json")) {
@@ -335,188 +343,29 @@ pub(crate) fn animate(args: AnimateArgs) -> Result<()> {
         return Ok(());
     };
     check_outputs(&args, stats_path.as_deref())?;
+    let has_viewports = !scene.viewports.is_empty();
+    if store_files.is_some() && !has_viewports {
+        anyhow::bail!("--buffer-image needs a scene with [[viewport]] tables (RSVP)");
+    }
+    let options = Options {
+        techniques: args.mode,
+        frames: *range.start()..*range.end() + 1,
+        linear: args.verify,
+        fractional_pan: args.fractional_pan,
+        ostc: args.ostc.settings(),
+        rsvp: args.rsvp.knobs()?,
+        traced_images: traced_files.is_some(),
+    };
     let mut gif = match &args.gif {
         Some(path) => Some(GifWriter::create(path, fps)?),
         None => None,
     };
     let mut accel = args.backend.build(&scene)?;
-    let mut animator = Animator::new(
-        &scene,
-        &mut accel,
-        args.mode,
-        *range.start()..*range.end() + 1,
-    );
-    animator.set_linear_output(args.verify);
-    animator.set_fractional_pan(args.fractional_pan);
-    animator.set_ostc(args.ostc.settings());
-    animator.set_traced_image(dirty_path.is_some());
-    if animator.has_viewports() {
-        animator.set_rsvp_knobs(args.rsvp.knobs()?);
-        return animate_viewports(&args, &scene, animator, range, gif, stats_path.as_deref());
-    }
-    if args.buffer_image.is_some() {
-        anyhow::bail!("--buffer-image needs a scene with [[viewport]] tables (RSVP)");
-    }
-
-    let bar = indicatif::ProgressBar::new(u64::from(range.end() - range.start() + 1)).with_style(
-        indicatif::ProgressStyle::with_template(
-            "{bar:30} {pos}/{len} frames {msg} [{elapsed} < {eta}]",
-        )
-        .expect("static template"),
-    );
-    let mut all_stats = Vec::new();
-    let mut failed_frames = Vec::new();
-    let mut previous_reference: Option<retrace::render::Frame> = None;
-    let region_size = args
-        .ostc
-        .settings()
-        .regions
-        .region_size(scene.camera.width, scene.camera.height);
-    let mut write_ms = 0.0;
-    let mut skipped = 0;
-    for frame in range.clone() {
-        let path = frame_path(frame);
-        if args.skip_existing && path.exists() {
-            if let Some(gif) = &mut gif {
-                gif.add_file(&path)?;
-            }
-            skipped += 1;
-            bar.inc(1);
-            continue;
-        }
-        let (image, rgb, mut stats) = animator.render(frame);
-        if args.verify {
-            let start = Instant::now();
-            let (reference, _) = animator.render_reference(frame);
-            let full_ms = start.elapsed().as_secs_f64() * 1e3;
-            let image = image.expect("verification keeps linear colour");
-            let differing = retrace::metrics::count_differences(&image, &reference);
-            stats.full_ms = Some(full_ms);
-            stats.speedup = Some(full_ms / stats.total_ms);
-            stats.differing_pixels = Some(differing);
-            if let Some(previous) = &previous_reference {
-                stats.changed_regions = Some(retrace::metrics::changed_regions(
-                    previous,
-                    &reference,
-                    region_size,
-                ));
-            }
-            if animator.is_exact() {
-                if differing > 0 {
-                    failed_frames.push((frame, differing));
-                }
-                // What snapping costs against the true (unsnapped) view.
-                let (true_view, _) = animator.render_true_view(frame);
-                stats.error = Some(retrace::metrics::image_error(&image, &true_view));
-            } else {
-                stats.error = Some(retrace::metrics::image_error(&image, &reference));
-            }
-            previous_reference = Some(reference);
-        }
-        let write_start = Instant::now();
-        save_image(&path, &rgb)?;
-        if let (Some(dirty_path), Some(dirty)) = (&dirty_path, animator.take_traced_image()) {
-            save_image(&dirty_path(frame), &dirty)?;
-        }
-        if let Some(gif) = &mut gif {
-            gif.add(&rgb)?;
-        }
-        write_ms += write_start.elapsed().as_secs_f64() * 1e3;
-        bar.set_message(format!("{} {:.0} ms", stats.mode, stats.total_ms));
-        all_stats.push(stats);
-        bar.inc(1);
-    }
-    bar.finish_and_clear();
-    finish_outputs(gif, stats_path.as_deref(), &all_stats)?;
-    // Reuse that was asked for but could not apply is worth a word.
-    let mut refusals: Vec<&str> = all_stats.iter().filter_map(|s| s.refusal()).collect();
-    refusals.dedup();
-    for reason in refusals {
-        eprintln!("warning: rendered in full: {reason}");
-    }
-    warn_ostc_refused(&animator);
-    let what = format!("{} frames{}", all_stats.len(), skipped_note(skipped));
-    say_run(&args, &what, &all_stats, write_ms, "full renders");
-    if args.verify && !all_stats.is_empty() {
-        if !failed_frames.is_empty() {
-            let list: Vec<String> = failed_frames
-                .iter()
-                .map(|(f, d)| format!("frame {f}: {d} pixels"))
-                .collect();
-            anyhow::bail!(
-                "verification failed, frames differ from full renders: {}",
-                list.join(", ")
-            );
-        }
-        // Only a pan moves frames off the camera's own rays (snapped to
-        // the lattice, or resampled); without one the two checks agree.
-        let off_own_rays = all_stats
-            .iter()
-            .any(|s| s.yaw_error_deg != 0.0 || s.pitch_error_deg != 0.0);
-        if animator.is_exact() {
-            say!(
-                "verify: every frame equals its full render bit for bit{}",
-                if off_own_rays {
-                    " (a pan: of the snapped view)"
-                } else {
-                    ""
-                }
-            );
-        }
-        if off_own_rays || !animator.is_exact() {
-            say!(
-                "verify ({}, against the camera's own unsnapped rays): {}",
-                if animator.is_exact() {
-                    "snapped"
-                } else {
-                    "resampled"
-                },
-                error_summary(all_stats.iter())
-            );
-        }
-    }
-    Ok(())
-}
-
-/// `pattern`'s file for `frame` and viewport `name`: the name goes before
-/// the extension (out/frame_####.png -> out/frame_0007_zoomed.png).
-fn viewport_path(pattern: &(String, usize, String), frame: u32, name: &str) -> PathBuf {
-    let (prefix, digits, suffix) = pattern;
-    let (stem, ext) = match suffix.rfind('.') {
-        Some(dot) if !suffix[dot..].contains('/') => suffix.split_at(dot),
-        _ => (suffix.as_str(), ""),
-    };
-    PathBuf::from(format!("{prefix}{frame:0digits$}{stem}_{name}{ext}"))
-}
-
-/// The frame loop for a scene whose output is its RSVP viewports: one file
-/// per viewport per frame, the buffer image on request, per-viewport stats
-/// and, with --verify, each viewport's error against its own rays.
-fn animate_viewports(
-    args: &AnimateArgs,
-    scene: &Scene,
-    mut animator: Animator,
-    range: std::ops::RangeInclusive<u32>,
-    mut gif: Option<GifWriter>,
-    stats_path: Option<&Path>,
-) -> Result<()> {
-    let pattern = frame_pattern(&args.output)?;
-    let buffer_pattern = args
-        .buffer_image
-        .as_deref()
-        .map(frame_pattern)
-        .transpose()?;
-    if let Some((prefix, digits, suffix)) = &buffer_pattern {
-        retrace::output::format_for(Path::new(&format!("{prefix}{:0digits$}{suffix}", 0)))?;
-    }
-    let dirty_pattern = args.dirty_image.as_deref().map(frame_pattern).transpose()?;
-    if let Some(pattern) = &dirty_pattern {
-        retrace::output::format_for(&viewport_path(pattern, 0, "view"))?;
-    }
-    let names: Vec<String> = scene
-        .viewports
-        .iter()
-        .map(|t| t.viewport.name.clone())
+    let mut animator = Animator::new(&scene, &mut accel, options);
+    let names: Vec<String> = animator
+        .views(*range.start())
+        .into_iter()
+        .map(|view| view.name)
         .collect();
     let bar = indicatif::ProgressBar::new(u64::from(range.end() - range.start() + 1)).with_style(
         indicatif::ProgressStyle::with_template(
@@ -524,47 +373,53 @@ fn animate_viewports(
         )
         .expect("static template"),
     );
+    let region_size = args
+        .ostc
+        .settings()
+        .regions
+        .region_size(scene.camera.width, scene.camera.height);
     let mut all_stats = Vec::new();
-    let mut write_ms = 0.0;
+    let mut failed_frames = Vec::new();
+    let mut previous_reference: Option<retrace::render::Frame> = None;
     // (frames checked, samples compared, samples differing)
-    let mut buffer_check = (0u32, 0u64, 0u64);
+    let mut store_check = (0u32, 0u64, 0u64);
+    let mut write_ms = 0.0;
     let mut skipped = 0;
     for frame in range.clone() {
-        if args.skip_existing
-            && names
-                .iter()
-                .all(|n| viewport_path(&pattern, frame, n).exists())
-        {
+        if args.skip_existing && names.iter().all(|n| frame_files.path(frame, n).exists()) {
             if let Some(gif) = &mut gif {
-                gif.add_file(&viewport_path(&pattern, frame, &names[0]))?;
+                gif.add_file(&frame_files.path(frame, &names[0]))?;
             }
             skipped += 1;
             bar.inc(1);
             continue;
         }
-        let outputs = animator.render_viewports(frame);
+        let outputs = animator.render(frame);
         let mut frame_ms = 0.0;
         for (index, mut output) in outputs.into_iter().enumerate() {
             if args.verify {
-                let start = Instant::now();
-                let (reference, _) = animator.render_viewport_direct(frame, index);
-                let full_ms = start.elapsed().as_secs_f64() * 1e3;
-                let image = output
-                    .frame
-                    .as_ref()
-                    .expect("verification keeps linear colour");
-                output.stats.full_ms = Some(full_ms);
-                output.stats.speedup = Some(full_ms / output.stats.total_ms);
-                output.stats.differing_pixels =
-                    Some(retrace::metrics::count_differences(image, &reference));
-                output.stats.error = Some(retrace::metrics::image_error(image, &reference));
+                let (differing, reference) =
+                    verify_view(&mut animator, frame, index, &mut output, has_viewports);
+                // The regions a perfect OSTC would re-trace, from the
+                // references' changes (of the camera's image).
+                if !has_viewports {
+                    if let Some(previous) = &previous_reference {
+                        output.stats.changed_regions = Some(retrace::metrics::changed_regions(
+                            previous,
+                            &reference,
+                            region_size,
+                        ));
+                    }
+                    previous_reference = Some(reference);
+                }
+                if animator.is_exact() && differing > 0 {
+                    failed_frames.push((frame, differing));
+                }
             }
             let write_start = Instant::now();
-            save_image(&viewport_path(&pattern, frame, &output.name), &output.image)?;
-            if let Some(dirty) = &dirty_pattern {
-                if let Some(image) = animator.viewport_fresh_image(frame, index, &output.image) {
-                    save_image(&viewport_path(dirty, frame, &output.name), &image)?;
-                }
+            save_image(&frame_files.path(frame, &output.name), &output.image)?;
+            if let (Some(files), Some(traced)) = (&traced_files, &output.traced_image) {
+                save_image(&files.path(frame, &output.name), traced)?;
             }
             if index == 0 {
                 if let Some(gif) = &mut gif {
@@ -575,63 +430,164 @@ fn animate_viewports(
             frame_ms += output.stats.total_ms;
             all_stats.push(output.stats);
         }
-        if let Some((prefix, digits, suffix)) = &buffer_pattern {
-            if let Some(image) = animator.buffer_image(frame) {
+        if let Some(files) = &store_files {
+            if let Some(picture) = animator.store_picture(frame) {
                 let write_start = Instant::now();
-                save_image(
-                    Path::new(&format!("{prefix}{frame:0digits$}{suffix}")),
-                    &image,
-                )?;
+                save_image(&files.path(frame, ""), &picture)?;
                 write_ms += write_start.elapsed().as_secs_f64() * 1e3;
             }
         }
-        // The buffer's samples must be exactly what a fresh trace gives,
+        // A store's samples must be exactly what a fresh trace gives,
         // however objects moved: re-trace them all (every 10th frame and
-        // the last, as it costs a full trace of the buffer).
+        // the last, as it costs a full trace of the store).
         let checkpoint = (frame - range.start()) % 10 == 9 || frame == *range.end();
         if args.verify && checkpoint {
-            if let Some((compared, differing)) = animator.verify_sample_buffer() {
-                buffer_check.0 += 1;
-                buffer_check.1 += compared;
-                buffer_check.2 += differing;
+            if let Some((compared, differing)) = animator.verify_store() {
+                store_check.0 += 1;
+                store_check.1 += compared;
+                store_check.2 += differing;
             }
         }
         bar.set_message(format!("{frame_ms:.0} ms"));
         bar.inc(1);
     }
     bar.finish_and_clear();
-    finish_outputs(gif, stats_path, &all_stats)?;
+    finish_outputs(gif, stats_path.as_deref(), &all_stats)?;
+    // Reuse that was asked for but could not apply is worth a word.
+    let mut refusals: Vec<String> = all_stats
+        .iter()
+        .filter_map(|s| s.refusal().map(|r| r.to_string()))
+        .collect();
+    refusals.dedup();
+    for reason in refusals {
+        eprintln!("warning: rendered in full: {reason}");
+    }
     warn_ostc_refused(&animator);
-    if buffer_check.0 > 0 {
+    if store_check.0 > 0 {
         say!(
             "verify: buffer samples re-traced at {} frame(s): {} compared, {} differ",
-            buffer_check.0,
-            buffer_check.1,
-            buffer_check.2
+            store_check.0,
+            store_check.1,
+            store_check.2
         );
-        if buffer_check.2 > 0 {
+        if store_check.2 > 0 {
             anyhow::bail!(
                 "verification failed: {} buffer samples differ from a fresh trace",
-                buffer_check.2
+                store_check.2
             );
         }
     }
-    let what = format!(
-        "{} frames x {} viewports ({}){}",
-        range.end() - range.start() + 1 - skipped,
-        names.len(),
-        names.join(", "),
-        skipped_note(skipped)
-    );
-    say_run(args, &what, &all_stats, write_ms, "direct renders");
+    let rendered = range.end() - range.start() + 1 - skipped;
+    let (what, references) = if has_viewports {
+        (
+            format!(
+                "{rendered} frames x {} viewports ({}){}",
+                names.len(),
+                names.join(", "),
+                skipped_note(skipped)
+            ),
+            "direct renders",
+        )
+    } else {
+        (
+            format!("{rendered} frames{}", skipped_note(skipped)),
+            "full renders",
+        )
+    };
+    say_run(&args, &what, &all_stats, write_ms, references);
     if args.verify && !all_stats.is_empty() {
-        for name in &names {
-            let rows = all_stats.iter().filter(|s| &s.viewport == name);
+        say_verified(&animator, &names, &all_stats, &failed_frames)?;
+    }
+    Ok(())
+}
+
+/// Renders view `index` of `frame` in full and records, in `output`'s
+/// stats, its time, the pixels that differ from it and the error against
+/// the view's own rays; returns the pixels that differ, and the full
+/// render.
+fn verify_view(
+    animator: &mut Animator,
+    frame: u32,
+    index: usize,
+    output: &mut ViewOutput,
+    has_viewports: bool,
+) -> (u64, retrace::render::Frame) {
+    let start = Instant::now();
+    let (reference, _) = animator.render_reference(frame, index);
+    let full_ms = start.elapsed().as_secs_f64() * 1e3;
+    let image = output
+        .frame
+        .as_ref()
+        .expect("verification keeps linear colour");
+    let differing = retrace::metrics::count_differences(image, &reference);
+    let stats = &mut output.stats;
+    stats.full_ms = Some(full_ms);
+    stats.speedup = Some(full_ms / stats.total_ms);
+    stats.differing_pixels = Some(differing);
+    // An exact frame is measured against the camera's unsnapped rays too:
+    // what snapping costs.
+    stats.error = Some(if animator.is_exact() && !has_viewports {
+        let (truth, _) = animator.render_true_view(frame, index);
+        retrace::metrics::image_error(image, &truth)
+    } else {
+        retrace::metrics::image_error(image, &reference)
+    });
+    (differing, reference)
+}
+
+/// The run's verdict with `--verify`: exact frames equal their full
+/// renders (or the run fails); approximate ones say their error.
+fn say_verified(
+    animator: &Animator,
+    names: &[String],
+    stats: &[retrace::frame_loop::FrameStats],
+    failed_frames: &[(u32, u64)],
+) -> Result<()> {
+    if animator.has_viewports() {
+        for name in names {
+            let rows = stats.iter().filter(|s| &s.viewport == name);
             say!(
                 "verify {name} (against its own rays): {}",
                 error_summary(rows)
             );
         }
+        return Ok(());
+    }
+    if !failed_frames.is_empty() {
+        let list: Vec<String> = failed_frames
+            .iter()
+            .map(|(f, d)| format!("frame {f}: {d} pixels"))
+            .collect();
+        anyhow::bail!(
+            "verification failed, frames differ from full renders: {}",
+            list.join(", ")
+        );
+    }
+    // Only a pan moves frames off the camera's own rays (snapped to the
+    // lattice, or resampled); without one the two checks agree.
+    let off_own_rays = stats
+        .iter()
+        .any(|s| s.yaw_error_deg != 0.0 || s.pitch_error_deg != 0.0);
+    if animator.is_exact() {
+        say!(
+            "verify: every frame equals its full render bit for bit{}",
+            if off_own_rays {
+                " (a pan: of the snapped view)"
+            } else {
+                ""
+            }
+        );
+    }
+    if off_own_rays || !animator.is_exact() {
+        say!(
+            "verify ({}, against the camera's own unsnapped rays): {}",
+            if animator.is_exact() {
+                "snapped"
+            } else {
+                "resampled"
+            },
+            error_summary(stats.iter())
+        );
     }
     Ok(())
 }
@@ -649,7 +605,7 @@ fn warn_ostc_refused(animator: &Animator) {
 fn say_run(
     args: &AnimateArgs,
     what: &str,
-    stats: &[retrace::anim::FrameStats],
+    stats: &[retrace::frame_loop::FrameStats],
     write_ms: f64,
     references: &str,
 ) {
@@ -681,7 +637,7 @@ fn sum_ms(values: impl Iterator<Item = f64>) -> f64 {
 }
 
 /// Time spent, and samples traced against pixels shown, over a run.
-fn run_summary(stats: &[retrace::anim::FrameStats], write_ms: f64) -> String {
+fn run_summary(stats: &[retrace::frame_loop::FrameStats], write_ms: f64) -> String {
     let total = sum_ms(stats.iter().map(|s| s.total_ms));
     let traced: u64 = stats.iter().map(|s| s.samples_traced).sum();
     let pixels: u64 = stats.iter().map(|s| s.pixels).sum();
@@ -692,7 +648,7 @@ fn run_summary(stats: &[retrace::anim::FrameStats], write_ms: f64) -> String {
 }
 
 /// The reference renders' time and the speedup against them.
-fn verify_timing(stats: &[retrace::anim::FrameStats]) -> String {
+fn verify_timing(stats: &[retrace::frame_loop::FrameStats]) -> String {
     let total = sum_ms(stats.iter().map(|s| s.total_ms));
     let full = sum_ms(stats.iter().filter_map(|s| s.full_ms));
     format!("{full:.1} ms, speedup {:.2}x", full / total.max(1e-9))
@@ -700,7 +656,7 @@ fn verify_timing(stats: &[retrace::anim::FrameStats]) -> String {
 
 /// Worst and mean PSNR, largest and mean absolute error and share of
 /// differing pixels over the rows that measured an error.
-fn error_summary<'a>(rows: impl Iterator<Item = &'a retrace::anim::FrameStats>) -> String {
+fn error_summary<'a>(rows: impl Iterator<Item = &'a retrace::frame_loop::FrameStats>) -> String {
     let errors: Vec<_> = rows.filter_map(|s| s.error).collect();
     let count = errors.len().max(1) as f64;
     let worst_psnr = errors

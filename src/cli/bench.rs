@@ -6,7 +6,8 @@ use std::path::{Path, PathBuf};
 use anyhow::Result;
 use clap::Args;
 
-use retrace::anim::Techniques;
+use retrace::frame_loop::{Options, Techniques};
+use retrace::lab::bench::{bench_sequence, Measure, SequenceBench};
 use retrace::scene::Scene;
 
 use super::{
@@ -156,21 +157,18 @@ const SCALING_ROWS: [(Experiment, ScalingVariant); 8] = [
 
 /// An experiment ready to run: its scene, frames and row heading.
 struct PlannedExperiment {
-    experiment: Experiment,
     info: retrace::lab::report::ExperimentInfo,
     scene: Scene,
     frames: std::ops::Range<u32>,
 }
 
 impl PlannedExperiment {
-    /// Progress steps: both sides of a camera sequence, each of `rounds`
-    /// times; for viewports also the error pass and the oracle pass.
+    /// Progress steps: both sides of the sequence, each of `rounds` times,
+    /// the untimed check, and for viewports the oracle pass.
     fn steps(&self, rounds: u64) -> u64 {
         let frames = u64::from(self.frames.end - self.frames.start);
-        match self.experiment {
-            Experiment::E1 | Experiment::E3 => 2 * rounds * frames,
-            _ => (2 * rounds + 2) * frames,
-        }
+        let oracle_pass = u64::from(!self.scene.viewports.is_empty());
+        (2 * rounds + 1 + oracle_pass) * frames
     }
 }
 
@@ -294,7 +292,6 @@ fn plan_experiment(
         id = format!("{id} {scene_label} {width}x{height}");
     }
     Ok(PlannedExperiment {
-        experiment,
         info: retrace::lab::report::ExperimentInfo {
             id,
             what: what.to_string(),
@@ -411,7 +408,6 @@ fn run_experiment(
 ) -> Result<retrace::lab::report::ExperimentResult> {
     use retrace::lab::report::ExperimentResult;
     let PlannedExperiment {
-        experiment,
         mut info,
         scene,
         frames,
@@ -421,38 +417,23 @@ fn run_experiment(
         info.technique = format!("{}, {changes}", info.technique);
     }
     let mut accel = args.backend.build(&scene)?;
-    let tick = || bar.inc(1);
-    Ok(match experiment {
-        Experiment::E1 | Experiment::E3 => {
-            let result = retrace::lab::bench::bench_sequence(
-                &scene,
-                &mut accel,
-                Techniques::AUTO,
-                args.ostc.settings(),
-                frames,
-                args.repeats.unwrap_or(1) as usize,
-                tick,
-            );
-            for reason in &result.full_reasons {
-                bar.suspend(|| eprintln!("warning: {}: rendered in full: {reason}", info.id));
-            }
-            ExperimentResult::from_sequence(info, result, experiment == Experiment::E3)
-        }
-        Experiment::E2In | Experiment::E2Out | Experiment::E4 => {
-            let result = retrace::lab::bench::bench_viewport_sequence(
-                &scene,
-                &mut accel,
-                frames.clone(),
-                args.repeats.unwrap_or(1) as usize,
-                knobs,
-                true,
-                (experiment == Experiment::E4).then(|| args.ostc.settings()),
-                tick,
-            );
-            let oracle = retrace::lab::bench::viewport_oracle(&scene, &mut accel, frames, tick);
-            ExperimentResult::from_viewports(info, result, Some(oracle))
-        }
-    })
+    let options = Options {
+        ostc: args.ostc.settings(),
+        rsvp: knobs,
+        ..Options::new(Techniques::AUTO, frames.clone())
+    };
+    let measure = Measure {
+        error: !scene.viewports.is_empty(),
+        oracle: true,
+    };
+    let rounds = args.repeats.unwrap_or(1) as usize;
+    let result = bench_sequence(&scene, &mut accel, &options, rounds, measure, || bar.inc(1));
+    for reason in &result.full_reasons {
+        bar.suspend(|| eprintln!("warning: {}: rendered in full: {reason}", info.id));
+    }
+    let viewport_oracle = (!scene.viewports.is_empty())
+        .then(|| retrace::lab::bench::viewport_oracle(&scene, &mut accel, frames, || bar.inc(1)));
+    Ok(ExperimentResult::from_bench(info, result, viewport_oracle))
 }
 
 fn print_packets(args: &BenchArgs, run: &retrace::lab::bench::PacketRun) {
@@ -490,20 +471,21 @@ fn bench_frame(args: &BenchArgs, scene: &Scene, bar: indicatif::ProgressBar) -> 
     Ok(())
 }
 
-fn print_viewport_bench(label: &str, r: &retrace::lab::bench::ViewportSequenceBench) {
+fn print_viewport_bench(label: &str, r: &SequenceBench) {
+    let e = r.error.expect("viewport sequences measure their error");
     say!(
         "{label}: full {:8.1} ms ({:6.2} ms/frame)  RSVP {:7.1} ms ({:5.2} ms/frame)  speedup {:6.2}x  \
          PSNR worst {:5.2} dB mean {:5.2} dB  max abs {:.3}  mean abs {:.5}  differ {:5.2}%  traced {}",
         r.full_ms,
         r.full_ms / f64::from(r.frames),
-        r.rsvp_ms,
-        r.rsvp_ms / f64::from(r.frames),
+        r.accelerated_ms,
+        r.accelerated_ms / f64::from(r.frames),
         r.speedup,
-        r.worst_psnr_db,
-        r.mean_psnr_db,
-        r.max_abs,
-        r.mean_abs,
-        r.differing_share * 100.0,
+        e.worst_psnr_db,
+        e.mean_psnr_db,
+        e.max_abs,
+        e.mean_abs,
+        e.differing_share * 100.0,
         r.samples_traced,
     );
 }
@@ -516,7 +498,7 @@ fn bench_e2(
     bar: indicatif::ProgressBar,
     pan_deg_per_frame: f64,
 ) -> Result<()> {
-    use retrace::lab::bench::{bench_viewport_sequence, e2_scene, ZoomDirection};
+    use retrace::lab::bench::{e2_scene, ZoomDirection};
     let mut accel = args.backend.build(&scene)?;
     bar.set_length(2 * 300);
     let mut results = Vec::new();
@@ -526,16 +508,15 @@ fn bench_e2(
     ] {
         bar.set_message(label);
         let scene = e2_scene(scene.clone(), direction, pan_deg_per_frame);
-        let result = bench_viewport_sequence(
-            &scene,
-            &mut accel,
-            0..100,
-            1,
-            args.rsvp.knobs()?,
-            true,
-            None,
-            || bar.inc(1),
-        );
+        let options = Options {
+            rsvp: args.rsvp.knobs()?,
+            ..Options::new(Techniques::AUTO, 0..100)
+        };
+        let measure = Measure {
+            error: true,
+            oracle: false,
+        };
+        let result = bench_sequence(&scene, &mut accel, &options, 1, measure, || bar.inc(1));
         results.push((label, result));
     }
     bar.finish_and_clear();

@@ -143,8 +143,8 @@ struct OstcArgs {
 }
 
 impl OstcArgs {
-    fn settings(&self) -> retrace::anim::OstcSettings {
-        retrace::anim::OstcSettings {
+    fn settings(&self) -> retrace::frame_loop::OstcSettings {
+        retrace::frame_loop::OstcSettings {
             regions: retrace::reuse::regions::RegionGrid(self.regions),
             voxels: self.ostc_voxels,
         }
@@ -210,13 +210,41 @@ fn parse_frame_range(text: Option<&str>, count: u32) -> Result<std::ops::RangeIn
     Ok(first..=last)
 }
 
-/// The file name of each frame under `pattern` (a run of # becomes the
-/// zero-padded frame number), checked for a known image format.
-fn frame_namer(pattern: &str) -> Result<impl Fn(u32) -> PathBuf> {
-    let (prefix, digits, suffix) = frame_pattern(pattern)?;
-    let name = move |frame: u32| PathBuf::from(format!("{prefix}{frame:0digits$}{suffix}"));
-    retrace::output::format_for(&name(0))?;
-    Ok(name)
+/// A frame file pattern (`out/frame_####.png`): a run of `#` becomes the
+/// zero-padded frame number, and a view's name (an RSVP viewport's) goes
+/// before the extension (`out/frame_0007_zoomed.png`).
+pub(crate) struct FramePattern {
+    prefix: String,
+    digits: usize,
+    suffix: String,
+}
+
+impl FramePattern {
+    /// `pattern`, checked: one run of `#` in the file name, and an image
+    /// format the extension names.
+    pub(crate) fn parse(pattern: &str) -> Result<FramePattern> {
+        let (prefix, digits, suffix) = frame_pattern(pattern)?;
+        let pattern = FramePattern {
+            prefix,
+            digits,
+            suffix,
+        };
+        retrace::output::format_for(&pattern.path(0, ""))?;
+        Ok(pattern)
+    }
+
+    /// The file of view `view` (empty: the camera's image) at `frame`.
+    pub(crate) fn path(&self, frame: u32, view: &str) -> PathBuf {
+        let (prefix, digits, suffix) = (&self.prefix, self.digits, &self.suffix);
+        if view.is_empty() {
+            return PathBuf::from(format!("{prefix}{frame:0digits$}{suffix}"));
+        }
+        let (stem, ext) = match suffix.rfind('.') {
+            Some(dot) if !suffix[dot..].contains('/') => suffix.split_at(dot),
+            _ => (suffix.as_str(), ""),
+        };
+        PathBuf::from(format!("{prefix}{frame:0digits$}{stem}_{view}{ext}"))
+    }
 }
 
 /// Splits a frame pattern around its run of `#`.

@@ -7,7 +7,7 @@
 //! in the table and an empty cell in CSV; nothing is made up to fill a
 //! column.
 
-use crate::lab::bench::{FrameProfile, SequenceBench, ViewportSequenceBench};
+use crate::lab::bench::{FrameProfile, SequenceBench};
 
 /// What an experiment is, before it is measured.
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
@@ -105,85 +105,71 @@ pub fn file_stem(id: &str) -> String {
 }
 
 impl ExperimentResult {
-    /// A camera sequence (E1, E3): oracle and exactness from the frames.
-    pub fn from_sequence(info: ExperimentInfo, bench: SequenceBench, ostc: bool) -> Self {
-        let frames = f64::from(bench.frames.max(1));
-        let differing = bench
-            .profile
-            .iter()
-            .filter(|p| p.exact == Some(false))
-            .count();
-        let exactness = if bench.exact {
-            "bit-exact".to_string()
-        } else {
-            format!("{differing} of {} frames DIFFER", bench.frames)
-        };
-        let oracle_samples = bench.profile.iter().filter_map(|p| p.oracle_samples).sum();
-        let split = TimeSplit::of(&bench.profile);
-        let row = BenchRow {
-            info,
-            frames: bench.frames,
-            full_ms_per_frame: bench.full_ms / frames,
-            accelerated_ms_per_frame: bench.accelerated_ms / frames,
-            speedup: bench.speedup,
-            oracle_speedup: Some(bench.oracle_speedup),
-            region_oracle_speedup: Some(bench.region_oracle_speedup),
-            timed_region_oracle_speedup: Some(bench.timed_region_oracle_speedup),
-            efficiency: Some(bench.efficiency),
-            bookkeeping_share: ostc.then_some(bench.bookkeeping_share),
-            tracing_share: split.tracing,
-            copying_share: split.copying,
-            samples_traced: bench.samples_traced,
-            oracle_samples: Some(oracle_samples),
-            exact: Some(bench.exact),
-            worst_psnr_db: None,
-            exactness,
-        };
-        ExperimentResult {
-            row,
-            profile: bench.profile,
-        }
-    }
-
-    /// A viewport sequence (E2, E4): the oracle counts per frame (None: not
-    /// measured), the error of the resampled frames, and with OSTC the
-    /// buffer's bit-for-bit check.
-    pub fn from_viewports(
+    /// A measured sequence: for the camera's image, the oracle and the
+    /// exactness from the frames; for viewports, the oracle counts per
+    /// frame `viewport_oracle` gives (None: not measured), the error of the
+    /// resampled frames, and with OSTC the buffer's bit-for-bit check.
+    pub fn from_bench(
         info: ExperimentInfo,
-        mut bench: ViewportSequenceBench,
-        oracle: Option<Vec<u64>>,
+        mut bench: SequenceBench,
+        viewport_oracle: Option<Vec<u64>>,
     ) -> Self {
         let frames = f64::from(bench.frames.max(1));
         let full_ms_per_frame = bench.full_ms / frames;
-        let all_pixels = bench.pixels_per_frame as f64 * frames;
-        let oracle_samples = oracle.as_ref().map(|counts| counts.iter().sum::<u64>());
-        if let Some(counts) = &oracle {
+        if let Some(counts) = &viewport_oracle {
             for (row, &count) in bench.profile.iter_mut().zip(counts) {
                 row.oracle_samples = Some(count);
             }
         }
-        let oracle_speedup = oracle_samples.map(|n| all_pixels / n.max(1) as f64);
-        let measured = bench.profile.iter().any(|p| p.psnr_db.is_some());
-        let worst_psnr_db = measured.then_some(bench.worst_psnr_db);
+        let oracle_samples: Option<u64> = bench
+            .profile
+            .iter()
+            .any(|p| p.oracle_samples.is_some())
+            .then(|| bench.profile.iter().filter_map(|p| p.oracle_samples).sum());
+        let oracle_speedup = match (&bench.oracle, oracle_samples) {
+            (Some(oracle), _) => Some(oracle.samples),
+            (None, Some(samples)) => {
+                let all_pixels = bench.pixels_per_frame as f64 * frames;
+                Some(all_pixels / samples.max(1) as f64)
+            }
+            (None, None) => None,
+        };
+        let worst_psnr_db = bench
+            .profile
+            .iter()
+            .any(|p| p.psnr_db.is_some())
+            .then(|| bench.error.map_or(f64::NAN, |e| e.worst_psnr_db));
         // The mean beside the worst: a knob that trades accuracy for speed
         // (oversampling, level bias) may leave the worst frame as it was.
-        let mean = bench.mean_psnr_db;
+        let mean = bench.error.map_or(f64::NAN, |e| e.mean_psnr_db);
         let psnr = match worst_psnr_db {
             Some(db) if db.is_infinite() => "identical to direct".to_string(),
             Some(db) if mean.is_finite() => format!("PSNR {db:.1} dB worst, {mean:.1} mean"),
             Some(db) => format!("PSNR {db:.1} dB worst"),
             None => "error not measured".to_string(),
         };
-        let (exact, exactness) = match bench.buffer_check {
-            Some((compared, 0)) => (
+        let (exact, exactness) = match (bench.exact, bench.buffer_check) {
+            (Some(true), _) => (Some(true), "bit-exact".to_string()),
+            (Some(false), _) => {
+                let differing = bench
+                    .profile
+                    .iter()
+                    .filter(|p| p.exact == Some(false))
+                    .count();
+                (
+                    Some(false),
+                    format!("{differing} of {} frames DIFFER", bench.frames),
+                )
+            }
+            (None, Some((compared, 0))) => (
                 Some(true),
                 format!("buffer bit-exact ({compared} samples); {psnr}"),
             ),
-            Some((compared, differing)) => (
+            (None, Some((compared, differing))) => (
                 Some(false),
                 format!("buffer: {differing} of {compared} samples DIFFER; {psnr}"),
             ),
-            None => (None, psnr),
+            (None, None) => (None, psnr),
         };
         let ostc = bench.buffer_check.is_some() || bench.bookkeeping_ms > 0.0;
         let split = TimeSplit::of(&bench.profile);
@@ -191,11 +177,11 @@ impl ExperimentResult {
             info,
             frames: bench.frames,
             full_ms_per_frame,
-            accelerated_ms_per_frame: bench.rsvp_ms / frames,
+            accelerated_ms_per_frame: bench.accelerated_ms / frames,
             speedup: bench.speedup,
             oracle_speedup,
-            region_oracle_speedup: None,
-            timed_region_oracle_speedup: None,
+            region_oracle_speedup: bench.oracle.map(|o| o.regions),
+            timed_region_oracle_speedup: bench.oracle.map(|o| o.timed_regions),
             efficiency: oracle_speedup.map(|o| bench.speedup / o),
             bookkeeping_share: ostc
                 .then(|| bench.bookkeeping_ms / frames / full_ms_per_frame.max(f64::MIN_POSITIVE)),

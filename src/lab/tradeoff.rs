@@ -16,16 +16,14 @@
 
 use std::ops::Range;
 use std::path::Path;
-use std::time::Instant;
 
 use crate::accel::{AccelError, Accelerator, BackendKind};
-use crate::anim::{Animator, FractionalPan};
-use crate::anim::{OstcSettings, Techniques};
-use crate::lab::bench::{bench_viewport_sequence, ViewportSequenceBench};
+use crate::frame_loop::{Options, OstcSettings, Techniques};
+use crate::lab::bench::ErrorSummary;
+use crate::lab::bench::{bench_sequence, Measure, SequenceBench};
 use crate::lab::plot::{LabelledPoint, PlotError, ScatterGroup};
-use crate::metrics::{count_differences, image_error, ImageError};
-use crate::render::Frame;
 use crate::reuse::ostc::DEFAULT_VOXELS;
+use crate::reuse::pan::FractionalPan;
 use crate::reuse::regions::RegionGrid;
 use crate::reuse::rsvp::{Filter, RsvpKnobs};
 use crate::scene::{parse_scene_str, Scene, SceneError, SceneOverrides, PAPER_SCENE_TOML};
@@ -87,13 +85,14 @@ impl TradeoffScenes {
 
     /// How many times [`sweep`] calls its progress callback for `frames` frames.
     pub fn progress_steps(&self, frames: u32) -> u64 {
-        let frames = u64::from(frames);
-        let pan = frames * (1 + 2 * PAN_SETTINGS.len() as u64);
-        let rsvp = frames * 3 * rsvp_knob_settings().len() as u64;
-        let ostc = self.objects.as_ref().map_or(0, |_| {
-            frames * (1 + 2 * unique_ostc_settings().len() as u64)
-        });
-        pan + rsvp + ostc
+        // Each setting's sequence: full, accelerated and checked, a step
+        // per frame each.
+        let per_setting = 3 * u64::from(frames);
+        let ostc = self
+            .objects
+            .as_ref()
+            .map_or(0, |_| unique_ostc_settings().len());
+        per_setting * (PAN_SETTINGS.len() + rsvp_knob_settings().len() + ostc) as u64
     }
 }
 
@@ -147,23 +146,24 @@ pub fn sweep_rsvp_knobs(
     accel: &mut Accelerator,
     frames: Range<u32>,
     mut progress: impl FnMut(),
-) -> Vec<ViewportSequenceBench> {
+) -> Vec<SequenceBench> {
     rsvp_knob_settings()
         .into_iter()
-        .map(|knobs| {
-            bench_viewport_sequence(
-                scene,
-                accel,
-                frames.clone(),
-                1,
-                knobs,
-                true,
-                None,
-                &mut progress,
-            )
+        .map(|rsvp| {
+            let options = Options {
+                rsvp,
+                ..Options::new(Techniques::AUTO, frames.clone())
+            };
+            bench_sequence(scene, accel, &options, 1, ERROR_ONLY, &mut progress)
         })
         .collect()
 }
+
+/// The tradeoff measures each setting's error, never the oracle.
+const ERROR_ONLY: Measure = Measure {
+    error: true,
+    oracle: false,
+};
 
 /// OSTC settings: the region grids, then the voxel grids (each with the
 /// other knob at its default).
@@ -244,21 +244,7 @@ pub fn sweep(
     });
     let measured: Vec<(RsvpKnobs, Measured)> = rsvp
         .iter()
-        .map(|result| {
-            let error = SequenceError {
-                max_abs: result.max_abs,
-                mean_abs: result.mean_abs,
-                worst_psnr_db: result.worst_psnr_db,
-                differing_share: result.differing_share,
-                bit_exact: None,
-            };
-            let times = Measured {
-                full_ms: result.full_ms,
-                accelerated_ms: result.rsvp_ms,
-                error,
-            };
-            (result.knobs, times)
-        })
+        .map(|result| (result.knobs, Measured::of(result, false)))
         .collect();
     // Each knob's rows: the settings that differ from the default in that
     // knob alone, the default among them (the point each knob moves from).
@@ -340,40 +326,30 @@ struct CameraSetting {
     ostc: OstcSettings,
 }
 
-#[derive(Clone, Copy, Debug)]
-struct SequenceError {
-    max_abs: f32,
-    mean_abs: f64,
-    worst_psnr_db: f64,
-    differing_share: f64,
-    bit_exact: Option<bool>,
-}
-
-impl SequenceError {
-    fn of(errors: &[ImageError], bit_exact: Option<bool>) -> SequenceError {
-        let count = errors.len().max(1) as f64;
-        SequenceError {
-            max_abs: errors.iter().map(|e| e.max_abs).fold(0.0, f32::max),
-            mean_abs: errors.iter().map(|e| e.mean_abs).sum::<f64>() / count,
-            worst_psnr_db: errors
-                .iter()
-                .map(|e| e.psnr_db)
-                .fold(f64::INFINITY, f64::min),
-            differing_share: errors.iter().map(|e| e.differing_share).sum::<f64>() / count,
-            bit_exact,
-        }
-    }
-}
-
 /// Whole-sequence times (ms) and the error of one setting.
 #[derive(Clone, Copy, Debug)]
 struct Measured {
     full_ms: f64,
     accelerated_ms: f64,
-    error: SequenceError,
+    error: ErrorSummary,
+    /// Every frame equal to its own rays bit for bit; None where the
+    /// check does not apply (RSVP resamples, so it is measured only).
+    bit_exact: Option<bool>,
 }
 
 impl Measured {
+    /// A sequence's times and error; `exact_check` says whether bit
+    /// equality with the views' own rays is reported.
+    fn of(bench: &SequenceBench, exact_check: bool) -> Measured {
+        let error = bench.error.expect("the tradeoff measures every error");
+        Measured {
+            full_ms: bench.full_ms,
+            accelerated_ms: bench.accelerated_ms,
+            error,
+            bit_exact: exact_check.then_some(error.identical),
+        }
+    }
+
     fn row(&self, knob: &'static str, setting: String, frames: u32) -> TradeoffRow {
         let per_frame = f64::from(frames.max(1));
         TradeoffRow {
@@ -387,14 +363,13 @@ impl Measured {
             mean_abs_error: self.error.mean_abs,
             worst_psnr_db: self.error.worst_psnr_db,
             differing_share: self.error.differing_share,
-            bit_exact: self.error.bit_exact,
+            bit_exact: self.bit_exact,
         }
     }
 }
 
-/// The camera's image of `scene` over `frames`: the exact reference (its
-/// own rays, timed once, kept for the error) against every technique the
-/// timeline allows at each of `settings`.
+/// The camera's image of `scene` over `frames` at each of `settings`
+/// (every technique the timeline allows), against its own rays.
 fn measure_camera_settings(
     scene: &Scene,
     accel: &mut Accelerator,
@@ -402,59 +377,20 @@ fn measure_camera_settings(
     settings: &[CameraSetting],
     mut progress: impl FnMut(&str),
 ) -> Vec<Measured> {
-    let mut references: Vec<Frame> = Vec::new();
-    let mut full_ms = 0.0;
-    let mut full = Animator::new(scene, accel, Techniques::FULL, frames.clone());
-    for frame in frames.clone() {
-        let start = Instant::now();
-        let (image, _) = full.render_true_view(frame);
-        std::hint::black_box(image.to_rgb8());
-        full_ms += start.elapsed().as_secs_f64() * 1e3;
-        references.push(image);
-        progress("full renders");
-    }
-    drop(full);
-    fn animator<'a>(
-        scene: &'a Scene,
-        accel: &'a mut Accelerator,
-        frames: Range<u32>,
-        setting: &CameraSetting,
-        linear: bool,
-    ) -> Animator<'a> {
-        let mut animator = Animator::new(scene, accel, Techniques::AUTO, frames);
-        animator.set_fractional_pan(setting.fractional);
-        animator.set_ostc(setting.ostc);
-        animator.set_linear_output(linear);
-        animator
-    }
-    let mut results = Vec::new();
-    for setting in settings {
-        let mut fast = animator(scene, accel, frames.clone(), setting, false);
-        let mut accelerated_ms = 0.0;
-        for frame in frames.clone() {
-            let start = Instant::now();
-            let (_, rgb, _) = fast.render(frame);
-            std::hint::black_box(rgb);
-            accelerated_ms += start.elapsed().as_secs_f64() * 1e3;
-            progress("accelerated");
-        }
-        drop(fast);
-        let mut check = animator(scene, accel, frames.clone(), setting, true);
-        let mut errors = Vec::new();
-        let mut bit_exact = true;
-        for (frame, reference) in frames.clone().zip(&references) {
-            let image = check.render(frame).0.expect("linear output is on");
-            errors.push(image_error(&image, reference));
-            bit_exact &= count_differences(&image, reference) == 0;
-            progress("error");
-        }
-        results.push(Measured {
-            full_ms,
-            accelerated_ms,
-            error: SequenceError::of(&errors, Some(bit_exact)),
-        });
-    }
-    results
+    settings
+        .iter()
+        .map(|setting| {
+            let options = Options {
+                fractional_pan: setting.fractional,
+                ostc: setting.ostc,
+                ..Options::new(Techniques::AUTO, frames.clone())
+            };
+            let bench = bench_sequence(scene, accel, &options, 1, ERROR_ONLY, || {
+                progress("sequence")
+            });
+            Measured::of(&bench, true)
+        })
+        .collect()
 }
 
 fn psnr_text(db: f64) -> String {

@@ -8,17 +8,22 @@
 //! corner snapped to whole samples (the snap error is reported, at most half
 //! a sample each way).
 //!
-//! [`PanBuffer`] keeps every sample traced so far; a frame traces only the
+//! [`LatticeBuffer`] keeps every sample traced so far; a frame traces only the
 //! groups of its window not traced before, then copies the window out.
+//! [`PanStore`] is that buffer over the pan lattice as the frame loop uses
+//! it (a still camera's own image uses the same buffer: see
+//! [`super::still`]).
 //! Full renders and the buffer compute each ray from the integer lattice
 //! position and trace the same aligned groups, so a shifted frame equals a
 //! full render bit for bit.
 
 use std::f64::consts::{FRAC_PI_2, TAU};
+use std::time::Instant;
 
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 
+use crate::camera::ViewportPose;
 use crate::camera::{Camera, Projection};
 use crate::color::srgb_table;
 use crate::ray::{Ray, PACKET_WIDTH};
@@ -27,6 +32,7 @@ use crate::render::{
 };
 use crate::reuse::ostc::Ostc;
 use crate::reuse::regions::{RegionLayout, RegionSet};
+use crate::reuse::{FrameMode, SampleStore, StoreFrame, Unfit, Wanted};
 use crate::shade::{RayCounts, RayObserver, Shader};
 
 /// The world-fixed equal-angle sample lattice around one eye position.
@@ -93,7 +99,7 @@ impl EqualAngleLattice {
     }
 
     /// The bytes a pan buffer over `rows` rows of `camera`'s lattice takes,
-    /// with the lattice's tables: what [`PanBuffer::new`] would allocate,
+    /// with the lattice's tables: what [`LatticeBuffer::new`] would allocate,
     /// known before allocating it.
     pub fn buffer_bytes(camera: &Camera, rows: i64) -> f64 {
         let columns = Self::columns_per_turn_for(camera) as f64;
@@ -160,7 +166,7 @@ impl EqualAngleLattice {
     }
 }
 
-/// A sample lattice a [`PanBuffer`] can hold: rays by integer position,
+/// A sample lattice a [`LatticeBuffer`] can hold: rays by integer position,
 /// repeating every `period()` columns, `rows()` rows from row 0.
 pub trait Lattice: PrimaryRays {
     /// Columns after which the lattice repeats (a multiple of the group
@@ -178,34 +184,6 @@ impl Lattice for EqualAngleLattice {
     }
     fn rows(&self) -> i64 {
         self.rows
-    }
-}
-
-/// A fixed camera's own pixels as a lattice (its image, padded to whole
-/// groups, repeating past its width): a still camera of any projection
-/// keeps its samples in a [`PanBuffer`] of these, traced in exactly the
-/// groups a full render uses.
-impl Lattice for crate::camera::RayTable {
-    fn period(&self) -> i64 {
-        let gw = i64::from(GROUP_WIDTH);
-        (i64::from(self.size().0) + gw - 1) / gw * gw
-    }
-    fn rows(&self) -> i64 {
-        let gh = i64::from(GROUP_HEIGHT);
-        (i64::from(self.size().1) + gh - 1) / gh * gh
-    }
-}
-
-/// The window of a fixed camera's lattice: its whole image.
-pub fn image_window(table: &crate::camera::RayTable) -> Window {
-    let (width, height) = table.size();
-    Window {
-        col: 0,
-        row: 0,
-        width,
-        height,
-        yaw_error: 0.0,
-        pitch_error: 0.0,
     }
 }
 
@@ -352,7 +330,7 @@ fn assembled(
 }
 
 /// Every sample traced so far on one lattice, in a band of rows.
-pub struct PanBuffer<L: Lattice = EqualAngleLattice> {
+pub struct LatticeBuffer<L: Lattice = EqualAngleLattice> {
     lattice: L,
     /// First stored row (even) and number of stored rows (even).
     first_row: i64,
@@ -382,21 +360,23 @@ pub struct PanFrameStats {
     pub samples_traced: u64,
     pub pixels_reused: u64,
     pub rays: RayCounts,
+    /// Of the frame's time, tracing (recording into OSTC included).
+    pub trace_ms: f64,
     /// The groups traced for the frame (wrapped lattice coordinates).
     #[serde(skip)]
     pub traced: Vec<SampleGroup>,
 }
 
-impl<L: Lattice> PanBuffer<L> {
+impl<L: Lattice> LatticeBuffer<L> {
     /// A buffer for windows within rows `rows` of the lattice.
-    pub fn new(lattice: L, rows: std::ops::Range<i64>) -> PanBuffer<L> {
+    pub fn new(lattice: L, rows: std::ops::Range<i64>) -> LatticeBuffer<L> {
         let gh = i64::from(GROUP_HEIGHT);
         let first_row = rows.start.max(0).div_euclid(gh) * gh;
         let end = rows.end.min(lattice.rows());
         let row_count = ((end - first_row + gh - 1).div_euclid(gh) * gh).max(0);
         let samples = (lattice.period() * row_count) as usize;
         let groups = samples / (GROUP_WIDTH * GROUP_HEIGHT) as usize;
-        PanBuffer {
+        LatticeBuffer {
             lattice,
             first_row,
             row_count,
@@ -461,7 +441,7 @@ impl<L: Lattice> PanBuffer<L> {
     }
 
     /// Nulls every sample of `regions` (of `layout`, from
-    /// [`PanBuffer::regions`]); returns how many samples had been traced.
+    /// [`LatticeBuffer::regions`]); returns how many samples had been traced.
     pub fn erase(&mut self, layout: &RegionLayout, regions: &RegionSet) -> u64 {
         let mut nulled = 0;
         for region in regions.iter() {
@@ -590,7 +570,9 @@ impl<L: Lattice> PanBuffer<L> {
         linear: bool,
         ostc: Option<&Ostc>,
     ) -> (Option<Frame>, image::RgbImage, PanFrameStats) {
+        let start = Instant::now();
         let (fresh_pixels, rays, traced) = self.trace_missing(shader, window, ostc);
+        let trace_ms = start.elapsed().as_secs_f64() * 1e3;
         let (width, height) = (window.width as usize, window.height as usize);
         let mut pixels = Vec::with_capacity(if linear { width * height } else { 0 });
         let mut bytes: Vec<u8> = Vec::with_capacity(width * height * 3);
@@ -620,6 +602,7 @@ impl<L: Lattice> PanBuffer<L> {
                 samples_traced: rays.primary,
                 pixels_reused: pixels - fresh_pixels.min(pixels),
                 rays,
+                trace_ms,
                 traced,
             },
         )
@@ -627,7 +610,7 @@ impl<L: Lattice> PanBuffer<L> {
 }
 
 /// Resampling needs the lattice's angles: equal-angle buffers only.
-impl PanBuffer<EqualAngleLattice> {
+impl LatticeBuffer<EqualAngleLattice> {
     /// The window a resampled view of `camera` reads: its unsnapped corner
     /// rounded down, one sample wider and taller (bilinear neighbours).
     ///
@@ -664,7 +647,9 @@ impl PanBuffer<EqualAngleLattice> {
         ostc: Option<&Ostc>,
     ) -> (Option<Frame>, image::RgbImage, PanFrameStats) {
         let (window, fx, fy) = self.resample_window(camera);
+        let start = Instant::now();
         let (_, rays, traced) = self.trace_missing(shader, &window, ostc);
+        let trace_ms = start.elapsed().as_secs_f64() * 1e3;
         let (fx, fy) = (fx as f32, fy as f32);
         let weights = [
             (1.0 - fx) * (1.0 - fy),
@@ -702,9 +687,163 @@ impl PanBuffer<EqualAngleLattice> {
                 samples_traced: rays.primary,
                 pixels_reused: total.saturating_sub(rays.primary),
                 rays,
+                trace_ms,
                 traced,
             },
         )
+    }
+}
+
+/// How a pan by a fraction of a sample is shown.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum FractionalPan {
+    /// Move the view to the nearest whole sample (exact: equals a full
+    /// render of the snapped view; the angle is off by at most half a
+    /// sample).
+    #[default]
+    Snap,
+    /// Resample the exact view bilinearly from the buffer (the true angle;
+    /// slightly blurred, error measured against the camera's own rays).
+    Resample,
+}
+
+impl std::str::FromStr for FractionalPan {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "snap" => Ok(FractionalPan::Snap),
+            "resample" => Ok(FractionalPan::Resample),
+            other => Err(format!(
+                "unknown fractional pan '{other}' (expected snap or resample)"
+            )),
+        }
+    }
+}
+
+/// An equal-angle camera's samples on its pan lattice, as the frame loop
+/// keeps them: one view (the camera's image), shown snapped to whole
+/// samples or resampled.
+pub struct PanStore {
+    buffer: LatticeBuffer,
+    fractional: FractionalPan,
+    /// Whether the view may move (pan is on); without, the buffer serves
+    /// a still view for OSTC.
+    pans: bool,
+    /// The window last shown.
+    window: Window,
+    /// The groups the last render traced.
+    traced: Vec<SampleGroup>,
+}
+
+impl PanStore {
+    /// A store for views of `camera`'s lattice within `rows`.
+    pub fn new(
+        camera: &Camera,
+        rows: std::ops::Range<i64>,
+        fractional: FractionalPan,
+        pans: bool,
+    ) -> PanStore {
+        let lattice = EqualAngleLattice::for_camera(camera);
+        let window = lattice.window(camera);
+        PanStore {
+            buffer: LatticeBuffer::new(lattice, rows),
+            fractional,
+            pans,
+            window,
+            traced: Vec::new(),
+        }
+    }
+
+    /// The window of the buffer a view of `camera` reads.
+    fn read_window(&self, camera: &Camera) -> Window {
+        match self.fractional {
+            FractionalPan::Snap => self.buffer.lattice().window(camera),
+            FractionalPan::Resample => self.buffer.resample_window(camera).0,
+        }
+    }
+}
+
+impl SampleStore for PanStore {
+    fn name(&self) -> &'static str {
+        "buffer"
+    }
+
+    fn mode(&self, ostc: bool) -> FrameMode {
+        match (self.pans, ostc) {
+            (true, true) => FrameMode::PanOstc,
+            (false, true) => FrameMode::Ostc,
+            (true, false) => FrameMode::Pan,
+            (false, false) => FrameMode::Still,
+        }
+    }
+
+    fn unfit(&self, views: &[ViewportPose]) -> Option<Unfit> {
+        let camera = &views.first()?.camera;
+        let lattice = self.buffer.lattice();
+        if !lattice.fits(camera) {
+            return Some(Unfit::LatticeChanged);
+        }
+        if !self.buffer.covers(&self.read_window(camera)) {
+            return Some(Unfit::RowsLeft);
+        }
+        let window = lattice.window(camera);
+        let moved = (window.col, window.row) != (self.window.col, self.window.row);
+        (moved && !self.pans).then_some(Unfit::MovedPanOff)
+    }
+
+    fn regions(&self, size: (i64, i64)) -> RegionLayout {
+        self.buffer.regions(size)
+    }
+
+    fn erase(&mut self, layout: &RegionLayout, regions: &RegionSet) -> u64 {
+        self.buffer.erase(layout, regions)
+    }
+
+    fn render(
+        &mut self,
+        shader: &Shader,
+        views: &[ViewportPose],
+        ostc: Option<&Ostc>,
+        wanted: Wanted,
+    ) -> Vec<StoreFrame> {
+        let camera = &views[0].camera;
+        let start = Instant::now();
+        self.window = self.buffer.lattice().window(camera);
+        let (frame, image, pan) = match self.fractional {
+            FractionalPan::Snap => self.buffer.frame(shader, &self.window, wanted.linear, ostc),
+            FractionalPan::Resample => {
+                self.buffer
+                    .frame_resampled(shader, camera, wanted.linear, ostc)
+            }
+        };
+        let elapsed = start.elapsed().as_secs_f64() * 1e3;
+        self.traced = pan.traced;
+        let snap_error = (self.fractional == FractionalPan::Snap)
+            .then_some((self.window.yaw_error, self.window.pitch_error));
+        vec![StoreFrame {
+            frame,
+            image,
+            samples_traced: pan.samples_traced,
+            pixels_reused: pan.pixels_reused,
+            rays: pan.rays,
+            trace_ms: pan.trace_ms,
+            assembly_ms: (elapsed - pan.trace_ms).max(0.0),
+            snap_error,
+            levels: None,
+        }]
+    }
+
+    fn paint_traced(
+        &self,
+        _index: usize,
+        view: &ViewportPose,
+        image: &image::RgbImage,
+    ) -> image::RgbImage {
+        let mut painted = image.clone();
+        let window = self.read_window(&view.camera);
+        self.buffer
+            .paint_groups(&window, &self.traced, &mut painted);
+        painted
     }
 }
 

@@ -493,7 +493,7 @@ mod tests {
                 pose(175.0 + 2.0 * t, 1.5, 0.3),
             ];
             let before = buffer.blocks.iter().map(|b| b.index.len()).sum::<usize>();
-            buffer.render(&shader, &poses, &knobs, false);
+            buffer.render(&shader, &poses, &knobs, false, None);
             if frame > 0 && before > 0 {
                 followed += buffer.fresh.len();
             }

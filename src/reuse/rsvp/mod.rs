@@ -54,6 +54,7 @@ use crate::color::srgb_table;
 use crate::render::{trace_each, trace_groups, Frame, PrimaryRays, SampleGroup, GROUP_WIDTH};
 use crate::reuse::ostc::Ostc;
 use crate::reuse::regions::{RegionLayout, RegionSet};
+use crate::reuse::{Erasure, FrameMode, SampleStore, StoreFrame, Unfit, Wanted};
 use crate::shade::{RayCounts, Shader};
 use blocks::LevelBlocks;
 use filter::filter_reads;
@@ -108,9 +109,6 @@ pub struct SampleBuffer {
     /// The groups the last [`SampleBuffer::render`] traced, sorted as
     /// `missing` is: what [`SampleBuffer::fresh_image`] paints.
     fresh: Vec<(Level, SampleGroup)>,
-    /// OSTC bookkeeping of the samples, when objects or lights move: every
-    /// batch's rays are recorded into it (see [`SampleBuffer::erase`]).
-    ostc: Option<Ostc>,
 }
 
 impl SampleBuffer {
@@ -123,7 +121,6 @@ impl SampleBuffer {
             frame: 0,
             samples_traced: 0,
             fresh: Vec::new(),
-            ostc: None,
         }
     }
 
@@ -140,20 +137,6 @@ impl SampleBuffer {
             0,
             self.lattice.last_row(0) + 1,
         )
-    }
-
-    /// Records every ray traced from now on into `ostc` (built over
-    /// [`SampleBuffer::regions`]).
-    pub fn set_ostc(&mut self, ostc: Option<Ostc>) {
-        self.ostc = ostc;
-    }
-
-    pub fn ostc(&self) -> Option<&Ostc> {
-        self.ostc.as_ref()
-    }
-
-    pub fn ostc_mut(&mut self) -> Option<&mut Ostc> {
-        self.ostc.as_mut()
     }
 
     /// The region (of `layout`) of a group of `level`'s slots.
@@ -224,14 +207,11 @@ impl SampleBuffer {
         erased
     }
 
-    /// Nulls, at every level, the samples lying in `regions` (of the OSTC
-    /// layout); returns how many groups were erased. They are traced again
-    /// when a viewport next reads them.
-    pub fn erase(&mut self, regions: &RegionSet) -> u64 {
-        let Some(ostc) = &self.ostc else {
-            return 0;
-        };
-        let layout = *ostc.layout();
+    /// Nulls, at every level, the samples lying in `regions` (of `layout`,
+    /// from [`SampleBuffer::regions`]); returns how many groups were
+    /// erased. They are traced again when a viewport next reads them.
+    pub fn erase(&mut self, layout: &RegionLayout, regions: &RegionSet) -> u64 {
+        let layout = *layout;
         let mut erased = 0;
         let gw = i64::from(GROUP_WIDTH);
         for (index, store) in self.levels.iter_mut().enumerate() {
@@ -294,12 +274,14 @@ impl SampleBuffer {
     }
 
     /// Traces the missing groups of every level in one parallel batch and
-    /// keeps them. Returns the samples and rays traced for each request
-    /// list.
+    /// keeps them, their rays recorded into `ostc` (built over
+    /// [`SampleBuffer::regions`]) when given. Returns the samples and rays
+    /// traced for each request list.
     fn trace(
         &mut self,
         shader: &Shader,
         requests: &[Vec<(Level, SampleGroup)>],
+        ostc: Option<&Ostc>,
     ) -> Vec<(u64, RayCounts, f64)> {
         let mut all: Vec<(Level, SampleGroup, usize)> = Vec::new();
         for (who, list) in requests.iter().enumerate() {
@@ -324,7 +306,7 @@ impl SampleBuffer {
         // One batch rather than one per level: a frame that refines a few
         // levels would otherwise wait for each level's last group in turn.
         let start = Instant::now();
-        let (lattice, ostc) = (&self.lattice, self.ostc.as_ref());
+        let lattice = &self.lattice;
         let sources: Vec<LevelRays> = (0..Level::COUNT)
             .map(|index| LevelRays {
                 lattice,
@@ -380,13 +362,15 @@ impl SampleBuffer {
     }
 
     /// Renders every viewport of a frame: maps their pixels, traces the
-    /// null samples they touch in one batch, and resamples.
+    /// null samples they touch in one batch (recording their rays into
+    /// `ostc` when given), and resamples.
     pub fn render(
         &mut self,
         shader: &Shader,
         poses: &[ViewportPose],
         knobs: &RsvpKnobs,
         linear: bool,
+        ostc: Option<&Ostc>,
     ) -> Vec<ViewportFrame> {
         let mut mapped = Vec::with_capacity(poses.len());
         let mut map_ms = Vec::with_capacity(poses.len());
@@ -399,7 +383,7 @@ impl SampleBuffer {
             .iter_mut()
             .map(|m| std::mem::take(&mut m.missing))
             .collect();
-        let traced = self.trace(shader, &requests);
+        let traced = self.trace(shader, &requests, ostc);
         // Pass 2 reads assembled blocks; assembling new ones is its cost,
         // shared between the viewports.
         let start = Instant::now();
@@ -529,6 +513,110 @@ fn same_bits(a: Vec3, b: Vec3) -> bool {
 }
 
 /// What the unit tests of the submodules share.
+/// RSVP's sample buffer as the frame loop keeps it: every viewport of a
+/// frame resampled from it with the run's knobs.
+pub struct RsvpStore {
+    buffer: SampleBuffer,
+    knobs: RsvpKnobs,
+}
+
+impl RsvpStore {
+    pub fn new(lattice: SampleLattice, knobs: RsvpKnobs) -> RsvpStore {
+        RsvpStore {
+            buffer: SampleBuffer::new(lattice),
+            knobs,
+        }
+    }
+}
+
+impl SampleStore for RsvpStore {
+    fn name(&self) -> &'static str {
+        "sample buffer"
+    }
+
+    fn mode(&self, ostc: bool) -> FrameMode {
+        if ostc {
+            FrameMode::RsvpOstc
+        } else {
+            FrameMode::Rsvp
+        }
+    }
+
+    fn unfit(&self, views: &[ViewportPose]) -> Option<Unfit> {
+        let eye = views.first()?.camera.position;
+        (self.buffer.lattice().position != eye).then_some(Unfit::EyeMoved)
+    }
+
+    fn regions(&self, size: (i64, i64)) -> RegionLayout {
+        self.buffer.regions(size)
+    }
+
+    fn erasure(&self) -> Erasure {
+        Erasure::Groups
+    }
+
+    fn erase(&mut self, layout: &RegionLayout, regions: &RegionSet) -> u64 {
+        self.buffer.erase(layout, regions) * GROUP_SAMPLES
+    }
+
+    fn erase_groups(&mut self, keys: &[u128]) -> u64 {
+        self.buffer.erase_groups(keys) * GROUP_SAMPLES
+    }
+
+    fn render(
+        &mut self,
+        shader: &Shader,
+        views: &[ViewportPose],
+        ostc: Option<&Ostc>,
+        wanted: Wanted,
+    ) -> Vec<StoreFrame> {
+        let frames = self
+            .buffer
+            .render(shader, views, &self.knobs, wanted.linear, ostc);
+        frames
+            .into_iter()
+            .zip(views)
+            .map(|(view, pose)| {
+                let pixels = u64::from(pose.camera.width) * u64::from(pose.camera.height);
+                StoreFrame {
+                    frame: view.frame,
+                    image: view.image,
+                    samples_traced: view.samples_traced,
+                    pixels_reused: pixels.saturating_sub(view.samples_traced),
+                    rays: view.rays,
+                    trace_ms: view.trace_ms,
+                    assembly_ms: view.map_ms + view.gather_ms,
+                    snap_error: None,
+                    levels: Some(view.levels),
+                }
+            })
+            .collect()
+    }
+
+    fn paint_traced(
+        &self,
+        _index: usize,
+        view: &ViewportPose,
+        image: &image::RgbImage,
+    ) -> image::RgbImage {
+        self.buffer.fresh_image(view, &self.knobs, image)
+    }
+
+    fn picture(&self, camera: &Camera) -> Option<image::RgbImage> {
+        Some(
+            self.buffer
+                .buffer_image(camera, camera.width, camera.height),
+        )
+    }
+
+    fn verify(&self, shader: &Shader) -> Option<(u64, u64)> {
+        Some(self.buffer.verify(shader))
+    }
+}
+
+/// Samples in a group.
+const GROUP_SAMPLES: u64 = (GROUP_WIDTH * crate::render::GROUP_HEIGHT) as u64;
+
 #[cfg(test)]
 mod fixtures {
     use glam::DVec3;

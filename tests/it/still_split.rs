@@ -13,7 +13,7 @@ use retrace::rng::SplitMix64;
 use retrace::scene::{parse_scene_str, Scene, SceneOverrides};
 use retrace::timeline::Animation;
 
-const PAPER: &str = include_str!("../scenes/paper.toml");
+const PAPER: &str = include_str!("../../scenes/paper.toml");
 
 /// The paper scene with a still bunny, a bouncing ball and a bunny that
 /// slides and turns: spheres moved in place and a mesh moved as an instance.

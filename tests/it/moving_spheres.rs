@@ -13,9 +13,7 @@ use retrace::ray::{Hit, Ray, RayPacket, ALL_LANES, PACKET_WIDTH};
 use retrace::render::render_frame;
 use retrace::scene::{parse_scene_str, Scene, SceneOverrides};
 
-mod common;
-
-const PAPER: &str = include_str!("../scenes/paper.toml");
+const PAPER: &str = include_str!("../../scenes/paper.toml");
 
 const BOUNCING_BALL: &str = r#"
 [material.bouncer]

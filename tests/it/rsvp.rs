@@ -5,18 +5,16 @@ use std::path::Path;
 
 use glam::DVec3;
 use retrace::accel::Accelerator;
-use retrace::anim::{Animator, Techniques};
 use retrace::camera::{Camera, Projection};
 use retrace::camera::{ViewTransform, ViewportPose};
 use retrace::color::encode_srgb;
+use retrace::frame_loop::{Animator, Options, Techniques};
 use retrace::metrics::image_error;
 use retrace::render::trace_groups;
 use retrace::render::SampleGroup;
 use retrace::reuse::rsvp::{Filter, Level, LevelRays, RsvpKnobs, SampleBuffer, SampleLattice};
 use retrace::scene::{parse_scene_str, Scene, SceneOverrides};
 use retrace::shade::Shader;
-
-mod common;
 
 fn paper_text() -> String {
     std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/paper.toml")).unwrap()
@@ -64,17 +62,17 @@ on_every_backend! {
         let knobs = RsvpKnobs::default();
         let zoomed = ViewTransform { zoom: 3.0, rotate: 0.5, ..ViewTransform::default() };
         let poses = [pose(&scene, Projection::Perspective, zoomed)];
-        let first = buffer.render(&shader, &poses, &knobs, true);
+        let first = buffer.render(&shader, &poses, &knobs, true, None);
         assert!(first[0].samples_traced > 0);
         assert_eq!(buffer.samples_traced(), first[0].samples_traced);
         // The same frame again traces nothing and gives the same picture.
-        let again = buffer.render(&shader, &poses, &knobs, true);
+        let again = buffer.render(&shader, &poses, &knobs, true, None);
         assert_eq!(again[0].samples_traced, 0);
         assert_eq!(again[0].rays.total(), 0);
         assert_eq!(again[0].frame, first[0].frame);
         // A second viewport over the same area shares the samples.
         let both = [poses[0].clone(), poses[0].clone()];
-        let shared = buffer.render(&shader, &both, &knobs, true);
+        let shared = buffer.render(&shader, &both, &knobs, true, None);
         assert_eq!(shared[0].samples_traced + shared[1].samples_traced, 0);
     }
 
@@ -89,7 +87,7 @@ on_every_backend! {
             pose(&scene, Projection::Perspective, ViewTransform::default()),
             pose(&scene, Projection::Perspective, ViewTransform { zoom: 6.0, ..ViewTransform::default() }),
         ];
-        buffer.render(&shader, &poses, &RsvpKnobs::default(), false);
+        buffer.render(&shader, &poses, &RsvpKnobs::default(), false, None);
         let mut checked = 0;
         for (x, y) in [(0, 0), (1, 0), (0, 1), (1, 1), (2, 1), (2, 2), (3, 3), (4, 4)] {
             let level = Level::new(x, y);
@@ -130,7 +128,7 @@ on_every_backend! {
         for filter in [Filter::Bilinear, Filter::Nearest] {
             let mut buffer = SampleBuffer::new(lattice.clone());
             let knobs = RsvpKnobs { filter, ..RsvpKnobs::default() };
-            let view = buffer.render(&shader, std::slice::from_ref(&pose), &knobs, true);
+            let view = buffer.render(&shader, std::slice::from_ref(&pose), &knobs, true, None);
             assert_eq!(view[0].levels, (0, 0));
             // Pass 2 blends sRGB codes: the image shows each sample's own
             // 8 bits, exactly.
@@ -153,7 +151,7 @@ on_every_backend! {
         let mut buffer = SampleBuffer::new(lattice_for(&scene));
         for zoom in [1e-3, 1e3] {
             let p = pose(&scene, Projection::Perspective, ViewTransform { zoom, rotate: 0.3, ..ViewTransform::default() });
-            let view = buffer.render(&shader, std::slice::from_ref(&p), &RsvpKnobs::default(), true);
+            let view = buffer.render(&shader, std::slice::from_ref(&p), &RsvpKnobs::default(), true, None);
             let frame = view[0].frame.as_ref().unwrap();
             assert!(frame.pixels.iter().all(|c| c.is_finite()), "zoom {zoom}");
             let (direct, _) = retrace::reuse::rsvp::render_direct(&shader, &p);
@@ -175,25 +173,25 @@ on_every_backend! {
         )
         .unwrap();
         let mut accel = Accelerator::build(backend, &scene.objects).unwrap();
-        let mut animator = Animator::new(&scene, &mut accel, Techniques::AUTO, 0..6);
+        let mut animator = Animator::new(&scene, &mut accel, Options::new(Techniques::AUTO, 0..6));
         let mut traced = 0;
         for frame in 0..6 {
-            let outputs = animator.render_viewports(frame);
+            let outputs = animator.render(frame);
             assert_eq!(outputs.len(), 1);
-            assert_eq!(outputs[0].stats.mode, "rsvp");
+            assert_eq!(outputs[0].stats.mode.as_str(), "rsvp");
             traced += outputs[0].stats.samples_traced;
-            let (direct, _) = animator.render_viewport_direct(frame, 0);
+            let (direct, _) = animator.render_full(frame, 0);
             let error = image_error(outputs[0].frame.as_ref().unwrap(), &direct);
             assert!(error.psnr_db > 15.0, "frame {frame}: {error:?}");
         }
         // Zooming in re-uses: far fewer samples than six full frames.
         assert!(traced < 6 * 64 * 48, "{traced}");
-        let buffer = animator.buffer_image(5).unwrap();
+        let buffer = animator.store_picture(5).unwrap();
         assert_eq!(buffer.dimensions(), (64, 48));
         // Full mode traces the viewport's own rays.
-        let mut full = Animator::new(&scene, &mut accel, Techniques::FULL, 0..6);
-        let outputs = full.render_viewports(3);
-        let (direct, _) = full.render_viewport_direct(3, 0);
+        let mut full = Animator::new(&scene, &mut accel, Options::new(Techniques::FULL, 0..6));
+        let outputs = full.render(3);
+        let (direct, _) = full.render_full(3, 0);
         assert_eq!(outputs[0].frame.as_ref().unwrap(), &direct);
     }
 }
@@ -285,7 +283,7 @@ fn bad_viewports_name_file_line_and_field() {
 fn figure_5_writes_the_buffer_and_both_viewports() {
     let dir = tempfile::tempdir().unwrap();
     let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/paper-viewports.toml");
-    let out = common::retrace_ok(
+    let out = crate::common::retrace_ok(
         &[
             "animate",
             scene,
@@ -330,11 +328,11 @@ fn eye_moves_restart_the_buffer() {
     )
     .unwrap();
     let mut accel = Accelerator::build(retrace::accel::BackendKind::Grid, &scene.objects).unwrap();
-    let mut animator = Animator::new(&scene, &mut accel, Techniques::AUTO, 0..2);
-    animator.render_viewports(0);
-    let outputs = animator.render_viewports(1);
-    assert!(outputs[0].stats.reason.contains("eye moved"));
-    let (direct, _) = animator.render_viewport_direct(1, 0);
+    let mut animator = Animator::new(&scene, &mut accel, Options::new(Techniques::AUTO, 0..2));
+    animator.render(0);
+    let outputs = animator.render(1);
+    assert!(crate::common::reason(&outputs[0].stats).contains("eye moved"));
+    let (direct, _) = animator.render_full(1, 0);
     assert!(image_error(outputs[0].frame.as_ref().unwrap(), &direct).psnr_db > 15.0);
     let _ = DVec3::ZERO;
 }
@@ -350,14 +348,17 @@ fn the_finest_pyramid_levels_resample_as_well_as_the_others() {
     .unwrap();
     let mut accel =
         Accelerator::build(retrace::accel::BackendKind::Embree, &scene.objects).unwrap();
-    let mut animator = Animator::new(&scene, &mut accel, Techniques::AUTO, 0..1);
-    animator.set_rsvp_knobs(retrace::reuse::rsvp::RsvpKnobs {
-        level_bias: 8,
-        ..Default::default()
-    });
-    let outputs = animator.render_viewports(0);
+    let options = Options {
+        rsvp: retrace::reuse::rsvp::RsvpKnobs {
+            level_bias: 8,
+            ..Default::default()
+        },
+        ..Options::new(Techniques::AUTO, 0..1)
+    };
+    let mut animator = Animator::new(&scene, &mut accel, options);
+    let outputs = animator.render(0);
     assert_eq!(outputs[0].stats.finest_level, Some(16));
-    let (direct, _) = animator.render_viewport_direct(0, 0);
+    let (direct, _) = animator.render_full(0, 0);
     let error = image_error(outputs[0].frame.as_ref().unwrap(), &direct);
     assert!(error.psnr_db > 30.0, "{error:?}");
 }

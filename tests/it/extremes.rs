@@ -10,8 +10,6 @@ use retrace::render::render_frame;
 use retrace::scene::{paper_scene, SceneOverrides};
 use retrace::shade::Surface;
 
-mod common;
-
 fn object(shape: Shape) -> Object {
     Object {
         name: "test".into(),

@@ -4,11 +4,10 @@
 use std::path::Path;
 
 use retrace::accel::Accelerator;
-use retrace::anim::{Animator, Techniques};
+use retrace::frame_loop::{Animator, Options, Techniques, ViewOutput};
 use retrace::scene::{paper_scene, parse_scene_str, Scene, SceneOverrides};
 
-mod common;
-use common::retrace;
+use crate::common::retrace;
 
 /// The paper scene, small, with the given camera keyframes appended.
 fn paper_with_keys(keys: &str, frames: u32) -> Scene {
@@ -34,7 +33,7 @@ fn run_exact(
     backend: retrace::accel::BackendKind,
     techniques: Techniques,
 ) -> (u64, Vec<String>) {
-    let stats = common::run_exact(scene, backend, techniques);
+    let stats = crate::common::run_exact(scene, backend, techniques);
     (
         stats.iter().map(|s| s.samples_traced).sum(),
         stats.iter().map(|s| s.mode.to_string()).collect(),
@@ -58,8 +57,8 @@ on_every_backend! {
     a_pan_that_comes_back_traces_nothing(backend) {
         let scene = paper_with_keys(&(key(0, "yaw = 0.0") + &key(4, "yaw = 40.0") + &key(8, "yaw = 0.0")), 9);
         let mut accel = Accelerator::build(backend, &scene.objects).unwrap();
-        let mut animator = Animator::new(&scene, &mut accel, Techniques::AUTO, 0..9);
-        let traced: Vec<u64> = (0..9).map(|f| animator.render(f).2.samples_traced).collect();
+        let mut animator = Animator::new(&scene, &mut accel, Options::new(Techniques::AUTO, 0..9));
+        let traced: Vec<u64> = (0..9).map(|f| animator.render(f).remove(0).stats.samples_traced).collect();
         assert!(traced[1..=4].iter().all(|&t| t > 0), "{traced:?}");
         assert!(traced[5..].iter().all(|&t| t == 0), "coming back traced again: {traced:?}");
     }
@@ -76,8 +75,8 @@ on_every_backend! {
         // elsewhere are the lattice's frames, as full renders take them.
         let scene = pan_then_still();
         let ostc = Techniques { pan: false, rsvp: false, ostc: true };
-        let stats = common::run_exact(&scene, backend, ostc);
-        let modes: Vec<&str> = stats.iter().map(|s| s.mode).collect();
+        let stats = crate::common::run_exact(&scene, backend, ostc);
+        let modes: Vec<&str> = stats.iter().map(|s| s.mode.as_str()).collect();
         assert!(modes[6..].iter().all(|&m| m == "ostc"), "{modes:?}");
         assert!(stats[6..].iter().all(|s| s.pixels_reused > 0), "{modes:?}");
     }
@@ -90,12 +89,14 @@ fn full_renders_are_the_same_reference_whatever_the_mode() {
     let scene = paper_with_keys(&(key(0, "yaw = 0.0") + &key(3, "yaw = 30.0")), 4);
     let mut accel =
         Accelerator::build(retrace::accel::BackendKind::Embree, &scene.objects).unwrap();
-    let mut auto = Animator::new(&scene, &mut accel, Techniques::AUTO, 0..4);
-    let panned: Vec<_> = (0..4).map(|f| auto.render(f).0.unwrap()).collect();
+    let mut auto = Animator::new(&scene, &mut accel, Options::new(Techniques::AUTO, 0..4));
+    let panned: Vec<_> = (0..4)
+        .map(|f| auto.render(f).remove(0).frame.unwrap())
+        .collect();
     drop(auto);
-    let mut full = Animator::new(&scene, &mut accel, Techniques::FULL, 0..4);
+    let mut full = Animator::new(&scene, &mut accel, Options::new(Techniques::FULL, 0..4));
     for (frame, panned) in panned.iter().enumerate() {
-        let (reference, _) = full.render_full(frame as u32);
+        let (reference, _) = full.render_full(frame as u32, 0);
         assert_eq!(
             retrace::metrics::count_differences(panned, &reference),
             0,
@@ -110,10 +111,14 @@ fn non_equal_angle_cameras_fall_back_with_a_reason() {
     scene.camera.projection = retrace::camera::Projection::Perspective;
     let mut accel =
         Accelerator::build(retrace::accel::BackendKind::Embree, &scene.objects).unwrap();
-    let mut animator = Animator::new(&scene, &mut accel, Techniques::AUTO, 0..3);
-    let (_, _, stats) = animator.render(1);
-    assert_eq!(stats.mode, "full");
-    assert!(stats.reason.contains("equal-angle"), "{}", stats.reason);
+    let mut animator = Animator::new(&scene, &mut accel, Options::new(Techniques::AUTO, 0..3));
+    let stats = animator.render(1).remove(0).stats;
+    assert_eq!(stats.mode.as_str(), "full");
+    assert!(
+        crate::common::reason(&stats).contains("equal-angle"),
+        "{:?}",
+        crate::common::reason(&stats)
+    );
 }
 
 #[test]
@@ -368,7 +373,6 @@ fn pan_on_a_perspective_camera_warns_and_renders() {
 
 #[test]
 fn resampled_pans_match_snapped_ones_on_whole_samples_and_measure_their_error() {
-    use retrace::anim::FractionalPan;
     use retrace::metrics::image_error;
     // 90 degrees over 64 px: exactly 256 columns a turn; yaw steps of 4.21875
     // degrees are three whole samples, so resampling weighs one sample only.
@@ -382,13 +386,12 @@ fn resampled_pans_match_snapped_ones_on_whole_samples_and_measure_their_error() 
     // One accelerator each: an animator holds its accelerator for its life.
     let mut accel2 =
         Accelerator::build(retrace::accel::BackendKind::Embree, &scene.objects).unwrap();
-    let mut snapped = Animator::new(&scene, &mut accel, Techniques::AUTO, 0..5);
-    let mut resampled = Animator::new(&scene, &mut accel2, Techniques::AUTO, 0..5);
-    resampled.set_fractional_pan(FractionalPan::Resample);
+    let mut snapped = Animator::new(&scene, &mut accel, Options::new(Techniques::AUTO, 0..5));
+    let mut resampled = Animator::new(&scene, &mut accel2, resampling(0..5));
     assert!(!resampled.is_exact());
     for frame in 0..5 {
-        let a = snapped.render(frame).0.unwrap();
-        let b = resampled.render(frame).0.unwrap();
+        let a = snapped.render(frame).remove(0).frame.unwrap();
+        let b = resampled.render(frame).remove(0).frame.unwrap();
         let error = image_error(&b, &a);
         assert!(error.max_abs < 1e-4, "frame {frame}: {error:?}");
     }
@@ -397,11 +400,10 @@ fn resampled_pans_match_snapped_ones_on_whole_samples_and_measure_their_error() 
     let mut scene = paper_with_keys(&(key(0, "yaw = 0.0") + &key(3, "yaw = 10.0")), 4);
     scene.camera.fov = 100f64.to_radians();
     drop(snapped);
-    let mut resampled = Animator::new(&scene, &mut accel, Techniques::AUTO, 0..4);
-    resampled.set_fractional_pan(FractionalPan::Resample);
-    let (frame, _, stats) = resampled.render(2);
-    assert_eq!(stats.mode, "pan");
-    let (truth, _) = resampled.render_true_view(2);
+    let mut resampled = Animator::new(&scene, &mut accel, resampling(0..4));
+    let ViewOutput { frame, stats, .. } = resampled.render(2).remove(0);
+    assert_eq!(stats.mode.as_str(), "pan");
+    let (truth, _) = resampled.render_true_view(2, 0);
     let error = image_error(&frame.unwrap(), &truth);
     assert!(
         error.psnr_db > 12.0 && error.psnr_db.is_finite(),
@@ -559,7 +561,6 @@ fn chunks_of_an_array_job_render_the_frames_of_one_run() {
 
 #[test]
 fn views_reaching_a_pole_keep_panning_in_both_pan_modes() {
-    use retrace::anim::FractionalPan;
     // 90 degrees over 64 px: exactly 256 columns a turn and 128 rows from
     // pole to pole. A 48-row view pitched -56.25 degrees ends on the last
     // row; pitched +56.25 it starts on the first.
@@ -568,14 +569,14 @@ fn views_reaching_a_pole_keep_panning_in_both_pan_modes() {
             + &key(3, &format!("yaw = 12.0\npitch = {pitch}\nfov = 90.0"));
         let mut scene = paper_with_keys(&keys, 4);
         scene.camera.fov = 90f64.to_radians();
-        let stats = common::run_exact(
+        let stats = crate::common::run_exact(
             &scene,
             retrace::accel::BackendKind::Embree,
             Techniques::AUTO,
         );
         for s in &stats[1..] {
             assert!(
-                s.mode == "pan" && s.pixels_reused > 0 && s.reason.is_empty(),
+                s.mode.as_str() == "pan" && s.pixels_reused > 0 && s.reason.is_none(),
                 "pitch {pitch}, frame {}: {} {:?}, {} reused",
                 s.frame,
                 s.mode,
@@ -585,11 +586,14 @@ fn views_reaching_a_pole_keep_panning_in_both_pan_modes() {
         }
         let mut accel =
             Accelerator::build(retrace::accel::BackendKind::Embree, &scene.objects).unwrap();
-        let mut resampled = Animator::new(&scene, &mut accel, Techniques::AUTO, 0..4);
-        resampled.set_fractional_pan(FractionalPan::Resample);
+        let mut resampled = Animator::new(&scene, &mut accel, resampling(0..4));
         for frame in 0..4 {
-            let (image, _, stats) = resampled.render(frame);
-            let (truth, _) = resampled.render_true_view(frame);
+            let ViewOutput {
+                frame: image,
+                stats,
+                ..
+            } = resampled.render(frame).remove(0);
+            let (truth, _) = resampled.render_true_view(frame, 0);
             let error = retrace::metrics::image_error(&image.unwrap(), &truth);
             assert!(
                 error.mean_abs < 0.1,
@@ -620,12 +624,14 @@ fn a_run_of_later_frames_equals_one_long_run() {
     let scene = pan_then_still();
     let mut accel =
         Accelerator::build(retrace::accel::BackendKind::Embree, &scene.objects).unwrap();
-    let mut long = Animator::new(&scene, &mut accel, Techniques::AUTO, 0..10);
-    let long_frames: Vec<_> = (0..10).map(|f| long.render(f).0.unwrap()).collect();
+    let mut long = Animator::new(&scene, &mut accel, Options::new(Techniques::AUTO, 0..10));
+    let long_frames: Vec<_> = (0..10)
+        .map(|f| long.render(f).remove(0).frame.unwrap())
+        .collect();
     drop(long);
-    let mut late = Animator::new(&scene, &mut accel, Techniques::AUTO, 5..10);
+    let mut late = Animator::new(&scene, &mut accel, Options::new(Techniques::AUTO, 5..10));
     for frame in 5..10 {
-        let image = late.render(frame).0.unwrap();
+        let image = late.render(frame).remove(0).frame.unwrap();
         assert_eq!(
             retrace::metrics::count_differences(&image, &long_frames[frame as usize]),
             0,
@@ -640,21 +646,25 @@ fn a_pan_too_narrow_for_a_whole_turn_buffer_renders_in_full() {
     let keys = key(0, "yaw = 0.0\nfov = 0.001") + &key(2, "yaw = 0.002\nfov = 0.001");
     let mut scene = paper_with_keys(&keys, 3);
     scene.camera.fov = 0.001f64.to_radians();
-    let stats = common::run_exact(
+    let stats = crate::common::run_exact(
         &scene,
         retrace::accel::BackendKind::Embree,
         Techniques::AUTO,
     );
     for s in &stats {
-        assert_eq!(s.mode, "full", "frame {}", s.frame);
-        assert!(s.reason.contains("pan buffer"), "{}", s.reason);
+        assert_eq!(s.mode.as_str(), "full", "frame {}", s.frame);
+        assert!(
+            crate::common::reason(s).contains("pan buffer"),
+            "{:?}",
+            crate::common::reason(s)
+        );
     }
     // Not snapped to a lattice: the camera's own rays.
     let mut accel =
         Accelerator::build(retrace::accel::BackendKind::Embree, &scene.objects).unwrap();
-    let mut animator = Animator::new(&scene, &mut accel, Techniques::AUTO, 0..3);
-    let image = animator.render(1).0.unwrap();
-    let (truth, _) = animator.render_true_view(1);
+    let mut animator = Animator::new(&scene, &mut accel, Options::new(Techniques::AUTO, 0..3));
+    let image = animator.render(1).remove(0).frame.unwrap();
+    let (truth, _) = animator.render_true_view(1, 0);
     assert_eq!(retrace::metrics::count_differences(&image, &truth), 0);
 }
 
@@ -693,5 +703,13 @@ fn gif_frames_last_as_long_as_the_frame_rate_says() {
                 "{fps} fps"
             );
         }
+    }
+}
+
+/// Every technique over `frames`, fractional pans resampled.
+fn resampling(frames: std::ops::Range<u32>) -> Options {
+    Options {
+        fractional_pan: retrace::reuse::pan::FractionalPan::Resample,
+        ..Options::new(Techniques::AUTO, frames)
     }
 }

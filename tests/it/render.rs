@@ -10,8 +10,6 @@ use retrace::render::{render_frame, trace_groups, Frame, SampleGroup};
 use retrace::scene::{paper_scene, parse_scene_str, Scene, SceneOverrides};
 use retrace::shade::Shader;
 
-mod common;
-
 fn small(width: u32, height: u32) -> SceneOverrides {
     SceneOverrides {
         width: Some(width),

@@ -5,23 +5,22 @@ use std::path::Path;
 use std::process::{Command, Output};
 
 use retrace::accel::{Accelerator, BackendKind};
-use retrace::anim::{Animator, FrameStats, Techniques};
+use retrace::frame_loop::{Animator, FrameStats, Options, Techniques};
 use retrace::metrics::count_differences;
 use retrace::scene::Scene;
 
 /// Renders every frame of `scene`'s timeline with `techniques`, checks each
 /// against a full render of the same frame bit for bit (linear colour and
 /// 8-bit output), and returns the frames' stats.
-#[allow(dead_code)] // not every test file uses it
 pub fn run_exact(scene: &Scene, backend: BackendKind, techniques: Techniques) -> Vec<FrameStats> {
     let mut accel = Accelerator::build(backend, &scene.objects).unwrap();
     let frames = scene.animation.as_ref().unwrap().frames;
-    let mut animator = Animator::new(scene, &mut accel, techniques, 0..frames);
+    let mut animator = Animator::new(scene, &mut accel, Options::new(techniques, 0..frames));
     let mut all = Vec::new();
     for frame in 0..frames {
-        let (image, rgb, stats) = animator.render(frame);
-        let image = image.unwrap();
-        let (reference, _) = animator.render_full(frame);
+        let output = animator.render(frame).remove(0);
+        let (image, rgb, stats) = (output.frame.unwrap(), output.image, output.stats);
+        let (reference, _) = animator.render_full(frame, 0);
         assert_eq!(
             count_differences(&image, &reference),
             0,
@@ -36,7 +35,6 @@ pub fn run_exact(scene: &Scene, backend: BackendKind, techniques: Techniques) ->
 
 /// Runs each test body once per backend, as `embree::name` and `grid::name`,
 /// with `$backend` bound to the backend's `BackendKind`.
-#[macro_export]
 macro_rules! on_every_backend {
     ($($name:ident($backend:ident) $body:block)*) => {
         mod embree {
@@ -51,7 +49,6 @@ macro_rules! on_every_backend {
 }
 
 /// Runs the `retrace` binary with `args` in `dir`.
-#[allow(dead_code)] // not every test file uses it
 pub fn retrace(args: &[&str], dir: &Path) -> Output {
     Command::new(env!("CARGO_BIN_EXE_retrace"))
         .args(args)
@@ -62,7 +59,6 @@ pub fn retrace(args: &[&str], dir: &Path) -> Output {
 
 /// [`retrace`], failing the test (with the program's stderr) unless it
 /// succeeded.
-#[allow(dead_code)] // not every test file uses it
 pub fn retrace_ok(args: &[&str], dir: &Path) -> Output {
     let out = retrace(args, dir);
     assert!(
@@ -72,4 +68,9 @@ pub fn retrace_ok(args: &[&str], dir: &Path) -> Output {
         String::from_utf8_lossy(&out.stderr)
     );
     out
+}
+
+/// Why a frame did not reuse what it kept, in words ("" for no reason).
+pub fn reason(stats: &FrameStats) -> String {
+    stats.reason.map(|r| r.to_string()).unwrap_or_default()
 }

@@ -6,13 +6,11 @@ use std::path::Path;
 
 use proptest::prelude::*;
 use retrace::accel::BackendKind;
-use retrace::anim::{FrameStats, Techniques};
 use retrace::camera::Projection;
+use retrace::frame_loop::{FrameStats, Options, Techniques, ViewOutput};
 use retrace::scene::{parse_scene_str, Scene, SceneOverrides};
 
-mod common;
-
-const PAPER: &str = include_str!("../scenes/paper.toml");
+const PAPER: &str = include_str!("../../scenes/paper.toml");
 
 /// The paper scene at `width` x `height` with `extra` (objects and a
 /// timeline) appended.
@@ -40,7 +38,7 @@ radius = 0.5
 material = "bouncer"
 "#;
 
-use common::run_exact;
+use crate::common::run_exact;
 
 fn traced(stats: &[FrameStats]) -> u64 {
     stats.iter().map(|s| s.samples_traced).sum()
@@ -55,7 +53,7 @@ on_every_backend! {
         );
         let stats = run_exact(&scene, backend, Techniques::AUTO);
         // The camera stands still: its own image, no pan lattice.
-        assert!(stats.iter().all(|s| s.mode == "ostc"), "{:?}", stats.iter().map(|s| s.mode).collect::<Vec<_>>());
+        assert!(stats.iter().all(|s| s.mode.as_str() == "ostc"), "{:?}", stats.iter().map(|s| s.mode).collect::<Vec<_>>());
         assert!(stats[1..].iter().all(|s| s.dirty_regions > 0));
         assert!(stats[1..].iter().all(|s| s.voxels_walked > 0));
         // Less than half of the frames after the first is re-traced.
@@ -99,7 +97,7 @@ on_every_backend! {
             48,
         );
         let stats = run_exact(&scene, backend, Techniques::AUTO);
-        assert!(stats.iter().all(|s| s.mode == "pan+ostc"));
+        assert!(stats.iter().all(|s| s.mode.as_str() == "pan+ostc"));
         assert!(traced(&stats) < 6 * 64 * 48);
     }
 
@@ -110,31 +108,31 @@ on_every_backend! {
         );
         let scene = paper_with(&extra, 64, 48);
         let mut accel = retrace::accel::Accelerator::build(backend, &scene.objects).unwrap();
-        let mut animator = retrace::anim::Animator::new(&scene, &mut accel, Techniques::AUTO, 0..6);
+        let mut animator = retrace::frame_loop::Animator::new(&scene, &mut accel, Options::new(Techniques::AUTO, 0..6));
         let mut traced = 0;
         for frame in 0..6 {
-            let outputs = animator.render_viewports(frame);
+            let outputs = animator.render(frame);
             let stats = &outputs[0].stats;
-            assert_eq!(stats.mode, "rsvp+ostc", "frame {frame}: {}", stats.reason);
+            assert_eq!(stats.mode.as_str(), "rsvp+ostc", "frame {frame}: {}", crate::common::reason(stats));
             if frame > 0 {
                 assert!(stats.dirty_regions > 0, "frame {frame}");
                 traced += stats.samples_traced;
             }
-            let (compared, differing) = animator.verify_sample_buffer().unwrap();
+            let (compared, differing) = animator.verify_store().unwrap();
             assert!(compared > 0);
             assert_eq!(differing, 0, "frame {frame}: buffer samples differ from a fresh trace");
             // What the viewport shows from the kept buffer (and its views,
             // updated as samples were erased and traced again) equals what a
             // fresh buffer shows of this frame alone.
             let mut accel = retrace::accel::Accelerator::build(backend, &scene.objects).unwrap();
-            let mut fresh = retrace::anim::Animator::new(&scene, &mut accel, Techniques::AUTO, 0..6);
-            assert!(fresh.render_viewports(frame)[0].image == outputs[0].image, "frame {frame}: kept and fresh views differ");
+            let mut fresh = retrace::frame_loop::Animator::new(&scene, &mut accel, Options::new(Techniques::AUTO, 0..6));
+            assert!(fresh.render(frame)[0].image == outputs[0].image, "frame {frame}: kept and fresh views differ");
         }
         // Kept samples: later frames trace far less than the first.
         let first = {
             let mut accel = retrace::accel::Accelerator::build(backend, &scene.objects).unwrap();
-            let mut fresh = retrace::anim::Animator::new(&scene, &mut accel, Techniques::AUTO, 0..6);
-            fresh.render_viewports(0)[0].stats.samples_traced
+            let mut fresh = retrace::frame_loop::Animator::new(&scene, &mut accel, Options::new(Techniques::AUTO, 0..6));
+            fresh.render(0)[0].stats.samples_traced
         };
         assert!(traced < 5 * first, "traced {traced} after a first frame of {first}");
     }
@@ -149,7 +147,7 @@ on_every_backend! {
             scene.camera.projection = projection;
             scene.camera.fov = 70f64.to_radians();
             let stats = run_exact(&scene, backend, Techniques::AUTO);
-            assert!(stats.iter().all(|s| s.mode == "ostc"), "{projection}: {:?}", stats.iter().map(|s| (s.mode, s.reason.clone())).collect::<Vec<_>>());
+            assert!(stats.iter().all(|s| s.mode.as_str() == "ostc"), "{projection}: {:?}", stats.iter().map(|s| (s.mode, s.reason)).collect::<Vec<_>>());
             assert!(traced(&stats[1..]) < 4 * 64 * 48 / 2, "{projection}: traced {}", traced(&stats[1..]));
         }
     }
@@ -166,14 +164,14 @@ on_every_backend! {
         };
         let stats = run_exact(&scene, backend, pan_only);
         assert!(stats[1..].iter().all(|s| s.samples_traced >= 32 * 24));
-        assert!(stats[1].reason.contains("ostc is off"), "{}", stats[1].reason);
+        assert!(crate::common::reason(&stats[1]).contains("ostc is off"), "{:?}", crate::common::reason(&stats[1]));
     }
 }
 
 #[test]
 fn ostc_too_big_for_memory_is_refused_and_frames_stay_exact() {
     use retrace::accel::Accelerator;
-    use retrace::anim::{Animator, OstcSettings};
+    use retrace::frame_loop::{Animator, OstcSettings};
     use retrace::metrics::count_differences;
     let scene = paper_with(
         &format!("{BALL}\n[animation]\nframes = 3\n[[animation.bounce]]\nobject = \"ball\"\nheight = 2.0\nperiod = 4\n"),
@@ -181,15 +179,22 @@ fn ostc_too_big_for_memory_is_refused_and_frames_stay_exact() {
         120,
     );
     let mut accel = Accelerator::build(BackendKind::Embree, &scene.objects).unwrap();
-    let mut animator = Animator::new(&scene, &mut accel, Techniques::AUTO, 0..3);
     // 40x60 regions of one group each: 38 words a voxel; 16M voxels, 10 GB.
-    animator.set_ostc(OstcSettings {
-        regions: retrace::reuse::regions::RegionGrid(256),
-        voxels: 16_777_216,
-    });
+    let options = Options {
+        ostc: OstcSettings {
+            regions: retrace::reuse::regions::RegionGrid(256),
+            voxels: 16_777_216,
+        },
+        ..Options::new(Techniques::AUTO, 0..3)
+    };
+    let mut animator = Animator::new(&scene, &mut accel, options);
     for frame in 0..3 {
-        let (image, _, stats) = animator.render(frame);
-        let (reference, _) = animator.render_full(frame);
+        let ViewOutput {
+            frame: image,
+            stats,
+            ..
+        } = animator.render(frame).remove(0);
+        let (reference, _) = animator.render_full(frame, 0);
         assert_eq!(
             count_differences(&image.unwrap(), &reference),
             0,
@@ -197,8 +202,8 @@ fn ostc_too_big_for_memory_is_refused_and_frames_stay_exact() {
         );
         if frame > 0 {
             assert!(
-                stats.reason.contains("OSTC was refused"),
-                "{}",
+                crate::common::reason(&stats).contains("OSTC was refused"),
+                "{:?}",
                 stats.reason
             );
         }
@@ -220,7 +225,7 @@ fn still_scenes_build_no_ostc_bookkeeping() {
     let stats = run_exact(&scene, BackendKind::Embree, Techniques::AUTO);
     assert!(stats
         .iter()
-        .all(|s| s.mode == "pan" && s.voxels_walked == 0));
+        .all(|s| s.mode.as_str() == "pan" && s.voxels_walked == 0));
 }
 
 #[test]
@@ -378,10 +383,10 @@ proptest! {
         for backend in [BackendKind::Embree, BackendKind::Grid] {
             let mut accel = retrace::accel::Accelerator::build(backend, &scene.objects).unwrap();
             let mut animator =
-                retrace::anim::Animator::new(&scene, &mut accel, Techniques::AUTO, 0..5);
+                retrace::frame_loop::Animator::new(&scene, &mut accel, Options::new(Techniques::AUTO, 0..5));
             for frame in 0..5 {
-                animator.render_viewports(frame);
-                let (compared, differing) = animator.verify_sample_buffer().unwrap();
+                animator.render(frame);
+                let (compared, differing) = animator.verify_store().unwrap();
                 prop_assert!(compared > 0);
                 prop_assert_eq!(differing, 0, "{:?} frame {}", backend, frame);
             }
@@ -429,7 +434,7 @@ fn check_dirty_frames(dir: &Path, scene: &str, suffix: &str, extra: &[&str]) {
         "out/d_##.png",
     ];
     args.extend_from_slice(extra);
-    common::retrace_ok(&args, dir);
+    crate::common::retrace_ok(&args, dir);
     let black = |name: &str| black_pixels(dir, &format!("{name}{suffix}.png"));
     assert_eq!(black("d_00"), 64 * 48);
     let later = black("d_02");

@@ -2,8 +2,7 @@
 //! clear message naming file, line and field, a non-zero exit, no panic and
 //! no output file.
 
-mod common;
-use common::retrace;
+use crate::common::retrace;
 
 use std::path::{Path, PathBuf};
 use std::process::Output;

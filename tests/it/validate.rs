@@ -1,8 +1,7 @@
 //! `retrace validate`: Embree against the pure-Rust grid, from the command
 //! line.
 
-mod common;
-use common::retrace;
+use crate::common::retrace;
 
 #[test]
 fn validate_passes_on_the_paper_scene_and_writes_its_report() {

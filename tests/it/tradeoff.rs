@@ -2,8 +2,7 @@
 //! the CSV and the plot, exact knobs measure no error, approximations do,
 //! and a bad frame range fails cleanly before any work.
 
-mod common;
-use common::retrace;
+use crate::common::retrace;
 
 use std::collections::HashMap;
 use std::path::Path;

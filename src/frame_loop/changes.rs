@@ -1,0 +1,202 @@
+//! What changes in the scene between frames, and what OSTC says those
+//! changes dirty: the one place where a store's samples are invalidated.
+//!
+//! Promises: every sample whose colour a change of an animated object or
+//! light can alter is erased from the store before the next view reads it
+//! (OSTC is conservative, see [`crate::reuse::ostc`]); a store that keeps
+//! no OSTC restarts instead, which is always exact.
+
+use std::time::Instant;
+
+use crate::geometry::{Aabb, Light, Object, Placement, Shape};
+use crate::reuse::ostc::{Footprint, Ostc};
+use crate::reuse::regions::{RegionLayout, RegionSet};
+use crate::reuse::{Erasure, SampleStore};
+use crate::scene::Scene;
+use crate::timeline::Animation;
+
+use super::options::OstcSettings;
+
+/// The most memory OSTC's region bits and grid may take (E3's: 1 MB). Fine
+/// regions over a narrow view's whole-turn buffer, or a huge voxel grid,
+/// would pass it: OSTC is then off, with the reason.
+pub const OSTC_LIMIT_BYTES: f64 = 2e9;
+
+/// Where the scene's moving parts are: what a store's samples were traced
+/// with.
+#[derive(Clone, Debug, PartialEq)]
+pub(super) struct ScenePose {
+    /// Where each animated object is (in the order of the tracks).
+    places: Vec<Footprint>,
+    lights: Vec<Light>,
+}
+
+impl ScenePose {
+    pub(super) fn of(scene: &Scene, animation: Option<&Animation>) -> ScenePose {
+        let places = animation
+            .into_iter()
+            .flat_map(|a| &a.objects)
+            .flat_map(|track| &track.objects)
+            .map(|&object| footprint(&scene.objects[object]))
+            .collect();
+        ScenePose {
+            places,
+            lights: scene.lights.clone(),
+        }
+    }
+}
+
+/// Where an object is in the world, for OSTC.
+fn footprint(object: &Object) -> Footprint {
+    match (&object.shape, object.placement) {
+        (Shape::Sphere(sphere), Placement::Instance(xf)) => Footprint::Ball {
+            center: xf.transform_point3(sphere.center),
+            // Motion is rigid: any axis gives the scale.
+            radius: sphere.radius * xf.matrix3.x_axis.length(),
+        },
+        (Shape::Sphere(sphere), Placement::World) => Footprint::Ball {
+            center: sphere.center,
+            radius: sphere.radius,
+        },
+        _ => Footprint::Box(object.world_bounds()),
+    }
+}
+
+/// Everything the animated objects of `scene` cover over the whole
+/// animation (not just the frames of a run: a superset is always safe).
+pub fn swept_bounds(scene: &Scene, animation: &Animation) -> Aabb {
+    let mut swept = Aabb::EMPTY;
+    for track in &animation.objects {
+        let rest = track
+            .objects
+            .iter()
+            .map(|&object| scene.objects[object].shape.bounds())
+            .fold(Aabb::EMPTY, |a, b| a.union(b));
+        if rest.is_empty() {
+            continue;
+        }
+        for frame in 0..animation.frames {
+            swept = swept.union(rest.transformed(&track.transform_at(frame)));
+        }
+    }
+    swept
+}
+
+/// OSTC bookkeeping over `layout` for the moving parts of `scene`'s
+/// timeline: None when nothing but the camera moves (no grid when no
+/// object moves, no light bookkeeping when no light moves); an error, the
+/// reason, when it cannot be kept.
+pub(super) fn build_ostc(
+    scene: &Scene,
+    animation: &Animation,
+    settings: &OstcSettings,
+    layout: RegionLayout,
+) -> Result<Option<Ostc>, String> {
+    if !animation.moves_scene() {
+        return Ok(None);
+    }
+    let swept = (!animation.objects.is_empty()).then(|| swept_bounds(scene, animation));
+    if swept.is_some_and(|b| !(b.max - b.min).is_finite()) {
+        return Err("the moving objects' swept bounds are not finite (no grid fits them)".into());
+    }
+    let mut animated_lights = vec![false; scene.lights.len()];
+    for track in &animation.lights {
+        animated_lights[track.light] = true;
+    }
+    let voxels = settings.voxels;
+    let bytes = Ostc::bytes_for(layout.count(), voxels, swept.is_some());
+    if bytes > OSTC_LIMIT_BYTES {
+        return Err(format!(
+            "its bookkeeping ({} regions of {}x{} samples, {voxels} voxels) would take \
+             {:.1} GB; the limit is {:.0} GB",
+            layout.count(),
+            layout.width,
+            layout.height,
+            bytes / 1e9,
+            OSTC_LIMIT_BYTES / 1e9
+        ));
+    }
+    Ok(Some(Ostc::new(layout, swept, voxels, &animated_lights)))
+}
+
+/// What invalidating a store cost and nulled.
+#[derive(Clone, Copy, Debug, Default)]
+pub(super) struct Invalidation {
+    pub regions: u64,
+    pub samples_nulled: u64,
+    pub ms: f64,
+}
+
+/// Erases from `store` every sample the change from `old` to `new` can
+/// alter, as `ostc` finds them, and forgets their recorded rays (the
+/// re-traced samples record them again).
+pub(super) fn invalidate(
+    store: &mut dyn SampleStore,
+    ostc: &mut Ostc,
+    old: &ScenePose,
+    new: &ScenePose,
+) -> Invalidation {
+    let start = Instant::now();
+    let layout = *ostc.layout();
+    let lit = dirty_by_lights(ostc, old, new);
+    let (regions, samples_nulled) = match store.erasure() {
+        Erasure::Regions => {
+            let mut dirty = lit;
+            for (was, is) in old.places.iter().zip(&new.places) {
+                if was != is {
+                    dirty.union_with(&ostc.dirty_for(&[*was, *is]));
+                }
+            }
+            let nulled = store.erase(&layout, &dirty);
+            ostc.forget(&dirty);
+            (dirty.len(), nulled)
+        }
+        // A moved light dirties whole regions; a moved object only the
+        // groups whose rays meet it (a region holds many groups of a
+        // finer level).
+        Erasure::Groups => {
+            let (regions, groups) = dirty_groups(ostc, old, new);
+            let mut touched = regions.clone();
+            touched.union_with(&lit);
+            let nulled = store.erase(&layout, &lit) + store.erase_groups(&groups);
+            ostc.forget(&lit);
+            ostc.forget_groups(&regions, &groups);
+            (touched.len(), nulled)
+        }
+    };
+    Invalidation {
+        regions: regions as u64,
+        samples_nulled,
+        ms: start.elapsed().as_secs_f64() * 1e3,
+    }
+}
+
+/// The regions whose samples the lights' change from `old` to `new` can
+/// alter.
+fn dirty_by_lights(ostc: &Ostc, old: &ScenePose, new: &ScenePose) -> RegionSet {
+    let mut dirty = RegionSet::empty(ostc.layout().count());
+    for (index, (was, is)) in old.lights.iter().zip(&new.lights).enumerate() {
+        if was != is {
+            let moved = was.position != is.position;
+            dirty.union_with(&ostc.dirty_for_light(index, moved));
+        }
+    }
+    dirty
+}
+
+/// The groups (sorted keys) whose samples the objects' moves from `old`
+/// to `new` can alter, and the regions they lie in.
+fn dirty_groups(ostc: &Ostc, old: &ScenePose, new: &ScenePose) -> (RegionSet, Vec<u128>) {
+    let mut regions = RegionSet::empty(ostc.layout().count());
+    let mut groups = Vec::new();
+    for (was, is) in old.places.iter().zip(&new.places) {
+        if was != is {
+            let (r, g) = ostc.dirty_groups_for(&[*was, *is]);
+            regions.union_with(&r);
+            groups.extend(g);
+        }
+    }
+    groups.sort_unstable();
+    groups.dedup();
+    (regions, groups)
+}

@@ -1,0 +1,135 @@
+//! What a run of the frame loop is asked to do, settled before its first
+//! frame.
+
+use crate::reuse::ostc::DEFAULT_VOXELS;
+use crate::reuse::pan::FractionalPan;
+use crate::reuse::regions::RegionGrid;
+use crate::reuse::rsvp::RsvpKnobs;
+
+/// Which reuse techniques a run may use (`--mode`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Techniques {
+    pub pan: bool,
+    /// RSVP: viewports resample the lazily traced camera sample buffer.
+    pub rsvp: bool,
+    pub ostc: bool,
+}
+
+impl Techniques {
+    pub const FULL: Techniques = Techniques {
+        pan: false,
+        rsvp: false,
+        ostc: false,
+    };
+    /// Everything the timeline allows.
+    pub const AUTO: Techniques = Techniques {
+        pan: true,
+        rsvp: true,
+        ostc: true,
+    };
+
+    /// Parses `full`, `auto`, or a comma list of techniques (`pan`, `rsvp`,
+    /// `ostc`).
+    pub fn parse(text: &str) -> Result<Techniques, String> {
+        let mut techniques = Techniques::FULL;
+        for word in text.split(',').map(str::trim) {
+            match word {
+                "full" => {}
+                "auto" => techniques = Techniques::AUTO,
+                "pan" => techniques.pan = true,
+                "ostc" => techniques.ostc = true,
+                "rsvp" => techniques.rsvp = true,
+                other => {
+                    return Err(format!(
+                        "unknown mode '{other}' (expected full, auto, or a comma list of: pan, rsvp, ostc)"
+                    ))
+                }
+            }
+        }
+        Ok(techniques)
+    }
+
+    /// Whether a camera image may be kept in a buffer.
+    pub(super) fn buffered(self) -> bool {
+        self.pan || self.ostc
+    }
+}
+
+/// OSTC settings (`--regions`, `--ostc-voxels`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct OstcSettings {
+    pub regions: RegionGrid,
+    pub voxels: u32,
+}
+
+impl Default for OstcSettings {
+    fn default() -> Self {
+        OstcSettings {
+            regions: RegionGrid::default(),
+            voxels: DEFAULT_VOXELS,
+        }
+    }
+}
+
+/// Everything a run of [`super::Animator`] is asked for.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Options {
+    pub techniques: Techniques,
+    /// The frames of the run (they size the pan buffer's rows).
+    pub frames: std::ops::Range<u32>,
+    /// Whether frames come in linear colour too, not only as 8-bit sRGB
+    /// (for bit-exact checks; without, reused frames skip copying 12
+    /// bytes per pixel).
+    pub linear: bool,
+    pub fractional_pan: FractionalPan,
+    pub ostc: OstcSettings,
+    pub rsvp: RsvpKnobs,
+    /// Whether each view also comes with its picture painted black where
+    /// the frame traced samples (the paper's figure 4).
+    pub traced_images: bool,
+}
+
+impl Options {
+    /// `techniques` over `frames`, everything else at its default: linear
+    /// colour on, snapped pans, default OSTC and RSVP knobs.
+    pub fn new(techniques: Techniques, frames: std::ops::Range<u32>) -> Options {
+        Options {
+            techniques,
+            frames,
+            linear: true,
+            fractional_pan: FractionalPan::Snap,
+            ostc: OstcSettings::default(),
+            rsvp: RsvpKnobs::default(),
+            traced_images: false,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn modes_parse() {
+        assert_eq!(Techniques::parse("full"), Ok(Techniques::FULL));
+        assert_eq!(Techniques::parse("auto"), Ok(Techniques::AUTO));
+        assert_eq!(
+            Techniques::parse("pan"),
+            Ok(Techniques {
+                pan: true,
+                rsvp: false,
+                ostc: false
+            })
+        );
+        assert_eq!(
+            Techniques::parse("rsvp,pan"),
+            Ok(Techniques {
+                pan: true,
+                rsvp: true,
+                ostc: false
+            })
+        );
+        assert_eq!(Techniques::parse("pan,ostc,rsvp"), Ok(Techniques::AUTO));
+        assert!(Techniques::parse("zoom").is_err());
+    }
+}

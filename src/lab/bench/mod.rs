@@ -1,0 +1,416 @@
+//! Measurements behind `retrace bench`.
+//!
+//! `frame`: how much a full frame costs beyond Embree itself. The frame is
+//! rendered once through a recording intersector that keeps every packet
+//! call (primary, shadow, reflection: rays and lane masks); then full
+//! renders and replays of exactly those packets through bare Embree (no ray
+//! generation, no shading, no plane tests) alternate, and the medians are
+//! compared. Both sides run on the same rayon pool.
+//!
+//! `backends`: the grid against Embree on the packet calls of one frame
+//! (planes included on both sides, as the renderer traces them).
+//!
+//! Experiments (E1-E4): a sequence rendered in full and accelerated in one
+//! run, with a per-frame profile of both sides and the oracle (the least
+//! tracing any reuse could do); [`crate::lab::report`] turns them into the table.
+
+mod oracle;
+mod sequence;
+mod viewport_oracle;
+
+pub use oracle::{rays_per_pixel, OracleRays};
+pub use sequence::{
+    bench_sequence, ErrorSummary, FrameProfile, Measure, OracleSpeedups, SequenceBench,
+};
+pub use viewport_oracle::viewport_oracle;
+
+use std::sync::Mutex;
+use std::time::Instant;
+
+use rayon::prelude::*;
+
+use crate::accel::embree::{EmbreeError, EmbreeIntersector};
+use crate::accel::{AccelError, Accelerator, BackendKind, Intersector};
+use crate::ray::{Hit, HitPacket, LaneMask, Ray, RayPacket, PACKET_WIDTH};
+use crate::render::render_frame;
+use crate::scene::Scene;
+use crate::shade::RayCounts;
+
+#[derive(Clone, Copy)]
+enum Call {
+    Intersect,
+    Occluded,
+}
+
+struct Recorded {
+    call: Call,
+    rays: RayPacket,
+    mask: LaneMask,
+}
+
+/// Forwards to an intersector and keeps a copy of every packet call.
+struct Recorder<'a> {
+    inner: &'a dyn Intersector,
+    log: Mutex<Vec<Recorded>>,
+}
+
+impl Recorder<'_> {
+    fn record(&self, call: Call, rays: &RayPacket, mask: LaneMask) {
+        self.log
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .push(Recorded {
+                call,
+                rays: *rays,
+                mask,
+            });
+    }
+}
+
+impl Intersector for Recorder<'_> {
+    fn intersect(&self, ray: &Ray) -> Option<Hit> {
+        let mut rays = [Ray::INACTIVE; PACKET_WIDTH];
+        rays[0] = *ray;
+        self.record(Call::Intersect, &rays, 1);
+        self.inner.intersect(ray)
+    }
+
+    fn occluded(&self, ray: &Ray) -> bool {
+        let mut rays = [Ray::INACTIVE; PACKET_WIDTH];
+        rays[0] = *ray;
+        self.record(Call::Occluded, &rays, 1);
+        self.inner.occluded(ray)
+    }
+
+    fn intersect8(&self, rays: &RayPacket, mask: LaneMask, hits: &mut HitPacket) {
+        self.record(Call::Intersect, rays, mask);
+        self.inner.intersect8(rays, mask, hits)
+    }
+
+    fn occluded8(&self, rays: &RayPacket, mask: LaneMask) -> LaneMask {
+        self.record(Call::Occluded, rays, mask);
+        self.inner.occluded8(rays, mask)
+    }
+}
+
+/// What a packet-replay measurement ran on.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct PacketRun {
+    pub width: u32,
+    pub height: u32,
+    pub repeats: usize,
+    /// Packet calls in one frame.
+    pub packets: usize,
+    pub rays: RayCounts,
+    pub threads: usize,
+}
+
+impl PacketRun {
+    fn new(scene: &Scene, repeats: usize, packets: usize, rays: RayCounts) -> PacketRun {
+        PacketRun {
+            width: scene.camera.width,
+            height: scene.camera.height,
+            repeats,
+            packets,
+            rays,
+            threads: rayon::current_num_threads(),
+        }
+    }
+}
+
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct FrameBench {
+    #[serde(flatten)]
+    pub run: PacketRun,
+    /// Median of the full renders (ray generation, Embree, planes, shading).
+    pub full_ms: f64,
+    /// Median of the bare Embree replays of the same packets.
+    pub embree_ms: f64,
+    /// full / embree.
+    pub ratio: f64,
+}
+
+/// The packet calls a full frame of `scene` makes, recorded once.
+fn record_frame(scene: &Scene, accel: &Accelerator) -> (Vec<Recorded>, RayCounts) {
+    let recorder = Recorder {
+        inner: accel,
+        log: Mutex::new(Vec::new()),
+    };
+    let (_, rays) = render_frame(scene, &recorder);
+    (
+        recorder.log.into_inner().unwrap_or_else(|e| e.into_inner()),
+        rays,
+    )
+}
+
+/// Replays recorded packet calls through `intersector`, in parallel.
+fn replay(log: &[Recorded], intersector: &dyn Intersector) {
+    log.par_iter()
+        .with_min_len(16)
+        .for_each(|packet| match packet.call {
+            Call::Intersect => {
+                let mut hits = [None; PACKET_WIDTH];
+                intersector.intersect8(&packet.rays, packet.mask, &mut hits);
+                std::hint::black_box(&hits);
+            }
+            Call::Occluded => {
+                std::hint::black_box(intersector.occluded8(&packet.rays, packet.mask));
+            }
+        })
+}
+
+/// Each frame's times: the medians of its rounds, full and accelerated.
+fn set_frame_medians(profile: &mut [FrameProfile], full: Vec<Vec<f64>>, fast: Vec<Vec<f64>>) {
+    for ((row, full), fast) in profile.iter_mut().zip(full).zip(fast) {
+        row.full_ms = median(full);
+        row.accelerated_ms = median(fast);
+    }
+}
+
+fn median(mut values: Vec<f64>) -> f64 {
+    values.sort_by(f64::total_cmp);
+    values[values.len() / 2]
+}
+
+/// Measures a full frame of `scene` against bare Embree on the same packets.
+pub fn bench_frame(
+    scene: &Scene,
+    accel: &Accelerator,
+    repeats: usize,
+    mut progress: impl FnMut(),
+) -> Result<FrameBench, EmbreeError> {
+    let bare = EmbreeIntersector::build(&scene.objects)?;
+    let recorder = Recorder {
+        inner: accel,
+        log: Mutex::new(Vec::new()),
+    };
+    let (_, rays) = render_frame(scene, &recorder);
+    let log = recorder.log.into_inner().unwrap_or_else(|e| e.into_inner());
+
+    let replay = || {
+        log.par_iter()
+            .with_min_len(16)
+            .for_each(|packet| match packet.call {
+                Call::Intersect => {
+                    let mut hits = [None; PACKET_WIDTH];
+                    bare.intersect8(&packet.rays, packet.mask, &mut hits);
+                    std::hint::black_box(&hits);
+                }
+                Call::Occluded => {
+                    std::hint::black_box(bare.occluded8(&packet.rays, packet.mask));
+                }
+            })
+    };
+    // Warm both paths (page faults, caches, rayon's threads).
+    replay();
+    std::hint::black_box(render_frame(scene, accel));
+
+    let repeats = repeats.max(1);
+    let mut full = Vec::with_capacity(repeats);
+    let mut embree = Vec::with_capacity(repeats);
+    for _ in 0..repeats {
+        let start = Instant::now();
+        std::hint::black_box(render_frame(scene, accel));
+        full.push(start.elapsed().as_secs_f64() * 1e3);
+        let start = Instant::now();
+        replay();
+        embree.push(start.elapsed().as_secs_f64() * 1e3);
+        progress();
+    }
+    let (full_ms, embree_ms) = (median(full), median(embree));
+    Ok(FrameBench {
+        run: PacketRun::new(scene, repeats, log.len(), rays),
+        full_ms,
+        embree_ms,
+        ratio: full_ms / embree_ms,
+    })
+}
+
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct BackendBench {
+    #[serde(flatten)]
+    pub run: PacketRun,
+    /// Median time of Embree on the recorded packets (planes included).
+    pub embree_ms: f64,
+    /// Median time of the grid on the same packets.
+    pub grid_ms: f64,
+    /// grid / embree.
+    pub ratio: f64,
+}
+
+/// Times both backends on the packet calls of one full frame (recorded
+/// through Embree), alternating, medians compared.
+pub fn bench_backends(
+    scene: &Scene,
+    repeats: usize,
+    mut progress: impl FnMut(),
+) -> Result<BackendBench, AccelError> {
+    let embree = Accelerator::build(BackendKind::Embree, &scene.objects)?;
+    let grid = Accelerator::build(BackendKind::Grid, &scene.objects)?;
+    let (log, rays) = record_frame(scene, &embree);
+    replay(&log, &embree);
+    replay(&log, &grid);
+    let repeats = repeats.max(1);
+    let (mut embree_times, mut grid_times) = (Vec::new(), Vec::new());
+    for _ in 0..repeats {
+        let start = Instant::now();
+        replay(&log, &embree);
+        embree_times.push(start.elapsed().as_secs_f64() * 1e3);
+        let start = Instant::now();
+        replay(&log, &grid);
+        grid_times.push(start.elapsed().as_secs_f64() * 1e3);
+        progress();
+    }
+    let (embree_ms, grid_ms) = (median(embree_times), median(grid_times));
+    Ok(BackendBench {
+        run: PacketRun::new(scene, repeats, log.len(), rays),
+        embree_ms,
+        grid_ms,
+        ratio: grid_ms / embree_ms,
+    })
+}
+
+/// Experiment E1 of the paper: the paper scene (as given), yawing 3.6
+/// degrees per frame for 100 frames, a whole turn.
+pub fn e1_scene(mut scene: Scene) -> Scene {
+    use crate::timeline::{Animation, CameraKey, Ease};
+    let camera = &scene.camera;
+    let key = |frame: u32, yaw_deg: f64| CameraKey {
+        frame,
+        yaw: camera.yaw + yaw_deg.to_radians(),
+        pitch: camera.pitch,
+        fov: camera.fov,
+        position: camera.position,
+        ease: Ease::Linear,
+    };
+    scene.animation = Some(Animation::camera_only(
+        100,
+        25.0,
+        vec![key(0, 0.0), key(100, 360.0)],
+    ));
+    scene
+}
+
+/// Which way experiment E2 zooms.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ZoomDirection {
+    /// 100 -> 50 degrees.
+    In,
+    /// 50 -> 100 degrees.
+    Out,
+}
+
+/// Zoom that narrows a 100-degree perspective view to 50 degrees (the
+/// paper's 2:1 in angle).
+pub const E2_ZOOM: f64 = 2.555_723_8;
+
+/// Experiment E2 of the paper: one perspective viewport of the camera's
+/// size (640x480 in the paper scene), 100 deg
+/// wide at zoom 1, zooming between 100 and 50 degrees over 100 frames (a
+/// steady rate) on the paper scene's camera buffer; with `pan_deg_per_frame`
+/// the camera also yaws (E4 without the moving ball).
+pub fn e2_scene(mut scene: Scene, direction: ZoomDirection, pan_deg_per_frame: f64) -> Scene {
+    use crate::camera::{ViewTransform, Viewport};
+    use crate::timeline::{Animation, CameraKey, Ease, ViewportKey, ViewportTrack};
+    let (from, to) = match direction {
+        ZoomDirection::In => (1.0, E2_ZOOM),
+        ZoomDirection::Out => (E2_ZOOM, 1.0),
+    };
+    let key = |frame: u32, zoom: f64| ViewportKey {
+        frame,
+        transform: ViewTransform {
+            zoom,
+            ..ViewTransform::default()
+        },
+        ease: Ease::Linear,
+    };
+    scene.viewports = vec![ViewportTrack {
+        viewport: Viewport {
+            name: "zoom".into(),
+            width: scene.camera.width,
+            height: scene.camera.height,
+            projection: crate::camera::Projection::Perspective,
+            fov: 100f64.to_radians(),
+            yaw: 0.0,
+            pitch: 0.0,
+            transform: ViewTransform::default(),
+        },
+        keys: vec![key(0, from), key(99, to)],
+    }];
+    let camera = &scene.camera;
+    let camera_key = |frame: u32| CameraKey {
+        frame,
+        yaw: camera.yaw + (pan_deg_per_frame * f64::from(frame)).to_radians(),
+        pitch: camera.pitch,
+        fov: camera.fov,
+        position: camera.position,
+        ease: Ease::Linear,
+    };
+    scene.animation = Some(Animation {
+        frames: 100,
+        fps: 25.0,
+        camera_keys: vec![camera_key(0), camera_key(100)],
+        objects: Vec::new(),
+        lights: Vec::new(),
+    });
+    scene
+}
+
+/// Camera yaw per frame in E4 (E1's pan: a whole turn in 100 frames).
+pub const E4_PAN_DEG_PER_FRAME: f64 = 3.6;
+
+/// Experiment E4 on a scene whose own timeline moves objects or lights:
+/// E2's viewport zooming in while the camera pans as in E1, the scene's
+/// motion kept (`scenes/paper-all.toml` is this on the paper scene with a
+/// bouncing ball).
+pub fn e4_scene(mut scene: Scene) -> Scene {
+    let motion = scene.animation.take();
+    let mut scene = e2_scene(scene, ZoomDirection::In, E4_PAN_DEG_PER_FRAME);
+    if let (Some(animation), Some(motion)) = (scene.animation.as_mut(), motion) {
+        animation.objects = motion.objects;
+        animation.lights = motion.lights;
+    }
+    scene
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::SceneOverrides;
+
+    /// E4 built on the bouncing-ball scene is `scenes/paper-all.toml`'s
+    /// timeline: the same camera and viewport at every frame, the scene's
+    /// own bounce kept (so `bench --scaling` runs the same E4 on bunnies).
+    #[test]
+    fn e4_on_a_moving_scene_is_paper_all_s_pan_and_zoom_over_its_motion() {
+        let overrides = SceneOverrides::default();
+        let bouncing = crate::lab::tradeoff::bouncing_ball_scene(&overrides).unwrap();
+        let bounce = bouncing.animation.clone().unwrap().objects;
+        assert!(!bounce.is_empty());
+        let built = e4_scene(bouncing);
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/paper-all.toml");
+        let paper_all = crate::scene::load_scene(&path, &overrides).unwrap();
+        let (ours, theirs) = (
+            built.animation.as_ref().unwrap(),
+            paper_all.animation.as_ref().unwrap(),
+        );
+        assert_eq!(ours.objects, bounce);
+        assert!(ours.moves_scene());
+        assert_eq!((ours.frames, built.viewports.len()), (theirs.frames, 1));
+        for frame in 0..ours.frames {
+            let (a, b) = (
+                ours.camera_at(&built.camera, frame),
+                theirs.camera_at(&paper_all.camera, frame),
+            );
+            assert!((a.yaw - b.yaw).abs() < 1e-9, "frame {frame}: yaw");
+            assert_eq!((a.pitch, a.fov, a.position), (b.pitch, b.fov, b.position));
+            let (a, b) = (&built.viewports[0], &paper_all.viewports[0]);
+            assert_eq!(
+                (a.viewport.width, a.viewport.height, a.viewport.fov),
+                (b.viewport.width, b.viewport.height, b.viewport.fov)
+            );
+            let (za, zb) = (a.transform_at(frame).zoom, b.transform_at(frame).zoom);
+            assert!((za - zb).abs() < 1e-9, "frame {frame}: zoom {za} {zb}");
+        }
+    }
+}

@@ -1,0 +1,402 @@
+//! An experiment's sequence, rendered in full and with reuse in one run:
+//! the paper's E1-E4 and the tradeoff sweeps all go through
+//! [`bench_sequence`], for the camera's image and for RSVP viewports alike.
+//!
+//! Timed passes write nothing and keep no linear colour; what the output is
+//! worth (bit-exactness, the error against each view's own rays, the
+//! buffer's self-check, the oracle) is measured on a separate, untimed
+//! pass.
+
+use std::time::Instant;
+
+use crate::accel::Accelerator;
+use crate::frame_loop::{Animator, Options, Techniques};
+use crate::metrics::{count_differences, image_error, ImageError};
+use crate::render::Frame;
+use crate::reuse::rsvp::RsvpKnobs;
+use crate::scene::Scene;
+use crate::shade::RayCounts;
+
+use super::oracle::{rays_per_pixel, Oracle, OracleRays};
+use super::{median, set_frame_medians};
+
+/// One frame of an experiment, both sides: where the time and the rays go.
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
+pub struct FrameProfile {
+    pub frame: u32,
+    /// The full render (every viewport, for RSVP), 8-bit conversion included.
+    pub full_ms: f64,
+    pub accelerated_ms: f64,
+    pub full_rays: RayCounts,
+    pub accelerated_rays: RayCounts,
+    /// Samples (primary rays) the accelerated side traced.
+    pub samples_traced: u64,
+    /// OSTC: regions found dirty and samples erased for them.
+    pub dirty_regions: u64,
+    pub samples_nulled: u64,
+    /// OSTC: recording and merging.
+    pub bookkeeping_ms: f64,
+    /// The accelerated side's tracing: the samples it could not reuse, with
+    /// their shadow and reflection rays.
+    pub accelerated_trace_ms: f64,
+    /// The accelerated side's everything else but bookkeeping: copying
+    /// reused pixels, RSVP's mapping and resampling, 8-bit conversion.
+    pub accelerated_copy_ms: f64,
+    /// Samples the oracle says this frame could not avoid tracing.
+    pub oracle_samples: Option<u64>,
+    /// The same with every region that holds one traced whole.
+    pub oracle_region_samples: Option<u64>,
+    /// Approximate views: the worst view's PSNR against its own rays.
+    pub psnr_db: Option<f64>,
+    /// Exact views: the accelerated frame equals the full one bit for bit.
+    pub exact: Option<bool>,
+}
+
+impl FrameProfile {
+    /// One empty profile per frame of `frames`.
+    fn empty(frames: std::ops::Range<u32>) -> Vec<FrameProfile> {
+        frames
+            .map(|frame| FrameProfile {
+                frame,
+                ..FrameProfile::default()
+            })
+            .collect()
+    }
+}
+
+/// The error of approximate output against each view's own rays, over
+/// every frame and view of a sequence.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub struct ErrorSummary {
+    pub worst_psnr_db: f64,
+    /// Identical frames count as 100 dB.
+    pub mean_psnr_db: f64,
+    pub max_abs: f32,
+    pub mean_abs: f64,
+    pub differing_share: f64,
+    /// Every frame equal to its view's own rays bit for bit.
+    pub identical: bool,
+}
+
+impl ErrorSummary {
+    fn of(errors: &[ImageError], identical: bool) -> ErrorSummary {
+        let count = errors.len().max(1) as f64;
+        ErrorSummary {
+            worst_psnr_db: errors
+                .iter()
+                .map(|e| e.psnr_db)
+                .fold(f64::INFINITY, f64::min),
+            mean_psnr_db: errors.iter().map(|e| e.psnr_db.min(100.0)).sum::<f64>() / count,
+            max_abs: errors.iter().map(|e| e.max_abs).fold(0.0, f32::max),
+            mean_abs: errors.iter().map(|e| e.mean_abs).sum::<f64>() / count,
+            differing_share: errors.iter().map(|e| e.differing_share).sum::<f64>() / count,
+            identical,
+        }
+    }
+}
+
+/// The oracle of a camera sequence (see [`Oracle`]).
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub struct OracleSpeedups {
+    /// The rays of full renders of every frame over the rays of the
+    /// samples no reuse could avoid tracing: the lattice samples the
+    /// windows expose, each once, and the samples whose colour changed.
+    pub samples: f64,
+    /// The same, with every region that holds such a sample traced whole
+    /// (the best OSTC can do at its region size).
+    pub regions: f64,
+    /// The region oracle timed rather than counted: full renders over
+    /// frame 0 in full plus, for each later frame, the time of tracing
+    /// just the groups of its regions that had to be traced. Rays differ
+    /// in cost (those near a moving object hit more and reflect more),
+    /// which counting rays cannot see.
+    pub timed_regions: f64,
+    /// The ray totals behind the counted speedups.
+    pub rays: OracleRays,
+}
+
+/// What to measure besides the times.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Measure {
+    /// The error of every view against its own rays.
+    pub error: bool,
+    /// The camera image's oracle (camera sequences only).
+    pub oracle: bool,
+}
+
+/// One sequence, rendered in full and with reuse in one run.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct SequenceBench {
+    pub frames: u32,
+    pub views: usize,
+    pub pixels_per_frame: u64,
+    /// Median over rounds of the whole full sequence (every view of every
+    /// frame converted to 8 bits, not written).
+    pub full_ms: f64,
+    /// The same for the accelerated sequence (frame 0, buffers and copies
+    /// included).
+    pub accelerated_ms: f64,
+    pub speedup: f64,
+    pub samples_traced: u64,
+    /// OSTC's recording and merging over the whole sequence (last round).
+    pub bookkeeping_ms: f64,
+    pub knobs: RsvpKnobs,
+    /// Exact output (the camera's image, snapped): every accelerated frame
+    /// equal, bit for bit, to its full render. None for approximate output.
+    pub exact: Option<bool>,
+    /// With [`Measure::error`]: against each view's own rays.
+    pub error: Option<ErrorSummary>,
+    /// A store that checks itself (RSVP's buffer, when the scene moves):
+    /// its kept samples re-traced at checkpoints (compared, differing).
+    pub buffer_check: Option<(u64, u64)>,
+    /// With [`Measure::oracle`], for the camera's image.
+    pub oracle: Option<OracleSpeedups>,
+    pub max_yaw_error_deg: f64,
+    pub rounds: usize,
+    pub threads: usize,
+    /// Why accelerated frames were rendered in full, where reuse could not
+    /// apply (a pan on a camera that is not equal-angle, say), each once.
+    pub full_reasons: Vec<String>,
+    /// Per frame: times are medians over the rounds.
+    pub profile: Vec<FrameProfile>,
+}
+
+/// How often (in frames) a store that checks itself is re-traced whole: a
+/// stale sample shows up at the next checkpoint unless erased again before
+/// it, and every checkpoint costs a retrace of all kept samples.
+const BUFFER_CHECK_EVERY: u32 = 20;
+
+/// FNV-1a over a frame's bits: full and accelerated frames compare without
+/// keeping a hundred frames in memory.
+fn frame_hash(frame: &Frame) -> u64 {
+    frame
+        .pixels
+        .iter()
+        .flat_map(|p| p.to_array())
+        .fold(0xcbf2_9ce4_8422_2325u64, |h, x| {
+            (h ^ u64::from(x.to_bits())).wrapping_mul(0x0100_0000_01b3)
+        })
+}
+
+/// Renders `options.frames` of `scene` in full and with `options`,
+/// alternating `rounds` times, and compares the medians of the sequence
+/// totals; then, untimed, measures what `measure` asks for.
+/// `progress` is called once per frame of every pass.
+pub fn bench_sequence(
+    scene: &Scene,
+    accel: &mut Accelerator,
+    options: &Options,
+    rounds: usize,
+    measure: Measure,
+    mut progress: impl FnMut(),
+) -> SequenceBench {
+    let frames = options.frames.clone();
+    let full_options = Options::new(Techniques::FULL, frames.clone());
+    let views = Animator::new(scene, accel, full_options.clone())
+        .views(frames.start)
+        .len();
+    let rounds = rounds.max(1);
+    let mut profile = FrameProfile::empty(frames.clone());
+    // Untimed: the first render of a process pays for page faults and
+    // rayon's threads, which neither side should.
+    std::hint::black_box(
+        Animator::new(scene, accel, full_options.clone()).render_full(frames.start, 0),
+    );
+    let (mut full_times, mut fast_times) = (Vec::new(), Vec::new());
+    // Per frame and round, for per-frame medians.
+    let mut full_frame_ms = vec![Vec::new(); profile.len()];
+    let mut fast_frame_ms = vec![Vec::new(); profile.len()];
+    // Counts are the same every round: the last round's are kept.
+    let (mut samples_traced, mut bookkeeping_ms, mut pixels_per_frame) = (0, 0.0, 0);
+    let mut max_yaw_error: f64 = 0.0;
+    let mut full_reasons: Vec<String> = Vec::new();
+    for _ in 0..rounds {
+        let mut full = Animator::new(scene, accel, full_options.clone());
+        let mut elapsed = 0.0;
+        for (row, frame) in profile.iter_mut().zip(frames.clone()) {
+            let start = Instant::now();
+            let mut frame_rays = RayCounts::default();
+            for index in 0..views {
+                let (image, rays) = full.render_full(frame, index);
+                std::hint::black_box(image.to_rgb8());
+                frame_rays += rays;
+            }
+            let ms = start.elapsed().as_secs_f64() * 1e3;
+            full_frame_ms[(frame - frames.start) as usize].push(ms);
+            elapsed += ms;
+            row.full_rays = frame_rays;
+            progress();
+        }
+        full_times.push(elapsed);
+        drop(full);
+
+        let mut fast = Animator::new(
+            scene,
+            accel,
+            Options {
+                linear: false,
+                ..options.clone()
+            },
+        );
+        let mut elapsed = 0.0;
+        (samples_traced, bookkeeping_ms) = (0, 0.0);
+        for (row, frame) in profile.iter_mut().zip(frames.clone()) {
+            let start = Instant::now();
+            let outputs = fast.render(frame);
+            let ms = start.elapsed().as_secs_f64() * 1e3;
+            fast_frame_ms[(frame - frames.start) as usize].push(ms);
+            elapsed += ms;
+            pixels_per_frame = outputs.iter().map(|o| o.stats.pixels).sum();
+            (row.accelerated_rays, row.samples_traced, row.bookkeeping_ms) =
+                (RayCounts::default(), 0, 0.0);
+            (row.accelerated_trace_ms, row.accelerated_copy_ms) = (0.0, 0.0);
+            for output in &outputs {
+                let stats = &output.stats;
+                row.accelerated_rays += stats.rays();
+                row.samples_traced += stats.samples_traced;
+                row.bookkeeping_ms += stats.bookkeeping_ms;
+                row.accelerated_trace_ms += stats.trace_ms;
+                row.accelerated_copy_ms += stats.copy_ms;
+                max_yaw_error = max_yaw_error.max(stats.yaw_error_deg.abs());
+                if let Some(reason) = stats.refusal().map(|r| r.to_string()) {
+                    if !full_reasons.contains(&reason) {
+                        full_reasons.push(reason);
+                    }
+                }
+            }
+            // Frame-wide OSTC figures repeat on every view's stats.
+            if let Some(first) = outputs.first() {
+                row.dirty_regions = first.stats.dirty_regions;
+                row.samples_nulled = first.stats.samples_nulled;
+            }
+            samples_traced += row.samples_traced;
+            bookkeeping_ms += row.bookkeeping_ms;
+            std::hint::black_box(outputs);
+            progress();
+        }
+        fast_times.push(elapsed);
+    }
+    set_frame_medians(&mut profile, full_frame_ms, fast_frame_ms);
+    let checked = check_sequence(scene, accel, options, measure, &mut profile, &mut progress);
+    let timed_regions = |oracle_ms: f64| full_times[0] / oracle_ms.max(1e-9);
+    let oracle = checked.oracle.map(|(oracle, traced_ms)| OracleSpeedups {
+        // Weighted by the rays each sample costs (see `Oracle::rays`).
+        samples: oracle.rays.all as f64 / oracle.rays.samples.max(1) as f64,
+        regions: oracle.rays.all as f64 / oracle.rays.regions.max(1) as f64,
+        timed_regions: timed_regions(traced_ms),
+        rays: oracle.rays,
+    });
+    let (full_ms, accelerated_ms) = (median(full_times), median(fast_times));
+    SequenceBench {
+        frames: frames.end - frames.start,
+        views,
+        pixels_per_frame,
+        full_ms,
+        accelerated_ms,
+        speedup: full_ms / accelerated_ms,
+        samples_traced,
+        bookkeeping_ms,
+        knobs: options.rsvp,
+        exact: checked.exact,
+        error: checked.error,
+        buffer_check: checked.buffer_check,
+        oracle,
+        max_yaw_error_deg: max_yaw_error,
+        rounds,
+        threads: rayon::current_num_threads(),
+        full_reasons,
+        profile,
+    }
+}
+
+/// What the untimed pass found.
+struct Checked {
+    exact: Option<bool>,
+    error: Option<ErrorSummary>,
+    buffer_check: Option<(u64, u64)>,
+    /// The oracle and the time its region groups took to trace.
+    oracle: Option<(Oracle, f64)>,
+}
+
+/// The untimed pass: the accelerated frames again with linear colour,
+/// against full renders (exactness), each view's own rays (error), the
+/// store's own check, and the oracle.
+fn check_sequence(
+    scene: &Scene,
+    accel: &mut Accelerator,
+    options: &Options,
+    measure: Measure,
+    profile: &mut [FrameProfile],
+    progress: &mut impl FnMut(),
+) -> Checked {
+    let frames = options.frames.clone();
+    let mut check = Animator::new(
+        scene,
+        accel,
+        Options {
+            linear: true,
+            ..options.clone()
+        },
+    );
+    let exact = check.is_exact();
+    let moves = scene.animation.as_ref().is_some_and(|a| a.moves_scene());
+    let region_size = options
+        .ostc
+        .regions
+        .region_size(scene.camera.width, scene.camera.height);
+    let mut oracle = (measure.oracle && !check.has_viewports()).then(|| Oracle::new(region_size));
+    let mut oracle_ms = 0.0;
+    let mut buffer_check: Option<(u64, u64)> = None;
+    let mut errors = Vec::new();
+    let (mut all_exact, mut identical) = (true, true);
+    for (row, frame) in profile.iter_mut().zip(frames.clone()) {
+        let outputs = check.render(frame);
+        let mut worst = f64::INFINITY;
+        for (index, output) in outputs.iter().enumerate() {
+            let image = output.frame.as_ref().expect("linear output is on");
+            if exact {
+                let (full, _) = check.render_full(frame, index);
+                let same = frame_hash(image) == frame_hash(&full);
+                row.exact = Some(same);
+                all_exact &= same;
+                if let Some(oracle) = &mut oracle {
+                    let (shader, camera) = check.posed_shader(frame);
+                    let pixel_rays = rays_per_pixel(&shader, &camera);
+                    let (samples, region_samples) = oracle.add(&camera, &full, &pixel_rays);
+                    row.oracle_samples = Some(samples);
+                    row.oracle_region_samples = Some(region_samples);
+                    let table = crate::camera::RayTable::new(&camera);
+                    let groups = oracle.region_groups(camera.width);
+                    let start = Instant::now();
+                    std::hint::black_box(crate::render::trace_groups(&shader, &table, &groups));
+                    oracle_ms += start.elapsed().as_secs_f64() * 1e3;
+                }
+            }
+            if measure.error {
+                let (truth, _) = check.render_true_view(frame, index);
+                let error = image_error(image, &truth);
+                identical &= count_differences(image, &truth) == 0;
+                worst = worst.min(error.psnr_db);
+                errors.push(error);
+            }
+        }
+        if measure.error && !exact {
+            row.psnr_db = Some(worst);
+        }
+        let last = frame + 1 == frames.end;
+        let checkpoint = last || (frame - frames.start + 1) % BUFFER_CHECK_EVERY == 0;
+        if moves && checkpoint {
+            if let Some((compared, differing)) = check.verify_store() {
+                let (c, d) = buffer_check.unwrap_or((0, 0));
+                buffer_check = Some((c + compared, d + differing));
+            }
+        }
+        progress();
+    }
+    Checked {
+        exact: exact.then_some(all_exact),
+        error: measure.error.then(|| ErrorSummary::of(&errors, identical)),
+        buffer_check,
+        oracle: oracle.map(|o| (o, oracle_ms)),
+    }
+}

@@ -1,0 +1,126 @@
+//! A still camera's own image as a sample store: any projection, held
+//! still, keeps its samples so OSTC can re-trace only what moving objects
+//! and lights change.
+//!
+//! Promises: the samples are the camera's own pixels, traced in exactly
+//! the 4x2 groups a full render of the camera uses, so a frame equals a
+//! full render bit for bit.
+
+use crate::camera::{RayTable, ViewportPose};
+use crate::render::{SampleGroup, GROUP_HEIGHT, GROUP_WIDTH};
+use crate::reuse::ostc::Ostc;
+use crate::reuse::pan::{Lattice, LatticeBuffer, Window};
+use crate::reuse::regions::{RegionLayout, RegionSet};
+use crate::reuse::{FrameMode, SampleStore, StoreFrame, Unfit, Wanted};
+use crate::shade::Shader;
+
+/// A fixed camera's own pixels as a lattice (its image, padded to whole
+/// groups, repeating past its width), traced in exactly the groups a full
+/// render uses.
+impl Lattice for RayTable {
+    fn period(&self) -> i64 {
+        let gw = i64::from(GROUP_WIDTH);
+        (i64::from(self.size().0) + gw - 1) / gw * gw
+    }
+    fn rows(&self) -> i64 {
+        let gh = i64::from(GROUP_HEIGHT);
+        (i64::from(self.size().1) + gh - 1) / gh * gh
+    }
+}
+
+/// The window of a fixed camera's lattice: its whole image.
+fn image_window(table: &RayTable) -> Window {
+    let (width, height) = table.size();
+    Window {
+        col: 0,
+        row: 0,
+        width,
+        height,
+        yaw_error: 0.0,
+        pitch_error: 0.0,
+    }
+}
+
+/// A still camera's samples.
+pub struct StillStore {
+    buffer: LatticeBuffer<RayTable>,
+    /// The groups the last render traced.
+    traced: Vec<SampleGroup>,
+}
+
+impl StillStore {
+    pub fn new(camera: &crate::camera::Camera) -> StillStore {
+        let table = RayTable::new(camera);
+        let rows = table.rows();
+        StillStore {
+            buffer: LatticeBuffer::new(table, 0..rows),
+            traced: Vec::new(),
+        }
+    }
+}
+
+impl SampleStore for StillStore {
+    fn name(&self) -> &'static str {
+        "buffer"
+    }
+
+    fn mode(&self, ostc: bool) -> FrameMode {
+        if ostc {
+            FrameMode::Ostc
+        } else {
+            FrameMode::Still
+        }
+    }
+
+    fn unfit(&self, views: &[ViewportPose]) -> Option<Unfit> {
+        let camera = &views.first()?.camera;
+        let own = self.buffer.lattice().camera();
+        (own != camera).then_some(Unfit::CameraMoved(own.projection))
+    }
+
+    fn regions(&self, size: (i64, i64)) -> RegionLayout {
+        self.buffer.regions(size)
+    }
+
+    fn erase(&mut self, layout: &RegionLayout, regions: &RegionSet) -> u64 {
+        self.buffer.erase(layout, regions)
+    }
+
+    fn render(
+        &mut self,
+        shader: &Shader,
+        _views: &[ViewportPose],
+        ostc: Option<&Ostc>,
+        wanted: Wanted,
+    ) -> Vec<StoreFrame> {
+        let start = std::time::Instant::now();
+        let window = image_window(self.buffer.lattice());
+        let (frame, image, still) = self.buffer.frame(shader, &window, wanted.linear, ostc);
+        let elapsed = start.elapsed().as_secs_f64() * 1e3;
+        self.traced = still.traced;
+        vec![StoreFrame {
+            frame,
+            image,
+            samples_traced: still.samples_traced,
+            pixels_reused: still.pixels_reused,
+            rays: still.rays,
+            trace_ms: still.trace_ms,
+            assembly_ms: (elapsed - still.trace_ms).max(0.0),
+            snap_error: None,
+            levels: None,
+        }]
+    }
+
+    fn paint_traced(
+        &self,
+        _index: usize,
+        _view: &ViewportPose,
+        image: &image::RgbImage,
+    ) -> image::RgbImage {
+        let mut painted = image.clone();
+        let window = image_window(self.buffer.lattice());
+        self.buffer
+            .paint_groups(&window, &self.traced, &mut painted);
+        painted
+    }
+}

@@ -1,0 +1,18 @@
+//! The integration tests, one binary: a module per area. Shared fixtures
+//! (every backend, the bit-exact harness, running the binary) live in
+//! `common`.
+
+#[macro_use]
+mod common;
+
+mod animate;
+mod cli;
+mod extremes;
+mod layers;
+mod moving_spheres;
+mod ostc;
+mod render;
+mod rsvp;
+mod still_split;
+mod tradeoff;
+mod validate;
