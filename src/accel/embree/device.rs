@@ -8,13 +8,17 @@
 //!   never sees a dangling slot.
 //! - The slot keeps the first error since it was last read, and reading it
 //!   clears it. It is read after building calls, never per ray.
+//! - A panic in the error callback never unwinds into Embree: it is caught
+//!   there and raised again by the wrapper that made the call, once Embree
+//!   has returned; [`Device::take_error`] raises it before it reads the
+//!   slot (see `callback_panic.rs`).
 //! - A device is cheap to clone and shared: every scene holds a clone, so
 //!   the device outlives its scenes.
 
 use std::ffi::{c_char, c_void, CStr};
 use std::sync::Mutex;
 
-use super::sys;
+use super::{callback_panic, sys};
 
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 #[error("Embree error ({code}): {message}")]
@@ -38,11 +42,17 @@ fn error_name(code: sys::RTCError) -> &'static str {
 /// Where the error callback leaves the first error it sees.
 struct ErrorSlot {
     first: Mutex<Option<EmbreeError>>,
+    /// Makes the callback panic once, for the test that a panic there
+    /// reaches the caller.
+    #[cfg(test)]
+    panic_on_next_error: std::sync::atomic::AtomicBool,
 }
 
+/// Embree's error callback: the one Rust function Embree calls.
 unsafe extern "C" fn record_error(user: *mut c_void, code: sys::RTCError, text: *const c_char) {
-    // A panic must not unwind into C: catch it and drop the report instead.
-    let _ = std::panic::catch_unwind(|| {
+    // A panic must not unwind into C: it is caught here and raised again by
+    // the wrapper that called Embree, once Embree has returned.
+    callback_panic::catch(|| {
         // SAFETY: `user` is the `ErrorSlot` registered in `Device::new`; it is
         // boxed and lives until after `rtcReleaseDevice` in `Drop`.
         let slot = unsafe { &*(user as *const ErrorSlot) };
@@ -54,6 +64,13 @@ unsafe extern "C" fn record_error(user: *mut c_void, code: sys::RTCError, text: 
                 .to_string_lossy()
                 .into_owned()
         };
+        #[cfg(test)]
+        if slot
+            .panic_on_next_error
+            .swap(false, std::sync::atomic::Ordering::Relaxed)
+        {
+            panic!("panic in the error callback on: {message}");
+        }
         if let Ok(mut first) = slot.first.lock() {
             first.get_or_insert(EmbreeError {
                 code: error_name(code),
@@ -101,6 +118,8 @@ impl Device {
         }
         let errors = Box::new(ErrorSlot {
             first: Mutex::new(None),
+            #[cfg(test)]
+            panic_on_next_error: Default::default(),
         });
         // SAFETY: `raw` is a live device; the slot pointer stays valid for the
         // device's lifetime (both live in `DeviceInner`, released together).
@@ -111,9 +130,11 @@ impl Device {
                 &*errors as *const ErrorSlot as *mut c_void,
             )
         };
-        Ok(Device {
+        let device = Device {
             inner: std::sync::Arc::new(DeviceInner { raw, errors }),
-        })
+        };
+        callback_panic::resume();
+        Ok(device)
     }
 
     /// The raw handle, for the wrappers that create scenes and geometries
@@ -122,8 +143,10 @@ impl Device {
         self.inner.raw
     }
 
-    /// Returns (and clears) the first error Embree reported since the last call.
+    /// Returns (and clears) the first error Embree reported since the last
+    /// call. Raises first any panic the error callback caught on this thread.
     pub(super) fn take_error(&self) -> Result<(), EmbreeError> {
+        callback_panic::resume();
         let mut first = self
             .inner
             .errors
@@ -139,21 +162,34 @@ impl Device {
     /// Embree's version as a number, e.g. 31305 for 3.13.5.
     pub fn version(&self) -> i64 {
         // SAFETY: querying a property of a live device.
-        unsafe {
+        let version = unsafe {
             sys::rtcGetDeviceProperty(
                 self.inner.raw,
                 sys::RTCDeviceProperty::RTC_DEVICE_PROPERTY_VERSION,
             ) as i64
-        }
+        };
+        callback_panic::resume();
+        version
     }
 
     pub fn native_packet8(&self) -> bool {
         // SAFETY: querying a property of a live device.
-        unsafe {
+        let native = unsafe {
             sys::rtcGetDeviceProperty(
                 self.inner.raw,
                 sys::RTCDeviceProperty::RTC_DEVICE_PROPERTY_NATIVE_RAY8_SUPPORTED,
             ) != 0
-        }
+        };
+        callback_panic::resume();
+        native
+    }
+
+    /// Makes the error callback panic at the next error it records.
+    #[cfg(test)]
+    pub(super) fn panic_on_next_error(&self) {
+        self.inner
+            .errors
+            .panic_on_next_error
+            .store(true, std::sync::atomic::Ordering::Relaxed);
     }
 }

@@ -11,12 +11,15 @@
 //! - `intersector.rs`: [`EmbreeIntersector`], which turns scene objects into
 //!   Embree scenes, the still ones split off from the moving ones
 //!   ([`StillSplit`]).
+//! - `callback_panic.rs`: panics in the callback Embree calls, kept from
+//!   unwinding into C and raised again once the call has returned.
 //! - `sys.rs`: the raw bindings build.rs generates.
 //!
 //! Which Embree is bound shows as `cfg(embree_version = "3")` or `"4"`;
 //! only `trace.rs` (and one test) differs between the two: Embree 4 dropped
 //! the intersect context argument.
 
+mod callback_panic;
 mod device;
 mod intersector;
 mod scene;

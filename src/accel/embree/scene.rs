@@ -33,7 +33,7 @@ use std::ffi::c_void;
 
 use glam::{Affine3A, Vec3};
 
-use super::sys;
+use super::{callback_panic, sys};
 use super::{Device, EmbreeError};
 use crate::geometry::Aabb;
 
@@ -73,12 +73,14 @@ impl SceneBuilder {
             // 44 of 3072 edge-exact rays on Debian's 3.13.5).
             sys::rtcSetSceneFlags(raw, sys::RTCSceneFlags::RTC_SCENE_FLAG_ROBUST);
         }
-        Ok(SceneBuilder {
+        let builder = SceneBuilder {
             raw,
             device: device.clone(),
             children: Vec::new(),
             movable: MovableIds::default(),
-        })
+        };
+        callback_panic::resume();
+        Ok(builder)
     }
 
     pub(super) fn new_geometry(
@@ -205,13 +207,15 @@ impl SceneBuilder {
                 std::ptr::read(&this.movable),
             )
         };
-        Ok(CommittedScene {
+        let scene = CommittedScene {
             raw: this.raw,
             device,
             _children: children,
             movable,
             bounds: scene_bounds(this.raw),
-        })
+        };
+        callback_panic::resume();
+        Ok(scene)
     }
 }
 
@@ -388,7 +392,8 @@ impl Drop for SceneEdit<'_> {
     fn drop(&mut self) {
         if !self.committed {
             // SAFETY: as in `commit_scene`. An error stays in the device's
-            // slot for the next check.
+            // slot for the next check, and a panic in the error callback in
+            // this thread's slot (no panic out of `drop`).
             unsafe { sys::rtcCommitScene(self.scene.raw) };
             self.scene.bounds = scene_bounds(self.scene.raw);
         }
@@ -400,5 +405,6 @@ fn commit_scene(scene: &mut CommittedScene) -> Result<(), EmbreeError> {
     unsafe { sys::rtcCommitScene(scene.raw) };
     scene.device.take_error()?;
     scene.bounds = scene_bounds(scene.raw);
+    callback_panic::resume();
     Ok(())
 }

@@ -1,5 +1,6 @@
 //! Tests of the Embree wrappers: tracing single rays and packets, moving
-//! spheres and instances, and Embree's errors arriving as `Result`s.
+//! spheres and instances, Embree's errors arriving as `Result`s and a
+//! panic in its error callback arriving as a panic of the caller.
 
 use glam::{Affine3A, Vec3};
 
@@ -164,4 +165,35 @@ fn embree_errors_become_results() {
         .set_instance_transform(42, &Affine3A::IDENTITY)
         .unwrap_err();
     assert_eq!(err.code, "invalid argument");
+}
+
+/// The real path: Embree calls the error callback, which panics; the panic
+/// does not unwind through Embree (that would abort the process) but comes
+/// out of the wrapper that called Embree, once Embree has returned, with
+/// Embree's own message in it.
+#[test]
+fn a_panic_in_the_error_callback_reaches_the_caller() {
+    let device = Device::new().unwrap();
+    let builder = SceneBuilder::new(&device).unwrap();
+    device.panic_on_next_error();
+    let caught = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+        builder.new_geometry(sys::RTCGeometryType(9999))
+    }));
+    let payload = caught.expect_err("the callback's panic reaches the caller");
+    let message = payload
+        .downcast_ref::<String>()
+        .expect("a formatted panic message");
+    assert!(
+        message.starts_with("panic in the error callback on:") && message.contains("geometry type"),
+        "{message}"
+    );
+    // Raised once; the device works on, and its errors are Results again.
+    assert!(device.take_error().is_ok());
+    let err = builder
+        .new_geometry(sys::RTCGeometryType(9999))
+        .unwrap_err();
+    assert!(err.message.contains("geometry type"), "{err}");
+    assert!(unit_triangle_scene(&device)
+        .intersect1(&Ray::new(Vec3::new(0.0, 0.0, 2.0), -Vec3::Z))
+        .is_some());
 }

@@ -9,9 +9,12 @@
 //!   else the geometry id (every scene attaches geometries by object id).
 //! - A stack of scenes reports exactly the nearest hit of one scene holding
 //!   everything: each scene is traced with the ray as the one before left it.
+//! - A panic in the error callback during a trace call is raised right after
+//!   that call returns (`callback_panic.rs`); Embree's error slot is not read
+//!   per ray.
 
-use super::sys;
 use super::CommittedScene;
+use super::{callback_panic, sys};
 use crate::ray::{lanes, Hit, HitPacket, LaneMask, Ray, RayPacket, PACKET_WIDTH};
 
 /// Embree's id for "no geometry" / "no instance".
@@ -140,6 +143,7 @@ pub(super) fn intersect1(scenes: &[&CommittedScene], ray: &Ray) -> Option<Hit> {
         unsafe {
             sys::rtcIntersect1(scene.raw, &mut rayhit, std::ptr::null_mut());
         }
+        callback_panic::resume();
     }
     (rayhit.hit.geomID != INVALID_ID).then(|| Hit {
         t: rayhit.ray.tfar,
@@ -164,6 +168,7 @@ pub(super) fn occluded1(scenes: &[&CommittedScene], ray: &Ray) -> bool {
         unsafe {
             sys::rtcOccluded1(scene.raw, &mut r, std::ptr::null_mut());
         }
+        callback_panic::resume();
         if r.tfar == f32::NEG_INFINITY {
             return true;
         }
@@ -226,6 +231,7 @@ pub(super) fn intersect8(
                 std::ptr::null_mut(),
             );
         }
+        callback_panic::resume();
     }
     for lane in lanes(mask) {
         let geom = rayhit.hit.geomID[lane];
@@ -259,6 +265,7 @@ pub(super) fn occluded8(scenes: &[&CommittedScene], rays: &RayPacket, mask: Lane
         unsafe {
             sys::rtcOccluded8(valid.0.as_ptr(), scene.raw, &mut ray, std::ptr::null_mut());
         }
+        callback_panic::resume();
         occluded |= lanes(open)
             .filter(|&lane| ray.tfar[lane] == f32::NEG_INFINITY)
             .fold(0, |acc, lane| acc | (1 << lane));
