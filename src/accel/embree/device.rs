@@ -49,6 +49,11 @@ struct ErrorSlot {
 }
 
 /// Embree's error callback: the one Rust function Embree calls.
+///
+/// # Safety
+/// Only Embree calls it, as registered in [`Device::new`]: `user` is that
+/// device's `ErrorSlot`, and `text` is null or a NUL-terminated string that
+/// lives for the call.
 unsafe extern "C" fn record_error(user: *mut c_void, code: sys::RTCError, text: *const c_char) {
     // A panic must not unwind into C: it is caught here and raised again by
     // the wrapper that called Embree, once Embree has returned.
