@@ -4,6 +4,8 @@
 //! shading, and the reuse algorithms of Gage & Semwal (Panimation, RSVP) and
 //! Jevans (OSTC).
 
+#![deny(unsafe_code)]
+
 pub mod accel;
 pub mod camera;
 pub mod chunk;

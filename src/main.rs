@@ -1,5 +1,7 @@
 //! The `retrace` command line: parses arguments, calls the library, reports.
 
+#![deny(unsafe_code)]
+
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};

@@ -9,6 +9,8 @@
 //! moved, the radius scaled, exactly as shading places it. A move rewrites
 //! that sphere; only meshes are traced through their transform.
 
+// The crate's one FFI module; everything else is safe Rust.
+#[allow(unsafe_code)]
 pub mod embree;
 pub mod grid;
 
