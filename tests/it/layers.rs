@@ -76,11 +76,16 @@ fn library_code(text: &str) -> String {
     while let Some(at) = rest.find("#[cfg(test)]") {
         out.push_str(&rest[..at]);
         let item = &rest[at..];
-        // The item ends at its `;` or at the brace closing its body.
+        // The item (or field, or statement) ends at the brace closing its
+        // body, at its `;` or `,`, or where the block around it closes.
         let (mut depth, mut end) = (0usize, item.len());
         for (i, c) in item.char_indices() {
             match c {
                 '{' => depth += 1,
+                '}' if depth == 0 => {
+                    end = i;
+                    break;
+                }
                 '}' => {
                     depth -= 1;
                     if depth == 0 {
@@ -88,7 +93,7 @@ fn library_code(text: &str) -> String {
                         break;
                     }
                 }
-                ';' if depth == 0 => {
+                ';' | ',' if depth == 0 => {
                     end = i + 1;
                     break;
                 }
