@@ -6,6 +6,7 @@
 
 mod defs;
 mod include;
+mod values;
 
 use std::path::Path;
 
@@ -26,6 +27,7 @@ use defs::{
     ObjectKeyDef, ObjectKind, RenderDef, SceneFile, DEFAULT_FPS,
 };
 use include::{assemble, line_of, Source};
+use values::{colour, finite3, world3};
 
 /// Settings from the command line that replace the file's.
 #[derive(Clone, Debug, Default)]
@@ -62,37 +64,6 @@ impl Ctx<'_> {
     fn file_of(&self, span: std::ops::Range<usize>) -> &Path {
         self.source.locate(line_of(&self.source.text, span.start)).0
     }
-}
-
-fn finite3(values: [f32; 3]) -> Result<Vec3, String> {
-    let v = Vec3::from_array(values);
-    if v.is_finite() {
-        Ok(v)
-    } else {
-        Err(format!("must be finite, got {values:?}"))
-    }
-}
-
-/// A point of the scene: finite and within its extent.
-fn world3(values: [f32; 3]) -> Result<Vec3, String> {
-    let v = finite3(values)?;
-    if within_world(v) {
-        Ok(v)
-    } else {
-        Err(format!(
-            "{values:?} lies beyond the scene's extent (within ±{WORLD_LIMIT:e} of the origin)"
-        ))
-    }
-}
-
-fn colour(values: [f32; 3]) -> Result<Vec3, String> {
-    let v = finite3(values)?;
-    if v.min_element() < 0.0 {
-        return Err(format!(
-            "colour components must not be negative, got {values:?}"
-        ));
-    }
-    Ok(v)
 }
 
 /// `path` as the user wrote it: `Spanned<T>` shows up in serde's path as a
