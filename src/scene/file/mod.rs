@@ -7,6 +7,7 @@
 mod camera;
 mod defs;
 mod include;
+mod materials;
 mod values;
 
 use std::path::Path;
@@ -14,7 +15,7 @@ use std::path::Path;
 use glam::{Affine3A, DVec3, EulerRot, Quat, Vec3};
 use toml::Spanned;
 
-use super::{Checker, Material, Scene, SceneError};
+use super::{Material, Scene, SceneError};
 use crate::camera::{Camera, Projection, ViewTransform, Viewport};
 use crate::geometry::{
     within_world, Light, Object, Placement, Plane, Shape, Sphere, TriangleMesh, WORLD_LIMIT,
@@ -25,10 +26,11 @@ use crate::timeline::{
 };
 use camera::convert_camera;
 use defs::{
-    AnimationDef, CameraKeyDef, LightDef, LightKeyDef, MaterialDef, ObjectDef, ObjectKeyDef,
-    ObjectKind, RenderDef, SceneFile, DEFAULT_FPS,
+    AnimationDef, CameraKeyDef, LightDef, LightKeyDef, ObjectDef, ObjectKeyDef, ObjectKind,
+    RenderDef, SceneFile, DEFAULT_FPS,
 };
 use include::{assemble, line_of, Source};
+use materials::convert_material;
 use values::{colour, finite3, world3};
 
 /// Settings from the command line that replace the file's.
@@ -732,57 +734,6 @@ fn convert_light_tracks(
         });
     }
     Ok(tracks)
-}
-
-fn convert_material(
-    ctx: &Ctx,
-    name: &str,
-    def: &Spanned<MaterialDef>,
-) -> Result<Material, SceneError> {
-    let m = def.get_ref();
-    let field = |f: &str| format!("material.{name}.{f}");
-    let err = |f: &str| {
-        let f = field(f);
-        move |message: String| ctx.error(def.span(), f.clone(), message)
-    };
-    let checker = match &m.checker {
-        None => None,
-        Some(c) => {
-            if !(c.scale.is_finite() && c.scale > 0.0) {
-                return Err(err("checker.scale")(format!(
-                    "must be above 0, got {}",
-                    c.scale
-                )));
-            }
-            Some(Checker {
-                colors: [
-                    colour(c.colors[0]).map_err(err("checker.colors"))?,
-                    colour(c.colors[1]).map_err(err("checker.colors"))?,
-                ],
-                scale: c.scale,
-            })
-        }
-    };
-    if !(m.shininess.is_finite() && m.shininess >= 0.0) {
-        return Err(err("shininess")(format!(
-            "must be >= 0, got {}",
-            m.shininess
-        )));
-    }
-    if !(0.0..=1.0).contains(&m.reflectivity) {
-        return Err(err("reflectivity")(format!(
-            "must be within 0..1, got {}",
-            m.reflectivity
-        )));
-    }
-    Ok(Material {
-        name: name.to_string(),
-        diffuse: colour(m.diffuse).map_err(err("diffuse"))?,
-        checker,
-        specular: colour(m.specular).map_err(err("specular"))?,
-        shininess: m.shininess,
-        reflectivity: m.reflectivity,
-    })
 }
 
 fn convert_object(
