@@ -7,6 +7,7 @@
 mod camera;
 mod defs;
 mod include;
+mod lights;
 mod materials;
 mod values;
 
@@ -18,7 +19,7 @@ use toml::Spanned;
 use super::{Material, Scene, SceneError};
 use crate::camera::{Camera, Projection, ViewTransform, Viewport};
 use crate::geometry::{
-    within_world, Light, Object, Placement, Plane, Shape, Sphere, TriangleMesh, WORLD_LIMIT,
+    within_world, Object, Placement, Plane, Shape, Sphere, TriangleMesh, WORLD_LIMIT,
 };
 use crate::timeline::{
     Animation, Bounce, CameraKey, Ease, LightKey, LightTrack, ObjectKey, ObjectTrack, ViewportKey,
@@ -30,6 +31,7 @@ use defs::{
     RenderDef, SceneFile, DEFAULT_FPS,
 };
 use include::{assemble, line_of, Source};
+use lights::{check_intensity, convert_lights};
 use materials::convert_material;
 use values::{colour, finite3, world3};
 
@@ -149,29 +151,7 @@ pub fn parse_scene_str(
     let default_material = materials.len();
     materials.push(Material::matte("default", Vec3::splat(0.7)));
 
-    let lights = file
-        .light
-        .iter()
-        .enumerate()
-        .map(|(i, def)| {
-            let field = |f: &str| format!("light[{i}].{f}");
-            let l = def.get_ref();
-            let position =
-                world3(l.position).map_err(|m| ctx.error(def.span(), field("position"), m))?;
-            let color = colour(l.color).map_err(|m| ctx.error(def.span(), field("color"), m))?;
-            if !(l.intensity.is_finite() && l.intensity >= 0.0) {
-                return Err(ctx.error(
-                    def.span(),
-                    field("intensity"),
-                    format!("must be a finite number >= 0, got {}", l.intensity),
-                ));
-            }
-            Ok(Light {
-                position,
-                power: color * l.intensity,
-            })
-        })
-        .collect::<Result<Vec<_>, _>>()?;
+    let lights = convert_lights(&ctx, &file.light)?;
 
     let mut warnings = Vec::new();
     let mut objects = Vec::with_capacity(file.object.len());
@@ -718,13 +698,7 @@ fn convert_light_tracks(
             Some(c) => colour(c).map_err(|m| ctx.error(key.span(), field("color"), m))?,
         };
         let intensity = k.intensity.unwrap_or(carried.intensity);
-        if !(intensity.is_finite() && intensity >= 0.0) {
-            return Err(ctx.error(
-                key.span(),
-                field("intensity"),
-                format!("must be a finite number >= 0, got {intensity}"),
-            ));
-        }
+        check_intensity(intensity).map_err(|m| ctx.error(key.span(), field("intensity"), m))?;
         track.keys.push(LightKey {
             frame: k.frame,
             position,
