@@ -12,6 +12,7 @@ mod lights;
 mod materials;
 mod objects;
 mod values;
+mod viewports;
 
 use std::path::Path;
 
@@ -19,9 +20,8 @@ use glam::{Affine3A, Vec3};
 use toml::Spanned;
 
 use super::{Material, Scene, SceneError};
-use crate::camera::{Camera, Projection, ViewTransform, Viewport};
+use crate::camera::Projection;
 use crate::geometry::Placement;
-use crate::timeline::{ViewportKey, ViewportTrack};
 use animation::convert_animation;
 use camera::convert_camera;
 use defs::{RenderDef, SceneFile};
@@ -30,6 +30,7 @@ use lights::convert_lights;
 use materials::convert_material;
 use objects::convert_objects;
 use values::colour;
+use viewports::convert_viewports;
 
 /// Settings from the command line that replace the file's.
 #[derive(Clone, Debug, Default)]
@@ -181,153 +182,6 @@ pub fn parse_scene_str(
         warnings,
         animation,
     })
-}
-
-fn transform_error(
-    ctx: &Ctx,
-    span: std::ops::Range<usize>,
-    prefix: &str,
-    err: crate::camera::TransformError,
-) -> SceneError {
-    ctx.error(span, format!("{prefix}.{}", err.field), err.message)
-}
-
-fn convert_viewports(
-    ctx: &Ctx,
-    file: &SceneFile,
-    camera: &Camera,
-) -> Result<Vec<ViewportTrack>, SceneError> {
-    let mut tracks: Vec<ViewportTrack> = Vec::with_capacity(file.viewport.len());
-    for (i, def) in file.viewport.iter().enumerate() {
-        let v = def.get_ref();
-        let field = format!("viewport[{i}]");
-        let name = v.name.clone().unwrap_or_else(|| format!("view{i}"));
-        if name.is_empty()
-            || !name
-                .chars()
-                .all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_')
-        {
-            return Err(ctx.error(
-                def.span(),
-                format!("{field}.name"),
-                format!("'{name}': use letters, digits, - and _ (it goes into file names)"),
-            ));
-        }
-        if tracks.iter().any(|t| t.viewport.name == name) {
-            return Err(ctx.error(
-                def.span(),
-                format!("{field}.name"),
-                format!("'{name}' names two viewports"),
-            ));
-        }
-        let size = |value: i64, which: &str| {
-            u32::try_from(value).ok().filter(|&s| s > 0).ok_or_else(|| {
-                ctx.error(
-                    def.span(),
-                    format!("{field}.{which}"),
-                    format!("must be at least 1, got {value}"),
-                )
-            })
-        };
-        let t = v;
-        let viewport = Viewport {
-            name,
-            width: size(v.width, "width")?,
-            height: size(v.height, "height")?,
-            projection: v.projection,
-            fov: v.fov.map_or(camera.fov, f64::to_radians),
-            yaw: v.yaw.to_radians(),
-            pitch: v.pitch.to_radians(),
-            transform: ViewTransform {
-                zoom: t.zoom.unwrap_or(1.0),
-                rotate: t.rotate.unwrap_or(0.0).to_radians(),
-                shear: t.shear.unwrap_or([0.0; 2]),
-                translate: t.translate.unwrap_or([0.0; 2]),
-            },
-        };
-        viewport
-            .validate(camera)
-            .map_err(|err| transform_error(ctx, def.span(), &field, err))?;
-        tracks.push(ViewportTrack {
-            viewport,
-            keys: Vec::new(),
-        });
-    }
-    let keys = file.animation.as_ref().map_or(&[][..], |a| &a.viewport[..]);
-    for (i, key) in keys.iter().enumerate() {
-        let k = key.get_ref();
-        let field = format!("animation.viewport[{i}]");
-        let index = match &k.viewport {
-            None => 0,
-            Some(toml::Value::Integer(n)) => usize::try_from(*n).unwrap_or(usize::MAX),
-            Some(toml::Value::String(name)) => tracks
-                .iter()
-                .position(|t| t.viewport.name == *name)
-                .unwrap_or(usize::MAX),
-            Some(other) => {
-                return Err(ctx.error(
-                    key.span(),
-                    format!("{field}.viewport"),
-                    format!("expected a viewport name or index, got {other}"),
-                ))
-            }
-        };
-        let Some(track) = tracks.get_mut(index) else {
-            let names: Vec<String> = tracks.iter().map(|t| t.viewport.name.clone()).collect();
-            return Err(ctx.error(
-                key.span(),
-                format!("{field}.viewport"),
-                format!(
-                    "no such viewport{} (defined: {})",
-                    k.viewport
-                        .as_ref()
-                        .map_or(String::new(), |v| format!(" {v}")),
-                    if names.is_empty() {
-                        "none".to_string()
-                    } else {
-                        names.join(", ")
-                    }
-                ),
-            ));
-        };
-        let previous = track.keys.last();
-        if let Some(previous) = previous {
-            if k.frame <= previous.frame {
-                return Err(ctx.error(
-                    key.span(),
-                    format!("{field}.frame"),
-                    format!(
-                        "keyframes of viewport '{}' must be in increasing frame order: frame {} follows frame {}",
-                        track.viewport.name, k.frame, previous.frame
-                    ),
-                ));
-            }
-        }
-        let carried = previous.map_or(track.viewport.transform, |p| p.transform);
-        let transform = ViewTransform {
-            zoom: k.zoom.unwrap_or(carried.zoom),
-            rotate: k.rotate.map_or(carried.rotate, f64::to_radians),
-            shear: k.shear.unwrap_or(carried.shear),
-            translate: k.translate.unwrap_or(carried.translate),
-        };
-        track
-            .viewport
-            .validate_transform(camera, &transform)
-            .map_err(|err| {
-                transform_error(
-                    ctx,
-                    key.span(),
-                    &format!("{field} (viewport '{}')", track.viewport.name),
-                    err,
-                )
-            })?;
-        track.keys.push(ViewportKey {
-            frame: k.frame,
-            transform,
-            ease: k.ease,
-        });
-    }
-    Ok(tracks)
 }
 
 /// What the tests of every table share.
