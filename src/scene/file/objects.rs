@@ -364,4 +364,21 @@ mod tests {
         assert_eq!(err.field.as_deref(), Some("object[0].material"));
         assert!(err.message.contains("unknown material 'nope'"), "{err}");
     }
+
+    #[test]
+    fn an_unknown_material_lists_the_defined_ones() {
+        let ball =
+            "[[object]]\ntype = \"sphere\"\ncenter = [0, 0, 0]\nradius = 1\nmaterial = \"nope\"\n";
+        for (materials, defined) in [
+            ("", "none"),
+            ("[material.red]\n[material.blue]\n", "blue, red"),
+        ] {
+            let err = parse(&format!("{CAMERA}{materials}{ball}")).unwrap_err();
+            assert_eq!(
+                err.message,
+                format!("unknown material 'nope' (defined: {defined})"),
+                "{err}"
+            );
+        }
+    }
 }

@@ -162,3 +162,47 @@ pub(super) fn convert_viewports(
     }
     Ok(tracks)
 }
+
+#[cfg(test)]
+mod tests {
+    use crate::scene::file::testing::{parse, CAMERA};
+
+    #[test]
+    fn viewport_keys_name_their_viewport_in_errors() {
+        let views = "[[viewport]]\nname = \"left\"\nwidth = 32\nheight = 24\n\
+                     [[viewport]]\nname = \"right\"\nwidth = 32\nheight = 24\n\
+                     [animation]\nframes = 4\n";
+        let key = |viewport: &str, frame: u32| {
+            format!("[[animation.viewport]]\nviewport = {viewport}\nframe = {frame}\nzoom = 2\n")
+        };
+        let cases = [
+            (
+                format!("{CAMERA}{views}{}{}", key("\"right\"", 2), key("1", 1)),
+                18,
+                "animation.viewport[1].frame",
+                "keyframes of viewport 'right' must be in increasing frame order: \
+                 frame 1 follows frame 2",
+            ),
+            (
+                format!("{CAMERA}{views}{}", key("\"up\"", 1)),
+                14,
+                "animation.viewport[0].viewport",
+                "no such viewport \"up\" (defined: left, right)",
+            ),
+            (
+                format!("{CAMERA}[animation]\nframes = 4\n{}", key("0", 1)),
+                6,
+                "animation.viewport[0].viewport",
+                "no such viewport 0 (defined: none)",
+            ),
+        ];
+        for (text, line, field, message) in cases {
+            let err = parse(&text).unwrap_err();
+            assert_eq!(
+                (err.line, err.field.as_deref(), err.message.as_str()),
+                (Some(line), Some(field), message),
+                "{err}"
+            );
+        }
+    }
+}
