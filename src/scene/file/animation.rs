@@ -11,7 +11,9 @@
 use glam::{DVec3, Vec3};
 use toml::Spanned;
 
-use super::defs::{AnimationDef, CameraKeyDef, LightDef, LightKeyDef, ObjectKeyDef, DEFAULT_FPS};
+use super::defs::{
+    AnimationDef, CameraKeyDef, LightDef, LightKeyDef, ObjectKeyDef, ViewportKeyDef, DEFAULT_FPS,
+};
 use super::lights::check_intensity;
 use super::values::{colour, world3};
 use super::Ctx;
@@ -132,6 +134,12 @@ impl Keyed for ObjectKeyDef {
 }
 
 impl Keyed for LightKeyDef {
+    fn frame(&self) -> u32 {
+        self.frame
+    }
+}
+
+impl Keyed for ViewportKeyDef {
     fn frame(&self) -> u32 {
         self.frame
     }

@@ -7,6 +7,7 @@
 //! viewport in increasing frame order, a transform value a key leaves unset
 //! carried over from the key before (or the viewport).
 
+use super::animation::check_key_order;
 use super::defs::SceneFile;
 use super::Ctx;
 use crate::camera::{Camera, ViewTransform, Viewport};
@@ -124,18 +125,14 @@ pub(super) fn convert_viewports(
             ));
         };
         let previous = track.keys.last();
-        if let Some(previous) = previous {
-            if k.frame <= previous.frame {
-                return Err(ctx.error(
-                    key.span(),
-                    format!("{field}.frame"),
-                    format!(
-                        "keyframes of viewport '{}' must be in increasing frame order: frame {} follows frame {}",
-                        track.viewport.name, k.frame, previous.frame
-                    ),
-                ));
-            }
-        }
+        let of = format!("of viewport '{}' ", track.viewport.name);
+        check_key_order(
+            ctx,
+            key,
+            format!("{field}.frame"),
+            &of,
+            previous.map(|p| p.frame),
+        )?;
         let carried = previous.map_or(track.viewport.transform, |p| p.transform);
         let transform = ViewTransform {
             zoom: k.zoom.unwrap_or(carried.zoom),
