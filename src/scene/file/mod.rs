@@ -66,6 +66,17 @@ impl Ctx<'_> {
     }
 }
 
+/// What a scene defines, for an error message: the names, comma-separated,
+/// or `none`.
+fn names_or_none<'a>(names: impl Iterator<Item = &'a str>) -> String {
+    let names: Vec<&str> = names.collect();
+    if names.is_empty() {
+        "none".to_string()
+    } else {
+        names.join(", ")
+    }
+}
+
 /// `path` as the user wrote it: `Spanned<T>` shows up in serde's path as a
 /// private key (anywhere, last too, when the spanned table itself lacks a
 /// field), which no scene file has.

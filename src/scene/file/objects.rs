@@ -14,7 +14,7 @@ use toml::Spanned;
 
 use super::defs::{ObjectDef, ObjectKind, SceneFile};
 use super::values::{finite3, world3};
-use super::Ctx;
+use super::{names_or_none, Ctx};
 use crate::geometry::{
     within_world, Object, Placement, Plane, Shape, Sphere, TriangleMesh, WORLD_LIMIT,
 };
@@ -41,18 +41,13 @@ pub(super) fn convert_objects(
                 .iter()
                 .position(|m| m.name == *name.get_ref())
                 .ok_or_else(|| {
-                    let known: Vec<&str> = file.material.keys().map(String::as_str).collect();
                     ctx.error(
                         name.span(),
                         format!("object[{i}].material"),
                         format!(
                             "unknown material '{}' (defined: {})",
                             name.get_ref(),
-                            if known.is_empty() {
-                                "none".to_string()
-                            } else {
-                                known.join(", ")
-                            }
+                            names_or_none(file.material.keys().map(String::as_str))
                         ),
                     )
                 })?,

@@ -9,7 +9,7 @@
 
 use super::animation::check_key_order;
 use super::defs::SceneFile;
-use super::Ctx;
+use super::{names_or_none, Ctx};
 use crate::camera::{Camera, ViewTransform, Viewport};
 use crate::scene::SceneError;
 use crate::timeline::{ViewportKey, ViewportTrack};
@@ -107,7 +107,6 @@ pub(super) fn convert_viewports(
             }
         };
         let Some(track) = tracks.get_mut(index) else {
-            let names: Vec<String> = tracks.iter().map(|t| t.viewport.name.clone()).collect();
             return Err(ctx.error(
                 key.span(),
                 format!("{field}.viewport"),
@@ -116,11 +115,7 @@ pub(super) fn convert_viewports(
                     k.viewport
                         .as_ref()
                         .map_or(String::new(), |v| format!(" {v}")),
-                    if names.is_empty() {
-                        "none".to_string()
-                    } else {
-                        names.join(", ")
-                    }
+                    names_or_none(tracks.iter().map(|t| t.viewport.name.as_str()))
                 ),
             ));
         };
