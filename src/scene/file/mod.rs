@@ -1,7 +1,15 @@
 //! The TOML scene file: parsing, checking, and conversion to a [`Scene`].
 //!
-//! Every error names the file, the line (of the offending value or of the
-//! table it sits in) and the field path, e.g.
+//! [`parse_scene_str`] splices in the file's includes (`include`), reads
+//! its tables with serde (`defs`), then converts them in the order a scene
+//! needs them: `[render]` (here), `[camera]` (`camera`), `[material.NAME]`
+//! (`materials`), `[[light]]` (`lights`), `[[object]]` (`objects`),
+//! `[animation]` (`animation`) and `[[viewport]]` (`viewports`); `values`
+//! holds the checks they share.
+//!
+//! Promises: a scene that loads keeps the promises of [`Scene`]; a scene
+//! that does not gets one error, which names the file, the line (of the
+//! offending value or of the table it sits in) and the field path, e.g.
 //! `scenes/x.toml:14: object[2].radius: must be above 0, got -1`.
 
 mod animation;
@@ -45,11 +53,14 @@ pub struct SceneOverrides {
 /// Deepest reflection recursion accepted (each level can double the rays).
 pub const MAX_DEPTH_LIMIT: u32 = 16;
 
+/// What every table's conversion needs: the spliced source, to name the
+/// file and line of a span.
 struct Ctx<'a> {
     source: &'a Source,
 }
 
 impl Ctx<'_> {
+    /// The error `message` about `field`, at the line where `span` starts.
     fn error(
         &self,
         span: std::ops::Range<usize>,
@@ -104,6 +115,9 @@ fn user_path(path: &serde_path_to_error::Path) -> String {
     out
 }
 
+/// The scene of a scene file's `text`, read from `path` (which names it
+/// in errors, and where its includes and models are found), with the
+/// command line's `overrides`.
 pub fn parse_scene_str(
     text: &str,
     path: &Path,
@@ -156,7 +170,7 @@ pub fn parse_scene_str(
     let default_material = materials.len();
     materials.push(Material::matte("default", Vec3::splat(0.7)));
 
-    let lights = convert_lights(&ctx, &file.light)?;
+    let mut lights = convert_lights(&ctx, &file.light)?;
 
     let mut warnings = Vec::new();
     let mut objects =
@@ -167,7 +181,6 @@ pub fn parse_scene_str(
         .as_ref()
         .map(|def| convert_animation(&ctx, def, &camera, &objects, &file.light))
         .transpose()?;
-    let mut lights = lights;
     if let Some(animation) = &animation {
         // Animated objects become instances, so a move updates a transform
         // instead of rebuilding geometry; the scene shows frame 0.
