@@ -1,0 +1,285 @@
+//! The scene file's tables as serde reads them: one struct per TOML table,
+//! with the defaults of the fields a file may leave out.
+//!
+//! Promises: an unknown key anywhere is an error (`deny_unknown_fields`),
+//! and a value of the wrong type is serde's error. Ranges, finiteness and
+//! references between tables are not checked here but where each table is
+//! converted.
+
+use std::collections::BTreeMap;
+
+use serde::Deserialize;
+use toml::Spanned;
+
+use crate::camera::Projection;
+use crate::timeline::Ease;
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct SceneFile {
+    pub(super) render: Option<Spanned<RenderDef>>,
+    pub(super) camera: Spanned<CameraDef>,
+    #[serde(default)]
+    pub(super) light: Vec<Spanned<LightDef>>,
+    #[serde(default)]
+    pub(super) material: BTreeMap<String, Spanned<MaterialDef>>,
+    #[serde(default)]
+    pub(super) object: Vec<Spanned<ObjectDef>>,
+    pub(super) animation: Option<AnimationDef>,
+    #[serde(default)]
+    pub(super) viewport: Vec<Spanned<ViewportDef>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct AnimationDef {
+    pub(super) frames: Spanned<u32>,
+    /// Frames per second, 25 when not given.
+    #[serde(default)]
+    pub(super) fps: Option<Spanned<f64>>,
+    #[serde(default)]
+    pub(super) camera: Vec<Spanned<CameraKeyDef>>,
+    #[serde(default)]
+    pub(super) object: Vec<Spanned<ObjectKeyDef>>,
+    #[serde(default)]
+    pub(super) bounce: Vec<Spanned<BounceDef>>,
+    #[serde(default)]
+    pub(super) light: Vec<Spanned<LightKeyDef>>,
+    #[serde(default)]
+    pub(super) viewport: Vec<Spanned<ViewportKeyDef>>,
+}
+
+/// An RSVP viewport onto the camera's sample buffer.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct ViewportDef {
+    pub(super) name: Option<String>,
+    pub(super) width: i64,
+    pub(super) height: i64,
+    #[serde(default = "default_projection")]
+    pub(super) projection: Projection,
+    /// Degrees; the camera's if unset.
+    pub(super) fov: Option<f64>,
+    /// Degrees, added to the camera's.
+    #[serde(default)]
+    pub(super) yaw: f64,
+    #[serde(default)]
+    pub(super) pitch: f64,
+    pub(super) zoom: Option<f64>,
+    /// Degrees, counter-clockwise.
+    pub(super) rotate: Option<f64>,
+    pub(super) shear: Option<[f64; 2]>,
+    pub(super) translate: Option<[f64; 2]>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct ViewportKeyDef {
+    pub(super) frame: u32,
+    /// Name or index of the viewport; the first if unset.
+    pub(super) viewport: Option<toml::Value>,
+    pub(super) zoom: Option<f64>,
+    pub(super) rotate: Option<f64>,
+    pub(super) shear: Option<[f64; 2]>,
+    pub(super) translate: Option<[f64; 2]>,
+    #[serde(default)]
+    pub(super) ease: Ease,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct ObjectKeyDef {
+    /// The object's `name` (all parts of a multi-part mesh move together).
+    pub(super) object: String,
+    pub(super) frame: u32,
+    pub(super) translate: Option<[f32; 3]>,
+    /// Degrees about x, then y, then z, around the object's centre.
+    pub(super) rotate: Option<[f32; 3]>,
+    #[serde(default)]
+    pub(super) ease: Ease,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct BounceDef {
+    pub(super) object: String,
+    pub(super) height: f32,
+    /// Frames per hop.
+    pub(super) period: f64,
+    /// Fraction of a hop to start at.
+    #[serde(default)]
+    pub(super) phase: f64,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct LightKeyDef {
+    /// Index of the `[[light]]` (0 = the first).
+    pub(super) light: usize,
+    pub(super) frame: u32,
+    pub(super) position: Option<[f32; 3]>,
+    pub(super) color: Option<[f32; 3]>,
+    pub(super) intensity: Option<f32>,
+    #[serde(default)]
+    pub(super) ease: Ease,
+}
+
+pub(super) const DEFAULT_FPS: f64 = 25.0;
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct CameraKeyDef {
+    pub(super) frame: u32,
+    /// Degrees.
+    pub(super) yaw: Option<f64>,
+    /// Degrees.
+    pub(super) pitch: Option<f64>,
+    /// Degrees.
+    pub(super) fov: Option<f64>,
+    pub(super) position: Option<[f64; 3]>,
+    #[serde(default)]
+    pub(super) ease: Ease,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct RenderDef {
+    #[serde(default = "default_width")]
+    pub(super) width: u32,
+    #[serde(default = "default_height")]
+    pub(super) height: u32,
+    #[serde(default = "default_depth")]
+    pub(super) max_depth: u32,
+    #[serde(default)]
+    pub(super) background: [f32; 3],
+    #[serde(default = "default_ambient")]
+    pub(super) ambient: [f32; 3],
+}
+
+impl Default for RenderDef {
+    fn default() -> Self {
+        RenderDef {
+            width: default_width(),
+            height: default_height(),
+            max_depth: default_depth(),
+            background: [0.0; 3],
+            ambient: default_ambient(),
+        }
+    }
+}
+
+fn default_width() -> u32 {
+    640
+}
+fn default_height() -> u32 {
+    480
+}
+fn default_depth() -> u32 {
+    4
+}
+fn default_ambient() -> [f32; 3] {
+    [0.1; 3]
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct CameraDef {
+    #[serde(default = "default_projection")]
+    pub(super) projection: Projection,
+    pub(super) position: [f64; 3],
+    /// Degrees.
+    pub(super) yaw: Option<f64>,
+    /// Degrees.
+    pub(super) pitch: Option<f64>,
+    pub(super) look_at: Option<[f64; 3]>,
+    /// Horizontal field of view, degrees.
+    pub(super) fov: f64,
+}
+
+fn default_projection() -> Projection {
+    Projection::Perspective
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct LightDef {
+    pub(super) position: [f32; 3],
+    #[serde(default = "white")]
+    pub(super) color: [f32; 3],
+    #[serde(default = "one")]
+    pub(super) intensity: f32,
+}
+
+fn white() -> [f32; 3] {
+    [1.0; 3]
+}
+fn one() -> f32 {
+    1.0
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct MaterialDef {
+    #[serde(default = "grey")]
+    pub(super) diffuse: [f32; 3],
+    pub(super) checker: Option<CheckerDef>,
+    #[serde(default)]
+    pub(super) specular: [f32; 3],
+    #[serde(default = "default_shininess")]
+    pub(super) shininess: f32,
+    #[serde(default)]
+    pub(super) reflectivity: f32,
+}
+
+fn grey() -> [f32; 3] {
+    [0.7; 3]
+}
+fn default_shininess() -> f32 {
+    32.0
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct CheckerDef {
+    pub(super) colors: [[f32; 3]; 2],
+    #[serde(default = "one")]
+    pub(super) scale: f32,
+}
+
+#[derive(Deserialize, Clone, Copy, PartialEq, Eq, Debug)]
+#[serde(rename_all = "lowercase")]
+pub(super) enum ObjectKind {
+    Sphere,
+    Plane,
+    Quad,
+    Polygon,
+    Mesh,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct ObjectDef {
+    #[serde(rename = "type")]
+    pub(super) kind: ObjectKind,
+    pub(super) name: Option<String>,
+    pub(super) material: Option<Spanned<String>>,
+    pub(super) center: Option<[f32; 3]>,
+    pub(super) radius: Option<f32>,
+    pub(super) point: Option<[f32; 3]>,
+    pub(super) normal: Option<[f32; 3]>,
+    /// Finite plane: side lengths along the plane's two in-plane axes.
+    pub(super) size: Option<[f32; 2]>,
+    pub(super) vertices: Option<Vec<[f32; 3]>>,
+    pub(super) file: Option<String>,
+    #[serde(default)]
+    pub(super) translate: [f32; 3],
+    /// Degrees about x, then y, then z.
+    #[serde(default)]
+    pub(super) rotate: [f32; 3],
+    #[serde(default = "one")]
+    pub(super) scale: f32,
+    /// Meshes without normals in the file: interpolate area-weighted vertex
+    /// normals instead of shading each triangle flat.
+    #[serde(default)]
+    pub(super) smooth: bool,
+}

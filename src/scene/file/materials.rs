@@ -1,0 +1,64 @@
+//! The `[material.NAME]` tables as [`Material`]s.
+//!
+//! Promises: every colour is finite and not negative, a checker's scale
+//! above 0, the shininess finite and not negative, the reflectivity within
+//! 0..1.
+
+use toml::Spanned;
+
+use super::defs::MaterialDef;
+use super::values::colour;
+use super::Ctx;
+use crate::scene::{Checker, Material, SceneError};
+
+/// The material `name` of a `[material.name]` table.
+pub(super) fn convert_material(
+    ctx: &Ctx,
+    name: &str,
+    def: &Spanned<MaterialDef>,
+) -> Result<Material, SceneError> {
+    let m = def.get_ref();
+    let field = |f: &str| format!("material.{name}.{f}");
+    let err = |f: &str| {
+        let f = field(f);
+        move |message: String| ctx.error(def.span(), f.clone(), message)
+    };
+    let checker = match &m.checker {
+        None => None,
+        Some(c) => {
+            if !(c.scale.is_finite() && c.scale > 0.0) {
+                return Err(err("checker.scale")(format!(
+                    "must be above 0, got {}",
+                    c.scale
+                )));
+            }
+            Some(Checker {
+                colors: [
+                    colour(c.colors[0]).map_err(err("checker.colors"))?,
+                    colour(c.colors[1]).map_err(err("checker.colors"))?,
+                ],
+                scale: c.scale,
+            })
+        }
+    };
+    if !(m.shininess.is_finite() && m.shininess >= 0.0) {
+        return Err(err("shininess")(format!(
+            "must be >= 0, got {}",
+            m.shininess
+        )));
+    }
+    if !(0.0..=1.0).contains(&m.reflectivity) {
+        return Err(err("reflectivity")(format!(
+            "must be within 0..1, got {}",
+            m.reflectivity
+        )));
+    }
+    Ok(Material {
+        name: name.to_string(),
+        diffuse: colour(m.diffuse).map_err(err("diffuse"))?,
+        checker,
+        specular: colour(m.specular).map_err(err("specular"))?,
+        shininess: m.shininess,
+        reflectivity: m.reflectivity,
+    })
+}
