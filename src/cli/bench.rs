@@ -8,7 +8,7 @@ use clap::Args;
 
 use retrace::frame_loop::{Options, Techniques};
 use retrace::lab::bench::{bench_sequence, Measure, SequenceBench};
-use retrace::scene::Scene;
+use retrace::scene::{Scene, SceneOverrides};
 
 use super::{
     check_writable, load, parse_frame_range, scene_name, write_json, BackendArg, OstcArgs,
@@ -90,18 +90,11 @@ pub(crate) fn bench(args: BenchArgs) -> Result<()> {
         "e2" => vec![Experiment::E2In, Experiment::E2Out],
         "e3" => vec![Experiment::E3],
         "e4" => vec![Experiment::E4],
+        "e4nomotion" => vec![Experiment::E4NoMotion],
         "scaling" => Vec::new(),
         "frame" => return bench_frame(&args, &load(&args.scene)?, bar),
         "backends" => return bench_backends(&args, &load(&args.scene)?, bar),
-        "e4nomotion" => {
-            return bench_e2(
-                &args,
-                load(&args.scene)?,
-                bar,
-                retrace::lab::bench::E4_PAN_DEG_PER_FRAME,
-            )
-        }
-        "knobs" => return bench_knobs(&args, load(&args.scene)?, bar),
+        "knobs" => return bench_knobs(&args, bar),
         _ => {
             anyhow::bail!(
                 "unknown measurement '{}' for --only (available: all, E1, E2, E3, E4, scaling, frame, backends, E4nomotion, knobs)",
@@ -122,7 +115,7 @@ pub(crate) fn bench(args: BenchArgs) -> Result<()> {
     bench_suite(&args, planned, bar)
 }
 
-/// The experiments of the paper's table.
+/// The experiments of the paper's table, and E4 without its ball.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Experiment {
     E1,
@@ -130,6 +123,56 @@ enum Experiment {
     E2Out,
     E3,
     E4,
+    E4NoMotion,
+}
+
+impl Experiment {
+    /// Its row heading: id, what changes, the technique, the paper's
+    /// speedup.
+    fn heading(self) -> (&'static str, &'static str, &'static str, &'static str) {
+        match self {
+            Experiment::E1 => (
+                "E1",
+                "pan 3.6 deg/frame, a whole turn",
+                "Panimation",
+                "~10x",
+            ),
+            Experiment::E2In => ("E2 in", "zoom in 100 -> 50 deg", "RSVP", "~10x"),
+            Experiment::E2Out => ("E2 out", "zoom out 50 -> 100 deg", "RSVP", "~10x"),
+            Experiment::E3 => ("E3", "a small ball bounces, camera still", "OSTC", "~2x"),
+            Experiment::E4 => (
+                "E4",
+                "pan + zoom in + bouncing ball, viewport",
+                "RSVP+OSTC",
+                "~2x",
+            ),
+            Experiment::E4NoMotion => ("E4 no motion", "pan + zoom in, viewport", "RSVP", "-"),
+        }
+    }
+
+    /// The shipped scene file that is the experiment on the paper scene
+    /// (built into the binary).
+    fn scene_file(self) -> &'static str {
+        match self {
+            Experiment::E1 => "paper-pan.toml",
+            Experiment::E2In => "paper-zoom-in.toml",
+            Experiment::E2Out => "paper-zoom-out.toml",
+            Experiment::E3 => "paper-bounce.toml",
+            Experiment::E4 => "paper-all.toml",
+            Experiment::E4NoMotion => "paper-pan-zoom.toml",
+        }
+    }
+
+    /// The same on the bunnies (`scenes/`, on disk), where there is one.
+    fn bunnies_file(self) -> Option<&'static str> {
+        match self {
+            Experiment::E1 => Some("bunnies-pan.toml"),
+            Experiment::E2In => Some("bunnies-zoom-in.toml"),
+            Experiment::E3 => Some("bunnies.toml"),
+            Experiment::E4 => Some("bunnies-all.toml"),
+            Experiment::E2Out | Experiment::E4NoMotion => None,
+        }
+    }
 }
 
 /// Where a scaling row runs instead of the paper scene at its own size.
@@ -173,94 +216,63 @@ impl PlannedExperiment {
 }
 
 /// Loads and checks an experiment's scene and frames before anything runs,
-/// so bad input costs no measuring time.
+/// so bad input costs no measuring time. The experiment is its shipped
+/// scene file (see [`Experiment::scene_file`]), or the scene given, whose
+/// own timeline is then measured.
 fn plan_experiment(
     args: &BenchArgs,
     experiment: Experiment,
     variant: Option<ScalingVariant>,
 ) -> Result<PlannedExperiment> {
-    use retrace::lab::bench::{e1_scene, e2_scene, e4_scene, ZoomDirection};
     let mut scene_args = args.scene.clone();
-    let mut label = None;
-    match variant {
-        Some(ScalingVariant::Bunnies) => {
-            scene_args.scene = Some(PathBuf::from("scenes/bunnies.toml"));
-            label = Some("bunnies".to_string());
-        }
-        Some(ScalingVariant::Large) => {
-            scene_args.width = Some(1280);
-            scene_args.height = Some(960);
-        }
-        None => {}
+    if variant == Some(ScalingVariant::Large) {
+        scene_args.width = Some(1280);
+        scene_args.height = Some(960);
     }
     let resized = scene_args.width.is_some() || scene_args.height.is_some();
-    let own = |file: &str| -> Result<Scene> {
-        if scene_args.scene.is_some() {
-            return load(&scene_args);
-        }
-        let path = Path::new(file);
-        if !path.exists() {
-            anyhow::bail!("{experiment:?} needs {file} (run from the repository) or a scene file");
-        }
-        load(&SceneArgs {
-            scene: Some(path.to_path_buf()),
-            ..scene_args.clone()
-        })
+    let (id, what, technique, paper) = experiment.heading();
+    let file = experiment.scene_file();
+    let overrides = SceneOverrides {
+        width: scene_args.width,
+        height: scene_args.height,
+        projection: scene_args.camera,
+        fov: scene_args.fov,
     };
-    let (id, what, technique, paper, mut scene) = match experiment {
-        Experiment::E1 => (
-            "E1",
-            "pan 3.6 deg/frame, a whole turn",
-            "Panimation",
-            "~10x",
-            e1_scene(load(&scene_args)?),
-        ),
-        Experiment::E2In | Experiment::E2Out => {
-            let (id, what, direction) = if experiment == Experiment::E2In {
-                ("E2 in", "zoom in 100 -> 50 deg", ZoomDirection::In)
-            } else {
-                ("E2 out", "zoom out 50 -> 100 deg", ZoomDirection::Out)
-            };
-            (
-                id,
-                what,
-                "RSVP",
-                "~10x",
-                e2_scene(load(&scene_args)?, direction, 0.0),
-            )
-        }
-        Experiment::E3 => {
-            let scene = own("scenes/paper-bounce.toml")?;
-            if !matches!(&scene.animation, Some(a) if a.moves_scene()) {
-                anyhow::bail!("E3 needs a scene whose timeline moves objects or lights");
+    let (mut scene, scene_label) = match (&scene_args.scene, variant) {
+        (Some(path), None | Some(ScalingVariant::Large)) => {
+            let scene = load(&scene_args)?;
+            if scene.animation.is_none() {
+                anyhow::bail!(
+                    "{id} measures a scene's own timeline, and {} has no [animation] \
+                     (scenes/{file} is {id}'s)",
+                    path.display()
+                );
             }
-            (
-                "E3",
-                "a small ball bounces, camera still",
-                "OSTC",
-                "~2x",
-                scene,
-            )
+            let label = path
+                .file_stem()
+                .map_or("scene".to_string(), |s| s.to_string_lossy().into_owned());
+            (scene, label)
         }
-        Experiment::E4 => {
-            let scene = own("scenes/paper-all.toml")?;
-            let moves = matches!(&scene.animation, Some(a) if a.moves_scene());
-            // A scene without viewports gets E4's pan and zoom on top of
-            // its own motion; one with viewports runs as it is.
-            let scene = match (scene.viewports.is_empty(), moves) {
-                (false, _) => scene,
-                (true, true) => e4_scene(scene),
-                (true, false) => anyhow::bail!(
-                    "E4 needs a scene with a [[viewport]], or one whose timeline moves objects or lights"
-                ),
+        (_, Some(ScalingVariant::Bunnies)) => {
+            let Some(file) = experiment.bunnies_file() else {
+                anyhow::bail!("{id} has no scene on the bunnies");
             };
-            (
-                "E4",
-                "pan + zoom in + bouncing ball, viewport",
-                "RSVP+OSTC",
-                "~2x",
-                scene,
-            )
+            let path = Path::new("scenes").join(file);
+            if !path.exists() {
+                anyhow::bail!(
+                    "{id} on the bunnies needs {} (run from the repository)",
+                    path.display()
+                );
+            }
+            let scene = load(&SceneArgs {
+                scene: Some(path),
+                ..scene_args.clone()
+            })?;
+            (scene, "bunnies".to_string())
+        }
+        _ => {
+            let scene = retrace::scene::builtin_scene(file, &overrides)?;
+            (scene, file.trim_end_matches(".toml").to_string())
         }
     };
     if resized {
@@ -279,14 +291,6 @@ fn plan_experiment(
         .map_or((scene.camera.width, scene.camera.height), |track| {
             (track.viewport.width, track.viewport.height)
         });
-    let scene_label = label.unwrap_or_else(|| match &scene_args.scene {
-        Some(path) => path
-            .file_stem()
-            .map_or("scene".to_string(), |s| s.to_string_lossy().into_owned()),
-        None if experiment == Experiment::E3 => "paper-bounce".to_string(),
-        None if experiment == Experiment::E4 => "paper-all".to_string(),
-        None => "paper".to_string(),
-    });
     let mut id = id.to_string();
     if variant.is_some() {
         id = format!("{id} {scene_label} {width}x{height}");
@@ -490,69 +494,42 @@ fn print_viewport_bench(label: &str, r: &SequenceBench) {
     );
 }
 
-/// E2 (zoom 100 <-> 50 degrees over 100 frames, both directions), or with
-/// a pan E4 without the moving ball.
-fn bench_e2(
-    args: &BenchArgs,
-    scene: Scene,
-    bar: indicatif::ProgressBar,
-    pan_deg_per_frame: f64,
-) -> Result<()> {
-    use retrace::lab::bench::{e2_scene, ZoomDirection};
+/// RSVP knobs on E2's zoom in (or the scene given, if it has viewports):
+/// each filter, oversampling and level bias, with its time and its error
+/// against direct renders.
+fn bench_knobs(args: &BenchArgs, bar: indicatif::ProgressBar) -> Result<()> {
+    let scene = match &args.scene.scene {
+        Some(path) => {
+            let scene = load(&args.scene)?;
+            if scene.viewports.is_empty() {
+                anyhow::bail!(
+                    "--only knobs: {} has no [[viewport]] for RSVP to resample",
+                    path.display()
+                );
+            }
+            scene
+        }
+        None => retrace::scene::builtin_scene(
+            "paper-zoom-in.toml",
+            &SceneOverrides {
+                width: args.scene.width,
+                height: args.scene.height,
+                projection: args.scene.camera,
+                fov: args.scene.fov,
+            },
+        )?,
+    };
     let mut accel = args.backend.build(&scene)?;
-    bar.set_length(2 * 300);
-    let mut results = Vec::new();
-    for (label, direction) in [
-        ("zoom in ", ZoomDirection::In),
-        ("zoom out", ZoomDirection::Out),
-    ] {
-        bar.set_message(label);
-        let scene = e2_scene(scene.clone(), direction, pan_deg_per_frame);
-        let options = Options {
-            rsvp: args.rsvp.knobs()?,
-            ..Options::new(Techniques::AUTO, 0..100)
-        };
-        let measure = Measure {
-            error: true,
-            oracle: false,
-        };
-        let result = bench_sequence(&scene, &mut accel, &options, 1, measure, || bar.inc(1));
-        results.push((label, result));
-    }
-    bar.finish_and_clear();
-    say!(
-        "{} (perspective viewport 640x480, 100 <-> 50 deg over 100 frames{}), {} threads, one run, release",
-        if pan_deg_per_frame == 0.0 { "E2" } else { "E4 without motion" },
-        if pan_deg_per_frame == 0.0 {
-            String::new()
-        } else {
-            format!(", camera yaw {pan_deg_per_frame} deg/frame")
-        },
-        rayon::current_num_threads()
-    );
-    for (label, result) in &results {
-        print_viewport_bench(label, result);
-    }
-    if let Some(path) = &args.json {
-        let list: Vec<_> = results.iter().map(|(_, r)| r).collect();
-        write_json(path, &list)?;
-    }
-    Ok(())
-}
-
-/// RSVP knobs on E2's zoom in: each filter, oversampling and level bias,
-/// with its time and its error against direct renders.
-fn bench_knobs(args: &BenchArgs, scene: Scene, bar: indicatif::ProgressBar) -> Result<()> {
-    use retrace::lab::bench::{e2_scene, ZoomDirection};
-    let mut accel = args.backend.build(&scene)?;
-    let scene = e2_scene(scene, ZoomDirection::In, 0.0);
+    let frames = 0..scene.animation.as_ref().map_or(1, |a| a.frames);
     let settings = retrace::lab::tradeoff::rsvp_knob_settings();
-    bar.set_length((settings.len() * 300) as u64);
+    bar.set_length((settings.len() * 3 * frames.len()) as u64);
     let results =
-        retrace::lab::tradeoff::sweep_rsvp_knobs(&scene, &mut accel, 0..100, || bar.inc(1));
+        retrace::lab::tradeoff::sweep_rsvp_knobs(&scene, &mut accel, frames.clone(), || bar.inc(1));
     bar.finish_and_clear();
     say!(
-        "RSVP knobs on E2 zoom in (100 frames, 640x480), {} threads",
+        "RSVP knobs on {} ({} frames), {} threads",
+        scene_name(&args.scene),
+        frames.len(),
         rayon::current_num_threads()
     );
     for r in &results {

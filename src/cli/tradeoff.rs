@@ -11,10 +11,11 @@ use super::{check_writable, load, parse_frame_range, scene_name, BackendArg, Sce
 
 #[derive(Args)]
 pub(crate) struct TradeoffArgs {
-    /// The base scene: the pan (E1) and zoom (E2) timelines are put on it;
-    /// the OSTC knobs run on its own timeline if that moves objects or
-    /// lights (skipped otherwise). Without it: the built-in paper scene,
-    /// and the built-in bouncing ball (E3) for OSTC.
+    /// The scene whose timeline the knobs are swept on: the pan knobs if
+    /// its equal-angle camera moves, the RSVP knobs if it has viewports,
+    /// the OSTC knobs if objects or lights move. Without it: the paper's
+    /// experiments built into the binary (E1's pan, E2's zoom in, E3's
+    /// bouncing ball), at the size and camera the flags give.
     #[command(flatten)]
     scene: SceneArgs,
     #[command(flatten)]
@@ -28,30 +29,39 @@ pub(crate) struct TradeoffArgs {
 }
 
 pub(crate) fn tradeoff(args: TradeoffArgs) -> Result<()> {
-    use retrace::lab::tradeoff::{bouncing_ball_scene, TradeoffScenes};
+    use retrace::lab::tradeoff::TradeoffScenes;
     if cfg!(debug_assertions) {
         eprintln!(
             "warning: this is a debug build; timings mean little (use `cargo run --release`)"
         );
     }
-    let base = load(&args.scene)?;
-    let objects = match &args.scene.scene {
-        None => Some(bouncing_ball_scene(&SceneOverrides {
+    let scenes = match &args.scene.scene {
+        None => TradeoffScenes::builtin(&SceneOverrides {
             width: args.scene.width,
             height: args.scene.height,
             projection: args.scene.camera,
             fov: args.scene.fov,
-        })?),
-        Some(_) if base.animation.as_ref().is_some_and(|a| a.moves_scene()) => Some(base.clone()),
+        })?,
         Some(path) => {
-            eprintln!(
-                "note: OSTC knobs skipped: the timeline of {} moves no object or light",
-                path.display()
-            );
-            None
+            let scenes = TradeoffScenes::of(load(&args.scene)?);
+            let skipped = scenes.skipped();
+            if skipped.len() == 3 {
+                anyhow::bail!(
+                    "{}: its timeline exercises no knob (no pan of an equal-angle camera, no \
+                     viewport, nothing else moving)",
+                    path.display()
+                );
+            }
+            if !skipped.is_empty() {
+                eprintln!(
+                    "note: {} knobs skipped: the timeline of {} does not exercise them",
+                    skipped.join(", "),
+                    path.display()
+                );
+            }
+            scenes
         }
     };
-    let scenes = TradeoffScenes::new(base, objects);
     let frames = parse_frame_range(args.frames.as_deref(), scenes.frame_count())?;
     check_writable(&args.out)?;
     let frames = *frames.start()..*frames.end() + 1;

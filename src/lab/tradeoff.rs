@@ -26,7 +26,7 @@ use crate::reuse::ostc::DEFAULT_VOXELS;
 use crate::reuse::pan::FractionalPan;
 use crate::reuse::regions::RegionGrid;
 use crate::reuse::rsvp::{Filter, RsvpKnobs};
-use crate::scene::{parse_scene_str, Scene, SceneError, SceneOverrides, PAPER_SCENE_TOML};
+use crate::scene::{builtin_scene, Scene, SceneError, SceneOverrides};
 
 /// One knob at one setting, against the exact reference.
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
@@ -52,32 +52,70 @@ pub struct TradeoffRow {
     pub bit_exact: Option<bool>,
 }
 
-/// The animations the knobs are swept on, all built on one base scene.
+/// The animations the knobs are swept on; a knob group with no scene is
+/// skipped.
 pub struct TradeoffScenes {
-    /// E1: a whole turn of yaw, 3.6 degrees per frame.
-    pub pan: Scene,
-    /// E2: a perspective viewport zooming in from 100 to 50 degrees.
-    pub zoom: Scene,
-    /// Something that moves objects or lights before a still camera (E3),
-    /// for the OSTC knobs; None skips them.
+    /// A camera that pans (E1: a whole turn, 3.6 degrees per frame), for
+    /// snapping against resampling.
+    pub pan: Option<Scene>,
+    /// RSVP viewports (E2: one zooming in from 100 to 50 degrees), for the
+    /// RSVP knobs.
+    pub zoom: Option<Scene>,
+    /// Objects or lights that move (E3: a bouncing ball), for the OSTC
+    /// knobs.
     pub objects: Option<Scene>,
 }
 
 impl TradeoffScenes {
-    pub fn new(base: Scene, objects: Option<Scene>) -> TradeoffScenes {
+    /// The paper's experiments built into the binary: E1's pan
+    /// (`scenes/paper-pan.toml`), E2's zoom in and E3's bouncing ball.
+    pub fn builtin(overrides: &SceneOverrides) -> Result<TradeoffScenes, SceneError> {
+        Ok(TradeoffScenes {
+            pan: Some(builtin_scene("paper-pan.toml", overrides)?),
+            zoom: Some(builtin_scene("paper-zoom-in.toml", overrides)?),
+            objects: Some(builtin_scene("paper-bounce.toml", overrides)?),
+        })
+    }
+
+    /// The knob groups `scene`'s own timeline exercises: the pan knobs
+    /// when its equal-angle camera moves (and it has no viewports), the
+    /// RSVP knobs when it has viewports, the OSTC knobs when objects or
+    /// lights move.
+    pub fn of(scene: Scene) -> TradeoffScenes {
+        let animation = scene.animation.as_ref();
+        let pans = scene.viewports.is_empty()
+            && scene.camera.projection == crate::camera::Projection::EqualAngle
+            && animation.is_some_and(|a| !a.camera_keys.is_empty());
+        let moves = animation.is_some_and(|a| a.moves_scene());
+        let zooms = !scene.viewports.is_empty();
         TradeoffScenes {
-            pan: crate::lab::bench::e1_scene(base.clone()),
-            zoom: crate::lab::bench::e2_scene(base, crate::lab::bench::ZoomDirection::In, 0.0),
-            objects,
+            pan: pans.then(|| scene.clone()),
+            zoom: zooms.then(|| scene.clone()),
+            objects: moves.then_some(scene),
         }
+    }
+
+    /// The knob groups with no scene to run on, by name.
+    pub fn skipped(&self) -> Vec<&'static str> {
+        [
+            ("pan", &self.pan),
+            ("RSVP", &self.zoom),
+            ("OSTC", &self.objects),
+        ]
+        .into_iter()
+        .filter(|(_, scene)| scene.is_none())
+        .map(|(name, _)| name)
+        .collect()
+    }
+
+    fn scenes(&self) -> impl Iterator<Item = &Scene> {
+        [&self.pan, &self.zoom, &self.objects].into_iter().flatten()
     }
 
     /// Frames every swept animation has: the valid frame numbers are
     /// `0..frame_count()`.
     pub fn frame_count(&self) -> u32 {
-        [Some(&self.pan), Some(&self.zoom), self.objects.as_ref()]
-            .into_iter()
-            .flatten()
+        self.scenes()
             .map(|scene| scene.animation.as_ref().map_or(1, |a| a.frames))
             .min()
             .unwrap_or(1)
@@ -87,27 +125,12 @@ impl TradeoffScenes {
     pub fn progress_steps(&self, frames: u32) -> u64 {
         // Each setting's sequence: full, accelerated and checked, a step
         // per frame each.
-        let per_setting = 3 * u64::from(frames);
-        let ostc = self
-            .objects
-            .as_ref()
-            .map_or(0, |_| unique_ostc_settings().len());
-        per_setting * (PAN_SETTINGS.len() + rsvp_knob_settings().len() + ostc) as u64
+        let settings = |scene: &Option<Scene>, count: usize| scene.as_ref().map_or(0, |_| count);
+        let count = settings(&self.pan, PAN_SETTINGS.len())
+            + settings(&self.zoom, rsvp_knob_settings().len())
+            + settings(&self.objects, unique_ostc_settings().len());
+        3 * u64::from(frames) * count as u64
     }
-}
-
-/// The E3 experiment on the built-in paper scene: `scenes/paper-bounce.toml`
-/// (compiled in, like the paper scene) laid over it, so the OSTC knobs need
-/// no files on disk.
-pub fn bouncing_ball_scene(overrides: &SceneOverrides) -> Result<Scene, SceneError> {
-    const BOUNCE: &str = include_str!("../../scenes/paper-bounce.toml");
-    let own: String = BOUNCE
-        .lines()
-        .filter(|line| !line.trim_start().starts_with("include"))
-        .map(|line| format!("{line}\n"))
-        .collect();
-    let text = format!("{PAPER_SCENE_TOML}\n{own}");
-    parse_scene_str(&text, Path::new("scenes/paper-bounce.toml"), overrides)
 }
 
 const PAN_SETTINGS: [FractionalPan; 2] = [FractionalPan::Snap, FractionalPan::Resample];
@@ -215,47 +238,46 @@ pub fn sweep(
     let count = frames.end - frames.start;
     let mut rows = Vec::new();
 
-    let mut accel = Accelerator::build_with(backend, &scenes.pan.objects, grid_resolution)?;
-    let pan_settings: Vec<_> = PAN_SETTINGS
-        .iter()
-        .map(|&fractional| CameraSetting {
-            fractional,
-            ostc: OstcSettings::default(),
-        })
-        .collect();
-    let pan = measure_camera_settings(
-        &scenes.pan,
-        &mut accel,
-        frames.clone(),
-        &pan_settings,
-        |what| progress(&format!("pan: {what}")),
-    );
-    for (fractional, measured) in PAN_SETTINGS.iter().zip(pan) {
-        let setting = match fractional {
-            FractionalPan::Snap => "snap to lattice",
-            FractionalPan::Resample => "resample true yaw",
-        };
-        rows.push(measured.row("pan", setting.to_string(), count));
+    if let Some(scene) = &scenes.pan {
+        let mut accel = Accelerator::build_with(backend, &scene.objects, grid_resolution)?;
+        let pan_settings: Vec<_> = PAN_SETTINGS
+            .iter()
+            .map(|&fractional| CameraSetting {
+                fractional,
+                ostc: OstcSettings::default(),
+            })
+            .collect();
+        let pan =
+            measure_camera_settings(scene, &mut accel, frames.clone(), &pan_settings, |what| {
+                progress(&format!("pan: {what}"))
+            });
+        for (fractional, measured) in PAN_SETTINGS.iter().zip(pan) {
+            let setting = match fractional {
+                FractionalPan::Snap => "snap to lattice",
+                FractionalPan::Resample => "resample true yaw",
+            };
+            rows.push(measured.row("pan", setting.to_string(), count));
+        }
     }
 
-    let mut accel = Accelerator::build_with(backend, &scenes.zoom.objects, grid_resolution)?;
-    let rsvp = sweep_rsvp_knobs(&scenes.zoom, &mut accel, frames.clone(), || {
-        progress("RSVP knobs")
-    });
-    let measured: Vec<(RsvpKnobs, Measured)> = rsvp
-        .iter()
-        .map(|result| (result.knobs, Measured::of(result, false)))
-        .collect();
-    // Each knob's rows: the settings that differ from the default in that
-    // knob alone, the default among them (the point each knob moves from).
-    for knob in [
-        RsvpKnob::Filter,
-        RsvpKnob::Oversampling,
-        RsvpKnob::LevelBias,
-    ] {
-        for (settings, result) in &measured {
-            if knob.alone_varied(settings) {
-                rows.push(result.row(knob.name(), knob.setting(settings), count));
+    if let Some(scene) = &scenes.zoom {
+        let mut accel = Accelerator::build_with(backend, &scene.objects, grid_resolution)?;
+        let rsvp = sweep_rsvp_knobs(scene, &mut accel, frames.clone(), || progress("RSVP knobs"));
+        let measured: Vec<(RsvpKnobs, Measured)> = rsvp
+            .iter()
+            .map(|result| (result.knobs, Measured::of(result, false)))
+            .collect();
+        // Each knob's rows: the settings that differ from the default in that
+        // knob alone, the default among them (the point each knob moves from).
+        for knob in [
+            RsvpKnob::Filter,
+            RsvpKnob::Oversampling,
+            RsvpKnob::LevelBias,
+        ] {
+            for (settings, result) in &measured {
+                if knob.alone_varied(settings) {
+                    rows.push(result.row(knob.name(), knob.setting(settings), count));
+                }
             }
         }
     }
@@ -551,12 +573,23 @@ mod tests {
     }
 
     #[test]
-    fn the_embedded_bounce_scene_moves_a_ball() {
-        let scene = bouncing_ball_scene(&SceneOverrides::default()).unwrap();
-        let animation = scene.animation.as_ref().unwrap();
-        assert!(animation.moves_scene());
-        assert_eq!(animation.frames, 100);
-        let paper = crate::scene::paper_scene(&SceneOverrides::default()).unwrap();
-        assert_eq!(scene.objects.len(), paper.objects.len() + 1);
+    fn the_built_in_experiments_give_each_knob_group_its_scene() {
+        let overrides = SceneOverrides::default();
+        let scenes = TradeoffScenes::builtin(&overrides).unwrap();
+        assert!(scenes.skipped().is_empty());
+        let of = |name| TradeoffScenes::of(builtin_scene(name, &overrides).unwrap());
+        // Each experiment is classified as the knobs it exercises.
+        let pan = of("paper-pan.toml");
+        assert_eq!(pan.skipped(), ["RSVP", "OSTC"]);
+        let zoom = of("paper-zoom-in.toml");
+        assert_eq!(zoom.skipped(), ["pan", "OSTC"]);
+        let bounce = of("paper-bounce.toml");
+        assert_eq!(bounce.skipped(), ["pan", "RSVP"]);
+        // E4's camera pans under a viewport: RSVP and OSTC, not the pan's
+        // snap (its output is the viewport).
+        assert_eq!(of("paper-all.toml").skipped(), ["pan"]);
+        assert_eq!(of("paper.toml").skipped(), ["pan", "RSVP", "OSTC"]);
+        assert_eq!(scenes.frame_count(), 100);
+        assert_eq!(bounce.progress_steps(10), 3 * 10 * 8);
     }
 }

@@ -18,9 +18,41 @@ use crate::timeline::{Animation, ViewportTrack};
 pub use file::{parse_scene_str, SceneOverrides};
 pub use obj::{load_obj_mesh, ObjMesh};
 
-/// The paper's scene (checkerboard plane, 12 polygons, 19 spheres, 2 lights),
-/// built into the binary so `retrace render` works with no files at all.
-pub const PAPER_SCENE_TOML: &str = include_str!("../../scenes/paper.toml");
+/// The scene files of `scenes/` built into the binary, so `retrace render`
+/// and the lab work with no files at all: the paper's scene (checkerboard
+/// plane, 12 polygons, 19 spheres, 2 lights) and its experiments, which
+/// include it. By file name.
+pub const BUILTIN_SCENES: &[(&str, &str)] = &[
+    ("paper.toml", include_str!("../../scenes/paper.toml")),
+    (
+        "paper-pan.toml",
+        include_str!("../../scenes/paper-pan.toml"),
+    ),
+    (
+        "paper-zoom-in.toml",
+        include_str!("../../scenes/paper-zoom-in.toml"),
+    ),
+    (
+        "paper-zoom-out.toml",
+        include_str!("../../scenes/paper-zoom-out.toml"),
+    ),
+    (
+        "paper-bounce.toml",
+        include_str!("../../scenes/paper-bounce.toml"),
+    ),
+    (
+        "paper-all.toml",
+        include_str!("../../scenes/paper-all.toml"),
+    ),
+    (
+        "paper-pan-zoom.toml",
+        include_str!("../../scenes/paper-pan-zoom.toml"),
+    ),
+    (
+        "paper-viewports.toml",
+        include_str!("../../scenes/paper-viewports.toml"),
+    ),
+];
 
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Checker {
@@ -170,5 +202,51 @@ pub fn load_scene(path: &Path, overrides: &SceneOverrides) -> Result<Scene, Scen
 
 /// The built-in paper scene.
 pub fn paper_scene(overrides: &SceneOverrides) -> Result<Scene, SceneError> {
-    parse_scene_str(PAPER_SCENE_TOML, Path::new("scenes/paper.toml"), overrides)
+    builtin_scene("paper.toml", overrides)
+}
+
+/// The built-in scene file `name` (one of [`BUILTIN_SCENES`]), loaded as
+/// `scenes/<name>` would be, its includes read from the built-in files.
+pub fn builtin_scene(name: &str, overrides: &SceneOverrides) -> Result<Scene, SceneError> {
+    let path = Path::new("scenes").join(name);
+    let text = BUILTIN_SCENES
+        .iter()
+        .find(|(file, _)| *file == name)
+        .map(|(_, text)| *text)
+        .ok_or_else(|| SceneError::new(&path, "not one of the scene files built into retrace"))?;
+    file::parse_scene(text, &path, file::Files::BuiltIn, overrides)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_built_in_scene_is_its_file_in_scenes() {
+        let scenes = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes");
+        let overrides = SceneOverrides::default();
+        for (name, text) in BUILTIN_SCENES {
+            let path = scenes.join(name);
+            assert_eq!(
+                std::fs::read_to_string(&path).unwrap(),
+                *text,
+                "{name}: stale copy"
+            );
+            let from_disk = load_scene(&path, &overrides).unwrap();
+            let built_in = builtin_scene(name, &overrides).unwrap();
+            assert_eq!(format!("{from_disk:?}"), format!("{built_in:?}"), "{name}");
+        }
+        // Every experiment file there is built in.
+        for entry in std::fs::read_dir(&scenes).unwrap() {
+            let name = entry.unwrap().file_name().into_string().unwrap();
+            if name.starts_with("paper") {
+                assert!(
+                    BUILTIN_SCENES.iter().any(|(file, _)| *file == name),
+                    "{name} is not built in"
+                );
+            }
+        }
+        let err = builtin_scene("bunnies.toml", &overrides).unwrap_err();
+        assert!(err.message.contains("built into"), "{err}");
+    }
 }

@@ -373,10 +373,10 @@ fn bench(out: &Path, extra: &[&str]) -> Output {
 #[test]
 fn bench_says_when_reuse_could_not_apply() {
     let dir = tempfile::tempdir().unwrap();
-    // The bunny scene's camera is a perspective one: E1's pan cannot shift it.
+    // E1 through a perspective camera: its pan cannot be a shift.
     let out = bench(
         &dir.path().join("bench"),
-        &["--only", "E1", "--frames", "0-1", "scenes/bunny.toml"],
+        &["--only", "E1", "--frames", "0-1", "--camera", "perspective"],
     );
     let err = stderr(&out);
     assert!(out.status.success(), "{err}");
@@ -596,11 +596,12 @@ fn bench_rejects_bad_frames_before_any_work() {
             &["--only", "E2", "--level-bias", "16"],
             "--level-bias 16: must be within -4..4",
         ),
-        // A still scene without a viewport gives E4 nothing to move or
-        // resample.
+        // A scene given is measured as it is: a still one has nothing to
+        // measure.
         (
             &["--only", "E4", "scenes/paper.toml"],
-            "E4 needs a scene with a [[viewport]], or one whose timeline moves",
+            "E4 measures a scene's own timeline, and scenes/paper.toml has no [animation] \
+             (scenes/paper-all.toml is E4's)",
         ),
     ];
     for (args, needle) in cases {
@@ -619,10 +620,11 @@ fn bench_rejects_bad_frames_before_any_work() {
     }
 }
 
-/// A moving scene without viewports gets E4's pan and zoom over its own
-/// motion (how `--scaling` runs E4 on the bunnies), checked as E4 is.
+/// A scene given to an experiment is measured on its own timeline (the
+/// bouncing ball here: a camera sequence, exact), under its own name; the
+/// default is the experiment's shipped scene.
 #[test]
-fn bench_builds_e4_over_a_moving_scene_without_viewports() {
+fn bench_measures_a_scene_given_on_its_own_timeline() {
     let dir = tempfile::tempdir().unwrap();
     let out_dir = dir.path().join("bench");
     let out = bench(
@@ -643,5 +645,11 @@ fn bench_builds_e4_over_a_moving_scene_without_viewports() {
         row.starts_with("E4,") && row.contains(",paper-bounce,"),
         "{row}"
     );
+    assert!(row.contains(",bit-exact"), "{row}");
+    let out = bench(&out_dir, &["--only", "E4", "--frames", "0-2"]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let table = std::fs::read_to_string(out_dir.join("bench.csv")).unwrap();
+    let row = table.lines().nth(1).expect("one row");
+    assert!(row.contains(",paper-all,"), "{row}");
     assert!(row.contains("buffer bit-exact"), "{row}");
 }

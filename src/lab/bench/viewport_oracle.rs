@@ -272,8 +272,7 @@ pub fn viewport_oracle(
 mod tests {
     use super::*;
     use crate::accel::BackendKind;
-    use crate::lab::bench::{e2_scene, ZoomDirection};
-    use crate::scene::{load_scene, paper_scene, SceneOverrides};
+    use crate::scene::{builtin_scene, load_scene, SceneOverrides};
 
     const SMALL: SceneOverrides = SceneOverrides {
         width: Some(32),
@@ -285,6 +284,15 @@ mod tests {
     fn oracle(scene: &Scene, frames: std::ops::Range<u32>) -> Vec<u64> {
         let mut accel = Accelerator::build(BackendKind::Embree, &scene.objects).unwrap();
         viewport_oracle(scene, &mut accel, frames, || {})
+    }
+
+    /// E2's zoom in (`scenes/paper-zoom-in.toml`), its viewport as small
+    /// as the camera.
+    fn zoom_in() -> Scene {
+        let mut scene = builtin_scene("paper-zoom-in.toml", &SMALL).unwrap();
+        scene.viewports[0].viewport.width = 32;
+        scene.viewports[0].viewport.height = 24;
+        scene
     }
 
     /// E2's viewport held at the zoom of its first key.
@@ -299,11 +307,7 @@ mod tests {
 
     #[test]
     fn a_still_view_of_a_still_scene_traces_only_its_first_frame() {
-        let scene = still(e2_scene(
-            paper_scene(&SMALL).unwrap(),
-            ZoomDirection::In,
-            0.0,
-        ));
+        let scene = still(zoom_in());
         let counts = oracle(&scene, 0..4);
         // At most one sample per pixel, and not fewer than half: a pixel's
         // footprint spans at most about two samples here.
@@ -313,7 +317,7 @@ mod tests {
 
     #[test]
     fn zooming_in_needs_finer_samples() {
-        let scene = e2_scene(paper_scene(&SMALL).unwrap(), ZoomDirection::In, 0.0);
+        let scene = zoom_in();
         let counts = oracle(&scene, 0..100);
         let later: u64 = counts[1..].iter().sum();
         // A 2.5x zoom needs more than a frame's pixels again at the finer

@@ -9,7 +9,38 @@
 
 use std::path::Path;
 
-use crate::scene::SceneError;
+use crate::scene::{SceneError, BUILTIN_SCENES};
+
+/// Where a scene file's includes are read from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Files {
+    /// The file system, relative to the including file.
+    Disk,
+    /// The scene files built into the binary ([`BUILTIN_SCENES`]), by
+    /// file name.
+    BuiltIn,
+}
+
+impl Files {
+    fn read(self, path: &Path) -> std::io::Result<String> {
+        match self {
+            Files::Disk => std::fs::read_to_string(path),
+            Files::BuiltIn => {
+                let name = path.file_name().and_then(|n| n.to_str());
+                BUILTIN_SCENES
+                    .iter()
+                    .find(|(file, _)| Some(*file) == name)
+                    .map(|(_, text)| text.to_string())
+                    .ok_or_else(|| {
+                        std::io::Error::new(
+                            std::io::ErrorKind::NotFound,
+                            "not one of the scene files built into retrace",
+                        )
+                    })
+            }
+        }
+    }
+}
 
 /// Line (1-based) of a byte offset.
 pub(super) fn line_of(text: &str, offset: usize) -> usize {
@@ -70,7 +101,12 @@ impl Source {
 /// this file's tables, which add to it (or replace its tables of the same
 /// name). The keys stay top-level: after the included text they would
 /// fall into its last table.
-pub(super) fn assemble(text: &str, path: &Path, depth: usize) -> Result<Source, SceneError> {
+pub(super) fn assemble(
+    text: &str,
+    path: &Path,
+    files: Files,
+    depth: usize,
+) -> Result<Source, SceneError> {
     let mut included = Source {
         text: String::new(),
         pieces: Vec::new(),
@@ -112,13 +148,13 @@ pub(super) fn assemble(text: &str, path: &Path, depth: usize) -> Result<Source, 
             )));
         }
         let other = path.parent().unwrap_or(Path::new(".")).join(&name);
-        let other_text = std::fs::read_to_string(&other).map_err(|err| {
+        let other_text = files.read(&other).map_err(|err| {
             located(format!(
                 "cannot read included file {}: {err}",
                 other.display()
             ))
         })?;
-        included.append(assemble(&other_text, &other, depth + 1)?);
+        included.append(assemble(&other_text, &other, files, depth + 1)?);
         // Keeps this file's line numbers.
         own.push_str("# (include)\n");
     }

@@ -33,6 +33,7 @@ use crate::geometry::Placement;
 use animation::convert_animation;
 use camera::convert_camera;
 use defs::{RenderDef, SceneFile};
+pub(crate) use include::Files;
 use include::{assemble, line_of, Source};
 use lights::convert_lights;
 use materials::convert_material;
@@ -123,7 +124,17 @@ pub fn parse_scene_str(
     path: &Path,
     overrides: &SceneOverrides,
 ) -> Result<Scene, SceneError> {
-    let source = assemble(text, path, 0)?;
+    parse_scene(text, path, Files::Disk, overrides)
+}
+
+/// As [`parse_scene_str`], its includes read from `files`.
+pub(crate) fn parse_scene(
+    text: &str,
+    path: &Path,
+    files: Files,
+    overrides: &SceneOverrides,
+) -> Result<Scene, SceneError> {
+    let source = assemble(text, path, files, 0)?;
     let text = source.text.as_str();
     let deserializer = toml::Deserializer::new(text);
     let file: SceneFile = serde_path_to_error::deserialize(deserializer).map_err(|err| {
