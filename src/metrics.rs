@@ -4,6 +4,27 @@
 
 use crate::render::Frame;
 
+/// Two images of different sizes: nothing to compare pixel by pixel.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("images of different sizes: {a:?} against {b:?}")]
+pub struct SizeMismatch {
+    pub a: (u32, u32),
+    pub b: (u32, u32),
+}
+
+/// Fails unless `a` and `b` have the same size.
+fn same_size(a: (u32, u32), b: (u32, u32)) -> Result<(), SizeMismatch> {
+    if a == b {
+        Ok(())
+    } else {
+        Err(SizeMismatch { a, b })
+    }
+}
+
+fn frame_size(frame: &Frame) -> (u32, u32) {
+    (frame.width, frame.height)
+}
+
 /// How far an approximate frame is from its reference, on colours clamped
 /// to [0, 1].
 #[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
@@ -16,7 +37,8 @@ pub struct ImageError {
     pub differing_share: f64,
 }
 
-pub fn image_error(frame: &Frame, reference: &Frame) -> ImageError {
+pub fn image_error(frame: &Frame, reference: &Frame) -> Result<ImageError, SizeMismatch> {
+    same_size(frame_size(frame), frame_size(reference))?;
     let srgb = crate::color::srgb_table();
     let (mut max_abs, mut sum_abs, mut sum_sq, mut differing) = (0.0f32, 0.0f64, 0.0f64, 0u64);
     for (a, b) in frame.pixels.iter().zip(&reference.pixels) {
@@ -33,7 +55,7 @@ pub fn image_error(frame: &Frame, reference: &Frame) -> ImageError {
     }
     let n = frame.pixels.len().max(1) as f64;
     let mse = sum_sq / n;
-    ImageError {
+    Ok(ImageError {
         max_abs,
         mean_abs: sum_abs / n,
         psnr_db: if mse == 0.0 {
@@ -42,13 +64,14 @@ pub fn image_error(frame: &Frame, reference: &Frame) -> ImageError {
             -10.0 * mse.log10()
         },
         differing_share: differing as f64 / n,
-    }
+    })
 }
 
 /// Regions of `size` pixels (tiling the image from its top-left corner) in
 /// which some pixel differs in any bit: OSTC's oracle, the fewest regions
 /// any region-based reuse must re-trace.
-pub fn changed_regions(a: &Frame, b: &Frame, size: (i64, i64)) -> u64 {
+pub fn changed_regions(a: &Frame, b: &Frame, size: (i64, i64)) -> Result<u64, SizeMismatch> {
+    same_size(frame_size(a), frame_size(b))?;
     let (w, h) = (size.0.max(1) as usize, size.1.max(1) as usize);
     let across = (a.width as usize).div_ceil(w);
     let mut changed = std::collections::HashSet::new();
@@ -58,14 +81,90 @@ pub fn changed_regions(a: &Frame, b: &Frame, size: (i64, i64)) -> u64 {
             changed.insert(row / h * across + col / w);
         }
     }
-    changed.len() as u64
+    Ok(changed.len() as u64)
 }
 
 /// Pixels whose colours differ in any bit.
-pub fn count_differences(a: &Frame, b: &Frame) -> u64 {
-    a.pixels
+pub fn count_differences(a: &Frame, b: &Frame) -> Result<u64, SizeMismatch> {
+    same_size(frame_size(a), frame_size(b))?;
+    Ok(a.pixels
         .iter()
         .zip(&b.pixels)
         .filter(|(x, y)| x.to_array().map(f32::to_bits) != y.to_array().map(f32::to_bits))
-        .count() as u64
+        .count() as u64)
+}
+
+/// Pixels whose bytes differ between two 8-bit images (what is written).
+pub fn count_byte_differences(
+    a: &image::RgbImage,
+    b: &image::RgbImage,
+) -> Result<u64, SizeMismatch> {
+    same_size(a.dimensions(), b.dimensions())?;
+    Ok(a.pixels().zip(b.pixels()).filter(|(x, y)| x != y).count() as u64)
+}
+
+/// How an output differs from its reference: pixels differing in linear
+/// colour, and in the 8-bit image written (which comes from its own store
+/// and is checked as such).
+pub fn output_differences(
+    frame: &Frame,
+    written: &image::RgbImage,
+    reference: &Frame,
+) -> Result<(u64, u64), SizeMismatch> {
+    Ok((
+        count_differences(frame, reference)?,
+        count_byte_differences(written, &reference.to_rgb8())?,
+    ))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::Vec3;
+
+    #[test]
+    fn comparisons_refuse_images_of_different_sizes() {
+        let (a, b) = (Frame::new(4, 2), Frame::new(2, 4));
+        let mismatch = SizeMismatch {
+            a: (4, 2),
+            b: (2, 4),
+        };
+        assert_eq!(count_differences(&a, &b), Err(mismatch));
+        assert_eq!(image_error(&a, &b).unwrap_err(), mismatch);
+        assert_eq!(changed_regions(&a, &b, (2, 2)), Err(mismatch));
+        // A prefix of the same pixels is not the same picture.
+        let short = Frame::new(4, 1);
+        assert!(count_differences(&a, &short).is_err());
+        let (x, y) = (image::RgbImage::new(4, 2), image::RgbImage::new(4, 1));
+        assert!(count_byte_differences(&x, &y).is_err());
+    }
+
+    #[test]
+    fn differences_count_pixels_in_bits_and_in_bytes() {
+        let a = Frame::new(3, 2);
+        let mut b = a.clone();
+        // Two bits apart in linear colour; the same byte once encoded.
+        b.pixels[4] = Vec3::splat(f32::from_bits(2));
+        assert_eq!(count_differences(&a, &b), Ok(1));
+        assert_eq!(count_byte_differences(&a.to_rgb8(), &b.to_rgb8()), Ok(0));
+        b.pixels[1] = Vec3::ONE;
+        assert_eq!(count_differences(&a, &b), Ok(2));
+        assert_eq!(count_byte_differences(&a.to_rgb8(), &b.to_rgb8()), Ok(1));
+    }
+
+    #[test]
+    fn an_output_is_checked_in_what_is_written_too() {
+        let reference = Frame::new(3, 2);
+        let mut written = reference.to_rgb8();
+        assert_eq!(
+            output_differences(&reference, &written, &reference),
+            Ok((0, 0))
+        );
+        // Linear colour right, the written bytes wrong.
+        written.put_pixel(2, 1, image::Rgb([0, 0, 1]));
+        assert_eq!(
+            output_differences(&reference, &written, &reference),
+            Ok((0, 1))
+        );
+    }
 }

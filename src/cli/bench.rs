@@ -435,10 +435,25 @@ fn run_experiment(
     for reason in &result.full_reasons {
         bar.suspend(|| eprintln!("warning: {}: rendered in full: {reason}", info.id));
     }
+    // A full side slower than a plain render of the same views would make
+    // every speedup read high.
+    if result.full_vs_plain > FULL_VS_PLAIN_NOISE {
+        bar.suspend(|| {
+            eprintln!(
+                "warning: {}: the full side took {:.2}x a plain render of the same views",
+                info.id, result.full_vs_plain
+            )
+        });
+    }
     let viewport_oracle = (!scene.viewports.is_empty())
         .then(|| retrace::lab::bench::viewport_oracle(&scene, &mut accel, frames, || bar.inc(1)));
     Ok(ExperimentResult::from_bench(info, result, viewport_oracle))
 }
+
+/// How far the full side may be from a plain render of the same views
+/// before a warning: the run-to-run noise of a sequence on a shared 2-core
+/// machine.
+const FULL_VS_PLAIN_NOISE: f64 = 1.1;
 
 fn print_packets(args: &BenchArgs, run: &retrace::lab::bench::PacketRun) {
     say!(

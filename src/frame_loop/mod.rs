@@ -126,7 +126,7 @@ impl<'a> Animator<'a> {
         &self.options
     }
 
-    fn animation(&self) -> Option<&'a Animation> {
+    pub fn animation(&self) -> Option<&'a Animation> {
         self.base.animation.as_ref()
     }
 
@@ -193,6 +193,12 @@ impl<'a> Animator<'a> {
         self.posed_frame = Some(frame);
     }
 
+    /// The scene posed at `frame` and the accelerator holding it.
+    pub fn posed_scene(&mut self, frame: u32) -> (&Scene, &Accelerator) {
+        self.pose(frame);
+        (&self.scene, self.accel)
+    }
+
     /// The scene posed at `frame`, ready to trace, and the camera there:
     /// for untimed passes that need the shading itself (the bench's ray
     /// costs).
@@ -218,7 +224,35 @@ impl<'a> Animator<'a> {
     pub fn render_full(&mut self, frame: u32, index: usize) -> (Frame, RayCounts) {
         self.pose(frame);
         let view = self.views(frame).swap_remove(index);
-        let shader = Shader::new(&self.scene, self.accel);
+        self.render_view_in_full(&self.scene, self.accel, &view)
+    }
+
+    /// As [`Animator::render_full`], from a scene and an accelerator built
+    /// afresh for `frame` (the timeline's state at `frame` put on the scene
+    /// as loaded): a reference that shares nothing the frame loop posed,
+    /// so a posing bug cannot hide in both.
+    pub fn render_full_afresh(
+        &self,
+        frame: u32,
+        index: usize,
+    ) -> Result<(Frame, RayCounts), crate::accel::AccelError> {
+        let mut scene = self.base.clone();
+        if let Some(animation) = self.animation() {
+            animation.pose(&mut scene.objects, &mut scene.lights, frame);
+        }
+        let accel = Accelerator::build(self.accel.kind(), &scene.objects)?;
+        let view = self.views(frame).swap_remove(index);
+        Ok(self.render_view_in_full(&scene, &accel, &view))
+    }
+
+    /// `view` of `scene` (posed) traced in full through `accel`.
+    fn render_view_in_full(
+        &self,
+        scene: &Scene,
+        accel: &Accelerator,
+        view: &View,
+    ) -> (Frame, RayCounts) {
+        let shader = Shader::new(scene, accel);
         if self.has_viewports() {
             return render_direct(&shader, &view.pose);
         }
@@ -228,7 +262,7 @@ impl<'a> Animator<'a> {
             let window = lattice.window(camera);
             return render_window(&shader, &lattice, &window);
         }
-        render_view(&self.scene, camera, self.accel)
+        render_view(scene, camera, accel)
     }
 
     /// View `index` of `frame` through its own, unsnapped rays: the exact

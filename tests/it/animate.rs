@@ -33,7 +33,7 @@ fn run_exact(
     backend: retrace::accel::BackendKind,
     techniques: Techniques,
 ) -> (u64, Vec<String>) {
-    let stats = crate::common::run_exact(scene, backend, techniques);
+    let stats = crate::common::run_exact_reusing(scene, backend, techniques);
     (
         stats.iter().map(|s| s.samples_traced).sum(),
         stats.iter().map(|s| s.mode.to_string()).collect(),
@@ -98,7 +98,7 @@ fn full_renders_are_the_same_reference_whatever_the_mode() {
     for (frame, panned) in panned.iter().enumerate() {
         let (reference, _) = full.render_full(frame as u32, 0);
         assert_eq!(
-            retrace::metrics::count_differences(panned, &reference),
+            retrace::metrics::count_differences(panned, &reference).unwrap(),
             0,
             "frame {frame}"
         );
@@ -392,7 +392,7 @@ fn resampled_pans_match_snapped_ones_on_whole_samples_and_measure_their_error() 
     for frame in 0..5 {
         let a = snapped.render(frame).remove(0).frame.unwrap();
         let b = resampled.render(frame).remove(0).frame.unwrap();
-        let error = image_error(&b, &a);
+        let error = image_error(&b, &a).unwrap();
         assert!(error.max_abs < 1e-4, "frame {frame}: {error:?}");
     }
     // Off whole samples the resampled frame is an approximation of the true
@@ -404,7 +404,7 @@ fn resampled_pans_match_snapped_ones_on_whole_samples_and_measure_their_error() 
     let ViewOutput { frame, stats, .. } = resampled.render(2).remove(0);
     assert_eq!(stats.mode.as_str(), "pan");
     let (truth, _) = resampled.render_true_view(2, 0);
-    let error = image_error(&frame.unwrap(), &truth);
+    let error = image_error(&frame.unwrap(), &truth).unwrap();
     assert!(
         error.psnr_db > 12.0 && error.psnr_db.is_finite(),
         "{error:?}"
@@ -594,7 +594,7 @@ fn views_reaching_a_pole_keep_panning_in_both_pan_modes() {
                 ..
             } = resampled.render(frame).remove(0);
             let (truth, _) = resampled.render_true_view(frame, 0);
-            let error = retrace::metrics::image_error(&image.unwrap(), &truth);
+            let error = retrace::metrics::image_error(&image.unwrap(), &truth).unwrap();
             assert!(
                 error.mean_abs < 0.1,
                 "pitch {pitch}, frame {frame}: {error:?}"
@@ -633,7 +633,7 @@ fn a_run_of_later_frames_equals_one_long_run() {
     for frame in 5..10 {
         let image = late.render(frame).remove(0).frame.unwrap();
         assert_eq!(
-            retrace::metrics::count_differences(&image, &long_frames[frame as usize]),
+            retrace::metrics::count_differences(&image, &long_frames[frame as usize]).unwrap(),
             0,
             "frame {frame}"
         );
@@ -665,7 +665,10 @@ fn a_pan_too_narrow_for_a_whole_turn_buffer_renders_in_full() {
     let mut animator = Animator::new(&scene, &mut accel, Options::new(Techniques::AUTO, 0..3));
     let image = animator.render(1).remove(0).frame.unwrap();
     let (truth, _) = animator.render_true_view(1, 0);
-    assert_eq!(retrace::metrics::count_differences(&image, &truth), 0);
+    assert_eq!(
+        retrace::metrics::count_differences(&image, &truth).unwrap(),
+        0
+    );
 }
 
 #[test]

@@ -21,8 +21,17 @@ pub fn run_exact(scene: &Scene, backend: BackendKind, techniques: Techniques) ->
         let output = animator.render(frame).remove(0);
         let (image, rgb, stats) = (output.frame.unwrap(), output.image, output.stats);
         let (reference, _) = animator.render_full(frame, 0);
+        // And against the frame built afresh: a scene posed by the timeline
+        // and an accelerator of its own, sharing nothing the loop posed.
+        let (afresh, _) = animator.render_full_afresh(frame, 0).unwrap();
         assert_eq!(
-            count_differences(&image, &reference),
+            count_differences(&image, &afresh).unwrap(),
+            0,
+            "frame {frame} ({}) differs from a render of the frame built afresh",
+            stats.mode
+        );
+        assert_eq!(
+            count_differences(&image, &reference).unwrap(),
             0,
             "frame {frame} ({}) differs from its full render",
             stats.mode
@@ -31,6 +40,29 @@ pub fn run_exact(scene: &Scene, backend: BackendKind, techniques: Techniques) ->
         all.push(stats);
     }
     all
+}
+
+/// [`run_exact`] where reuse must apply: every frame after the first came
+/// from the sample store (not a full render, nor a restart that reused
+/// nothing). Without this a test of exactness passes vacuously when reuse
+/// silently stops: a full render equals itself.
+pub fn run_exact_reusing(
+    scene: &Scene,
+    backend: BackendKind,
+    techniques: Techniques,
+) -> Vec<FrameStats> {
+    let stats = run_exact(scene, backend, techniques);
+    for s in &stats[1..] {
+        assert!(
+            s.mode != retrace::reuse::FrameMode::Full && s.reason.is_none() && s.pixels_reused > 0,
+            "frame {} did not reuse: {} ({}), {} pixels reused",
+            s.frame,
+            s.mode,
+            reason(s),
+            s.pixels_reused
+        );
+    }
+    stats
 }
 
 /// Runs each test body once per backend, as `embree::name` and `grid::name`,

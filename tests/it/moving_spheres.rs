@@ -73,7 +73,7 @@ on_every_backend! {
             scene.objects[ball].placement = Placement::Instance(transform);
             accel.move_objects(&[(ball as u32, transform)]).unwrap();
             let (image, _) = render_frame(&scene, &accel);
-            let differences = count_differences(&image, &reference);
+            let differences = count_differences(&image, &reference).unwrap();
             if frame == 10 {
                 assert_eq!(differences, 0, "the ball is back, yet the frame differs");
             } else {

@@ -155,7 +155,7 @@ on_every_backend! {
             let frame = view[0].frame.as_ref().unwrap();
             assert!(frame.pixels.iter().all(|c| c.is_finite()), "zoom {zoom}");
             let (direct, _) = retrace::reuse::rsvp::render_direct(&shader, &p);
-            let error = image_error(frame, &direct);
+            let error = image_error(frame, &direct).unwrap();
             if zoom > 1.0 {
                 // Far finer than level 0: the pyramid, not an upscale.
                 assert!(view[0].levels.0 >= 8, "{:?}", view[0].levels);
@@ -181,7 +181,7 @@ on_every_backend! {
             assert_eq!(outputs[0].stats.mode.as_str(), "rsvp");
             traced += outputs[0].stats.samples_traced;
             let (direct, _) = animator.render_full(frame, 0);
-            let error = image_error(outputs[0].frame.as_ref().unwrap(), &direct);
+            let error = image_error(outputs[0].frame.as_ref().unwrap(), &direct).unwrap();
             assert!(error.psnr_db > 15.0, "frame {frame}: {error:?}");
         }
         // Zooming in re-uses: far fewer samples than six full frames.
@@ -333,7 +333,12 @@ fn eye_moves_restart_the_buffer() {
     let outputs = animator.render(1);
     assert!(crate::common::reason(&outputs[0].stats).contains("eye moved"));
     let (direct, _) = animator.render_full(1, 0);
-    assert!(image_error(outputs[0].frame.as_ref().unwrap(), &direct).psnr_db > 15.0);
+    assert!(
+        image_error(outputs[0].frame.as_ref().unwrap(), &direct)
+            .unwrap()
+            .psnr_db
+            > 15.0
+    );
     let _ = DVec3::ZERO;
 }
 
@@ -359,6 +364,35 @@ fn the_finest_pyramid_levels_resample_as_well_as_the_others() {
     let outputs = animator.render(0);
     assert_eq!(outputs[0].stats.finest_level, Some(16));
     let (direct, _) = animator.render_full(0, 0);
-    let error = image_error(outputs[0].frame.as_ref().unwrap(), &direct);
+    let error = image_error(outputs[0].frame.as_ref().unwrap(), &direct).unwrap();
     assert!(error.psnr_db > 30.0, "{error:?}");
+}
+
+/// `--verify` re-traces RSVP's whole buffer after every frame (a stale
+/// sample between checkpoints would otherwise go unseen), and says so.
+#[test]
+fn verify_checks_the_buffer_after_every_frame() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/paper-all.toml");
+    let out = crate::common::retrace_ok(
+        &[
+            "animate",
+            scene,
+            "--frames",
+            "0-3",
+            "--width",
+            "64",
+            "--height",
+            "48",
+            "-o",
+            "out/f_####.png",
+            "--verify",
+        ],
+        dir.path(),
+    );
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        stdout.contains("verify: buffer samples re-traced at 4 frame(s)"),
+        "{stdout}"
+    );
 }

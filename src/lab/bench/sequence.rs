@@ -15,7 +15,7 @@ use crate::metrics::{count_differences, image_error, ImageError};
 use crate::render::Frame;
 use crate::reuse::rsvp::RsvpKnobs;
 use crate::scene::Scene;
-use crate::shade::RayCounts;
+use crate::shade::{RayCounts, Shader};
 
 use super::oracle::{rays_per_pixel, Oracle, OracleRays};
 use super::{median, set_frame_medians};
@@ -130,9 +130,13 @@ pub struct SequenceBench {
     pub frames: u32,
     pub views: usize,
     pub pixels_per_frame: u64,
-    /// Median over rounds of the whole full sequence (every view of every
-    /// frame converted to 8 bits, not written).
+    /// Median over rounds of the whole full sequence: every view of every
+    /// frame through its own rays, converted to 8 bits, not written.
     pub full_ms: f64,
+    /// The full side against plain renders of the same views outside the
+    /// frame loop (the `--only frame` way), on every tenth frame: near 1
+    /// when the full side is the fastest plain render, as it must be.
+    pub full_vs_plain: f64,
     /// The same for the accelerated sequence (frame 0, buffers and copies
     /// included).
     pub accelerated_ms: f64,
@@ -217,7 +221,10 @@ pub fn bench_sequence(
             let start = Instant::now();
             let mut frame_rays = RayCounts::default();
             for index in 0..views {
-                let (image, rays) = full.render_full(frame, index);
+                // Each view's own rays, rendered in place: the fastest
+                // plain render of the frame (a snapped pan's lattice
+                // render copies its samples into place besides).
+                let (image, rays) = full.render_true_view(frame, index);
                 std::hint::black_box(image.to_rgb8());
                 frame_rays += rays;
             }
@@ -287,11 +294,18 @@ pub fn bench_sequence(
         rays: oracle.rays,
     });
     let (full_ms, accelerated_ms) = (median(full_times), median(fast_times));
+    let full_sampled: f64 = checked
+        .plain_ms
+        .iter()
+        .map(|&(frame, _)| profile[(frame - frames.start) as usize].full_ms)
+        .sum();
+    let plain_sampled: f64 = checked.plain_ms.iter().map(|&(_, ms)| ms).sum();
     SequenceBench {
         frames: frames.end - frames.start,
         views,
         pixels_per_frame,
         full_ms,
+        full_vs_plain: full_sampled / plain_sampled.max(1e-9),
         accelerated_ms,
         speedup: full_ms / accelerated_ms,
         samples_traced,
@@ -311,6 +325,8 @@ pub fn bench_sequence(
 
 /// What the untimed pass found.
 struct Checked {
+    /// Medians of plain renders of every tenth frame's views, by frame.
+    plain_ms: Vec<(u32, f64)>,
     exact: Option<bool>,
     error: Option<ErrorSummary>,
     buffer_check: Option<(u64, u64)>,
@@ -349,7 +365,11 @@ fn check_sequence(
     let mut buffer_check: Option<(u64, u64)> = None;
     let mut errors = Vec::new();
     let (mut all_exact, mut identical) = (true, true);
+    let mut plain_ms = Vec::new();
     for (row, frame) in profile.iter_mut().zip(frames.clone()) {
+        if (frame - frames.start) % 10 == 0 {
+            plain_ms.push((frame, plain_render_ms(&mut check, frame)));
+        }
         let outputs = check.render(frame);
         let mut worst = f64::INFINITY;
         for (index, output) in outputs.iter().enumerate() {
@@ -374,8 +394,9 @@ fn check_sequence(
             }
             if measure.error {
                 let (truth, _) = check.render_true_view(frame, index);
-                let error = image_error(image, &truth);
-                identical &= count_differences(image, &truth) == 0;
+                // A view and its own rays are one size: a bug otherwise.
+                let error = image_error(image, &truth).expect("a view's frames");
+                identical &= count_differences(image, &truth).expect("a view's frames") == 0;
                 worst = worst.min(error.psnr_db);
                 errors.push(error);
             }
@@ -394,9 +415,32 @@ fn check_sequence(
         progress();
     }
     Checked {
+        plain_ms,
         exact: exact.then_some(all_exact),
         error: measure.error.then(|| ErrorSummary::of(&errors, identical)),
         buffer_check,
         oracle: oracle.map(|o| (o, oracle_ms)),
     }
+}
+
+/// The median time of three plain renders of `frame`'s views (8-bit
+/// output included), made directly rather than through the frame loop.
+fn plain_render_ms(animator: &mut Animator, frame: u32) -> f64 {
+    let views = animator.views(frame);
+    let (scene, accel) = animator.posed_scene(frame);
+    let times = (0..3)
+        .map(|_| {
+            let start = Instant::now();
+            for view in &views {
+                let (image, _) = if scene.viewports.is_empty() {
+                    crate::render::render_view(scene, &view.pose.camera, accel)
+                } else {
+                    crate::reuse::rsvp::render_direct(&Shader::new(scene, accel), &view.pose)
+                };
+                std::hint::black_box(image.to_rgb8());
+            }
+            start.elapsed().as_secs_f64() * 1e3
+        })
+        .collect();
+    median(times)
 }
