@@ -7,7 +7,7 @@
 DEBIAN_PACKAGES := libembree-dev libclang-dev pkg-config
 RETRACE := ./target/release/retrace
 
-.PHONY: all deps build demo test lint test-embree4 bench clean
+.PHONY: all deps build demo test test-deep lint test-embree4 bench clean
 
 all: demo
 
@@ -42,6 +42,10 @@ lint: deps
 # machine about 3 more minutes and checked nothing more).
 test: lint
 	cargo test --all-targets
+
+# The property tests with sixteen times their cases (release build).
+test-deep: deps
+	RETRACE_DEEP=1 cargo test --release --test it
 
 # The whole suite against Embree 4 (Debian 13) in a chroot; see .ci/embree4.sh.
 test-embree4:

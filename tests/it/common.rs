@@ -13,11 +13,17 @@ use retrace::scene::Scene;
 /// against a full render of the same frame bit for bit (linear colour and
 /// 8-bit output), and returns the frames' stats.
 pub fn run_exact(scene: &Scene, backend: BackendKind, techniques: Techniques) -> Vec<FrameStats> {
-    let mut accel = Accelerator::build(backend, &scene.objects).unwrap();
     let frames = scene.animation.as_ref().unwrap().frames;
-    let mut animator = Animator::new(scene, &mut accel, Options::new(techniques, 0..frames));
+    run_exact_with(scene, backend, Options::new(techniques, 0..frames))
+}
+
+/// [`run_exact`] with every option given (its frames are rendered).
+pub fn run_exact_with(scene: &Scene, backend: BackendKind, options: Options) -> Vec<FrameStats> {
+    let mut accel = Accelerator::build(backend, &scene.objects).unwrap();
+    let frames = options.frames.clone();
+    let mut animator = Animator::new(scene, &mut accel, options);
     let mut all = Vec::new();
-    for frame in 0..frames {
+    for frame in frames {
         let output = animator.render(frame).remove(0);
         let (image, rgb, stats) = (output.frame.unwrap(), output.image, output.stats);
         let (reference, _) = animator.render_full(frame, 0);
@@ -51,7 +57,17 @@ pub fn run_exact_reusing(
     backend: BackendKind,
     techniques: Techniques,
 ) -> Vec<FrameStats> {
-    let stats = run_exact(scene, backend, techniques);
+    let frames = scene.animation.as_ref().unwrap().frames;
+    run_exact_reusing_with(scene, backend, Options::new(techniques, 0..frames))
+}
+
+/// [`run_exact_reusing`] with every option given.
+pub fn run_exact_reusing_with(
+    scene: &Scene,
+    backend: BackendKind,
+    options: Options,
+) -> Vec<FrameStats> {
+    let stats = run_exact_with(scene, backend, options);
     for s in &stats[1..] {
         assert!(
             s.mode != retrace::reuse::FrameMode::Full && s.reason.is_none() && s.pixels_reused > 0,
@@ -105,4 +121,26 @@ pub fn retrace_ok(args: &[&str], dir: &Path) -> Output {
 /// Why a frame did not reuse what it kept, in words ("" for no reason).
 pub fn reason(stats: &FrameStats) -> String {
     stats.reason.map(|r| r.to_string()).unwrap_or_default()
+}
+
+/// `frame` moved one pixel right (its first column repeated): what a
+/// misregistered picture looks like, for checking that an error bound
+/// rejects it.
+pub fn shifted_by_one(frame: &retrace::render::Frame) -> retrace::render::Frame {
+    let mut out = frame.clone();
+    let width = frame.width as usize;
+    for (row, out_row) in frame.pixels.chunks(width).zip(out.pixels.chunks_mut(width)) {
+        out_row[1..].copy_from_slice(&row[..width - 1]);
+    }
+    out
+}
+
+/// Property-test cases: `cases`, or sixteen times as many under
+/// `make test-deep` (`RETRACE_DEEP` set).
+pub fn cases(cases: u32) -> u32 {
+    if std::env::var_os("RETRACE_DEEP").is_some() {
+        cases * 16
+    } else {
+        cases
+    }
 }
