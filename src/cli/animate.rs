@@ -2,17 +2,19 @@
 //! and what a run writes besides them (GIF, statistics, chunks).
 
 use std::path::{Path, PathBuf};
+use std::sync::{Arc, Mutex, PoisonError};
 use std::time::Instant;
 
 use anyhow::{Context, Result};
 use clap::Args;
 
-use retrace::frame_loop::{Animator, Options, Techniques, ViewOutput};
+use retrace::frame_loop::{Animator, FrameStats, Options, Techniques, ViewOutput};
 use retrace::output::{save_image, PendingFile};
 
 use super::{
-    check_writable, ensure_parent, folder_of, frame_pattern, load, parse_frame_range, scene_name,
-    BackendArg, FramePattern, OstcArgs, RsvpKnobArgs, SceneArgs,
+    check_writable, ensure_parent, folder_of, frame_pattern, idle_flag, load, on_interrupt,
+    parse_frame_range, scene_name, BackendArg, FramePattern, OstcArgs, Progress, RsvpKnobArgs,
+    SceneArgs,
 };
 
 #[derive(Args)]
@@ -58,8 +60,9 @@ pub(crate) struct AnimateArgs {
     /// How a pan by a fraction of a sample is shown: snap (to whole samples:
     /// exact, the angle off by at most half a sample) or resample (the true
     /// angle, bilinear from the buffer: slightly blurred).
-    #[arg(long, default_value = "snap")]
-    fractional_pan: retrace::reuse::pan::FractionalPan,
+    /// [default: snap]
+    #[arg(long)]
+    fractional_pan: Option<retrace::reuse::pan::FractionalPan>,
     /// Also render every frame in full: exact (snapped) frames must equal
     /// it bit for bit; resampled frames (and RSVP viewports) report their
     /// error against it.
@@ -334,6 +337,12 @@ pub(crate) fn animate(args: AnimateArgs) -> Result<()> {
         }
     }
     let scene = load(&args.scene)?;
+    if scene.animation.is_none() {
+        eprintln!(
+            "note: {} has no [animation]: it is one frame (`retrace render` makes single images)",
+            scene_name(&args.scene)
+        );
+    }
     let (count, fps) = scene
         .animation
         .as_ref()
@@ -344,14 +353,11 @@ pub(crate) fn animate(args: AnimateArgs) -> Result<()> {
     };
     check_outputs(&args, stats_path.as_deref())?;
     let has_viewports = !scene.viewports.is_empty();
-    if store_files.is_some() && !has_viewports {
-        anyhow::bail!("--buffer-image needs a scene with [[viewport]] tables (RSVP)");
-    }
     let options = Options {
         techniques: args.mode,
         frames: *range.start()..*range.end() + 1,
         linear: args.verify,
-        fractional_pan: args.fractional_pan,
+        fractional_pan: args.fractional_pan.unwrap_or_default(),
         ostc: args.ostc.settings(),
         rsvp: args.rsvp.knobs()?,
         traced_images: traced_files.is_some(),
@@ -362,23 +368,47 @@ pub(crate) fn animate(args: AnimateArgs) -> Result<()> {
     };
     let mut accel = args.backend.build(&scene)?;
     let mut animator = Animator::new(&scene, &mut accel, options);
+    refuse_idle_flags(&args, &animator, store_files.is_some())?;
     let names: Vec<String> = animator
         .views(*range.start())
         .into_iter()
         .map(|view| view.name)
         .collect();
-    let bar = indicatif::ProgressBar::new(u64::from(range.end() - range.start() + 1)).with_style(
-        indicatif::ProgressStyle::with_template(
-            "{bar:30} {pos}/{len} frames {msg} [{elapsed} < {eta}]",
-        )
-        .expect("static template"),
-    );
+    let mut progress = Progress::new(u64::from(range.end() - range.start() + 1));
+    // What an interrupt says and saves: the frames finished so far, their
+    // statistics, and how to resume.
+    let finished = Arc::new(Mutex::new(Vec::<FrameStats>::new()));
+    {
+        let (finished, stats_path) = (Arc::clone(&finished), stats_path.clone());
+        let first = *range.start();
+        on_interrupt(move || {
+            let stats = finished.lock().unwrap_or_else(PoisonError::into_inner);
+            let mut frames: Vec<u32> = stats.iter().map(|s| s.frame).collect();
+            frames.dedup();
+            eprintln!(
+                "{} of this run kept ({}); resume with:\n  {}",
+                counted(frames.len() as u64, "finished frame"),
+                match (frames.first(), frames.last()) {
+                    (Some(a), Some(b)) => format!("frames {a}-{b}"),
+                    _ => format!("none from frame {first} on"),
+                },
+                resume_command()
+            );
+            if let Some(path) = &stats_path {
+                if !stats.is_empty() {
+                    match write_stats(path, &stats) {
+                        Ok(()) => eprintln!("statistics of those frames: {}", path.display()),
+                        Err(err) => eprintln!("cannot write {}: {err}", path.display()),
+                    }
+                }
+            }
+        });
+    }
     let region_size = args
         .ostc
         .settings()
         .regions
         .region_size(scene.camera.width, scene.camera.height);
-    let mut all_stats = Vec::new();
     let mut failed_frames = Vec::new();
     let mut previous_reference: Option<retrace::render::Frame> = None;
     // (frames checked, samples compared, samples differing)
@@ -391,11 +421,11 @@ pub(crate) fn animate(args: AnimateArgs) -> Result<()> {
                 gif.add_file(&frame_files.path(frame, &names[0]))?;
             }
             skipped += 1;
-            bar.inc(1);
+            progress.frame_done(frame, "skipped: its files exist");
             continue;
         }
         let outputs = animator.render(frame);
-        let mut frame_ms = 0.0;
+        let (mut frame_ms, mut frame_samples) = (0.0, 0);
         for (index, mut output) in outputs.into_iter().enumerate() {
             if args.verify {
                 let (differing, reference) =
@@ -428,7 +458,11 @@ pub(crate) fn animate(args: AnimateArgs) -> Result<()> {
             }
             write_ms += write_start.elapsed().as_secs_f64() * 1e3;
             frame_ms += output.stats.total_ms;
-            all_stats.push(output.stats);
+            frame_samples += output.stats.samples_traced;
+            finished
+                .lock()
+                .unwrap_or_else(PoisonError::into_inner)
+                .push(output.stats);
         }
         if let Some(files) = &store_files {
             if let Some(picture) = animator.store_picture(frame) {
@@ -446,10 +480,16 @@ pub(crate) fn animate(args: AnimateArgs) -> Result<()> {
                 store_check.2 += differing;
             }
         }
-        bar.set_message(format!("{frame_ms:.0} ms"));
-        bar.inc(1);
+        progress.frame_done(
+            frame,
+            &format!(
+                "{frame_ms:.1} ms, {} traced",
+                counted(frame_samples, "sample")
+            ),
+        );
     }
-    bar.finish_and_clear();
+    progress.finish();
+    let all_stats = std::mem::take(&mut *finished.lock().unwrap_or_else(PoisonError::into_inner));
     finish_outputs(gif, stats_path.as_deref(), &all_stats)?;
     // Reuse that was asked for but could not apply is worth a word.
     let mut refusals: Vec<String> = all_stats
@@ -479,8 +519,9 @@ pub(crate) fn animate(args: AnimateArgs) -> Result<()> {
     let (what, references) = if has_viewports {
         (
             format!(
-                "{rendered} frames x {} viewports ({}){}",
-                names.len(),
+                "{} x {} ({}){}",
+                counted(u64::from(rendered), "frame"),
+                counted(names.len() as u64, "viewport"),
                 names.join(", "),
                 skipped_note(skipped)
             ),
@@ -488,13 +529,52 @@ pub(crate) fn animate(args: AnimateArgs) -> Result<()> {
         )
     } else {
         (
-            format!("{rendered} frames{}", skipped_note(skipped)),
+            format!(
+                "{}{}",
+                counted(u64::from(rendered), "frame"),
+                skipped_note(skipped)
+            ),
             "full renders",
         )
     };
     say_run(&args, &what, &all_stats, write_ms, references);
     if args.verify && !all_stats.is_empty() {
         say_verified(&animator, &names, &all_stats, &failed_frames)?;
+    }
+    Ok(())
+}
+
+/// Refuses, with the reason, every flag that cannot act on this run: a
+/// technique `--mode` names that has nothing to do, and the knobs of a
+/// technique that does not run.
+fn refuse_idle_flags(args: &AnimateArgs, animator: &Animator, store_image: bool) -> Result<()> {
+    use retrace::frame_loop::Technique;
+    let mode = args.mode;
+    let explicit = mode != Techniques::AUTO && mode != Techniques::FULL;
+    // Why `technique` does not run: not asked for, or idle on this scene.
+    let off = |technique: Technique| -> Option<String> {
+        if !mode.has(technique) {
+            return Some(format!("--mode leaves {} off", technique.name()));
+        }
+        animator.idle_reason(technique)
+    };
+    for technique in Technique::ALL {
+        if explicit && mode.has(technique) {
+            if let Some(reason) = animator.idle_reason(technique) {
+                return Err(idle_flag(&format!("--mode {}", technique.name()), &reason));
+            }
+        }
+    }
+    let knobs = [
+        (Technique::Rsvp, args.rsvp.given()),
+        (Technique::Pan, args.fractional_pan.map(|_| "--fractional-pan")),
+        (Technique::Ostc, args.ostc.given()),
+        (Technique::Rsvp, store_image.then_some("--buffer-image")),
+    ];
+    for (technique, flag) in knobs {
+        if let (Some(flag), Some(reason)) = (flag, off(technique)) {
+            return Err(idle_flag(flag, &reason));
+        }
     }
     Ok(())
 }
@@ -635,7 +715,12 @@ fn skipped_note(skipped: u32) -> String {
     if skipped == 0 {
         String::new()
     } else {
-        format!(" ({skipped} more skipped: their files exist)")
+        let files = if skipped == 1 {
+            "its file exists"
+        } else {
+            "their files exist"
+        };
+        format!(" ({skipped} more skipped: {files})")
     }
 }
 
@@ -650,10 +735,28 @@ fn run_summary(stats: &[retrace::frame_loop::FrameStats], write_ms: f64) -> Stri
     let total = sum_ms(stats.iter().map(|s| s.total_ms));
     let traced: u64 = stats.iter().map(|s| s.samples_traced).sum();
     let pixels: u64 = stats.iter().map(|s| s.pixels).sum();
+    let per_pixel = traced as f64 / pixels.max(1) as f64;
+    // RSVP traces the pyramid level a viewport's pixels need: zoomed in,
+    // finer than the pixels themselves.
+    let why = if per_pixel > 1.0 && stats.iter().any(|s| !s.viewport.is_empty()) {
+        " (RSVP traces pyramid levels at least as fine as the viewports' pixels)"
+    } else {
+        ""
+    };
     format!(
-        "in {total:.1} ms rendering ({write_ms:.1} ms writing); traced {traced} samples for {pixels} pixels ({:.1}%)",
-        100.0 * traced as f64 / pixels.max(1) as f64
+        "in {total:.1} ms rendering ({write_ms:.1} ms writing); traced {} for {}: {per_pixel:.2} a pixel{why}",
+        counted(traced, "sample"),
+        counted(pixels, "pixel"),
     )
+}
+
+/// `count` and `word`, plural as the count asks: "1 frame", "2 frames".
+fn counted(count: u64, word: &str) -> String {
+    if count == 1 {
+        format!("1 {word}")
+    } else {
+        format!("{count} {word}s")
+    }
 }
 
 /// The reference renders' time and the speedup against them.
@@ -682,4 +785,23 @@ fn error_summary<'a>(rows: impl Iterator<Item = &'a retrace::frame_loop::FrameSt
          mean abs error {mean:.5}, {:.2}% of pixels differ in 8 bits",
         share * 100.0
     )
+}
+
+/// This run's command line with `--skip-existing`: it renders the frames
+/// whose files are missing.
+fn resume_command() -> String {
+    let mut args: Vec<String> = std::env::args().collect();
+    if !args.iter().any(|a| a == "--skip-existing") {
+        args.push("--skip-existing".to_string());
+    }
+    args.iter()
+        .map(|a| {
+            if a.is_empty() || a.contains(|c: char| c.is_whitespace() || "'\"$#*?".contains(c)) {
+                format!("'{}'", a.replace('\'', "'\\''"))
+            } else {
+                a.clone()
+            }
+        })
+        .collect::<Vec<_>>()
+        .join(" ")
 }

@@ -11,7 +11,7 @@ use retrace::lab::bench::{bench_sequence, Measure, SequenceBench};
 use retrace::scene::{Scene, SceneOverrides};
 
 use super::{
-    check_writable, load, parse_frame_range, scene_name, write_json, BackendArg, OstcArgs,
+    check_writable, idle_flag, load, parse_frame_range, scene_name, write_json, BackendArg, OstcArgs,
     RsvpKnobArgs, SceneArgs,
 };
 
@@ -92,9 +92,22 @@ pub(crate) fn bench(args: BenchArgs) -> Result<()> {
         "e4" => vec![Experiment::E4],
         "e4nomotion" => vec![Experiment::E4NoMotion],
         "scaling" => Vec::new(),
-        "frame" => return bench_frame(&args, &load(&args.scene)?, bar),
-        "backends" => return bench_backends(&args, &load(&args.scene)?, bar),
-        "knobs" => return bench_knobs(&args, bar),
+        "frame" | "backends" | "knobs" => {
+            // These measure a single frame, or sweep the RSVP knobs
+            // themselves: no knob given applies.
+            let flag = args.ostc.given().or(args.rsvp.given());
+            if let Some(flag) = flag {
+                return Err(idle_flag(
+                    flag,
+                    &format!("--only {} sets no reuse knob from the command line", args.only),
+                ));
+            }
+            match args.only.to_ascii_lowercase().as_str() {
+                "frame" => return bench_frame(&args, &load(&args.scene)?, bar),
+                "backends" => return bench_backends(&args, &load(&args.scene)?, bar),
+                _ => return bench_knobs(&args, bar),
+            }
+        }
         _ => {
             anyhow::bail!(
                 "unknown measurement '{}' for --only (available: all, E1, E2, E3, E4, scaling, frame, backends, E4nomotion, knobs)",
@@ -110,6 +123,24 @@ pub(crate) fn bench(args: BenchArgs) -> Result<()> {
     if scaling {
         for (experiment, variant) in SCALING_ROWS {
             planned.push(plan_experiment(&args, experiment, Some(variant))?);
+        }
+    }
+    // Knobs of a technique none of the experiments runs are refused.
+    let any = |test: fn(&Scene) -> bool| planned.iter().any(|p| test(&p.scene));
+    if let Some(flag) = args.rsvp.given() {
+        if !any(|scene| !scene.viewports.is_empty()) {
+            return Err(idle_flag(
+                flag,
+                "none of the experiments measured has a viewport for RSVP to resample",
+            ));
+        }
+    }
+    if let Some(flag) = args.ostc.given() {
+        if !any(|scene| scene.animation.as_ref().is_some_and(|a| a.moves_scene())) {
+            return Err(idle_flag(
+                flag,
+                "none of the experiments measured moves an object or a light",
+            ));
         }
     }
     bench_suite(&args, planned, bar)

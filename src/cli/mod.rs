@@ -96,59 +96,92 @@ fn parse_backend(s: &str) -> Result<BackendKind, String> {
 
 #[derive(Args)]
 struct RsvpKnobArgs {
-    /// RSVP reconstruction filter: nearest, bilinear or box.
-    #[arg(long, default_value = "bilinear")]
-    filter: retrace::reuse::rsvp::Filter,
+    /// RSVP reconstruction filter: nearest, bilinear or box [default:
+    /// bilinear].
+    #[arg(long)]
+    filter: Option<retrace::reuse::rsvp::Filter>,
     /// RSVP: buffer samples per viewport pixel (per side) the pyramid level
-    /// is chosen for, at least (0.01 to 8).
-    #[arg(long, default_value_t = 1.0)]
-    oversample: f64,
+    /// is chosen for, at least (0.01 to 8) [default: 1].
+    #[arg(long)]
+    oversample: Option<f64>,
     /// RSVP: pyramid levels added to the chosen one (negative: coarser;
-    /// -4 to 4).
-    #[arg(long, default_value_t = 0, allow_negative_numbers = true)]
-    level_bias: i32,
+    /// -4 to 4) [default: 0].
+    #[arg(long, allow_negative_numbers = true)]
+    level_bias: Option<i32>,
 }
 
 impl RsvpKnobArgs {
     fn knobs(&self) -> Result<retrace::reuse::rsvp::RsvpKnobs> {
+        let default = retrace::reuse::rsvp::RsvpKnobs::default();
+        let oversample = self.oversample.unwrap_or(default.oversample);
+        let level_bias = self.level_bias.unwrap_or(default.level_bias);
         // Finer than 8 samples a pixel, or 4 levels past the one chosen, a
         // pixel's reads land a tile of the store apart each: memory grows
-        // with the spacing (a 256x192 viewport took 1.1 GB at 64) and
-        // bilinear reads gain nothing.
-        if !(self.oversample.is_finite() && (0.01..=8.0).contains(&self.oversample)) {
-            anyhow::bail!("--oversample {}: must be within 0.01..8", self.oversample);
+        // with the spacing and bilinear reads gain nothing.
+        if !(oversample.is_finite() && (0.01..=8.0).contains(&oversample)) {
+            anyhow::bail!("--oversample {oversample}: must be within 0.01..8");
         }
-        if !(-4..=4).contains(&self.level_bias) {
-            anyhow::bail!("--level-bias {}: must be within -4..4", self.level_bias);
+        if !(-4..=4).contains(&level_bias) {
+            anyhow::bail!("--level-bias {level_bias}: must be within -4..4");
         }
         Ok(retrace::reuse::rsvp::RsvpKnobs {
-            filter: self.filter,
-            oversample: self.oversample,
-            level_bias: self.level_bias,
+            filter: self.filter.unwrap_or(default.filter),
+            oversample,
+            level_bias,
         })
+    }
+
+    /// The first knob given on the command line, if any.
+    fn given(&self) -> Option<&'static str> {
+        [
+            ("--filter", self.filter.is_some()),
+            ("--oversample", self.oversample.is_some()),
+            ("--level-bias", self.level_bias.is_some()),
+        ]
+        .into_iter()
+        .find_map(|(flag, given)| given.then_some(flag))
     }
 }
 
 #[derive(Args)]
 struct OstcArgs {
     /// OSTC: the screen is cut into N x N regions (the paper's 16: 40x30
-    /// pixels at 640x480; the default 160: 4x4); finer regions re-trace
-    /// less but take more memory for their bits.
-    #[arg(long, default_value_t = retrace::reuse::regions::RegionGrid::default().0, value_parser = clap::value_parser!(u32).range(1..=256))]
-    regions: u32,
+    /// pixels at 640x480); finer regions re-trace less but take more
+    /// memory for their bits [default: 160, 4x4 pixels at 640x480].
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=256))]
+    regions: Option<u32>,
     /// OSTC: about this many voxels in the grid over the moving objects'
-    /// swept volume.
-    #[arg(long, default_value_t = retrace::reuse::ostc::DEFAULT_VOXELS, value_parser = clap::value_parser!(u32).range(1..=16_777_216))]
-    ostc_voxels: u32,
+    /// swept volume [default: 1].
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=16_777_216))]
+    ostc_voxels: Option<u32>,
 }
 
 impl OstcArgs {
     fn settings(&self) -> retrace::frame_loop::OstcSettings {
+        let default = retrace::frame_loop::OstcSettings::default();
         retrace::frame_loop::OstcSettings {
-            regions: retrace::reuse::regions::RegionGrid(self.regions),
-            voxels: self.ostc_voxels,
+            regions: self
+                .regions
+                .map_or(default.regions, retrace::reuse::regions::RegionGrid),
+            voxels: self.ostc_voxels.unwrap_or(default.voxels),
         }
     }
+
+    /// The first OSTC flag given on the command line, if any.
+    fn given(&self) -> Option<&'static str> {
+        [
+            ("--regions", self.regions.is_some()),
+            ("--ostc-voxels", self.ostc_voxels.is_some()),
+        ]
+        .into_iter()
+        .find_map(|(flag, given)| given.then_some(flag))
+    }
+}
+
+/// A flag that cannot act on this run, refused with the reason: every
+/// command says it the same way.
+fn idle_flag(flag: &str, reason: &str) -> anyhow::Error {
+    anyhow::anyhow!("{flag} has nothing to act on in this run: {reason}")
 }
 
 fn load(args: &SceneArgs) -> Result<Scene> {
@@ -295,4 +328,91 @@ fn write_json(path: &Path, value: &impl serde::Serialize) -> Result<()> {
         })
     })?;
     Ok(())
+}
+
+/// What the running command says, and saves, if it is interrupted.
+type InterruptReport = Box<dyn FnMut() + Send>;
+
+static ON_INTERRUPT: std::sync::Mutex<Option<InterruptReport>> = std::sync::Mutex::new(None);
+
+/// Sets what an interrupt reports (the frames kept, how to resume) before
+/// it stops the run.
+fn on_interrupt(report: impl FnMut() + Send + 'static) {
+    *ON_INTERRUPT
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner) = Some(Box::new(report));
+}
+
+/// Ctrl-C, or a scheduler's SIGTERM or SIGHUP: says what was kept, then
+/// stops at once, leaving finished files and removing unfinished ones.
+pub(crate) fn interrupted() -> ! {
+    eprintln!("\ninterrupted");
+    let report = ON_INTERRUPT
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner)
+        .take();
+    if let Some(mut report) = report {
+        report();
+    }
+    retrace::output::remove_unfinished_and_exit(130)
+}
+
+/// Progress of a run of frames: a bar on a terminal; plain lines, at most
+/// one every few seconds and the last, where stderr is a log (a render
+/// farm's task, a pipe).
+pub(crate) struct Progress {
+    bar: Option<indicatif::ProgressBar>,
+    total: u64,
+    done: u64,
+    last_line: std::time::Instant,
+}
+
+/// How often a log gets a progress line.
+const PROGRESS_LINE_EVERY: std::time::Duration = std::time::Duration::from_secs(5);
+
+impl Progress {
+    pub(crate) fn new(total: u64) -> Progress {
+        use std::io::IsTerminal as _;
+        let bar = std::io::stderr().is_terminal().then(|| {
+            indicatif::ProgressBar::new(total).with_style(
+                indicatif::ProgressStyle::with_template(
+                    "{bar:30} {pos}/{len} frames {msg} [{elapsed} < {eta}]",
+                )
+                .expect("static template"),
+            )
+        });
+        Progress {
+            bar,
+            total,
+            done: 0,
+            last_line: std::time::Instant::now(),
+        }
+    }
+
+    /// A frame done: `what` says what it did (its time, its samples).
+    pub(crate) fn frame_done(&mut self, frame: u32, what: &str) {
+        self.done += 1;
+        match &self.bar {
+            Some(bar) => {
+                bar.set_message(what.to_string());
+                bar.inc(1);
+            }
+            None => {
+                let last = self.done == self.total;
+                if last || self.last_line.elapsed() >= PROGRESS_LINE_EVERY {
+                    eprintln!(
+                        "frame {frame}: {} of {} done, {what}",
+                        self.done, self.total
+                    );
+                    self.last_line = std::time::Instant::now();
+                }
+            }
+        }
+    }
+
+    pub(crate) fn finish(&self) {
+        if let Some(bar) = &self.bar {
+            bar.finish_and_clear();
+        }
+    }
 }

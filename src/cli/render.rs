@@ -20,15 +20,59 @@ pub(crate) struct RenderArgs {
     /// Output image (.png or .tga).
     #[arg(short, long, default_value = "out/render.png")]
     output: PathBuf,
+    /// Render the scene's RSVP viewport of this name (at frame 0, through
+    /// its own rays) instead of the camera's image.
+    #[arg(long)]
+    viewport: Option<String>,
 }
 
 pub(crate) fn render(args: RenderArgs) -> Result<()> {
     // Check the output name before any work: a typo should not cost a render.
     retrace::output::format_for(&args.output)?;
     let scene = load(&args.scene)?;
+    let names: Vec<&str> = scene
+        .viewports
+        .iter()
+        .map(|t| t.viewport.name.as_str())
+        .collect();
+    let viewport = match &args.viewport {
+        None => {
+            if !names.is_empty() {
+                eprintln!(
+                    "note: the scene's viewports ({}) are not rendered: this is the camera's \
+                     image; --viewport NAME renders one",
+                    names.join(", ")
+                );
+            }
+            None
+        }
+        Some(name) => {
+            let Some(track) = scene.viewports.iter().find(|t| &t.viewport.name == name) else {
+                anyhow::bail!(
+                    "--viewport {name}: the scene has no viewport of that name ({})",
+                    if names.is_empty() {
+                        "it has none".to_string()
+                    } else {
+                        format!("it has {}", names.join(", "))
+                    }
+                );
+            };
+            let camera = match &scene.animation {
+                Some(animation) => animation.camera_at(&scene.camera, 0),
+                None => scene.camera.clone(),
+            };
+            Some(track.pose_at(&camera, 0))
+        }
+    };
     let accel = args.backend.build(&scene)?;
     let start = Instant::now();
-    let (frame, rays) = render_frame(&scene, &accel);
+    let (frame, rays) = match &viewport {
+        None => render_frame(&scene, &accel),
+        Some(pose) => retrace::reuse::rsvp::render_direct(
+            &retrace::shade::Shader::new(&scene, &accel),
+            pose,
+        ),
+    };
     let elapsed = start.elapsed();
     ensure_parent(&args.output)?;
     save_image(&args.output, &frame.to_rgb8())?;
@@ -38,7 +82,9 @@ pub(crate) fn render(args: RenderArgs) -> Result<()> {
         scene_name(&args.scene),
         frame.width,
         frame.height,
-        scene.camera.projection,
+        viewport
+            .as_ref()
+            .map_or(scene.camera.projection, |pose| pose.camera.projection),
         accel.kind(),
         seconds * 1e3,
         args.output.display()

@@ -24,7 +24,7 @@ mod options;
 mod stats;
 
 pub use changes::{swept_bounds, OSTC_LIMIT_BYTES};
-pub use options::{Options, OstcSettings, Techniques};
+pub use options::{Options, OstcSettings, Technique, Techniques};
 pub use stats::{FrameStats, FullReason, Reason, Restart};
 
 use std::collections::HashMap;
@@ -128,6 +128,54 @@ impl<'a> Animator<'a> {
 
     pub fn animation(&self) -> Option<&'a Animation> {
         self.base.animation.as_ref()
+    }
+
+    /// Why `technique` cannot act on this run's timeline, whether asked
+    /// for or not; None when it can.
+    pub fn idle_reason(&self, technique: Technique) -> Option<String> {
+        let animation = self.animation();
+        match technique {
+            Technique::Rsvp => (!self.has_viewports()).then(|| {
+                "the scene has no [[viewport]] for RSVP to resample (the camera's image \
+                 reuses through pan and ostc)"
+                    .to_string()
+            }),
+            Technique::Pan if self.has_viewports() => Some(
+                "the scene's output is its [[viewport]]s, and RSVP's buffer follows the \
+                 camera's pans by itself (use rsvp)"
+                    .to_string(),
+            ),
+            Technique::Pan if !self.facts.camera_moves => {
+                Some("the camera does not move".to_string())
+            }
+            // Keys move the camera; its projection stays the scene's.
+            Technique::Pan if self.base.camera.projection != Projection::EqualAngle => {
+                Some(format!(
+                    "only an equal-angle camera pans, and this one is {}",
+                    self.base.camera.projection
+                ))
+            }
+            Technique::Pan => (!self.on_lattice(&self.base.camera)).then(|| {
+                FullReason::PanBufferTooLarge {
+                    bytes: self.facts.pan_buffer_bytes,
+                }
+                .to_string()
+            }),
+            Technique::Ostc if !animation.is_some_and(|a| a.moves_scene()) => {
+                Some("no object or light moves".to_string())
+            }
+            Technique::Ostc if self.has_viewports() && !self.options.techniques.rsvp => Some(
+                "without rsvp the viewports are traced through their own rays, every frame \
+                 (use rsvp,ostc)"
+                    .to_string(),
+            ),
+            Technique::Ostc => None,
+        }
+    }
+
+    /// Whether `technique` is asked for and acts on this run.
+    pub fn acts(&self, technique: Technique) -> bool {
+        self.options.techniques.has(technique) && self.idle_reason(technique).is_none()
     }
 
     /// Whether the frame's views are RSVP viewports rather than the
@@ -532,7 +580,9 @@ impl<'a> Animator<'a> {
                 ..FrameStats::default()
             };
             stats.count_rays(rays);
-            let traced_image = (self.options.traced_images && !self.has_viewports())
+            let traced_image = self
+                .options
+                .traced_images
                 .then(|| image::RgbImage::new(rgb.width(), rgb.height()));
             outputs.push(ViewOutput {
                 name: view.name,

@@ -6,6 +6,26 @@ use crate::reuse::pan::FractionalPan;
 use crate::reuse::regions::RegionGrid;
 use crate::reuse::rsvp::RsvpKnobs;
 
+/// One reuse technique.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Technique {
+    Pan,
+    Rsvp,
+    Ostc,
+}
+
+impl Technique {
+    pub const ALL: [Technique; 3] = [Technique::Pan, Technique::Rsvp, Technique::Ostc];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Technique::Pan => "pan",
+            Technique::Rsvp => "rsvp",
+            Technique::Ostc => "ostc",
+        }
+    }
+}
+
 /// Which reuse techniques a run may use (`--mode`).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Techniques {
@@ -29,10 +49,19 @@ impl Techniques {
     };
 
     /// Parses `full`, `auto`, or a comma list of techniques (`pan`, `rsvp`,
-    /// `ostc`).
+    /// `ostc`); `full` and `auto` stand alone.
     pub fn parse(text: &str) -> Result<Techniques, String> {
         let mut techniques = Techniques::FULL;
-        for word in text.split(',').map(str::trim) {
+        let words: Vec<&str> = text.split(',').map(str::trim).collect();
+        if let [_, _, ..] = words[..] {
+            if let Some(alone) = words.iter().find(|w| matches!(**w, "full" | "auto")) {
+                return Err(format!(
+                    "'{alone}' stands alone (it says which techniques run): give it by itself, \
+                     or a list of pan, rsvp, ostc"
+                ));
+            }
+        }
+        for word in words {
             match word {
                 "full" => {}
                 "auto" => techniques = Techniques::AUTO,
@@ -47,6 +76,15 @@ impl Techniques {
             }
         }
         Ok(techniques)
+    }
+
+    /// Whether `technique` is asked for.
+    pub fn has(self, technique: Technique) -> bool {
+        match technique {
+            Technique::Pan => self.pan,
+            Technique::Rsvp => self.rsvp,
+            Technique::Ostc => self.ostc,
+        }
     }
 
     /// Whether a camera image may be kept in a buffer.
@@ -131,5 +169,10 @@ mod tests {
         );
         assert_eq!(Techniques::parse("pan,ostc,rsvp"), Ok(Techniques::AUTO));
         assert!(Techniques::parse("zoom").is_err());
+        // `full` with techniques once ran the techniques, silently.
+        for mixed in ["full,pan", "pan,full", "auto,ostc", "full,auto"] {
+            let err = Techniques::parse(mixed).unwrap_err();
+            assert!(err.contains("stands alone"), "{mixed}: {err}");
+        }
     }
 }
