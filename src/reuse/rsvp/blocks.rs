@@ -1,7 +1,7 @@
 //! Pass 2's copy of the buffer: each level's samples at every one of its
 //! positions (its own and those its coarser owners traced), assembled into
 //! square blocks of sample codes ([`SampleCode`]: what the filters blend),
-//! so a region's samples are a few rows of one or two plain arrays instead
+//! so a patch's samples are a few rows of one or two plain arrays instead
 //! of strided runs from every owner.
 //!
 //! Derived data: a block is assembled from the stores the first time a
@@ -25,8 +25,8 @@ use super::{
 use crate::ray::PACKET_WIDTH;
 use crate::render::{SampleGroup, GROUP_HEIGHT, GROUP_WIDTH};
 
-/// Positions per side of a block: a 16x16-pixel region reads 17-40 samples
-/// a side, so on E2 about a fifth of regions copy from one block and the
+/// Positions per side of a block: a 16x16-pixel patch reads 17-40 samples
+/// a side, so on E2 about a fifth of patches copy from one block and the
 /// rest from two to four (128-wide blocks cost four times the assembly).
 const BLOCK_SHIFT: u32 = 6;
 const BLOCK: i64 = 1 << BLOCK_SHIFT;
@@ -100,8 +100,8 @@ pub(super) struct SampleView<'a> {
     pub(super) samples: &'a [SampleCode],
 }
 
-/// The last blocks a region's rows came from, by the parity of their key
-/// (a region's box spans a few neighbouring blocks).
+/// The last blocks a patch's rows came from, by the parity of their key
+/// (a patch's box spans a few neighbouring blocks).
 struct BlockCache([((i64, i64), u32); 4]);
 
 impl BlockCache {

@@ -233,7 +233,7 @@ impl TileCache {
     pub(super) fn tile(&mut self, store: &LevelSamples, level: Level, key: (i64, i64)) -> u32 {
         let index = level.index();
         // Distinct for levels within 4 of each other in azimuth and 8 in
-        // elevation: the owners one region reads.
+        // elevation: the owners one patch reads.
         let slot = (((level.x & 3) * 8 + (level.y & 7)) * 2) as usize + (key.1 & 1) as usize;
         if self.keys[slot] != (index, key) {
             self.keys[slot] = (index, key);
