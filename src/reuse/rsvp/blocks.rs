@@ -276,7 +276,8 @@ impl SampleBuffer {
 
     /// The samples of `level` in `bounds` (rows clamped to the lattice,
     /// columns wrapped around the turn), every block of which
-    /// [`SampleBuffer::assemble_blocks`] assembled, copied into `window`.
+    /// [`SampleBuffer::assemble_blocks`] assembled, copied into
+    /// `view_samples`.
     /// Copied even when they lie in one block: the copy's loads overlap
     /// where the filter's, in place, wait one by one, and the filter then
     /// reads one array of a fixed width.
@@ -284,20 +285,20 @@ impl SampleBuffer {
         &'a self,
         level: Level,
         bounds: &SampleBox,
-        window: &'a mut Vec<SampleCode>,
+        view_samples: &'a mut Vec<SampleCode>,
     ) -> SampleView<'a> {
         let blocks = &self.blocks[level.index()];
         let columns = self.lattice.columns(level.x);
         let last_row = self.lattice.last_row(level.y);
         let (width, height) = (bounds.width(), bounds.height());
-        window.resize(width * height, 0);
+        view_samples.resize(width * height, 0);
         let mut cache = BlockCache::new();
         let mut at = 0;
         // Column runs outside, rows inside: every row of a run copies the
         // same length, so the copy's branches predict and the rows' loads
         // overlap instead of each waiting on the last.
         for_each_run(bounds.c0, bounds.c1, columns, |col, run| {
-            for (j, line) in window.chunks_exact_mut(width).enumerate() {
+            for (j, line) in view_samples.chunks_exact_mut(width).enumerate() {
                 let row = (bounds.r0 + j as i64).clamp(0, last_row);
                 let (key, sample) = block_key(col, row);
                 let out = &mut line[at..at + run];
@@ -315,7 +316,7 @@ impl SampleBuffer {
             col: bounds.c0,
             row: bounds.r0,
             width,
-            samples: window,
+            samples: view_samples,
         }
     }
 }

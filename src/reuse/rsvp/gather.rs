@@ -62,7 +62,10 @@ impl SampleBuffer {
             .for_each_init(
                 BandScratch::default,
                 |scratch, (band_index, (out, linear_out))| {
-                    let BandScratch { window, coords } = scratch;
+                    let BandScratch {
+                        view_samples,
+                        coords,
+                    } = scratch;
                     let mut cache = TileCache::new();
                     let mut colors: [SampleCode; (PATCH * PATCH) as usize] = [0; _];
                     let srgb = srgb_table();
@@ -100,7 +103,7 @@ impl SampleBuffer {
                         };
                         match bounds {
                             Some(bounds) => {
-                                let view = self.view(level, &bounds, window);
+                                let view = self.view(level, &bounds, view_samples);
                                 gather_patch(&view, filter, coords, colors);
                             }
                             None => {
@@ -180,8 +183,9 @@ impl SampleBuffer {
 /// What pass 2 reuses from patch to patch.
 #[derive(Default)]
 struct BandScratch {
-    /// A patch's samples, copied out of the blocks.
-    window: Vec<SampleCode>,
+    /// A patch's samples, copied out of the blocks: what its
+    /// [`SampleView`] reads.
+    view_samples: Vec<SampleCode>,
     /// A patch's pixels' lattice coordinates.
     coords: Vec<DVec2>,
 }
@@ -229,17 +233,17 @@ fn grid_pixels_box(filter: Filter, coords: &[DVec2], cols: usize) -> Option<Samp
 }
 
 /// Filters one patch's pixels (`coords`: their lattice coordinates at the
-/// window's level, NaN for no ray) from `window`, which holds every sample
+/// view's level, NaN for no ray) from `view`, which holds every sample
 /// they read, into `out` (`coords`' length).
-fn gather_patch(window: &SampleView, filter: Filter, coords: &[DVec2], out: &mut [SampleCode]) {
-    let wd = window.width;
-    let samples = window.samples;
-    // Window index and weights of every pixel first, in straight-line f64
+fn gather_patch(view: &SampleView, filter: Filter, coords: &[DVec2], out: &mut [SampleCode]) {
+    let wd = view.width;
+    let samples = view.samples;
+    // View index and weights of every pixel first, in straight-line f64
     // code (exact: whole numbers and multiples of 2^-16) that vectorises;
     // NaN pixels get index 0 and are blacked out last.
     const N: usize = (PATCH * PATCH) as usize;
     let (mut index, mut wx, mut wy) = ([0u32; N], [0f32; N], [0f32; N]);
-    let (c0f, r0f, wdf) = (window.col as f64, window.row as f64, wd as f64);
+    let (c0f, r0f, wdf) = (view.col as f64, view.row as f64, wd as f64);
     let mut has_nan = false;
     for (((c, k), fx), fy) in coords.iter().zip(&mut index).zip(&mut wx).zip(&mut wy) {
         has_nan |= c.x.is_nan();
