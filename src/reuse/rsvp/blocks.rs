@@ -26,8 +26,8 @@ use crate::ray::PACKET_WIDTH;
 use crate::render::{SampleGroup, GROUP_HEIGHT, GROUP_WIDTH};
 
 /// Positions per side of a block: a 16x16-pixel patch reads 17-40 samples
-/// a side, so on E2 about a fifth of patches copy from one block and the
-/// rest from two to four (128-wide blocks cost four times the assembly).
+/// a side, so it copies from one block or from two to four; 128-wide
+/// blocks would cost four times the assembly for each block first read.
 const BLOCK_SHIFT: u32 = 6;
 const BLOCK: i64 = 1 << BLOCK_SHIFT;
 const BLOCK_SAMPLES: usize = (BLOCK * BLOCK) as usize;
@@ -122,8 +122,8 @@ impl SampleBuffer {
     /// Assembles every block the boxes of `reads` cover (rows clamped to
     /// the lattice, columns wrapped) that is not assembled yet. Blocks no
     /// frame read since the one before give their memory to the new ones:
-    /// a fresh block's pages fault in at ~4 us each here, which made
-    /// assembling cost more than copying.
+    /// a fresh block's pages would each fault in on first touch, and the
+    /// faults would make assembling cost more than copying.
     pub(super) fn assemble_blocks(&mut self, reads: impl Iterator<Item = (Level, SampleBox)>) {
         self.frame += 1;
         let frame = self.frame;
@@ -322,7 +322,7 @@ impl SampleBuffer {
 }
 
 /// `source` into `out` (as long) in whole vectors, inline: a call to
-/// `memcpy` per row, whose branches depend on the length, cost more.
+/// `memcpy` per row, whose branches depend on the length, costs more.
 #[inline(always)]
 fn copy_samples(out: &mut [SampleCode], source: &[SampleCode]) {
     let mut out = out.chunks_exact_mut(8);
@@ -412,9 +412,8 @@ static BLACK: [Vec3; TILE_COLS as usize] = [Vec3::ZERO; TILE_COLS as usize];
 
 /// Writes `source` into every `stride`th entry of `out` from its first
 /// (`out` reaches the last). The usual strides (2, 4, 8: a coarser owner's
-/// samples among a finer level's) get loops of fixed step: 8% fewer
-/// instructions than chunks of a variable length when pass 2 still copied
-/// every frame's samples this way.
+/// samples among a finer level's) get loops of fixed step, which take
+/// fewer instructions than chunks of a variable length.
 #[inline]
 fn scatter(out: &mut [Vec3], source: &[Vec3], stride: usize) {
     match stride {

@@ -299,7 +299,7 @@ impl SampleBuffer {
         let patches_y = h.div_ceil(PATCH) as usize;
         let map = PixelMap::new(pose);
         // Patch by patch, collected in place: concatenating bands of
-        // patches (a grid each) cost ~0.1 ms a frame on one thread.
+        // patches would copy every patch's grid again, on one thread.
         let mut patches = Vec::with_capacity(patches_x * patches_y);
         let mut requests: Vec<Vec<u128>> = Vec::new();
         (0..patches_x * patches_y)
@@ -380,13 +380,11 @@ impl SampleBuffer {
                 )
             })
             .unzip_into_vecs(&mut patches, &mut requests);
-        // Frame 0 asks for ~120k groups (85k once neighbours' are merged):
-        // sorted by tuple, on one thread, that took ~9 ms; by a key
-        // computed in each comparison, on both, 5.5 (and 1.1 more to
-        // dedup the tuples). Sorting the keys themselves cut frame 0's
-        // pass 1 from 13.4 to 10.4 ms (median of 7). A steady frame's
-        // 1.5k keys sort on one thread: handing them to both took longer
-        // (0.06 ms) than sorting them.
+        // A first frame asks for many groups, many of them twice (by
+        // neighbouring patches): they are sorted and deduplicated as
+        // integer keys, which is cheaper than sorting tuples or computing
+        // a key in each comparison, on both threads. A steady frame asks
+        // for few, which sort faster on one thread than handed to both.
         let mut keys = requests.concat();
         if keys.len() > 1 << 14 {
             keys.par_sort_unstable();
@@ -454,8 +452,8 @@ impl SampleBuffer {
     /// marks. A sparse patch (zoomed far out, or near a pole) asks for
     /// each pixel's own groups.
     #[allow(clippy::too_many_arguments)]
-    // Inlined into the band closure of `map`, its one caller: about 0.6% of
-    // an E2 run's instructions when left out of line.
+    // Inlined into the per-patch closure of `map`, its one caller: a call
+    // per patch, out of line, costs instructions for nothing.
     #[inline]
     fn collect_missing(
         &self,
@@ -522,7 +520,7 @@ impl SampleBuffer {
 /// none already traced, and mostly each once (a group is asked for again
 /// only once its tile left the cache); the frame's sort drops the rest,
 /// and those its neighbours asked for too. (Sorting each patch's list
-/// first cost frame 0's pass 1 1.5 ms of its 9.8.)
+/// first would add work that the frame's sort does anyway.)
 struct GroupRequests<'a> {
     buffer: &'a SampleBuffer,
     /// As [`trace_order`] keys.
@@ -774,8 +772,8 @@ mod tests {
 
     #[test]
     fn trace_order_keys_keep_every_level_and_sort_by_it() {
-        // Levels past index 255 (level 15 in azimuth and finer) lost their
-        // top bit and went to a coarser level's store.
+        // Levels past index 255 (level 15 in azimuth and finer) need a
+        // ninth bit: a key without it sends them to a coarser level's store.
         let far = SampleGroup {
             col: (1 << ORDER_COORD_BITS) - 4,
             row: (1 << ORDER_COORD_BITS) - 2,

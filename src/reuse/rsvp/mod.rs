@@ -319,11 +319,11 @@ impl SampleBuffer {
             let marker = ostc.map(|o| o.marker_in(region(o), group_key(level, group)));
             (&sources[level.index()] as &dyn PrimaryRays, group, marker)
         });
-        // Each level's store keeps its own groups, on its own thread: frame
-        // 0 stores ~85k groups, and growing the stores (fresh pages, each a
-        // fault) took 15-18 ms on one thread, 12-14 ms this way. The blocks
-        // follow the same groups meanwhile: a steady frame's groups fall in
-        // one or two levels, so either alone would leave a thread idle.
+        // Each level's store keeps its own groups, on its own thread: a
+        // first frame grows the stores by many fresh pages, each a fault,
+        // and the levels take theirs in parallel. The blocks follow the
+        // same groups meanwhile: a steady frame's groups fall in one or two
+        // levels, so either alone would leave a thread idle.
         let (levels, blocks, lattice) = (&mut self.levels, &mut self.blocks, &self.lattice);
         let (kept, ()): (Vec<Vec<(u64, RayCounts)>>, ()) = rayon::join(
             || {
