@@ -281,7 +281,7 @@ pub fn render_image(
     let width = width as usize;
     // Each band of GROUP_HEIGHT rows is written in place by the worker that
     // traces it: no per-frame list of groups or of their colours (at 640x480
-    // those were megabytes, fresh pages to fault in on every frame).
+    // those would be megabytes, fresh pages to fault in on every frame).
     let band = width * GROUP_HEIGHT as usize;
     let counts = frame
         .pixels

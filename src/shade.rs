@@ -765,14 +765,14 @@ impl HitLanes {
     /// (the light is in front where it is positive), the direction the
     /// light falls from (from the points themselves: the spawn points sit
     /// off the surface by an amount that grows with the distance from the
-    /// origin, 19 units at 1e7, which bent the cosines), and the shadow
+    /// origin, 19 units at 1e7, enough to bend the cosines), and the shadow
     /// rays' directions, from the spawn points to the light (so the
     /// segment ends at t = 1).
     ///
     /// The lighting math is kept out of line (here, [`HitLanes::cosines`]
-    /// and [`add_light`]): inlined into `shade_lanes`, LLVM's SLP vectorizer
-    /// gave these lanes a different shape each time the code around them
-    /// changed, up to twice the instructions (split halves, shuffles).
+    /// and [`add_light`]): inlined into `shade_lanes`, these lanes are left
+    /// to LLVM's SLP vectorizer, which shapes them anew whenever the code
+    /// around them changes, at times into split halves and shuffles.
     #[inline(never)]
     fn toward(&self, light: Vec3) -> (Lanes, Vec3Lanes, Vec3Lanes) {
         let light = Vec3Lanes::splat(light);

@@ -392,7 +392,7 @@ impl RayTable {
     /// inside the image.
     /// Inlined always, and no path returns a whole ray from a call: a ray
     /// returned through memory is written in pieces and read back whole, a
-    /// store-forwarding stall per ray that cost more than computing it.
+    /// store-forwarding stall per ray that costs more than computing it.
     #[inline(always)]
     pub fn primary_ray(&self, x: u32, y: u32) -> Option<Ray> {
         let cam = &self.camera;

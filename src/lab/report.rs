@@ -839,7 +839,7 @@ sample per pixel, the least that keeps the output's detail). A frame must trace 
 samples never traced before (exposed by the pan, or by zooming into a finer level) and, when \
 objects move, those whose colour truly changed since they were last traced (every needed \
 sample is traced again on the untimed pass to find out). RSVP itself reads four samples per \
-pixel (bilinear), picks levels per 16x16-pixel region and traces whole groups of eight \
+pixel (bilinear), picks levels per 16x16-pixel patch and traces whole groups of eight \
 samples; that gap is part of what the efficiency shows.
 
 Oracle speedup = rays of full renders of all frames / rays of the oracle's samples (camera \

@@ -20,9 +20,9 @@
 //! Each segment also names the sample group whose ray it is, so a buffer
 //! whose regions hold many groups (RSVP's pyramid: a region of level-0
 //! samples holds 4^k times as many on level k) erases just the groups
-//! whose own rays meet a moving object ([`Ostc::dirty_groups_for`]); on
-//! E4 that nulls 405k samples over the sequence instead of 626k, the
-//! images bit for bit the same.
+//! whose own rays meet a moving object ([`Ostc::dirty_groups_for`]): far
+//! fewer samples are nulled than whole regions hold, and the images are
+//! bit for bit the same.
 //!
 //! Promises:
 //! - Conservative: every sample whose colour can change lies in a dirty
@@ -93,7 +93,7 @@ struct RecordedSegment {
 pub const GROUP_KEY_BITS: u32 = 96;
 
 /// A group key in three words: a segment stays 48 bytes, where a u128
-/// would align it to 64 (recording slowed by 15% on E4).
+/// would align it to 64, and recording is bound by memory traffic.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 struct PackedKey([u32; 3]);
 
@@ -156,13 +156,9 @@ struct RecordCounters {
 
 /// Default voxel count of the OSTC grid. The dirty regions do not depend
 /// on it: the recorded segments decide, the voxels only pick the candidate
-/// regions, and testing every recorded segment of the few thousand
-/// candidates a frame costs less than walking rays through finer voxels.
-/// One voxel needs no walk at all. On E3 (callgrind, one thread,
-/// instructions per steady frame, with the segments): 512 voxels 123.3M,
-/// 64: 118.1M, 8: 115.2M, then (with the shadow refinement) 8: 110.2M,
-/// 1 without a walk: 101.1M. (Before the segments, 512 was the fastest of
-/// 64-4096: finer grids re-traced less but walked more.)
+/// regions, and testing every recorded segment of a frame's candidates
+/// costs less than walking rays through finer voxels. One voxel needs no
+/// walk at all.
 pub const DEFAULT_VOXELS: u32 = 1;
 
 impl Ostc {
@@ -277,8 +273,8 @@ impl Ostc {
     pub fn dirty_for(&self, volumes: &[Footprint]) -> RegionSet {
         let candidates: Vec<usize> = self.candidates_for(volumes).iter().collect();
         let reach = Reach::around(volumes);
-        // Testing the segments was most of E3's bookkeeping on one thread
-        // (0.3 ms a frame); regions are independent.
+        // Testing the segments is most of the bookkeeping, and regions are
+        // independent: they are tested in parallel.
         let found: Vec<usize> = candidates
             .into_par_iter()
             .filter(|&region| {
@@ -302,8 +298,8 @@ impl Ostc {
     pub fn dirty_groups_for(&self, volumes: &[Footprint]) -> (RegionSet, Vec<u128>) {
         let candidates: Vec<usize> = self.candidates_for(volumes).iter().collect();
         let reach = Reach::around(volumes);
-        // Every segment of a dirty region is tested (E4: 640M instructions
-        // over the sequence), one region per task.
+        // Every segment of a dirty region is tested, the bulk of the work:
+        // one region per task.
         let found: Vec<(usize, Vec<u128>)> = candidates
             .into_par_iter()
             .filter_map(|region| {
@@ -687,9 +683,9 @@ const RECENT_SLOTS: usize = 64;
 const TIMED_EVERY: u64 = 8;
 
 thread_local! {
-    /// An empty list with room, for this thread's next marker: a steady E3
-    /// frame's groups record ~55 segments each, and growing a fresh list
-    /// for each took five allocations.
+    /// An empty list with room, for this thread's next marker: a group's
+    /// rays record dozens of segments, and growing a fresh list for each
+    /// group would reallocate it several times.
     static SPARE_SEGMENTS: std::cell::Cell<Vec<RecordedSegment>> = const { std::cell::Cell::new(Vec::new()) };
     /// This thread's draws of which recorded packet to time.
     static TIMING_DRAW: std::cell::Cell<u64> = const { std::cell::Cell::new(0) };
@@ -735,8 +731,8 @@ impl RayObserver for RegionMarker<'_> {
         }
         // One crossing packet in TIMED_EVERY, picked at random (a fixed
         // period could keep landing on one kind of ray), is timed and the
-        // sum scaled: two clock reads on every packet cost E3 3.5% of its
-        // steady frames.
+        // sum scaled: two clock reads on every packet would be a visible
+        // share of a steady frame.
         let start = TIMING_DRAW.with(|state| {
             let mut draw = SplitMix64(state.get());
             let timed = draw.next_u64() % TIMED_EVERY == 0;

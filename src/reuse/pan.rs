@@ -403,8 +403,9 @@ impl<L: Lattice> LatticeBuffer<L> {
 
     /// The window's groups not traced yet, in the order of
     /// [`window_groups`]: a row whose flags are all set is passed
-    /// over in one sweep (testing each group took a steady E3 frame
-    /// 0.06 ms, and E1's 5%).
+    /// over in one sweep. In a steady frame nearly every row is, and
+    /// testing its groups one by one would be a visible share of the
+    /// frame.
     fn untraced_groups(&self, window: &Window) -> Vec<SampleGroup> {
         let Some(span) = GroupSpan::of(&self.lattice, window) else {
             return Vec::new();
@@ -468,9 +469,9 @@ impl<L: Lattice> LatticeBuffer<L> {
         let srgb = srgb_table();
         // Each group row's groups are traced and kept in its own band of
         // the stores, bands in parallel and the groups of a band too (a
-        // pitch pan's new rows are one or two bands). A first frame kept
-        // its 38k groups on one thread after tracing them all into a list
-        // (3.7 MB of fresh pages): 4.7 ms more than tracing alone.
+        // pitch pan's new rows are one or two bands). Tracing them all
+        // into a list first and keeping it on one thread would fault in
+        // megabytes of fresh pages on a first frame, one at a time.
         let (lattice, bands) = self.bands_of(&missing);
         let (rays, fresh_pixels) = bands
             .into_par_iter()

@@ -17,15 +17,12 @@ use crate::render::{SampleGroup, GROUP_HEIGHT, GROUP_WIDTH};
 pub struct RegionGrid(pub u32);
 
 /// Much finer than the paper's grid. The regions a moving object dirties
-/// hold its reflections and shadows too, whose samples cost about twice the
-/// average, so coarse regions cap the saving early: on E3 (paper scene,
-/// bouncing ball) the rays re-traced per frame fall from 28% of a full
-/// frame at 16x16 to 17% at 32x32 and 11% at 64x64. Since a region is
-/// dirtied only by recorded ray segments that meet the object, finer
-/// regions cost little more to keep: `retrace bench`, two alternated runs,
-/// E3 6.3x and 6.2x at 64x64 against 11.1x and 10.1x at 160x160 (4x4
-/// samples), E4 2.35x and 2.01x against 2.65x and 2.42x; 256x256 (one
-/// group) is no faster than 160x160.
+/// hold its reflections and shadows too, whose samples cost more than the
+/// average, so coarse regions cap the saving early: each finer grid
+/// re-traces fewer rays. Since a region is dirtied only by recorded ray
+/// segments that meet the object, finer regions cost little more to keep,
+/// down to 4x4 samples (160x160 at 640x480); regions of one group are no
+/// faster.
 impl Default for RegionGrid {
     fn default() -> Self {
         RegionGrid(160)

@@ -43,13 +43,12 @@ pub struct EmbreeIntersector {
 }
 
 /// Still primitives from which a scene with moving objects keeps them in a
-/// scene of their own. Measured on Embree 3.13.5: a commit costs about
-/// 0.2-0.5 us per triangle in the scene (2 ms beside the 3674-triangle
-/// bunny; 170 ms per frame beside the 940k triangles of
-/// `scenes/bunnies.toml`, where the split makes 10 frames 3.7x faster),
-/// while the split costs 4.5% more instructions on the 640x480
-/// paper-bounce frame (a box test per packet, and a second call for the
-/// packets near the ball), about 2 ms. Small scenes stay in one scene.
+/// scene of their own. A commit's cost grows with the triangles in the
+/// scene it rebuilds, so beside big still geometry every move pays for
+/// rebuilding all of it; the split costs every frame a box test per packet
+/// and a second call for the packets near the moving objects. Below this
+/// the split costs more than the commits it saves: small scenes stay in
+/// one scene.
 pub const SPLIT_MIN_STILL_PRIMITIVES: usize = 10_000;
 
 /// Whether still objects go into a scene of their own.

@@ -14,16 +14,15 @@
 //! - Moving geometry ([`CommittedScene::edit`]) needs `&mut`, so no ray is in
 //!   flight while the scene is re-committed. A sphere moves by rewriting its
 //!   one vertex in place (it stays a plain sphere of the top-level scene:
-//!   an instance, even of one small sphere, nearly doubled the cost of every
-//!   ray of the paper scene); meshes move as instances, so their own
-//!   triangles are never rebuilt. An edit re-commits the scene once, however
-//!   many objects it moved, and an edit dropped early still commits. That
-//!   commit rebuilds the BVH over every object of its scene: measured on
-//!   Embree 3.13.5, about 15 us on the paper scene but about 2 ms beside the
-//!   3674-triangle bunny, as it was with instances. RTC_SCENE_FLAG_DYNAMIC,
-//!   RTC_BUILD_QUALITY_REFIT on the spheres, or both with MEDIUM scene
-//!   quality did not shorten it, and at our HIGH scene quality the first two
-//!   left tracing unchanged to the instruction (callgrind), so none is set.
+//!   an instance, even of one small sphere, makes every ray of a small
+//!   scene far dearer); meshes move as instances, so their own triangles
+//!   are never rebuilt. An edit re-commits the scene once, however many
+//!   objects it moved, and an edit dropped early still commits. That
+//!   commit rebuilds the BVH over every object of its scene, spheres moved
+//!   in place or instances alike, so its cost grows with the scene.
+//!   RTC_SCENE_FLAG_DYNAMIC, RTC_BUILD_QUALITY_REFIT on the spheres, or
+//!   both with MEDIUM scene quality do not shorten it, and at our HIGH
+//!   scene quality the first two leave tracing unchanged, so none is set.
 //!   Big still geometry beside moving objects therefore gets a scene of its
 //!   own, committed once ([`super::EmbreeIntersector`]).
 //! - A committed scene's `bounds` are re-read after every commit, so the
@@ -69,8 +68,7 @@ impl SceneBuilder {
         unsafe {
             sys::rtcSetSceneBuildQuality(raw, sys::RTCBuildQuality::RTC_BUILD_QUALITY_HIGH);
             // Robust mode: without it Embree's triangle test loses rays
-            // through shared edges and vertices of closed meshes (measured:
-            // 44 of 3072 edge-exact rays on Debian's 3.13.5).
+            // through shared edges and vertices of closed meshes.
             sys::rtcSetSceneFlags(raw, sys::RTCSceneFlags::RTC_SCENE_FLAG_ROBUST);
         }
         let builder = SceneBuilder {

@@ -100,8 +100,9 @@ impl CommittedScene {
 /// The lanes of `mask` worth tracing through the `index`th scene of a
 /// stack: all of them for the first; for the later (small, moving) ones
 /// only the lanes whose ray, as shortened so far, may cross the scene's
-/// bounds. Without this every packet paid a full call into a one-sphere
-/// scene: +46% instructions on the paper-bounce frame.
+/// bounds. The later scenes hold only the moving objects, which most
+/// rays pass far from: without this every packet would pay a full call
+/// into each of them.
 fn lanes_to_trace(
     scene: &CommittedScene,
     index: usize,

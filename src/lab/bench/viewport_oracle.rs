@@ -16,7 +16,7 @@
 //! (this overcounts a little where footprints overlap).
 //!
 //! It does not depend on what RSVP chose (its filter reads four samples,
-//! its level is chosen per region, it traces whole groups of eight): the
+//! its level is chosen per patch, it traces whole groups of eight): the
 //! gap between the two is what the efficiency column shows.
 
 use std::collections::HashMap;

@@ -1,7 +1,7 @@
 //! Pass 2's copy of the buffer: each level's samples at every one of its
 //! positions (its own and those its coarser owners traced), assembled into
 //! square blocks of sample codes ([`SampleCode`]: what the filters blend),
-//! so a region's samples are a few rows of one or two plain arrays instead
+//! so a patch's samples are a few rows of one or two plain arrays instead
 //! of strided runs from every owner.
 //!
 //! Derived data: a block is assembled from the stores the first time a
@@ -25,9 +25,9 @@ use super::{
 use crate::ray::PACKET_WIDTH;
 use crate::render::{SampleGroup, GROUP_HEIGHT, GROUP_WIDTH};
 
-/// Positions per side of a block: a 16x16-pixel region reads 17-40 samples
-/// a side, so on E2 about a fifth of regions copy from one block and the
-/// rest from two to four (128-wide blocks cost four times the assembly).
+/// Positions per side of a block: a 16x16-pixel patch reads 17-40 samples
+/// a side, so it copies from one block or from two to four; 128-wide
+/// blocks would cost four times the assembly for each block first read.
 const BLOCK_SHIFT: u32 = 6;
 const BLOCK: i64 = 1 << BLOCK_SHIFT;
 const BLOCK_SAMPLES: usize = (BLOCK * BLOCK) as usize;
@@ -100,8 +100,8 @@ pub(super) struct SampleView<'a> {
     pub(super) samples: &'a [SampleCode],
 }
 
-/// The last blocks a region's rows came from, by the parity of their key
-/// (a region's box spans a few neighbouring blocks).
+/// The last blocks a patch's rows came from, by the parity of their key
+/// (a patch's box spans a few neighbouring blocks).
 struct BlockCache([((i64, i64), u32); 4]);
 
 impl BlockCache {
@@ -122,8 +122,8 @@ impl SampleBuffer {
     /// Assembles every block the boxes of `reads` cover (rows clamped to
     /// the lattice, columns wrapped) that is not assembled yet. Blocks no
     /// frame read since the one before give their memory to the new ones:
-    /// a fresh block's pages fault in at ~4 us each here, which made
-    /// assembling cost more than copying.
+    /// a fresh block's pages would each fault in on first touch, and the
+    /// faults would make assembling cost more than copying.
     pub(super) fn assemble_blocks(&mut self, reads: impl Iterator<Item = (Level, SampleBox)>) {
         self.frame += 1;
         let frame = self.frame;
@@ -276,7 +276,8 @@ impl SampleBuffer {
 
     /// The samples of `level` in `bounds` (rows clamped to the lattice,
     /// columns wrapped around the turn), every block of which
-    /// [`SampleBuffer::assemble_blocks`] assembled, copied into `window`.
+    /// [`SampleBuffer::assemble_blocks`] assembled, copied into
+    /// `view_samples`.
     /// Copied even when they lie in one block: the copy's loads overlap
     /// where the filter's, in place, wait one by one, and the filter then
     /// reads one array of a fixed width.
@@ -284,20 +285,20 @@ impl SampleBuffer {
         &'a self,
         level: Level,
         bounds: &SampleBox,
-        window: &'a mut Vec<SampleCode>,
+        view_samples: &'a mut Vec<SampleCode>,
     ) -> SampleView<'a> {
         let blocks = &self.blocks[level.index()];
         let columns = self.lattice.columns(level.x);
         let last_row = self.lattice.last_row(level.y);
         let (width, height) = (bounds.width(), bounds.height());
-        window.resize(width * height, 0);
+        view_samples.resize(width * height, 0);
         let mut cache = BlockCache::new();
         let mut at = 0;
         // Column runs outside, rows inside: every row of a run copies the
         // same length, so the copy's branches predict and the rows' loads
         // overlap instead of each waiting on the last.
         for_each_run(bounds.c0, bounds.c1, columns, |col, run| {
-            for (j, line) in window.chunks_exact_mut(width).enumerate() {
+            for (j, line) in view_samples.chunks_exact_mut(width).enumerate() {
                 let row = (bounds.r0 + j as i64).clamp(0, last_row);
                 let (key, sample) = block_key(col, row);
                 let out = &mut line[at..at + run];
@@ -315,13 +316,13 @@ impl SampleBuffer {
             col: bounds.c0,
             row: bounds.r0,
             width,
-            samples: window,
+            samples: view_samples,
         }
     }
 }
 
 /// `source` into `out` (as long) in whole vectors, inline: a call to
-/// `memcpy` per row, whose branches depend on the length, cost more.
+/// `memcpy` per row, whose branches depend on the length, costs more.
 #[inline(always)]
 fn copy_samples(out: &mut [SampleCode], source: &[SampleCode]) {
     let mut out = out.chunks_exact_mut(8);
@@ -411,9 +412,8 @@ static BLACK: [Vec3; TILE_COLS as usize] = [Vec3::ZERO; TILE_COLS as usize];
 
 /// Writes `source` into every `stride`th entry of `out` from its first
 /// (`out` reaches the last). The usual strides (2, 4, 8: a coarser owner's
-/// samples among a finer level's) get loops of fixed step: 8% fewer
-/// instructions than chunks of a variable length when pass 2 still copied
-/// every frame's samples this way.
+/// samples among a finer level's) get loops of fixed step, which take
+/// fewer instructions than chunks of a variable length.
 #[inline]
 fn scatter(out: &mut [Vec3], source: &[Vec3], stride: usize) {
     match stride {

@@ -87,18 +87,16 @@ impl RsvpKnobs {
 
 /// A sample as pass 2 keeps and blends it: each channel's sRGB quarter
 /// code ([`SrgbTable::encode_quarters`], 10 bits), red lowest, in one
-/// word. A third of three f32's bytes to copy, blended a channel at a time
-/// over whole lanes, and a shift from the 8-bit output, where three f32
-/// each took a table lookup: over E2 in, frames 1-99 15% faster.
+/// word: a third of three f32's bytes to copy, blended a channel at a
+/// time over whole lanes, and a shift from the 8-bit output, where three
+/// f32 would each take a table lookup.
 ///
-/// Filters so blend in sRGB, not linear, space. That alone (tried in f32)
-/// changed nothing measurable over E2 in: worst PSNR 25.48 dB against
-/// 25.49, pixels differing from the direct render in 8 bits 14.30%
-/// against 14.27%. The codes' quarter steps cost a little: 16.2% differ
-/// (by one step, where a gradient's exact value lies near a byte's
-/// edge), mean error +2.7%, the same PSNR; whole bytes made it 18.1%.
-/// Exact where it was: a pixel on a sample, or amid equal ones, shows
-/// that sample's own byte.
+/// Filters so blend in sRGB, not linear, space, which on its own barely
+/// changes the error against the direct render. The codes' quarter steps
+/// round a blend a little (by one step, where a gradient's exact value
+/// lies near a byte's edge), far less than whole bytes would. Exact where
+/// blending in linear colour is: a pixel on a sample, or amid equal ones,
+/// shows that sample's own byte.
 pub(super) type SampleCode = u32;
 
 const CODE_BITS: u32 = 10;
@@ -209,8 +207,8 @@ pub(super) fn filter_reads(
     let (cx, ry) = filter_origin(filter, x, y);
     let (top, bottom) = (ry.clamp(0, last_row), (ry + 1).clamp(0, last_row));
     let count = if filter == Filter::Nearest { 1 } else { 4 };
-    // An array rather than nested ranges: over E4's frames 0-20, 8,145M
-    // instructions against 8,300M (pass 1 marks every pixel's reads).
+    // An array rather than nested ranges: fewer instructions, where pass 1
+    // marks every pixel's reads.
     [(cx, top), (cx + 1, top), (cx, bottom), (cx + 1, bottom)]
         .into_iter()
         .take(count)

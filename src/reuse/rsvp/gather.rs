@@ -1,5 +1,5 @@
 //! Pass 2 of a viewport frame: each pixel's colour from the samples its
-//! filter reads, through the assembled blocks of its region's level,
+//! filter reads, through the assembled blocks of its patch's level,
 //! converted to 8 bits.
 
 use glam::{DVec2, Vec3};
@@ -11,7 +11,7 @@ use super::{
     map::{nan_filled, Mapped, SampleBox, GRID_SPACING},
     store::{tile_key, TileCache},
     viewport::PixelMap,
-    Filter, Level, SampleBuffer, REGION,
+    Filter, Level, SampleBuffer, PATCH,
 };
 use crate::camera::ViewportPose;
 use crate::color::{srgb_table, SrgbTable};
@@ -32,7 +32,7 @@ impl SampleBuffer {
     }
 
     /// Pass 2: each pixel's colour from its samples, read from the
-    /// assembled blocks of its region's level (see [`super::blocks`]).
+    /// assembled blocks of its patch's level (see [`super::blocks`]).
     pub(super) fn gather(
         &self,
         pose: &ViewportPose,
@@ -42,7 +42,7 @@ impl SampleBuffer {
     ) -> (Option<Frame>, image::RgbImage) {
         let (w, h) = (pose.camera.width as usize, pose.camera.height as usize);
         let map = PixelMap::new(pose);
-        let band = w * REGION as usize;
+        let band = w * PATCH as usize;
         let mut bytes = vec![0u8; w * h * 3];
         let mut pixels = if linear {
             vec![Vec3::ZERO; w * h]
@@ -54,7 +54,7 @@ impl SampleBuffer {
         } else {
             Vec::new()
         };
-        pixel_bands.resize_with(h.div_ceil(REGION as usize), || &mut []);
+        pixel_bands.resize_with(h.div_ceil(PATCH as usize), || &mut []);
         bytes
             .par_chunks_mut(band * 3)
             .zip(pixel_bands.into_par_iter())
@@ -62,19 +62,22 @@ impl SampleBuffer {
             .for_each_init(
                 BandScratch::default,
                 |scratch, (band_index, (out, linear_out))| {
-                    let BandScratch { window, coords } = scratch;
+                    let BandScratch {
+                        view_samples,
+                        coords,
+                    } = scratch;
                     let mut cache = TileCache::new();
-                    let mut colors: [SampleCode; (REGION * REGION) as usize] = [0; _];
+                    let mut colors: [SampleCode; (PATCH * PATCH) as usize] = [0; _];
                     let srgb = srgb_table();
-                    let y0 = band_index * REGION as usize;
-                    let rows = (h - y0).min(REGION as usize);
-                    let regions =
-                        &mapped.regions[band_index * mapped.regions_x..][..mapped.regions_x];
-                    for (rx, region) in regions.iter().enumerate() {
-                        let x0 = rx * REGION as usize;
-                        let cols = (w - x0).min(REGION as usize);
-                        let level = region.level;
-                        let grid = region.grid.as_ref();
+                    let y0 = band_index * PATCH as usize;
+                    let rows = (h - y0).min(PATCH as usize);
+                    let patches =
+                        &mapped.patches[band_index * mapped.patches_x..][..mapped.patches_x];
+                    for (patch_x, patch) in patches.iter().enumerate() {
+                        let x0 = patch_x * PATCH as usize;
+                        let cols = (w - x0).min(PATCH as usize);
+                        let level = patch.level;
+                        let grid = patch.grid.as_ref();
                         // A grid writes every pixel; exact mapping leaves
                         // pixels without a ray as they were.
                         let coords = if grid.is_some() {
@@ -84,7 +87,7 @@ impl SampleBuffer {
                             nan_filled(coords, cols * rows)
                         };
                         let origin = (x0 as u32, y0 as u32);
-                        self.region_coords(pose, &map, level, grid, origin, cols, coords);
+                        self.patch_coords(pose, &map, level, grid, origin, cols, coords);
                         let colors = &mut colors[..cols * rows];
                         // The pixels' own box: a grid's points bound its
                         // pixels', so it is often smaller than pass 1's, and
@@ -92,16 +95,16 @@ impl SampleBuffer {
                         let bounds = match grid {
                             // Within pass 1's box, whose blocks are the
                             // ones assembled, whatever its slack adds.
-                            Some(_) => region.blocks.and_then(|assembled| {
+                            Some(_) => patch.blocks.and_then(|assembled| {
                                 grid_pixels_box(filter, coords, cols)
                                     .map(|b| b.intersection(&assembled))
                             }),
-                            None => region.blocks.and(pixels_box(filter, coords)),
+                            None => patch.blocks.and(pixels_box(filter, coords)),
                         };
                         match bounds {
                             Some(bounds) => {
-                                let view = self.view(level, &bounds, window);
-                                gather_region(&view, filter, coords, colors);
+                                let view = self.view(level, &bounds, view_samples);
+                                gather_patch(&view, filter, coords, colors);
                             }
                             None => {
                                 for (slot, c) in colors.iter_mut().zip(coords.iter()) {
@@ -113,7 +116,7 @@ impl SampleBuffer {
                                 }
                             }
                         }
-                        // Whole region rows at once: no per-pixel index checks.
+                        // Whole patch rows at once: no per-pixel index checks.
                         for (j, line) in colors.chunks_exact(cols).enumerate() {
                             let p = j * w + x0;
                             for (byte, c) in
@@ -141,7 +144,7 @@ impl SampleBuffer {
     }
 
     /// A pixel's code at lattice coordinates (x, y), from the stores: as
-    /// [`gather_region`] makes it from the blocks.
+    /// [`gather_patch`] makes it from the blocks.
     #[inline(always)]
     fn filter(
         &self,
@@ -177,12 +180,13 @@ impl SampleBuffer {
     }
 }
 
-/// What pass 2 reuses from region to region.
+/// What pass 2 reuses from patch to patch.
 #[derive(Default)]
 struct BandScratch {
-    /// A region's samples, copied out of the blocks.
-    window: Vec<SampleCode>,
-    /// A region's pixels' lattice coordinates.
+    /// A patch's samples, copied out of the blocks: what its
+    /// [`SampleView`] reads.
+    view_samples: Vec<SampleCode>,
+    /// A patch's pixels' lattice coordinates.
     coords: Vec<DVec2>,
 }
 
@@ -198,10 +202,10 @@ fn pixels_box(filter: Filter, coords: &[DVec2]) -> Option<SampleBox> {
     (lo.x <= hi.x).then(|| SampleBox::read_by(filter, lo, hi))
 }
 
-/// [`pixels_box`] of a grid-mapped region's pixels (`coords`, `cols`
+/// [`pixels_box`] of a grid-mapped patch's pixels (`coords`, `cols`
 /// wide, none NaN) from a few of them: within each grid cell a pixel's
 /// coordinates interpolate the cell's corners, so the pixels on grid
-/// points and on the region's last column and row bound the rest, up to
+/// points and on the patch's last column and row bound the rest, up to
 /// the interpolation's rounding, which the box is grown by (a sample more
 /// at most, and that rarely).
 fn grid_pixels_box(filter: Filter, coords: &[DVec2], cols: usize) -> Option<SampleBox> {
@@ -228,18 +232,18 @@ fn grid_pixels_box(filter: Filter, coords: &[DVec2], cols: usize) -> Option<Samp
     (lo.x <= hi.x).then(|| SampleBox::read_by(filter, lo - slack, hi + slack))
 }
 
-/// Filters one region's pixels (`coords`: their lattice coordinates at the
-/// window's level, NaN for no ray) from `window`, which holds every sample
+/// Filters one patch's pixels (`coords`: their lattice coordinates at the
+/// view's level, NaN for no ray) from `view`, which holds every sample
 /// they read, into `out` (`coords`' length).
-fn gather_region(window: &SampleView, filter: Filter, coords: &[DVec2], out: &mut [SampleCode]) {
-    let wd = window.width;
-    let samples = window.samples;
-    // Window index and weights of every pixel first, in straight-line f64
+fn gather_patch(view: &SampleView, filter: Filter, coords: &[DVec2], out: &mut [SampleCode]) {
+    let wd = view.width;
+    let samples = view.samples;
+    // View index and weights of every pixel first, in straight-line f64
     // code (exact: whole numbers and multiples of 2^-16) that vectorises;
     // NaN pixels get index 0 and are blacked out last.
-    const N: usize = (REGION * REGION) as usize;
+    const N: usize = (PATCH * PATCH) as usize;
     let (mut index, mut wx, mut wy) = ([0u32; N], [0f32; N], [0f32; N]);
-    let (c0f, r0f, wdf) = (window.col as f64, window.row as f64, wd as f64);
+    let (c0f, r0f, wdf) = (view.col as f64, view.row as f64, wd as f64);
     let mut has_nan = false;
     for (((c, k), fx), fy) in coords.iter().zip(&mut index).zip(&mut wx).zip(&mut wy) {
         has_nan |= c.x.is_nan();
@@ -302,7 +306,7 @@ mod tests {
     use crate::reuse::rsvp::RsvpKnobs;
 
     #[test]
-    fn a_grid_regions_box_from_its_corners_and_edges_holds_every_pixel() {
+    fn a_grid_patch_box_from_its_corners_and_edges_holds_every_pixel() {
         let buffer = SampleBuffer::new(lattice());
         let knobs = RsvpKnobs::default();
         let transforms = [
@@ -317,17 +321,17 @@ mod tests {
             let mapped = buffer.map(&pose, &knobs);
             let map = PixelMap::new(&pose);
             let mut coords = Vec::new();
-            for (index, region) in mapped.regions.iter().enumerate() {
-                let Some(grid) = region.grid.as_ref() else {
+            for (index, patch) in mapped.patches.iter().enumerate() {
+                let Some(grid) = patch.grid.as_ref() else {
                     continue;
                 };
-                let x0 = (index % mapped.regions_x) as u32 * REGION;
-                let y0 = (index / mapped.regions_x) as u32 * REGION;
-                let cols = (pose.camera.width - x0).min(REGION) as usize;
-                let rows = (pose.camera.height - y0).min(REGION) as usize;
+                let x0 = (index % mapped.patches_x) as u32 * PATCH;
+                let y0 = (index / mapped.patches_x) as u32 * PATCH;
+                let cols = (pose.camera.width - x0).min(PATCH) as usize;
+                let rows = (pose.camera.height - y0).min(PATCH) as usize;
                 let out = nan_filled(&mut coords, cols * rows);
-                let level = region.level;
-                buffer.region_coords(&pose, &map, level, Some(grid), (x0, y0), cols, out);
+                let level = patch.level;
+                buffer.patch_coords(&pose, &map, level, Some(grid), (x0, y0), cols, out);
                 for filter in [Filter::Nearest, Filter::Bilinear, Filter::Box] {
                     let every = pixels_box(filter, &coords).expect("a grid maps every pixel");
                     let quick = grid_pixels_box(filter, &coords, cols).expect("likewise");
@@ -336,7 +340,7 @@ mod tests {
                             && quick.r0 <= every.r0
                             && quick.c1 >= every.c1
                             && quick.r1 >= every.r1,
-                        "region ({x0}, {y0}), {filter}: {quick:?} misses some of {every:?}"
+                        "patch ({x0}, {y0}), {filter}: {quick:?} misses some of {every:?}"
                     );
                     // Grown only by the interpolation's rounding.
                     assert!(quick.c1 - quick.c0 <= every.c1 - every.c0 + 2);
@@ -345,6 +349,6 @@ mod tests {
                 checked += 1;
             }
         }
-        assert!(checked > 3000, "{checked} regions");
+        assert!(checked > 3000, "{checked} patches");
     }
 }

@@ -121,8 +121,8 @@ pub struct SampleLattice {
 
 /// Per level, the sine and cosine of every column's azimuth and every
 /// row's elevation, exactly as `f64::sin_cos` gives them: what the libm
-/// calls of [`LevelRays::primary_group`] (2% of E4) would compute again
-/// for every group. Only levels with at most [`TABLED_ANGLES`] columns are
+/// calls of [`LevelRays::primary_group`] would compute again for every
+/// group. Only levels with at most [`TABLED_ANGLES`] columns are
 /// tabled; finer ones, read by extreme zooms only, call libm.
 #[derive(Clone, Default)]
 struct AngleTables {
@@ -374,9 +374,9 @@ impl PrimaryRays for LevelRays<'_> {
     }
 
     /// As `primary` lane by lane, bit for bit, but with one sine and cosine
-    /// per column and per row of the group rather than two per lane (the
-    /// libm calls were a tenth of a steady frame), read from the lattice's
-    /// tables where the level has them.
+    /// per column and per row of the group rather than two per lane (libm
+    /// calls per lane would be a large share of a steady frame), read from
+    /// the lattice's tables where the level has them.
     fn primary_group(&self, group: SampleGroup) -> (RayPacket, LaneMask) {
         let (lattice, level) = (self.lattice, self.level);
         let origin = lattice.position.as_vec3();

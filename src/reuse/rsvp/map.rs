@@ -1,4 +1,4 @@
-//! Pass 1 of a viewport frame: each region's pyramid level and mapping
+//! Pass 1 of a viewport frame: each patch's pyramid level and mapping
 //! grid, its pixels' lattice coordinates, and the groups not yet traced
 //! that its filter will read.
 
@@ -13,29 +13,29 @@ use super::{
     lattice::{column_runs, owned_positions},
     store::{tile_key, TILE_COLS, TILE_COL_SHIFT, TILE_ROW_SHIFT},
     viewport::PixelMap,
-    Filter, Level, RsvpKnobs, SampleBuffer, MAX_LEVEL, REGION,
+    Filter, Level, RsvpKnobs, SampleBuffer, MAX_LEVEL, PATCH,
 };
 use crate::camera::ViewportPose;
 use crate::render::{SampleGroup, GROUP_HEIGHT, GROUP_WIDTH};
 
-/// Pixels between exactly mapped points of a region's grid; the pixels
+/// Pixels between exactly mapped points of a patch's grid; the pixels
 /// between are interpolated.
 pub(super) const GRID_SPACING: u32 = 4;
-const GRID_POINTS: usize = (REGION / GRID_SPACING) as usize + 1;
-const _: () = assert!(REGION % GRID_SPACING == 0);
+const GRID_POINTS: usize = (PATCH / GRID_SPACING) as usize + 1;
+const _: () = assert!(PATCH % GRID_SPACING == 0);
 
-/// The most a grid may miss the exact mapping, in samples of the region's
-/// level, for the region to be interpolated: it moves a bilinear weight by
+/// The most a grid may miss the exact mapping, in samples of the patch's
+/// level, for the patch to be interpolated: it moves a bilinear weight by
 /// at most 3%. (E2's widest view needs 1/64..1/32 at its edges; a finer
 /// grid would cost more exact mappings than it saves.)
 const GRID_TOLERANCE: f64 = 1.0 / 32.0;
 
-/// Lattice coordinates, at the region's level, of the pixels (x0 + 4i,
-/// y0 + 4j) of a region.
+/// Lattice coordinates, at the patch's level, of the pixels (x0 + 4i,
+/// y0 + 4j) of a patch.
 type MapGrid = [[DVec2; GRID_POINTS]; GRID_POINTS];
 
-/// How pass 1 left a region for pass 2.
-pub(super) struct RegionMap {
+/// How pass 1 left a patch for pass 2.
+pub(super) struct PatchMap {
     pub(super) level: Level,
     /// None: the mapping bends too much here (near a pole, across the view's
     /// back seam, fisheye): every pixel is mapped exactly.
@@ -97,19 +97,19 @@ impl SampleBox {
 
 /// Pass 1's result for one viewport.
 pub(super) struct Mapped {
-    /// Per region, row-major.
-    pub(super) regions: Vec<RegionMap>,
-    pub(super) regions_x: usize,
+    /// Per patch, row-major.
+    pub(super) patches: Vec<PatchMap>,
+    pub(super) patches_x: usize,
     /// Groups to trace: (owning level, group of its slots), sorted by
     /// level index, row and column, unique.
     pub(super) missing: Vec<(Level, SampleGroup)>,
 }
 
 impl SampleBuffer {
-    /// The level a region needs: on each axis, the densest its pixels lie
+    /// The level a patch needs: on each axis, the densest its pixels lie
     /// along that lattice axis, brought to at least `oversample` samples per
     /// pixel.
-    fn region_level(
+    fn patch_level(
         &self,
         pose: &ViewportPose,
         map: &PixelMap,
@@ -118,8 +118,8 @@ impl SampleBuffer {
         y0: u32,
     ) -> Level {
         let cam = &pose.camera;
-        let x1 = (x0 + REGION).min(cam.width) - 1;
-        let y1 = (y0 + REGION).min(cam.height) - 1;
+        let x1 = (x0 + PATCH).min(cam.width) - 1;
+        let y1 = (y0 + PATCH).min(cam.height) - 1;
         let points = [
             (x0, y0),
             (x1, y0),
@@ -148,13 +148,13 @@ impl SampleBuffer {
         density.level(knobs)
     }
 
-    /// The region's level and mapping grid, or None when interpolating it
+    /// The patch's level and mapping grid, or None when interpolating it
     /// could miss the exact mapping by more than [`GRID_TOLERANCE`] at that
     /// level or a point has no ray. Mapping a pixel exactly costs two atan2;
     /// a grid costs 25 mappings for 256 pixels, and its cells give the level
     /// too (the finest footprint over 16 cells), where
-    /// [`SampleBuffer::region_level`] would map 15 more points.
-    fn region_grid(
+    /// [`SampleBuffer::patch_level`] would map 15 more points.
+    fn patch_grid(
         &self,
         pose: &ViewportPose,
         map: &PixelMap,
@@ -162,7 +162,7 @@ impl SampleBuffer {
         x0: u32,
         y0: u32,
     ) -> Option<(Level, MapGrid)> {
-        // Level 0 first: scaling to the region's level is by a power of
+        // Level 0 first: scaling to the patch's level is by a power of
         // two, exact, so the grid is the one mapped at that level bit for
         // bit.
         const CELLS: usize = GRID_POINTS - 1;
@@ -191,7 +191,7 @@ impl SampleBuffer {
         // is f_xx h^2 (or f_yy h^2): the grid's own points estimate the
         // miss, per axis, so a saddle (near a pole, where the two cancel)
         // shows too. (Mapping each cell's edge midpoints gives the same
-        // estimate for 32 more mappings per region; the test below holds
+        // estimate for 32 more mappings per patch; the test below holds
         // every pixel to the tolerance.) A seam makes the differences huge.
         let second = |a: DVec2, b: DVec2, c: DVec2| (a - b * 2.0 + c).abs();
         // Second differences along x at the inner columns, along y at the
@@ -220,7 +220,7 @@ impl SampleBuffer {
                     .max(along_y[j0][i + 1])
                     .max(along_y[j1][i + 1]);
                 worst = worst.max((fxx + fyy) / 8.0);
-                // The cell's pixel footprint, as region_level measures it.
+                // The cell's pixel footprint, as patch_level measures it.
                 let dx = (grid[j][i + 1] - grid[j][i]) / spacing;
                 let dy = (grid[j + 1][i] - grid[j][i]) / spacing;
                 density.add(dx, dy);
@@ -237,11 +237,11 @@ impl SampleBuffer {
         Some((level, grid))
     }
 
-    /// Lattice coordinates (at `level`) of a region's pixels into `out`,
+    /// Lattice coordinates (at `level`) of a patch's pixels into `out`,
     /// row-major, `cols` wide, which comes filled with NaN (left where a
     /// pixel has no ray): interpolated from `grid`, else exact.
     #[allow(clippy::too_many_arguments)]
-    pub(super) fn region_coords(
+    pub(super) fn patch_coords(
         &self,
         pose: &ViewportPose,
         map: &PixelMap,
@@ -290,29 +290,29 @@ impl SampleBuffer {
         }
     }
 
-    /// Pass 1: each region's level and mapping grid, and the groups not
+    /// Pass 1: each patch's level and mapping grid, and the groups not
     /// yet traced that the filter will read.
     pub(super) fn map(&self, pose: &ViewportPose, knobs: &RsvpKnobs) -> Mapped {
         let cam = &pose.camera;
         let (w, h) = (cam.width, cam.height);
-        let regions_x = w.div_ceil(REGION) as usize;
-        let regions_y = h.div_ceil(REGION) as usize;
+        let patches_x = w.div_ceil(PATCH) as usize;
+        let patches_y = h.div_ceil(PATCH) as usize;
         let map = PixelMap::new(pose);
-        // Region by region, collected in place: concatenating bands of
-        // regions (a grid each) cost ~0.1 ms a frame on one thread.
-        let mut regions = Vec::with_capacity(regions_x * regions_y);
+        // Patch by patch, collected in place: concatenating bands of
+        // patches would copy every patch's grid again, on one thread.
+        let mut patches = Vec::with_capacity(patches_x * patches_y);
         let mut requests: Vec<Vec<u128>> = Vec::new();
-        (0..regions_x * regions_y)
+        (0..patches_x * patches_y)
             .into_par_iter()
             .map_init(Vec::new, |coords, index| {
-                let x0 = (index % regions_x) as u32 * REGION;
-                let y0 = (index / regions_x) as u32 * REGION;
-                let rows = (h - y0).min(REGION) as usize;
+                let x0 = (index % patches_x) as u32 * PATCH;
+                let y0 = (index / patches_x) as u32 * PATCH;
+                let rows = (h - y0).min(PATCH) as usize;
                 let mut missing = Vec::new();
-                let cols = (w - x0).min(REGION) as usize;
-                let (level, grid) = match self.region_grid(pose, &map, knobs, x0, y0) {
+                let cols = (w - x0).min(PATCH) as usize;
+                let (level, grid) = match self.patch_grid(pose, &map, knobs, x0, y0) {
                     Some((level, grid)) => (level, Some(grid)),
-                    None => (self.region_level(pose, &map, knobs, x0, y0), None),
+                    None => (self.patch_level(pose, &map, knobs, x0, y0), None),
                 };
                 // Interpolated points lie within their cell's corners, so
                 // the grid's box holds every pixel's.
@@ -328,7 +328,7 @@ impl SampleBuffer {
                         count = (cols * rows) as u32;
                     }
                     None => {
-                        self.region_coords(
+                        self.patch_coords(
                             pose,
                             &map,
                             level,
@@ -349,7 +349,7 @@ impl SampleBuffer {
                 if let Some(reads) = reads {
                     self.collect_missing(level, knobs.filter, reads, count, &mut missing, |f| {
                         if !mapped {
-                            self.region_coords(
+                            self.patch_coords(
                                 pose,
                                 &map,
                                 level,
@@ -371,7 +371,7 @@ impl SampleBuffer {
                         && b.c1 - b.c0 < self.lattice.columns(level.x)
                 });
                 (
-                    RegionMap {
+                    PatchMap {
                         level,
                         grid,
                         blocks,
@@ -379,14 +379,12 @@ impl SampleBuffer {
                     missing,
                 )
             })
-            .unzip_into_vecs(&mut regions, &mut requests);
-        // Frame 0 asks for ~120k groups (85k once neighbours' are merged):
-        // sorted by tuple, on one thread, that took ~9 ms; by a key
-        // computed in each comparison, on both, 5.5 (and 1.1 more to
-        // dedup the tuples). Sorting the keys themselves cut frame 0's
-        // pass 1 from 13.4 to 10.4 ms (median of 7). A steady frame's
-        // 1.5k keys sort on one thread: handing them to both took longer
-        // (0.06 ms) than sorting them.
+            .unzip_into_vecs(&mut patches, &mut requests);
+        // A first frame asks for many groups, many of them twice (by
+        // neighbouring patches): they are sorted and deduplicated as
+        // integer keys, which is cheaper than sorting tuples or computing
+        // a key in each comparison, on both threads. A steady frame asks
+        // for few, which sort faster on one thread than handed to both.
         let mut keys = requests.concat();
         if keys.len() > 1 << 14 {
             keys.par_sort_unstable();
@@ -396,8 +394,8 @@ impl SampleBuffer {
         keys.dedup();
         let missing = keys.into_iter().map(from_trace_order).collect();
         Mapped {
-            regions,
-            regions_x,
+            patches,
+            patches_x,
             missing,
         }
     }
@@ -446,16 +444,16 @@ impl SampleBuffer {
         })
     }
 
-    /// Adds the untraced groups a region's filter reads. A region whose
+    /// Adds the untraced groups a patch's filter reads. A patch whose
     /// samples are dense (a few per pixel) first checks every group of its
     /// box at every owning level, a quick yes in the usual case that all
     /// were traced; otherwise it marks the samples its pixels read in a
     /// bitmap of the box and asks for the groups under each row's runs of
-    /// marks. A sparse region (zoomed far out, or near a pole) asks for
+    /// marks. A sparse patch (zoomed far out, or near a pole) asks for
     /// each pixel's own groups.
     #[allow(clippy::too_many_arguments)]
-    // Inlined into the band closure of `map`, its one caller: about 0.6% of
-    // an E2 run's instructions when left out of line.
+    // Inlined into the per-patch closure of `map`, its one caller: a call
+    // per patch, out of line, costs instructions for nothing.
     #[inline]
     fn collect_missing(
         &self,
@@ -518,11 +516,11 @@ impl SampleBuffer {
     }
 }
 
-/// The untraced groups a region asks for, appended to the frame's list:
+/// The untraced groups a patch asks for, appended to the frame's list:
 /// none already traced, and mostly each once (a group is asked for again
 /// only once its tile left the cache); the frame's sort drops the rest,
-/// and those its neighbours asked for too. (Sorting each region's list
-/// first cost frame 0's pass 1 1.5 ms of its 9.8.)
+/// and those its neighbours asked for too. (Sorting each patch's list
+/// first would add work that the frame's sort does anyway.)
 struct GroupRequests<'a> {
     buffer: &'a SampleBuffer,
     /// As [`trace_order`] keys.
@@ -530,7 +528,7 @@ struct GroupRequests<'a> {
     /// Consecutive groups mostly share a tile: its traced mask is kept. A
     /// pixel reads two rows, which may lie in neighbouring tile rows: one
     /// slot per owning level and tile row parity, distinct for owners
-    /// within 4 levels on each axis (those a region reads most).
+    /// within 4 levels on each axis (those a patch reads most).
     cached: [(usize, (i64, i64), u64); 32],
 }
 
@@ -590,7 +588,7 @@ impl<'a> GroupRequests<'a> {
     }
 }
 
-/// Which samples of a box of one level a region's pixels read: a bit per
+/// Which samples of a box of one level a patch's pixels read: a bit per
 /// sample, row-major.
 struct SampleMarks {
     c0: i64,
@@ -716,7 +714,7 @@ pub(super) fn nan_filled(v: &mut Vec<DVec2>, len: usize) -> &mut [DVec2] {
     v
 }
 
-/// How densely a region's pixels lie along each lattice axis: the most
+/// How densely a patch's pixels lie along each lattice axis: the most
 /// pixels per level-0 sample step, over the pixels measured.
 #[derive(Clone, Copy, Debug, Default)]
 struct SampleDensity {
@@ -774,8 +772,8 @@ mod tests {
 
     #[test]
     fn trace_order_keys_keep_every_level_and_sort_by_it() {
-        // Levels past index 255 (level 15 in azimuth and finer) lost their
-        // top bit and went to a coarser level's store.
+        // Levels past index 255 (level 15 in azimuth and finer) need a
+        // ninth bit: a key without it sends them to a coarser level's store.
         let far = SampleGroup {
             col: (1 << ORDER_COORD_BITS) - 4,
             row: (1 << ORDER_COORD_BITS) - 2,
@@ -793,7 +791,7 @@ mod tests {
     }
 
     #[test]
-    fn interpolated_regions_stay_within_their_tolerance() {
+    fn interpolated_patches_stay_within_their_tolerance() {
         let buffer = SampleBuffer::new(lattice());
         let knobs = RsvpKnobs::default();
         let base = tilted_camera();
@@ -822,52 +820,51 @@ mod tests {
             ),
         ];
         let mut interpolated = [0usize; 6];
-        // Regions whose grid level equals region_level's.
+        // Patches whose grid level equals patch_level's.
         let mut levels = [0usize; 6];
         for (case, (camera, transform)) in cases.into_iter().enumerate() {
             let pose = ViewportPose::new(camera, transform);
             let map = PixelMap::new(&pose);
             let (mut exact, mut fast) = (Vec::new(), Vec::new());
-            for y0 in (0..pose.camera.height).step_by(REGION as usize) {
-                for x0 in (0..pose.camera.width).step_by(REGION as usize) {
-                    let Some((level, grid)) = buffer.region_grid(&pose, &map, &knobs, x0, y0)
-                    else {
+            for y0 in (0..pose.camera.height).step_by(PATCH as usize) {
+                for x0 in (0..pose.camera.width).step_by(PATCH as usize) {
+                    let Some((level, grid)) = buffer.patch_grid(&pose, &map, &knobs, x0, y0) else {
                         continue;
                     };
-                    let chosen = buffer.region_level(&pose, &map, &knobs, x0, y0);
+                    let chosen = buffer.patch_level(&pose, &map, &knobs, x0, y0);
                     levels[case] += usize::from(level == chosen);
                     interpolated[case] += 1;
                     let size = (
-                        (pose.camera.width - x0).min(REGION) as usize,
-                        (pose.camera.height - y0).min(REGION) as usize,
+                        (pose.camera.width - x0).min(PATCH) as usize,
+                        (pose.camera.height - y0).min(PATCH) as usize,
                     );
                     let at = (x0, y0);
                     let n = size.0 * size.1;
                     let exact_out = nan_filled(&mut exact, n);
-                    buffer.region_coords(&pose, &map, level, None, at, size.0, exact_out);
+                    buffer.patch_coords(&pose, &map, level, None, at, size.0, exact_out);
                     let fast_out = nan_filled(&mut fast, n);
-                    buffer.region_coords(&pose, &map, level, Some(&grid), at, size.0, fast_out);
+                    buffer.patch_coords(&pose, &map, level, Some(&grid), at, size.0, fast_out);
                     for (e, f) in exact.iter().zip(&fast) {
                         let miss = (*e - *f).abs().max_element();
                         assert!(
                             miss <= 1.25 * GRID_TOLERANCE,
-                            "case {case}, region ({x0}, {y0}) at level {level}: {e} vs {f}"
+                            "case {case}, patch ({x0}, {y0}) at level {level}: {e} vs {f}"
                         );
                     }
                 }
             }
         }
-        // 40 x 30 regions: the smooth views interpolate nearly everywhere.
+        // 40 x 30 patches: the smooth views interpolate nearly everywhere.
         assert_eq!(interpolated[0], 1200, "{interpolated:?}");
         assert_eq!(interpolated[1], 1200, "{interpolated:?}");
-        // Near the pole some regions bend too much; zoomed far out (a region
+        // Near the pole some patches bend too much; zoomed far out (a patch
         // spans many degrees) nearly none fit: only a few where azimuth
         // saturates at +-90 degrees and elevation keeps a coarse level.
         assert!((1..1200).contains(&interpolated[3]), "{interpolated:?}");
         assert!(interpolated[4] <= 12, "{interpolated:?}");
         assert_eq!(interpolated[5], 1200, "{interpolated:?}");
         // The grid's cells measure the footprint a few pixels from where
-        // region_level does: a level may differ only where the footprint
+        // patch_level does: a level may differ only where the footprint
         // sits on a threshold.
         for (case, (&same, &all)) in levels.iter().zip(&interpolated).enumerate() {
             assert!(
@@ -880,7 +877,7 @@ mod tests {
     #[test]
     fn the_groups_asked_for_are_exactly_those_the_pixels_read() {
         // An empty buffer: every group a pixel's filter reads must be asked
-        // for, and no other, whichever way a region collects them (marks in
+        // for, and no other, whichever way a patch collects them (marks in
         // its box, or pixel by pixel when sparse).
         let buffer = SampleBuffer::new(lattice());
         let base = camera(Projection::Perspective);
@@ -934,23 +931,22 @@ mod tests {
                 let mapped = buffer.map(&pose, knobs);
                 let mut read = std::collections::BTreeSet::new();
                 let mut coords = Vec::new();
-                for (index, region) in mapped.regions.iter().enumerate() {
-                    let x0 = (index % mapped.regions_x) as u32 * REGION;
-                    let y0 = (index / mapped.regions_x) as u32 * REGION;
-                    let cols = (pose.camera.width - x0).min(REGION) as usize;
-                    let rows = (pose.camera.height - y0).min(REGION) as usize;
+                for (index, patch) in mapped.patches.iter().enumerate() {
+                    let x0 = (index % mapped.patches_x) as u32 * PATCH;
+                    let y0 = (index / mapped.patches_x) as u32 * PATCH;
+                    let cols = (pose.camera.width - x0).min(PATCH) as usize;
+                    let rows = (pose.camera.height - y0).min(PATCH) as usize;
                     let out = nan_filled(&mut coords, cols * rows);
-                    let grid = region.grid.as_ref();
-                    buffer.region_coords(&pose, &map, region.level, grid, (x0, y0), cols, out);
-                    let last_row = buffer.lattice.last_row(region.level.y);
+                    let grid = patch.grid.as_ref();
+                    buffer.patch_coords(&pose, &map, patch.level, grid, (x0, y0), cols, out);
+                    let last_row = buffer.lattice.last_row(patch.level.y);
                     let extra = i64::from(knobs.filter != Filter::Nearest);
                     for c in coords.iter().filter(|c| !c.x.is_nan()) {
                         let (cx, ry) = filter_origin(knobs.filter, c.x, c.y);
                         for dr in 0..=extra {
                             for dc in 0..=extra {
                                 let row = (ry + dr).clamp(0, last_row);
-                                let (owner, c, r) =
-                                    buffer.lattice.owner(region.level, cx + dc, row);
+                                let (owner, c, r) = buffer.lattice.owner(patch.level, cx + dc, row);
                                 let group = SampleGroup::containing(c, r);
                                 read.insert((owner, group.row, group.col));
                             }
@@ -979,7 +975,7 @@ mod tests {
         let pose = ViewportPose::new(camera(Projection::Perspective), ViewTransform::default());
         let knobs = RsvpKnobs::default();
         let map = PixelMap::new(&pose);
-        let level = |x0| buffer.region_level(&pose, &map, &knobs, x0, 232);
+        let level = |x0| buffer.patch_level(&pose, &map, &knobs, x0, 232);
         assert_eq!(level(312), Level::new(0, 0));
         // Perspective squeezes azimuth first: a third of the way out only
         // columns need the finer level, at the edge rows too.
@@ -992,7 +988,7 @@ mod tests {
                 ..ViewTransform::default()
             },
         );
-        let level = buffer.region_level(&zoomed, &PixelMap::new(&zoomed), &knobs, 312, 232);
+        let level = buffer.patch_level(&zoomed, &PixelMap::new(&zoomed), &knobs, 312, 232);
         assert!((10..=11).contains(&level.x), "{level}");
         assert!((10..=11).contains(&level.y), "{level}");
     }

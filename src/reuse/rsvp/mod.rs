@@ -71,8 +71,9 @@ use viewport::PixelMap;
 /// for a zoom of 1000 with room for oversampling and level bias.
 pub const MAX_LEVEL: u32 = 16;
 
-/// Viewport pixels per side of a region that shares one pyramid level.
-pub const REGION: u32 = 16;
+/// Viewport pixels per side of a patch: a square whose pixels all read
+/// one pyramid level.
+pub const PATCH: u32 = 16;
 
 /// What one viewport's frame cost and gave.
 pub struct ViewportFrame {
@@ -89,7 +90,7 @@ pub struct ViewportFrame {
     /// Filtering and conversion to 8 bits.
     pub gather_ms: f64,
     /// The lowest and highest [`Level::finest`] of the levels the
-    /// viewport's regions read.
+    /// viewport's patches read.
     pub levels: (u32, u32),
 }
 
@@ -318,11 +319,11 @@ impl SampleBuffer {
             let marker = ostc.map(|o| o.marker_in(region(o), group_key(level, group)));
             (&sources[level.index()] as &dyn PrimaryRays, group, marker)
         });
-        // Each level's store keeps its own groups, on its own thread: frame
-        // 0 stores ~85k groups, and growing the stores (fresh pages, each a
-        // fault) took 15-18 ms on one thread, 12-14 ms this way. The blocks
-        // follow the same groups meanwhile: a steady frame's groups fall in
-        // one or two levels, so either alone would leave a thread idle.
+        // Each level's store keeps its own groups, on its own thread: a
+        // first frame grows the stores by many fresh pages, each a fault,
+        // and the levels take theirs in parallel. The blocks follow the
+        // same groups meanwhile: a steady frame's groups fall in one or two
+        // levels, so either alone would leave a thread idle.
         let (levels, blocks, lattice) = (&mut self.levels, &mut self.blocks, &self.lattice);
         let (kept, ()): (Vec<Vec<(u64, RayCounts)>>, ()) = rayon::join(
             || {
@@ -388,9 +389,9 @@ impl SampleBuffer {
         // shared between the viewports.
         let start = Instant::now();
         self.assemble_blocks(mapped.iter().flat_map(|m| {
-            m.regions
+            m.patches
                 .iter()
-                .filter_map(|r| r.blocks.map(|b| (r.level, b)))
+                .filter_map(|p| p.blocks.map(|b| (p.level, b)))
         }));
         let assembly_ms = start.elapsed().as_secs_f64() * 1e3 / poses.len().max(1) as f64;
         poses
@@ -401,8 +402,8 @@ impl SampleBuffer {
                 let start = Instant::now();
                 let (frame, image) = self.gather(pose, mapped, knobs.filter, linear);
                 let gather_ms = start.elapsed().as_secs_f64() * 1e3 + assembly_ms;
-                let levels = mapped.regions.iter().fold((u32::MAX, 0), |(lo, hi), r| {
-                    (lo.min(r.level.finest()), hi.max(r.level.finest()))
+                let levels = mapped.patches.iter().fold((u32::MAX, 0), |(lo, hi), p| {
+                    (lo.min(p.level.finest()), hi.max(p.level.finest()))
                 });
                 ViewportFrame {
                     frame,
@@ -436,17 +437,17 @@ impl SampleBuffer {
         let map = PixelMap::new(pose);
         let (w, h) = (pose.camera.width, pose.camera.height);
         let mut coords = Vec::new();
-        for (index, region) in mapped.regions.iter().enumerate() {
+        for (index, patch) in mapped.patches.iter().enumerate() {
             let (x0, y0) = (
-                (index % mapped.regions_x) as u32 * REGION,
-                (index / mapped.regions_x) as u32 * REGION,
+                (index % mapped.patches_x) as u32 * PATCH,
+                (index / mapped.patches_x) as u32 * PATCH,
             );
-            let (cols, rows) = ((w - x0).min(REGION), (h - y0).min(REGION));
-            let level = region.level;
+            let (cols, rows) = ((w - x0).min(PATCH), (h - y0).min(PATCH));
+            let level = patch.level;
             let size = (cols as usize, rows as usize);
-            let grid = region.grid.as_ref();
+            let grid = patch.grid.as_ref();
             let slots = nan_filled(&mut coords, size.0 * size.1);
-            self.region_coords(pose, &map, level, grid, (x0, y0), size.0, slots);
+            self.patch_coords(pose, &map, level, grid, (x0, y0), size.0, slots);
             let last_row = self.lattice.last_row(level.y);
             for (k, c) in coords.iter().enumerate() {
                 if c.x.is_nan() {
@@ -474,11 +475,12 @@ impl SampleBuffer {
         out
     }
 
-    /// The buffer at level 0 as seen by an equal-angle window around the
-    /// camera's view (width x height samples, corner snapped): traced
-    /// samples in colour, never-traced ones black (the paper's figure 5a).
-    /// Where level 0 is null but a finer level traced inside the sample's
-    /// cell, that sample shows, so zoomed regions appear solid.
+    /// The buffer at level 0 as an equal-angle camera of width x height
+    /// samples sees it, centred on the camera's view (corner snapped to a
+    /// sample): traced samples in colour, never-traced ones black (the
+    /// paper's figure 5a). Where level 0 is null but a finer level traced
+    /// inside the sample's cell, that sample shows, so what a zoomed
+    /// viewport traced appears solid.
     pub fn buffer_image(&self, camera: &Camera, width: u32, height: u32) -> image::RgbImage {
         let col0 = (camera.yaw / self.lattice.step - 0.5 * f64::from(width)).round() as i64;
         let row0 = ((FRAC_PI_2 - camera.pitch) / self.lattice.step - 0.5 * f64::from(height))

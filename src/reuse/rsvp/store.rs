@@ -13,8 +13,8 @@ use crate::shade::RayCounts;
 
 /// Samples per side of a storage tile (a multiple of both group sides).
 /// A tile is one row of groups, 256 samples wide: a viewport row reads
-/// long contiguous runs, which the hardware prefetcher follows (square
-/// tiles made the sample loads miss the cache every few pixels).
+/// long contiguous runs, which the hardware prefetcher follows (with
+/// square tiles the sample loads would miss the cache every few pixels).
 pub(super) const TILE_COLS: i64 = 256;
 pub(super) const TILE_COL_SHIFT: u32 = 8;
 const TILE_ROWS: i64 = GROUP_HEIGHT as i64;
@@ -33,9 +33,8 @@ const CHUNK_TILES: usize = 32;
 pub(super) struct LevelSamples {
     pub(super) tiles: HashMap<(i64, i64), u32, BuildHasherDefault<TileHasher>>,
     /// The tiles' samples, [`CHUNK_TILES`] tiles a chunk. One growing array
-    /// instead cost a copy of everything kept at each doubling, its fresh
-    /// pages faulting in as they were copied to (a fifth of an E2 run's
-    /// page faults).
+    /// would instead copy everything kept at each doubling, its fresh pages
+    /// faulting in as they are copied to.
     chunks: Vec<Box<[[f32; 3]]>>,
     /// Per tile, one bit per 4x2 group: traced yet?
     pub(super) traced: Vec<u64>,
@@ -233,7 +232,7 @@ impl TileCache {
     pub(super) fn tile(&mut self, store: &LevelSamples, level: Level, key: (i64, i64)) -> u32 {
         let index = level.index();
         // Distinct for levels within 4 of each other in azimuth and 8 in
-        // elevation: the owners one region reads.
+        // elevation: the owners one patch reads.
         let slot = (((level.x & 3) * 8 + (level.y & 7)) * 2) as usize + (key.1 & 1) as usize;
         if self.keys[slot] != (index, key) {
             self.keys[slot] = (index, key);

@@ -129,7 +129,8 @@ mod tests {
 
     #[test]
     fn a_pixel_finer_than_the_lattices_count_is_refused() {
-        // 1e-14 degrees wrapped the lattices' column counts (a black image).
+        // 1e-14 degrees would wrap the lattices' column counts (a black
+        // image).
         let err = parse("[camera]\nposition = [0, 1, 5]\nfov = 1e-14\n").unwrap_err();
         assert_eq!(
             (err.line, err.field.as_deref()),

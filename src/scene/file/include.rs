@@ -276,7 +276,7 @@ mod tests {
         .unwrap();
         let top = dir.path().join("top.toml");
         // An inline table replaces the included [render] as a [render]
-        // header would; it used to fall into the base's last table.
+        // header would, rather than falling into the base's last table.
         let text = "include = \"base.toml\"\nrender = { width = 32, height = 24 }\n\n[[light]]\nposition = [0, 5, 5]\n[[object]]\ntype = \"sphere\"\ncenter = [0, 0, 0]\nradius = -1\n";
         std::fs::write(&top, text).unwrap();
         let err = load_scene(&top, &SceneOverrides::default()).unwrap_err();
