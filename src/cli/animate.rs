@@ -351,8 +351,6 @@ pub(crate) fn animate(args: AnimateArgs) -> Result<()> {
     let Some((range, stats_path)) = chunk_of(&args, range)? else {
         return Ok(());
     };
-    check_outputs(&args, stats_path.as_deref())?;
-    let has_viewports = !scene.viewports.is_empty();
     let options = Options {
         techniques: args.mode,
         frames: *range.start()..*range.end() + 1,
@@ -362,13 +360,15 @@ pub(crate) fn animate(args: AnimateArgs) -> Result<()> {
         rsvp: args.rsvp.knobs()?,
         traced_images: traced_files.is_some(),
     };
+    refuse_idle_flags(&args, &scene, &options, store_files.is_some())?;
+    check_outputs(&args, stats_path.as_deref())?;
+    let has_viewports = !scene.viewports.is_empty();
     let mut gif = match &args.gif {
         Some(path) => Some(GifWriter::create(path, fps)?),
         None => None,
     };
     let mut accel = args.backend.build(&scene)?;
     let mut animator = Animator::new(&scene, &mut accel, options);
-    refuse_idle_flags(&args, &animator, store_files.is_some())?;
     let names: Vec<String> = animator
         .views(*range.start())
         .into_iter()
@@ -547,8 +547,13 @@ pub(crate) fn animate(args: AnimateArgs) -> Result<()> {
 /// Refuses, with the reason, every flag that cannot act on this run: a
 /// technique `--mode` names that has nothing to do, and the knobs of a
 /// technique that does not run.
-fn refuse_idle_flags(args: &AnimateArgs, animator: &Animator, store_image: bool) -> Result<()> {
-    use retrace::frame_loop::Technique;
+fn refuse_idle_flags(
+    args: &AnimateArgs,
+    scene: &retrace::scene::Scene,
+    options: &Options,
+    store_image: bool,
+) -> Result<()> {
+    use retrace::frame_loop::{idle_reason, Technique};
     let mode = args.mode;
     let explicit = mode != Techniques::AUTO && mode != Techniques::FULL;
     // Why `technique` does not run: not asked for, or idle on this scene.
@@ -556,18 +561,21 @@ fn refuse_idle_flags(args: &AnimateArgs, animator: &Animator, store_image: bool)
         if !mode.has(technique) {
             return Some(format!("--mode leaves {} off", technique.name()));
         }
-        animator.idle_reason(technique)
+        idle_reason(scene, options, technique)
     };
     for technique in Technique::ALL {
         if explicit && mode.has(technique) {
-            if let Some(reason) = animator.idle_reason(technique) {
+            if let Some(reason) = idle_reason(scene, options, technique) {
                 return Err(idle_flag(&format!("--mode {}", technique.name()), &reason));
             }
         }
     }
     let knobs = [
         (Technique::Rsvp, args.rsvp.given()),
-        (Technique::Pan, args.fractional_pan.map(|_| "--fractional-pan")),
+        (
+            Technique::Pan,
+            args.fractional_pan.map(|_| "--fractional-pan"),
+        ),
         (Technique::Ostc, args.ostc.given()),
         (Technique::Rsvp, store_image.then_some("--buffer-image")),
     ];

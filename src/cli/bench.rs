@@ -11,8 +11,8 @@ use retrace::lab::bench::{bench_sequence, Measure, SequenceBench};
 use retrace::scene::{Scene, SceneOverrides};
 
 use super::{
-    check_writable, idle_flag, load, parse_frame_range, scene_name, write_json, BackendArg, OstcArgs,
-    RsvpKnobArgs, SceneArgs,
+    check_writable, idle_flag, load, parse_frame_range, scene_name, write_json, BackendArg,
+    OstcArgs, RsvpKnobArgs, SceneArgs,
 };
 
 #[derive(Args)]
@@ -99,7 +99,10 @@ pub(crate) fn bench(args: BenchArgs) -> Result<()> {
             if let Some(flag) = flag {
                 return Err(idle_flag(
                     flag,
-                    &format!("--only {} sets no reuse knob from the command line", args.only),
+                    &format!(
+                        "--only {} sets no reuse knob from the command line",
+                        args.only
+                    ),
                 ));
             }
             match args.only.to_ascii_lowercase().as_str() {

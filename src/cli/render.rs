@@ -68,10 +68,9 @@ pub(crate) fn render(args: RenderArgs) -> Result<()> {
     let start = Instant::now();
     let (frame, rays) = match &viewport {
         None => render_frame(&scene, &accel),
-        Some(pose) => retrace::reuse::rsvp::render_direct(
-            &retrace::shade::Shader::new(&scene, &accel),
-            pose,
-        ),
+        Some(pose) => {
+            retrace::reuse::rsvp::render_direct(&retrace::shade::Shader::new(&scene, &accel), pose)
+        }
     };
     let elapsed = start.elapsed();
     ensure_parent(&args.output)?;

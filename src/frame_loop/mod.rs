@@ -130,54 +130,6 @@ impl<'a> Animator<'a> {
         self.base.animation.as_ref()
     }
 
-    /// Why `technique` cannot act on this run's timeline, whether asked
-    /// for or not; None when it can.
-    pub fn idle_reason(&self, technique: Technique) -> Option<String> {
-        let animation = self.animation();
-        match technique {
-            Technique::Rsvp => (!self.has_viewports()).then(|| {
-                "the scene has no [[viewport]] for RSVP to resample (the camera's image \
-                 reuses through pan and ostc)"
-                    .to_string()
-            }),
-            Technique::Pan if self.has_viewports() => Some(
-                "the scene's output is its [[viewport]]s, and RSVP's buffer follows the \
-                 camera's pans by itself (use rsvp)"
-                    .to_string(),
-            ),
-            Technique::Pan if !self.facts.camera_moves => {
-                Some("the camera does not move".to_string())
-            }
-            // Keys move the camera; its projection stays the scene's.
-            Technique::Pan if self.base.camera.projection != Projection::EqualAngle => {
-                Some(format!(
-                    "only an equal-angle camera pans, and this one is {}",
-                    self.base.camera.projection
-                ))
-            }
-            Technique::Pan => (!self.on_lattice(&self.base.camera)).then(|| {
-                FullReason::PanBufferTooLarge {
-                    bytes: self.facts.pan_buffer_bytes,
-                }
-                .to_string()
-            }),
-            Technique::Ostc if !animation.is_some_and(|a| a.moves_scene()) => {
-                Some("no object or light moves".to_string())
-            }
-            Technique::Ostc if self.has_viewports() && !self.options.techniques.rsvp => Some(
-                "without rsvp the viewports are traced through their own rays, every frame \
-                 (use rsvp,ostc)"
-                    .to_string(),
-            ),
-            Technique::Ostc => None,
-        }
-    }
-
-    /// Whether `technique` is asked for and acts on this run.
-    pub fn acts(&self, technique: Technique) -> bool {
-        self.options.techniques.has(technique) && self.idle_reason(technique).is_none()
-    }
-
     /// Whether the frame's views are RSVP viewports rather than the
     /// camera's image.
     pub fn has_viewports(&self) -> bool {
@@ -260,9 +212,7 @@ impl<'a> Animator<'a> {
     /// that a pan (by any animator of this timeline) compares with it bit
     /// for bit: equal-angle cameras of a timeline that moves the camera.
     fn on_lattice(&self, camera: &Camera) -> bool {
-        camera.projection == Projection::EqualAngle
-            && self.facts.camera_moves
-            && self.facts.pan_buffer_bytes <= PAN_BUFFER_LIMIT_BYTES
+        self.facts.on_lattice(camera)
     }
 
     /// View `index` of `frame` rendered from scratch, as the reference for
@@ -596,12 +546,75 @@ impl<'a> Animator<'a> {
     }
 }
 
+/// Why `technique` cannot act on a run of `scene` with `options`,
+/// whether asked for or not; None when it can. (Known before the run:
+/// flags are checked before any work.)
+pub fn idle_reason(scene: &Scene, options: &Options, technique: Technique) -> Option<String> {
+    idle_reason_in(
+        scene,
+        options,
+        &TimelineFacts::of(scene, &options.frames),
+        technique,
+    )
+}
+
+fn idle_reason_in(
+    scene: &Scene,
+    options: &Options,
+    facts: &TimelineFacts,
+    technique: Technique,
+) -> Option<String> {
+    let animation = scene.animation.as_ref();
+    let has_viewports = !scene.viewports.is_empty();
+    match technique {
+        Technique::Rsvp => (!has_viewports).then(|| {
+            "the scene has no [[viewport]] for RSVP to resample (the camera's image \
+             reuses through pan and ostc)"
+                .to_string()
+        }),
+        Technique::Pan if has_viewports => Some(
+            "the scene's output is its [[viewport]]s, and RSVP's buffer follows the \
+             camera's pans by itself (use rsvp)"
+                .to_string(),
+        ),
+        Technique::Pan if !facts.camera_moves => Some("the camera does not move".to_string()),
+        // Keys move the camera; its projection stays the scene's.
+        Technique::Pan if scene.camera.projection != Projection::EqualAngle => Some(format!(
+            "only an equal-angle camera pans, and this one is {}",
+            scene.camera.projection
+        )),
+        Technique::Pan => (!facts.on_lattice(&scene.camera)).then(|| {
+            FullReason::PanBufferTooLarge {
+                bytes: facts.pan_buffer_bytes,
+            }
+            .to_string()
+        }),
+        Technique::Ostc if !animation.is_some_and(|a| a.moves_scene()) => {
+            Some("no object or light moves".to_string())
+        }
+        Technique::Ostc if has_viewports && !options.techniques.rsvp => Some(
+            "without rsvp the viewports are traced through their own rays, every frame \
+             (use rsvp,ostc)"
+                .to_string(),
+        ),
+        Technique::Ostc => None,
+    }
+}
+
 /// A view's pixel count.
 fn pixels(pose: &ViewportPose) -> u64 {
     u64::from(pose.camera.width) * u64::from(pose.camera.height)
 }
 
 impl TimelineFacts {
+    /// Whether a full render of `camera` is taken on the pan lattice (see
+    /// [`Animator::render_full`]).
+    fn on_lattice(&self, camera: &Camera) -> bool {
+        camera.projection == Projection::EqualAngle
+            && self.camera_moves
+            && self.pan_buffer_bytes <= PAN_BUFFER_LIMIT_BYTES
+    }
+
     fn of(scene: &Scene, run: &std::ops::Range<u32>) -> TimelineFacts {
         let mut facts = TimelineFacts {
             camera_moves: false,

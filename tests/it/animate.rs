@@ -343,29 +343,48 @@ fn animate_rejects_bad_input_cleanly() {
     );
 }
 
+/// Asked for by name, a pan that cannot act is refused with the reason,
+/// before any frame; under `auto` the frames render in full, with a
+/// warning that says why.
 #[test]
-fn pan_on_a_perspective_camera_warns_and_renders() {
+fn pan_on_a_perspective_camera_is_refused_by_name_and_explained_under_auto() {
     let dir = pan_case("");
-    let out = retrace(
-        &[
-            "animate",
-            "pan.toml",
-            "--camera",
-            "perspective",
-            "--width",
-            "32",
-            "--height",
-            "24",
-            "-o",
-            "out/f_#.png",
-            "--mode",
-            "pan",
-        ],
-        dir.path(),
+    let run = |mode: &str| {
+        retrace(
+            &[
+                "animate",
+                "pan.toml",
+                "--camera",
+                "perspective",
+                "--width",
+                "32",
+                "--height",
+                "24",
+                "-o",
+                "out/f_#.png",
+                "--mode",
+                mode,
+            ],
+            dir.path(),
+        )
+    };
+    let out = run("pan");
+    assert_eq!(out.status.code(), Some(1), "{}", stderr(&out));
+    assert!(
+        stderr(&out).contains(
+            "--mode pan has nothing to act on in this run: only an equal-angle camera pans, \
+             and this one is perspective"
+        ),
+        "{}",
+        stderr(&out)
     );
+    assert!(!dir.path().join("out/f_0.png").exists());
+    let out = run("auto");
     assert!(out.status.success(), "{}", stderr(&out));
     assert!(
-        stderr(&out).contains("warning: rendered in full: pan needs an equal-angle camera"),
+        stderr(&out).contains(
+            "warning: rendered in full: the perspective camera moves: only equal-angle views pan"
+        ),
         "{}",
         stderr(&out)
     );
@@ -438,6 +457,7 @@ fn stop_leaves_finished_files_only(signal: nix::sys::signal::Signal) {
         .arg("animate")
         .args([scene.to_str().unwrap(), "--width", "320", "--height", "240"])
         .args(["-o", "out/f_####.png", "--gif", "out/a.gif"])
+        .args(["--stats", "stats/s.csv"])
         .current_dir(dir.path())
         .stdout(Stdio::null())
         .stderr(Stdio::piped())
@@ -478,8 +498,44 @@ fn stop_leaves_finished_files_only(signal: nix::sys::signal::Signal) {
     assert!(!left.iter().any(|n| n.ends_with(".tmp")), "{left:?}");
     assert!(!left.contains(&"a.gif".to_string()), "{left:?}");
     // Every frame that is there is whole.
-    for name in left {
-        image::open(out.join(&name)).unwrap_or_else(|e| panic!("{name}: {e}"));
+    for name in &left {
+        image::open(out.join(name)).unwrap_or_else(|e| panic!("{name}: {e}"));
+    }
+    // It says what it kept and how to resume, and keeps the statistics of
+    // the frames that finished (a frame's file is written before its row).
+    let frames = left.len();
+    assert!(err.contains("finished frames of this run kept"), "{err}");
+    let resume = err
+        .lines()
+        .skip_while(|l| !l.contains("resume with:"))
+        .nth(1)
+        .unwrap_or_else(|| panic!("no resume command: {err}"))
+        .trim()
+        .to_string();
+    assert!(resume.ends_with("--skip-existing"), "{resume}");
+    let stats = std::fs::read_to_string(dir.path().join("stats/s.csv")).unwrap();
+    let rows = stats.lines().count() - 1;
+    assert!(
+        rows <= frames && rows + 1 >= frames && rows >= 2,
+        "{rows} rows for {frames} frames"
+    );
+    // The command it gives finishes the run (its first frames, for speed).
+    let resumed = std::process::Command::new("sh")
+        .arg("-c")
+        .arg(format!("{resume} --frames 0-5"))
+        .current_dir(dir.path())
+        .output()
+        .unwrap();
+    assert!(
+        resumed.status.success(),
+        "{}",
+        String::from_utf8_lossy(&resumed.stderr)
+    );
+    for frame in 0..6 {
+        assert!(
+            out.join(format!("f_{frame:04}.png")).exists(),
+            "frame {frame}"
+        );
     }
 }
 

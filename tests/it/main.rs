@@ -7,6 +7,7 @@ mod common;
 
 mod animate;
 mod cli;
+mod cli_messages;
 mod extremes;
 mod layers;
 mod moving_spheres;

@@ -514,7 +514,6 @@ fn same_bits(a: Vec3, b: Vec3) -> bool {
     a.to_array().map(f32::to_bits) == b.to_array().map(f32::to_bits)
 }
 
-/// What the unit tests of the submodules share.
 /// RSVP's sample buffer as the frame loop keeps it: every viewport of a
 /// frame resampled from it with the run's knobs.
 pub struct RsvpStore {
@@ -619,6 +618,7 @@ impl SampleStore for RsvpStore {
 /// Samples in a group.
 const GROUP_SAMPLES: u64 = (GROUP_WIDTH * crate::render::GROUP_HEIGHT) as u64;
 
+/// What the unit tests of the submodules share.
 #[cfg(test)]
 mod fixtures {
     use glam::DVec3;
