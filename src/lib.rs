@@ -19,6 +19,7 @@ pub mod ray;
 pub mod render;
 pub mod reuse;
 pub mod rng;
+pub mod sampling;
 pub mod scene;
 pub mod shade;
 pub mod timeline;

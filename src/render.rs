@@ -14,6 +14,7 @@ use crate::accel::Intersector;
 use crate::camera::{Camera, RayTable};
 use crate::color::srgb_table;
 use crate::ray::{LaneMask, Ray, RayPacket, PACKET_WIDTH};
+use crate::sampling::PixelSamples;
 use crate::scene::Scene;
 use crate::shade::{RayCounts, RayObserver, Shader};
 
@@ -68,9 +69,12 @@ impl SampleGroup {
 }
 
 /// Where primary rays come from: a sample lattice addressed by integer
-/// column and row. None = no ray there (outside the image, or outside
-/// what the projection covers).
+/// column and row, each cell traced through its centre or, antialiased,
+/// through [`PrimaryRays::samples`] sub-samples whose colours are
+/// averaged (a box filter over the cell). None = no ray there (outside the
+/// image, or outside what the projection covers).
 pub trait PrimaryRays: Sync {
+    /// The ray through the centre of cell (col, row).
     fn primary(&self, col: i64, row: i64) -> Option<Ray>;
 
     /// The rays of a whole group and the mask of lanes that have one. One
@@ -79,6 +83,20 @@ pub trait PrimaryRays: Sync {
     /// ray arithmetic).
     fn primary_group(&self, group: SampleGroup) -> (RayPacket, LaneMask) {
         gather_group(self, group)
+    }
+
+    /// How many sub-samples each cell is traced with, and where.
+    fn samples(&self) -> PixelSamples {
+        PixelSamples::ONE
+    }
+
+    /// The rays of sub-sample `index` of every cell of `group`: a packet of
+    /// the same sub-sample of eight neighbouring cells, so packets stay
+    /// coherent and a cell's sub-samples are traced the same way in every
+    /// frame.
+    fn sample_group(&self, group: SampleGroup, index: u32) -> (RayPacket, LaneMask) {
+        debug_assert_eq!(index, 0, "a source of one sample a cell");
+        self.primary_group(group)
     }
 }
 
@@ -134,18 +152,59 @@ impl PrimaryRays for RayTable {
         }
         (rays, mask)
     }
+
+    fn samples(&self) -> PixelSamples {
+        RayTable::samples(self)
+    }
+
+    fn sample_group(&self, group: SampleGroup, index: u32) -> (RayPacket, LaneMask) {
+        let (width, height) = self.size();
+        let mut rays = [Ray::INACTIVE; PACKET_WIDTH];
+        let mut mask: LaneMask = 0;
+        for (lane, (col, row)) in group.lane_samples().into_iter().enumerate() {
+            let inside =
+                (0..i64::from(width)).contains(&col) && (0..i64::from(height)).contains(&row);
+            if let Some(ray) = inside
+                .then(|| self.sample_ray(col as u32, row as u32, index))
+                .flatten()
+            {
+                rays[lane] = ray;
+                mask |= 1 << lane;
+            }
+        }
+        (rays, mask)
+    }
 }
 
-/// Traces one group; lanes without a ray come back black.
+/// Traces one group: each cell's colour, the mean of its sub-samples'
+/// (summed in index order, so the same bits every time); lanes without a
+/// ray come back black.
 pub fn trace_group(
     shader: &Shader,
     source: &dyn PrimaryRays,
     group: SampleGroup,
     counts: &mut RayCounts,
-    observer: Option<&mut dyn RayObserver>,
+    mut observer: Option<&mut dyn RayObserver>,
 ) -> [Vec3; PACKET_WIDTH] {
-    let (rays, mask) = source.primary_group(group);
-    shader.shade(&rays, mask, 0, counts, observer)
+    let count = source.samples().count();
+    if count == 1 {
+        let (rays, mask) = source.primary_group(group);
+        return shader.shade(&rays, mask, 0, counts, observer);
+    }
+    let mut sum = [Vec3::ZERO; PACKET_WIDTH];
+    for index in 0..count {
+        let (rays, mask) = source.sample_group(group, index);
+        let watching: Option<&mut dyn RayObserver> = match observer {
+            Some(ref mut o) => Some(&mut **o),
+            None => None,
+        };
+        let colors = shader.shade(&rays, mask, 0, counts, watching);
+        for (total, color) in sum.iter_mut().zip(colors) {
+            *total += color;
+        }
+    }
+    let scale = 1.0 / count as f32;
+    sum.map(|total| total * scale)
 }
 
 /// Traces `groups` in parallel; colours come back in the order given.
@@ -265,8 +324,19 @@ pub fn render_view(
     camera: &Camera,
     intersector: &dyn Intersector,
 ) -> (Frame, RayCounts) {
+    render_view_sampled(scene, camera, PixelSamples::ONE, intersector)
+}
+
+/// As [`render_view`], `samples` a pixel.
+pub fn render_view_sampled(
+    scene: &Scene,
+    camera: &Camera,
+    samples: PixelSamples,
+    intersector: &dyn Intersector,
+) -> (Frame, RayCounts) {
     let shader = Shader::new(scene, intersector);
-    render_image(&shader, &RayTable::new(camera), camera.width, camera.height)
+    let table = RayTable::with_samples(camera, samples);
+    render_image(&shader, &table, camera.width, camera.height)
 }
 
 /// Traces every pixel of a `width` x `height` image, pixel (x, y) from

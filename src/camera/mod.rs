@@ -23,6 +23,7 @@ use std::str::FromStr;
 use glam::{DVec2, DVec3, Vec3};
 
 use crate::ray::Ray;
+use crate::sampling::PixelSamples;
 
 mod viewport;
 
@@ -329,6 +330,10 @@ impl Camera {
     }
 }
 
+/// A projection's column (or row) terms: (sin, cos) of an angle for the
+/// equal-angle projection, (offset, 0) for the perspective one.
+type Terms = Vec<(f64, f64)>;
+
 /// Per-frame tables of the separable part of the projections: azimuth and
 /// elevation terms depend only on the column or only on the row, so the
 /// trigonometry runs w + h times instead of w * h. Directions come out bit
@@ -337,47 +342,122 @@ pub struct RayTable {
     camera: Camera,
     columns: Vec<(f64, f64)>,
     rows: Vec<(f64, f64)>,
+    /// Antialiased: how many sub-samples a pixel, and the same tables for
+    /// each pixel's sub-samples (pixel-major), empty with one sample.
+    samples: PixelSamples,
+    sample_columns: Vec<(f64, f64)>,
+    sample_rows: Vec<(f64, f64)>,
     /// The camera's basis, which costs trigonometry: once per frame, not per ray.
     basis: (DVec3, DVec3, DVec3),
     origin: Vec3,
 }
 
 impl RayTable {
+    /// The camera's rays through its pixel centres.
     pub fn new(camera: &Camera) -> RayTable {
+        RayTable::with_samples(camera, PixelSamples::ONE)
+    }
+
+    /// The camera's rays, `samples` a pixel (at offsets keyed by the
+    /// pixel's column and row: the camera stands still for them to be
+    /// reused).
+    pub fn with_samples(camera: &Camera, samples: PixelSamples) -> RayTable {
+        let centre_offset = |_: i64, _: u32| 0.5;
+        let (columns, rows) = Self::tables(camera, PixelSamples::ONE, centre_offset, centre_offset);
+        let (sample_columns, sample_rows) = if samples.count() > 1 {
+            Self::tables(
+                camera,
+                samples,
+                |x, k| samples.x(x, k),
+                |y, k| samples.y(y, k),
+            )
+        } else {
+            (Vec::new(), Vec::new())
+        };
+        RayTable {
+            camera: camera.clone(),
+            columns,
+            rows,
+            samples,
+            sample_columns,
+            sample_rows,
+            basis: camera.basis(),
+            origin: camera.origin(),
+        }
+    }
+
+    /// The column and row terms of `camera`'s separable projections, one
+    /// for each of `samples` sub-samples of each pixel (pixel-major), at
+    /// offsets `x_offset(column, index)` and `y_offset(row, index)`.
+    fn tables(
+        camera: &Camera,
+        samples: PixelSamples,
+        x_offset: impl Fn(i64, u32) -> f64,
+        y_offset: impl Fn(i64, u32) -> f64,
+    ) -> (Terms, Terms) {
         let centre = camera.half_size();
-        let pixel = |i: u32| f64::from(i) + 0.5;
-        let (columns, rows) = match camera.projection {
+        let count = samples.count();
+        let xs = (0..camera.width).flat_map(|x| (0..count).map(move |k| (x, k)));
+        let ys = (0..camera.height).flat_map(|y| (0..count).map(move |k| (y, k)));
+        let px = |(x, k): (u32, u32)| f64::from(x) + x_offset(i64::from(x), k);
+        let py = |(y, k): (u32, u32)| f64::from(y) + y_offset(i64::from(y), k);
+        match camera.projection {
             Projection::EqualAngle => {
                 let step = camera.angle_step();
                 (
-                    (0..camera.width)
-                        .map(|x| (camera.yaw + (pixel(x) - centre.x) * step).sin_cos())
+                    xs.map(|p| (camera.yaw + (px(p) - centre.x) * step).sin_cos())
                         .collect(),
-                    (0..camera.height)
-                        .map(|y| (camera.pitch + (centre.y - pixel(y)) * step).sin_cos())
+                    ys.map(|p| (camera.pitch + (centre.y - py(p)) * step).sin_cos())
                         .collect(),
                 )
             }
             Projection::Perspective => {
                 let scale = (0.5 * camera.fov).tan() / centre.x;
                 (
-                    (0..camera.width)
-                        .map(|x| ((pixel(x) - centre.x) * scale, 0.0))
-                        .collect(),
-                    (0..camera.height)
-                        .map(|y| ((centre.y - pixel(y)) * scale, 0.0))
-                        .collect(),
+                    xs.map(|p| ((px(p) - centre.x) * scale, 0.0)).collect(),
+                    ys.map(|p| ((centre.y - py(p)) * scale, 0.0)).collect(),
                 )
             }
             Projection::Fisheye => (Vec::new(), Vec::new()),
-        };
-        RayTable {
-            camera: camera.clone(),
-            columns,
-            rows,
-            basis: camera.basis(),
-            origin: camera.origin(),
         }
+    }
+
+    /// How many sub-samples a pixel this table's rays take.
+    pub fn samples(&self) -> PixelSamples {
+        self.samples
+    }
+
+    /// The ray of sub-sample `index` of pixel (x, y), which must lie inside
+    /// the image (with one sample a pixel: its centre).
+    #[inline(always)]
+    pub fn sample_ray(&self, x: u32, y: u32, index: u32) -> Option<Ray> {
+        let count = self.samples.count();
+        if count == 1 {
+            return self.primary_ray(x, y);
+        }
+        let cam = &self.camera;
+        let (column, row) = ((x * count + index) as usize, (y * count + index) as usize);
+        let d = match cam.projection {
+            Projection::EqualAngle => {
+                let (sin_az, cos_az) = self.sample_columns[column];
+                let (sin_el, cos_el) = self.sample_rows[row];
+                DVec3::new(cos_el * sin_az, sin_el, -cos_el * cos_az)
+            }
+            Projection::Perspective => {
+                let (right, up, forward) = self.basis;
+                let lx = self.sample_columns[column].0;
+                let ly = self.sample_rows[row].0;
+                (right * lx + up * ly + forward).normalize()
+            }
+            Projection::Fisheye => {
+                let p = DVec2::new(
+                    f64::from(x) + self.samples.x(i64::from(x), index),
+                    f64::from(y) + self.samples.y(i64::from(y), index),
+                );
+                return Some(Ray::new(self.origin, cam.direction(p)?.as_vec3()));
+            }
+        };
+        Some(Ray::new(self.origin, d.as_vec3()))
     }
 
     pub fn camera(&self) -> &Camera {

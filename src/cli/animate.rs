@@ -358,6 +358,7 @@ pub(crate) fn animate(args: AnimateArgs) -> Result<()> {
         fractional_pan: args.fractional_pan.unwrap_or_default(),
         ostc: args.ostc.settings(),
         rsvp: args.rsvp.knobs()?,
+        samples: retrace::sampling::PixelSamples::ONE,
         traced_images: traced_files.is_some(),
     };
     refuse_idle_flags(&args, &scene, &options, store_files.is_some())?;

@@ -35,10 +35,10 @@ use glam::Affine3A;
 use crate::accel::Accelerator;
 use crate::camera::{Camera, Projection, ViewTransform, ViewportPose};
 use crate::geometry::Placement;
-use crate::render::{render_view, Frame};
+use crate::render::{render_view_sampled, Frame};
 use crate::reuse::ostc::Ostc;
-use crate::reuse::pan::{render_window, EqualAngleLattice, FractionalPan, PanStore};
-use crate::reuse::rsvp::{render_direct, RsvpStore, SampleLattice};
+use crate::reuse::pan::{cells_traced, render_window, EqualAngleLattice, FractionalPan, PanStore};
+use crate::reuse::rsvp::{render_direct_sampled, RsvpStore, SampleLattice};
 use crate::reuse::still::StillStore;
 use crate::reuse::{FrameMode, SampleStore, Wanted};
 use crate::scene::Scene;
@@ -251,16 +251,17 @@ impl<'a> Animator<'a> {
         view: &View,
     ) -> (Frame, RayCounts) {
         let shader = Shader::new(scene, accel);
+        let samples = self.options.samples;
         if self.has_viewports() {
-            return render_direct(&shader, &view.pose);
+            return render_direct_sampled(&shader, &view.pose, samples);
         }
         let camera = &view.pose.camera;
         if self.on_lattice(camera) {
-            let lattice = EqualAngleLattice::for_camera(camera);
+            let lattice = EqualAngleLattice::for_camera_sampled(camera, samples);
             let window = lattice.window(camera);
             return render_window(&shader, &lattice, &window);
         }
-        render_view(scene, camera, accel)
+        render_view_sampled(scene, camera, samples, accel)
     }
 
     /// View `index` of `frame` through its own, unsnapped rays: the exact
@@ -268,10 +269,12 @@ impl<'a> Animator<'a> {
     pub fn render_true_view(&mut self, frame: u32, index: usize) -> (Frame, RayCounts) {
         self.pose(frame);
         let view = self.views(frame).swap_remove(index);
+        let samples = self.options.samples;
         if self.has_viewports() {
-            return render_direct(&Shader::new(&self.scene, self.accel), &view.pose);
+            let shader = Shader::new(&self.scene, self.accel);
+            return render_direct_sampled(&shader, &view.pose, samples);
         }
-        render_view(&self.scene, &view.pose.camera, self.accel)
+        render_view_sampled(&self.scene, &view.pose.camera, samples, self.accel)
     }
 
     /// Whether the frames are exact, comparable bit for bit with
@@ -356,7 +359,7 @@ impl<'a> Animator<'a> {
             return Box::new(RsvpStore::new(lattice, self.options.rsvp));
         }
         if !self.on_lattice(camera) {
-            return Box::new(StillStore::new(camera));
+            return Box::new(StillStore::new(camera, self.options.samples));
         }
         let window = EqualAngleLattice::for_camera(camera).window(camera);
         let (mut low, mut high) = (window.row, window.row + i64::from(window.height));
@@ -369,6 +372,7 @@ impl<'a> Animator<'a> {
             low - 1..high + 1,
             self.options.fractional_pan,
             self.options.techniques.pan,
+            self.options.samples,
         ))
     }
 
@@ -522,7 +526,7 @@ impl<'a> Animator<'a> {
                 mode: FrameMode::Full,
                 reason: reason.map(Reason::Full),
                 pixels: pixels(&view.pose),
-                samples_traced: rays.primary,
+                samples_traced: cells_traced(&rays, self.options.samples),
                 trace_ms,
                 copy_ms: total_ms - trace_ms,
                 total_ms,

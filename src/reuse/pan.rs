@@ -26,13 +26,14 @@ use rayon::prelude::*;
 use crate::camera::ViewportPose;
 use crate::camera::{Camera, Projection};
 use crate::color::srgb_table;
-use crate::ray::{Ray, PACKET_WIDTH};
+use crate::ray::{LaneMask, Ray, RayPacket, PACKET_WIDTH};
 use crate::render::{
     trace_group, trace_groups, Frame, PrimaryRays, SampleGroup, GROUP_HEIGHT, GROUP_WIDTH,
 };
 use crate::reuse::ostc::Ostc;
 use crate::reuse::regions::{RegionLayout, RegionSet};
 use crate::reuse::{FrameMode, SampleStore, StoreFrame, Unfit, Wanted};
+use crate::sampling::PixelSamples;
 use crate::shade::{RayCounts, RayObserver, Shader};
 
 /// The world-fixed equal-angle sample lattice around one eye position.
@@ -49,6 +50,13 @@ pub struct EqualAngleLattice {
     columns: Vec<(f64, f64)>,
     /// (sin, cos) of each row's elevation.
     row_angles: Vec<(f64, f64)>,
+    /// Antialiased: the sub-samples of each cell, at offsets keyed by the
+    /// cell's lattice column and row (world-anchored: the same in every
+    /// frame), and their angles' (sin, cos), cell-major; empty with one
+    /// sample a cell.
+    samples: PixelSamples,
+    sample_columns: Vec<(f64, f64)>,
+    sample_row_angles: Vec<(f64, f64)>,
 }
 
 /// Where a camera's view sits on the lattice.
@@ -70,6 +78,12 @@ impl EqualAngleLattice {
     /// nudged so a whole turn holds a whole number of groups of columns
     /// (640 px over 100 degrees: exactly 2304 columns).
     pub fn for_camera(camera: &Camera) -> EqualAngleLattice {
+        EqualAngleLattice::for_camera_sampled(camera, PixelSamples::ONE)
+    }
+
+    /// As [`EqualAngleLattice::for_camera`], each cell traced through
+    /// `samples` sub-samples.
+    pub fn for_camera_sampled(camera: &Camera, samples: PixelSamples) -> EqualAngleLattice {
         let columns_per_turn = Self::columns_per_turn_for(camera);
         let step = TAU / columns_per_turn as f64;
         // Rows from pole to pole, rounded up to whole groups.
@@ -86,7 +100,46 @@ impl EqualAngleLattice {
             row_angles: (0..rows)
                 .map(|r| (FRAC_PI_2 - (r as f64 + 0.5) * step).sin_cos())
                 .collect(),
+            samples,
+            sample_columns: Self::sample_angles(samples, columns_per_turn, |c, k| {
+                ((c as f64 + samples.x(c, k)) * step).sin_cos()
+            }),
+            sample_row_angles: Self::sample_angles(samples, rows, |r, k| {
+                (FRAC_PI_2 - (r as f64 + samples.y(r, k)) * step).sin_cos()
+            }),
         }
+    }
+
+    /// `angle(line, index)` for every sub-sample of every line of `lines`
+    /// (line-major); none with one sample a cell.
+    fn sample_angles(
+        samples: PixelSamples,
+        lines: i64,
+        angle: impl Fn(i64, u32) -> (f64, f64),
+    ) -> Vec<(f64, f64)> {
+        if samples.count() == 1 {
+            return Vec::new();
+        }
+        (0..lines)
+            .flat_map(|line| (0..samples.count()).map(move |k| (line, k)))
+            .map(|(line, k)| angle(line, k))
+            .collect()
+    }
+
+    /// The direction of sub-sample `index` of cell (col, row); None past a
+    /// pole.
+    fn sample_direction(&self, col: i64, row: i64, index: u32) -> Option<DVec3> {
+        if self.samples.count() == 1 {
+            return self.direction(col, row);
+        }
+        if !(0..self.rows).contains(&row) {
+            return None;
+        }
+        let count = self.samples.count() as usize;
+        let (sin_az, cos_az) =
+            self.sample_columns[self.wrap_column(col) as usize * count + index as usize];
+        let (sin_el, cos_el) = self.sample_row_angles[row as usize * count + index as usize];
+        Some(DVec3::new(cos_el * sin_az, sin_el, -cos_el * cos_az))
     }
 
     /// The rows `camera`'s snapped window covers on its lattice, known
@@ -191,6 +244,23 @@ impl PrimaryRays for EqualAngleLattice {
     fn primary(&self, col: i64, row: i64) -> Option<Ray> {
         self.direction(col, row)
             .map(|d| Ray::new(self.position.as_vec3(), d.as_vec3()))
+    }
+
+    fn samples(&self) -> PixelSamples {
+        self.samples
+    }
+
+    fn sample_group(&self, group: SampleGroup, index: u32) -> (RayPacket, LaneMask) {
+        let mut rays = [Ray::INACTIVE; PACKET_WIDTH];
+        let mut mask: LaneMask = 0;
+        let origin = self.position.as_vec3();
+        for (lane, (col, row)) in group.lane_samples().into_iter().enumerate() {
+            if let Some(d) = self.sample_direction(col, row, index) {
+                rays[lane] = Ray::new(origin, d.as_vec3());
+                mask |= 1 << lane;
+            }
+        }
+        (rays, mask)
     }
 }
 
@@ -327,6 +397,13 @@ fn assembled(
     });
     let image = image::RgbImage::from_raw(width, height, bytes).expect("three bytes per pixel");
     (frame, image)
+}
+
+/// Cells traced, from the primary rays of their sub-samples: every cell
+/// that has a ray has one for each sub-sample (a fisheye pixel on its
+/// circle's edge may miss some: counted down).
+pub fn cells_traced(rays: &RayCounts, samples: PixelSamples) -> u64 {
+    rays.primary / u64::from(samples.count())
 }
 
 /// Every sample traced so far on one lattice, in a band of rows.
@@ -600,7 +677,7 @@ impl<L: Lattice> LatticeBuffer<L> {
             frame,
             image,
             PanFrameStats {
-                samples_traced: rays.primary,
+                samples_traced: cells_traced(&rays, self.lattice.samples()),
                 pixels_reused: pixels - fresh_pixels.min(pixels),
                 rays,
                 trace_ms,
@@ -685,7 +762,7 @@ impl LatticeBuffer<EqualAngleLattice> {
             frame,
             image,
             PanFrameStats {
-                samples_traced: rays.primary,
+                samples_traced: cells_traced(&rays, self.lattice.samples()),
                 pixels_reused: total.saturating_sub(rays.primary),
                 rays,
                 trace_ms,
@@ -743,8 +820,9 @@ impl PanStore {
         rows: std::ops::Range<i64>,
         fractional: FractionalPan,
         pans: bool,
+        samples: PixelSamples,
     ) -> PanStore {
-        let lattice = EqualAngleLattice::for_camera(camera);
+        let lattice = EqualAngleLattice::for_camera_sampled(camera, samples);
         let window = lattice.window(camera);
         PanStore {
             buffer: LatticeBuffer::new(lattice, rows),

@@ -12,6 +12,7 @@ use crate::reuse::ostc::Ostc;
 use crate::reuse::pan::{Lattice, LatticeBuffer, Window};
 use crate::reuse::regions::{RegionLayout, RegionSet};
 use crate::reuse::{FrameMode, SampleStore, StoreFrame, Unfit, Wanted};
+use crate::sampling::PixelSamples;
 use crate::shade::Shader;
 
 /// A fixed camera's own pixels as a lattice (its image, padded to whole
@@ -49,8 +50,8 @@ pub struct StillStore {
 }
 
 impl StillStore {
-    pub fn new(camera: &crate::camera::Camera) -> StillStore {
-        let table = RayTable::new(camera);
+    pub fn new(camera: &crate::camera::Camera, samples: PixelSamples) -> StillStore {
+        let table = RayTable::with_samples(camera, samples);
         let rows = table.rows();
         StillStore {
             buffer: LatticeBuffer::new(table, 0..rows),

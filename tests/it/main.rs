@@ -6,6 +6,7 @@
 mod common;
 
 mod animate;
+mod antialiasing;
 mod cli;
 mod cli_messages;
 mod extremes;

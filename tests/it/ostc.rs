@@ -349,13 +349,15 @@ proptest! {
     #![proptest_config(ProptestConfig::with_cases(crate::common::cases(24)))]
 
     /// Random motion, random camera, at sizes and region grids where a
-    /// region spans one sample group or many (up to 6x8 of them): every
-    /// frame reuses and equals its full render and a render built afresh.
+    /// region spans one sample group or many (up to 6x8 of them), one
+    /// sample a pixel or four (antialiased): every frame reuses and equals
+    /// its full render and a render built afresh.
     #[test]
     fn random_animations_are_exact_on_both_backends(
         (extra, still) in random_shot(),
         (width, height) in prop_oneof![Just((32, 24)), Just((64, 48)), Just((96, 64))],
         regions in prop_oneof![Just(4u32), Just(8), Just(16), Just(160)],
+        samples in prop_oneof![Just(1u32), Just(4)],
     ) {
         let mut scene = paper_with(&extra, width, height);
         if let Some(projection) = still {
@@ -368,6 +370,7 @@ proptest! {
                 regions: retrace::reuse::regions::RegionGrid(regions),
                 ..Default::default()
             },
+            samples: retrace::sampling::PixelSamples::new(samples).unwrap(),
             ..Options::new(Techniques::AUTO, 0..5)
         };
         for backend in [BackendKind::Embree, BackendKind::Grid] {

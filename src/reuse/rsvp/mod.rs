@@ -41,7 +41,7 @@ mod viewport;
 
 pub use filter::{Filter, RsvpKnobs};
 pub use lattice::{fast_atan2, Level, LevelRays, SampleLattice};
-pub use viewport::{render_direct, ViewportRays};
+pub use viewport::{render_direct, render_direct_sampled, ViewportRays};
 
 use std::f64::consts::FRAC_PI_2;
 use std::time::Instant;

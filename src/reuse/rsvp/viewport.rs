@@ -7,8 +7,9 @@ use glam::{DVec2, DVec3};
 
 use super::{fast_atan2, SampleLattice};
 use crate::camera::{Projection, ViewportPose};
-use crate::ray::Ray;
-use crate::render::{render_image, Frame, PrimaryRays};
+use crate::ray::{LaneMask, Ray, RayPacket, PACKET_WIDTH};
+use crate::render::{render_image, Frame, PrimaryRays, SampleGroup};
+use crate::sampling::PixelSamples;
 use crate::shade::{RayCounts, Shader};
 
 /// Azimuth relative to `yaw` (in (-pi, pi], continuous across the view so
@@ -24,25 +25,60 @@ fn relative_angles(d: DVec3, yaw: f64) -> (f64, f64) {
 /// measured against).
 pub struct ViewportRays<'a> {
     pub pose: &'a ViewportPose,
+    /// Sub-samples a pixel, at offsets keyed by the viewport's pixel.
+    pub samples: PixelSamples,
 }
 
-impl PrimaryRays for ViewportRays<'_> {
-    fn primary(&self, col: i64, row: i64) -> Option<Ray> {
+impl ViewportRays<'_> {
+    /// The ray through point `(x, y)` of the viewport image, in pixels.
+    fn ray_at(&self, col: i64, row: i64, x: f64, y: f64) -> Option<Ray> {
         let cam = &self.pose.camera;
         if !(0..i64::from(cam.width)).contains(&col) || !(0..i64::from(cam.height)).contains(&row) {
             return None;
         }
-        let p = DVec2::new(col as f64 + 0.5, row as f64 + 0.5);
         self.pose
-            .direction(p)
+            .direction(DVec2::new(x, y))
             .map(|d| Ray::new(cam.position.as_vec3(), d.as_vec3()))
+    }
+}
+
+impl PrimaryRays for ViewportRays<'_> {
+    fn primary(&self, col: i64, row: i64) -> Option<Ray> {
+        self.ray_at(col, row, col as f64 + 0.5, row as f64 + 0.5)
+    }
+
+    fn samples(&self) -> PixelSamples {
+        self.samples
+    }
+
+    fn sample_group(&self, group: SampleGroup, index: u32) -> (RayPacket, LaneMask) {
+        let mut rays = [Ray::INACTIVE; PACKET_WIDTH];
+        let mut mask: LaneMask = 0;
+        for (lane, (col, row)) in group.lane_samples().into_iter().enumerate() {
+            let x = col as f64 + self.samples.x(col, index);
+            let y = row as f64 + self.samples.y(row, index);
+            if let Some(ray) = self.ray_at(col, row, x, y) {
+                rays[lane] = ray;
+                mask |= 1 << lane;
+            }
+        }
+        (rays, mask)
     }
 }
 
 /// Traces every pixel of the viewport through its own rays.
 pub fn render_direct(shader: &Shader, pose: &ViewportPose) -> (Frame, RayCounts) {
+    render_direct_sampled(shader, pose, PixelSamples::ONE)
+}
+
+/// As [`render_direct`], `samples` a pixel.
+pub fn render_direct_sampled(
+    shader: &Shader,
+    pose: &ViewportPose,
+    samples: PixelSamples,
+) -> (Frame, RayCounts) {
     let (w, h) = (pose.camera.width, pose.camera.height);
-    render_image(shader, &ViewportRays { pose }, w, h)
+    render_image(shader, &ViewportRays { pose, samples }, w, h)
 }
 
 /// Maps viewport pixels to world angles cheaply: perspective and
