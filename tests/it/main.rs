@@ -14,5 +14,6 @@ mod ostc;
 mod render;
 mod rsvp;
 mod still_split;
+mod tga;
 mod tradeoff;
 mod validate;
