@@ -17,3 +17,4 @@ mod still_split;
 mod tga;
 mod tradeoff;
 mod validate;
+mod validate_seeds;
