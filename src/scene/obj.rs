@@ -1,6 +1,9 @@
 //! OBJ/MTL models through tobj, after a line-by-line check of our own so that
 //! a broken file is reported with its line (tobj reports no positions), and
 //! the scene made around a bare `.obj` given on the command line.
+//!
+//! Point and line elements are not surfaces: they are left out with a
+//! warning naming the first, and a model with no faces is an error.
 
 use std::path::Path;
 
@@ -28,6 +31,8 @@ pub struct ObjMesh {
     /// Why the material library the model names did not load, if it did
     /// not: the model then renders with the scene's material.
     pub material_problem: Option<String>,
+    /// Other problems loading went past, each naming its file and line.
+    pub problems: Vec<String>,
 }
 
 impl ObjMesh {
@@ -47,6 +52,7 @@ impl ObjMesh {
                 path.display()
             ));
         }
+        warnings.extend(self.problems.iter().cloned());
         warnings
     }
 
@@ -158,6 +164,48 @@ fn check_obj_text(path: &Path, text: &str) -> Result<(), SceneError> {
     Ok(())
 }
 
+/// The OBJ's text for tobj with point (`p`) and line (`l`) elements left out:
+/// they are not surfaces, and tobj would turn a `p` or `l` of three or more
+/// vertices into a face. Warns at the first; fails if no face remains.
+fn faces_only(path: &Path, text: &str, problems: &mut Vec<String>) -> Result<String, SceneError> {
+    let mut kept = String::with_capacity(text.len());
+    let mut left_out = 0;
+    let mut first_left_out = None;
+    let mut faces = 0;
+    for (number, line) in text.lines().enumerate() {
+        match line.split_whitespace().next() {
+            Some(keyword @ ("p" | "l")) => {
+                left_out += 1;
+                first_left_out.get_or_insert((number + 1, keyword));
+            }
+            keyword => {
+                faces += usize::from(keyword == Some("f"));
+                kept.push_str(line);
+            }
+        }
+        kept.push('\n');
+    }
+    if let Some((line, keyword)) = first_left_out {
+        problems.push(format!(
+            "{}:{line}: {keyword}: point (p) and line (l) elements are not surfaces: \
+             left out ({left_out} in the file)",
+            path.display()
+        ));
+    }
+    if faces == 0 {
+        let only = if left_out > 0 {
+            ", only points and lines"
+        } else {
+            ""
+        };
+        return Err(SceneError::new(
+            path,
+            format!("the model has no faces (f elements){only}: no triangles to render"),
+        ));
+    }
+    Ok(kept)
+}
+
 /// The material of an MTL entry; an error naming the value that is not a
 /// number (`Ns nan`), which clamping would keep.
 fn material_from_mtl(m: &tobj::Material) -> Result<Material, String> {
@@ -195,14 +243,19 @@ pub fn load_obj_mesh(path: &Path) -> Result<ObjMesh, SceneError> {
     let text = std::fs::read_to_string(path)
         .map_err(|err| SceneError::new(path, format!("cannot read OBJ file: {err}")))?;
     check_obj_text(path, &text)?;
+    let mut problems = Vec::new();
+    let faces = faces_only(path, &text, &mut problems)?;
     let options = tobj::LoadOptions {
         triangulate: true,
         single_index: true,
         ignore_points: true,
         ignore_lines: true,
     };
-    let (models, materials) = tobj::load_obj(path, &options)
-        .map_err(|err| SceneError::new(path, format!("cannot parse OBJ: {err}")))?;
+    let folder = path.parent().unwrap_or(Path::new(""));
+    let (models, materials) = tobj::load_obj_buf(&mut faces.as_bytes(), &options, |name| {
+        tobj::load_mtl(folder.join(name))
+    })
+    .map_err(|err| SceneError::new(path, format!("cannot parse OBJ: {err}")))?;
     // A missing or broken MTL is not fatal: the model renders with the
     // scene's material instead (and the user is told).
     let (materials, material_problem) = match materials {
@@ -264,6 +317,7 @@ pub fn load_obj_mesh(path: &Path) -> Result<ObjMesh, SceneError> {
         parts,
         dropped_degenerate,
         material_problem,
+        problems,
     })
 }
 

@@ -10,6 +10,7 @@ mod cli;
 mod extremes;
 mod layers;
 mod moving_spheres;
+mod obj_input;
 mod ostc;
 mod render;
 mod rsvp;
