@@ -2,9 +2,10 @@
 #   make demo   renders the paper scene (out/paper.png), the bunny (out/bunny.png)
 #               and 24 frames of pan + zoom + a bouncing ball (out/anim/)
 #   make test   runs the whole test suite (format, lints, unit and integration tests)
-# Both install the Debian packages they need first (Embree, libclang for bindgen).
+# Both install the Debian packages they need first (Embree, libclang for bindgen,
+# Pillow for the test that reads our TGA frames with another decoder).
 
-DEBIAN_PACKAGES := libembree-dev libclang-dev pkg-config
+DEBIAN_PACKAGES := libembree-dev libclang-dev pkg-config python3-pil
 RETRACE := ./target/release/retrace
 
 .PHONY: all deps build demo test test-deep lint test-embree4 bench clean

@@ -21,7 +21,7 @@ set -euo pipefail
 
 SUITE=trixie
 MIRROR=${EMBREE4_MIRROR:-http://deb.debian.org/debian}
-PACKAGES=(libembree-dev libclang-dev clang pkg-config gcc libc6-dev ca-certificates)
+PACKAGES=(libembree-dev libclang-dev clang pkg-config gcc libc6-dev ca-certificates python3-pil)
 STAMP_NAME=.embree4-ready           # holds the package list it was made with
 BOOTSTRAPPED_NAME=.embree4-bootstrapped
 MARKER_NAME=.embree4-chroot-marker  # "this directory is ours to delete"

@@ -1,6 +1,10 @@
 //! Writing images: the format comes from the extension (PNG or TGA), and the
 //! file appears only when complete (written to a temporary name beside it,
 //! then renamed), so an interrupted run leaves no half-written frame.
+//!
+//! TGA files are run-length encoded with every packet inside one row, as
+//! the TGA 2.0 specification requires: decoders that work row by row
+//! (Pillow's) refuse packets that run on into the next row.
 
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -17,6 +21,12 @@ pub enum OutputError {
         path: PathBuf,
         #[source]
         source: std::io::Error,
+    },
+    #[error("{path}: a TGA image is at most 65535 pixels wide and high, not {width}x{height}")]
+    TooLargeForTga {
+        path: PathBuf,
+        width: u32,
+        height: u32,
     },
     #[error("{path}: cannot encode image: {source}")]
     Encode {
@@ -151,6 +161,19 @@ pub fn save_text(path: &Path, text: &str) -> Result<(), OutputError> {
 
 pub fn save_image(path: &Path, image: &image::RgbImage) -> Result<(), OutputError> {
     let format = format_for(path)?;
+    if format == ImageFormat::Tga {
+        let bytes = encode_tga(image).ok_or_else(|| OutputError::TooLargeForTga {
+            path: path.to_path_buf(),
+            width: image.width(),
+            height: image.height(),
+        })?;
+        return write_atomically(path, |temp| {
+            std::fs::write(temp, bytes).map_err(|source| OutputError::Write {
+                path: path.to_path_buf(),
+                source,
+            })
+        });
+    }
     write_atomically(path, |temp| {
         image
             .save_with_format(temp, format)
@@ -165,6 +188,63 @@ pub fn save_image(path: &Path, image: &image::RgbImage) -> Result<(), OutputErro
                 },
             })
     })
+}
+
+/// Pixels a TGA packet holds at most (its count is 7 bits, stored minus 1).
+const TGA_MAX_PACKET: usize = 128;
+
+/// `image` as a run-length encoded, 24-bit, top-left-origin TGA file (image
+/// type 10), every packet inside one row; `None` when a side exceeds the
+/// format's 16 bits.
+fn encode_tga(image: &image::RgbImage) -> Option<Vec<u8>> {
+    let width = u16::try_from(image.width()).ok()?;
+    let height = u16::try_from(image.height()).ok()?;
+    let mut out = Vec::with_capacity(18 + image.as_raw().len() / 2);
+    out.extend_from_slice(&[0, 0, 10, 0, 0, 0, 0, 0, 0, 0, 0, 0]);
+    out.extend_from_slice(&width.to_le_bytes());
+    out.extend_from_slice(&height.to_le_bytes());
+    // 24 bits a pixel; descriptor: no alpha bits, origin at the top left.
+    out.extend_from_slice(&[24, 0x20]);
+    if width > 0 {
+        for row in image.as_raw().chunks_exact(usize::from(width) * 3) {
+            let pixels: Vec<[u8; 3]> = row.chunks_exact(3).map(|p| [p[2], p[1], p[0]]).collect();
+            encode_tga_row(&pixels, &mut out);
+        }
+    }
+    Some(out)
+}
+
+/// One row's packets (pixels already in the file's BGR order): a run of two
+/// or more equal pixels becomes a run-length packet, anything else raw
+/// packets that stop where the next run starts.
+fn encode_tga_row(pixels: &[[u8; 3]], out: &mut Vec<u8>) {
+    let mut start = 0;
+    while start < pixels.len() {
+        let first = pixels[start];
+        let run = pixels[start..]
+            .iter()
+            .take(TGA_MAX_PACKET)
+            .take_while(|&&p| p == first)
+            .count();
+        if run >= 2 {
+            out.push(0x80 | (run - 1) as u8);
+            out.extend_from_slice(&first);
+            start += run;
+            continue;
+        }
+        let mut end = start + 1;
+        while end < pixels.len()
+            && end - start < TGA_MAX_PACKET
+            && pixels.get(end + 1) != Some(&pixels[end])
+        {
+            end += 1;
+        }
+        out.push((end - start - 1) as u8);
+        for pixel in &pixels[start..end] {
+            out.extend_from_slice(pixel);
+        }
+        start = end;
+    }
 }
 
 #[cfg(test)]
@@ -185,6 +265,91 @@ mod tests {
         assert!(matches!(err, OutputError::UnsupportedFormat { .. }));
         // Only the two images: no temporary files left behind.
         assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 2);
+    }
+
+    /// The rows of pixels in a TGA file of ours, each row's decoded from
+    /// its own packets, failing if a packet runs past the end of a row.
+    fn tga_rows_packet_by_packet(bytes: &[u8]) -> Vec<Vec<[u8; 3]>> {
+        assert_eq!(
+            &bytes[..3],
+            &[0, 0, 10],
+            "no id, no colour map, RLE true colour"
+        );
+        let width = usize::from(u16::from_le_bytes([bytes[12], bytes[13]]));
+        let height = usize::from(u16::from_le_bytes([bytes[14], bytes[15]]));
+        assert_eq!(
+            (bytes[16], bytes[17]),
+            (24, 0x20),
+            "24 bits, top-left origin"
+        );
+        let mut at = 18;
+        let mut rows = Vec::new();
+        for y in 0..height {
+            let mut row = Vec::new();
+            while row.len() < width {
+                let header = bytes[at];
+                let count = usize::from(header & 0x7f) + 1;
+                at += 1;
+                assert!(
+                    row.len() + count <= width,
+                    "row {y}: a packet of {count} at x = {} crosses into the next row",
+                    row.len()
+                );
+                let pixel = |i: usize| [bytes[i + 2], bytes[i + 1], bytes[i]];
+                if header & 0x80 != 0 {
+                    row.extend(std::iter::repeat(pixel(at)).take(count));
+                    at += 3;
+                } else {
+                    row.extend((0..count).map(|k| pixel(at + 3 * k)));
+                    at += 3 * count;
+                }
+            }
+            rows.push(row);
+        }
+        assert_eq!(at, bytes.len(), "bytes after the last row");
+        rows
+    }
+
+    #[test]
+    fn tga_packets_end_at_each_row_end() {
+        // Rows that end and start with the same colour (runs would carry
+        // on across them), runs longer than a packet, and noise (raw
+        // packets) that ends a row.
+        let (width, height) = (300, 5);
+        let image = image::RgbImage::from_fn(width, height, |x, y| match y {
+            0 | 1 => image::Rgb([7, 8, 9]),
+            2 if x < 150 => image::Rgb([7, 8, 9]),
+            _ => image::Rgb([(x * 7 + y) as u8, (x * 13) as u8, (x / 3) as u8]),
+        });
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("a.tga");
+        save_image(&path, &image).unwrap();
+        let rows = tga_rows_packet_by_packet(&std::fs::read(&path).unwrap());
+        for (y, row) in rows.iter().enumerate() {
+            for (x, pixel) in row.iter().enumerate() {
+                assert_eq!(
+                    pixel,
+                    &image.get_pixel(x as u32, y as u32).0,
+                    "pixel ({x}, {y})"
+                );
+            }
+        }
+        // Still run-length encoded: the flat rows (a packet per 128 pixels)
+        // make the file far smaller than its pixels.
+        let size = std::fs::metadata(&path).unwrap().len();
+        assert!(
+            size < 18 + u64::from(width * height) * 3 * 2 / 3,
+            "{size} bytes"
+        );
+    }
+
+    #[test]
+    fn a_tga_too_large_for_the_format_is_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("wide.tga");
+        let err = save_image(&path, &image::RgbImage::new(70_000, 1)).unwrap_err();
+        assert!(err.to_string().contains("at most 65535"), "{err}");
+        assert!(!path.exists());
     }
 
     #[test]

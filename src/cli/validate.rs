@@ -38,26 +38,26 @@ pub(crate) fn validate(args: ValidateArgs) -> Result<()> {
         retrace::lab::validate::validate(&scene, &embree, &grid, args.rays, args.seed, args.show);
     say!("{}: Embree vs grid", scene_name(&args.scene));
     say!(
-        "{:<12} {:>9} {:>15} {:>14} {:>12} {:>12}",
+        "{:<12} {:>9} {:>15} {:>14} {:>14} {:>14}",
         "rays",
         "count",
         "hit/miss agree",
         "same primitive",
-        "max rel. t",
-        "mean rel. t"
+        "max sep/bound",
+        "mean sep/bound"
     );
     for (name, a) in [
         ("camera", &report.camera_rays),
         ("random", &report.random_rays),
     ] {
         say!(
-            "{:<12} {:>9} {:>14.4}% {:>13.4}% {:>12.2e} {:>12.2e}",
+            "{:<12} {:>9} {:>14.4}% {:>13.4}% {:>14.3} {:>14.2e}",
             name,
             a.rays,
             a.hit_agreement() * 100.0,
             a.same_primitive_share() * 100.0,
-            a.max_relative_t,
-            a.mean_relative_t
+            a.max_hit_point_ratio,
+            a.mean_hit_point_ratio
         );
     }
     let image = &report.image;

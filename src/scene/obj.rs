@@ -1,8 +1,18 @@
 //! OBJ/MTL models through tobj, after a line-by-line check of our own so that
 //! a broken file is reported with its line (tobj reports no positions), and
 //! the scene made around a bare `.obj` given on the command line.
+//!
+//! Promises: a model loads or fails whole, naming the file and line of the
+//! first problem; what can be rendered around is a warning naming its file
+//! and line instead: bytes that are not UTF-8 (read with U+FFFD in their
+//! place), point and line elements (not surfaces: left out), a material
+//! library entry that does not parse (that material falls back to the
+//! default), a `usemtl` naming no material. tobj only ever sees text that
+//! has passed these checks.
 
-use std::path::Path;
+use std::cell::RefCell;
+use std::collections::HashSet;
+use std::path::{Path, PathBuf};
 
 use glam::{DVec3, Vec3};
 
@@ -28,6 +38,8 @@ pub struct ObjMesh {
     /// Why the material library the model names did not load, if it did
     /// not: the model then renders with the scene's material.
     pub material_problem: Option<String>,
+    /// Other problems loading went past, each naming its file and line.
+    pub problems: Vec<String>,
 }
 
 impl ObjMesh {
@@ -47,6 +59,7 @@ impl ObjMesh {
                 path.display()
             ));
         }
+        warnings.extend(self.problems.iter().cloned());
         warnings
     }
 
@@ -152,30 +165,181 @@ fn check_obj_text(path: &Path, text: &str) -> Result<(), SceneError> {
                     }
                 }
             }
+            // tobj refuses the whole file for a nameless `usemtl`.
+            "usemtl" if usemtl_name(line).is_empty() => {
+                return fail("usemtl", "expected a material name".into());
+            }
             _ => {}
         }
     }
     Ok(())
 }
 
-/// The material of an MTL entry; an error naming the value that is not a
-/// number (`Ns nan`), which clamping would keep.
-fn material_from_mtl(m: &tobj::Material) -> Result<Material, String> {
-    for (what, values) in [
-        ("Kd", m.diffuse.map(Vec::from)),
-        ("Ks", m.specular.map(Vec::from)),
-        ("Ns", m.shininess.map(|v| vec![v])),
-    ] {
-        if values.is_some_and(|v| v.iter().any(|x| !x.is_finite())) {
-            return Err(format!("material '{}': {what} must be finite", m.name));
+/// The name a `usemtl` line selects, as tobj reads it (everything after the
+/// first space, trimmed).
+fn usemtl_name(line: &str) -> &str {
+    line.trim()
+        .split_once(' ')
+        .map_or("", |(_, name)| name.trim())
+}
+
+/// `bytes` as text; bytes that are not UTF-8 become U+FFFD, with a warning
+/// naming the first line that has any (so a Latin-1 material name still
+/// matches itself between the OBJ and the MTL).
+fn decode_lossily(path: &Path, bytes: &[u8], problems: &mut Vec<String>) -> String {
+    match std::str::from_utf8(bytes) {
+        Ok(text) => text.to_string(),
+        Err(err) => {
+            let line = bytes[..err.valid_up_to()]
+                .iter()
+                .filter(|&&b| b == b'\n')
+                .count()
+                + 1;
+            problems.push(format!(
+                "{}:{line}: not valid UTF-8 (Latin-1?): read with U+FFFD in place of the bytes \
+                 that are not; save the file as UTF-8 to keep them",
+                path.display()
+            ));
+            String::from_utf8_lossy(bytes).into_owned()
         }
     }
+}
+
+/// The OBJ's text for tobj with point (`p`) and line (`l`) elements left out:
+/// they are not surfaces, and tobj would turn a `p` or `l` of three or more
+/// vertices into a face. Warns at the first; fails if no face remains.
+fn faces_only(path: &Path, text: &str, problems: &mut Vec<String>) -> Result<String, SceneError> {
+    let mut kept = String::with_capacity(text.len());
+    let mut left_out = 0;
+    let mut first_left_out = None;
+    let mut faces = 0;
+    for (number, line) in text.lines().enumerate() {
+        match line.split_whitespace().next() {
+            Some(keyword @ ("p" | "l")) => {
+                left_out += 1;
+                first_left_out.get_or_insert((number + 1, keyword));
+            }
+            keyword => {
+                faces += usize::from(keyword == Some("f"));
+                kept.push_str(line);
+            }
+        }
+        kept.push('\n');
+    }
+    if let Some((line, keyword)) = first_left_out {
+        problems.push(format!(
+            "{}:{line}: {keyword}: point (p) and line (l) elements are not surfaces: \
+             left out ({left_out} in the file)",
+            path.display()
+        ));
+    }
+    if faces == 0 {
+        let only = if left_out > 0 {
+            ", only points and lines"
+        } else {
+            ""
+        };
+        return Err(SceneError::new(
+            path,
+            format!("the model has no faces (f elements){only}: no triangles to render"),
+        ));
+    }
+    Ok(kept)
+}
+
+/// The material library at `path` as tobj should see it: text, with every
+/// line tobj would refuse (or read as a value that is not a number) blanked
+/// out and warned about; and the names of the materials those lines belong
+/// to, which fall back to the default material.
+fn checked_mtl_text(
+    path: &Path,
+    bytes: &[u8],
+    problems: &mut Vec<String>,
+) -> (String, HashSet<String>) {
+    let text = decode_lossily(path, bytes, problems);
+    let mut kept = String::with_capacity(text.len());
+    let mut broken = HashSet::new();
+    // The material the lines belong to; `None` before the first `newmtl`
+    // and after a nameless one (whose lines are all left out).
+    let mut current: Option<String> = None;
+    let mut nameless = false;
+    for (number, line) in text.lines().enumerate() {
+        let mut words = line.split_whitespace();
+        let keyword = words.next().unwrap_or("");
+        let values: Vec<&str> = words.collect();
+        let numbers = |wanted: usize| -> Option<String> {
+            if values.len() < wanted {
+                return Some(format!("expected {wanted} number(s), got {}", values.len()));
+            }
+            values[..wanted]
+                .iter()
+                .find_map(|word| match word.parse::<f32>() {
+                    Ok(x) if x.is_finite() => None,
+                    Ok(_) => Some(format!("'{word}' is not finite")),
+                    Err(_) => Some(format!("'{word}' is not a number")),
+                })
+        };
+        let problem = match keyword {
+            "newmtl" => {
+                let name = line.trim()[6..].trim();
+                nameless = name.is_empty();
+                current = (!nameless).then(|| name.to_string());
+                nameless.then(|| "expected a material name".to_string())
+            }
+            _ if nameless => {
+                kept.push('\n');
+                continue;
+            }
+            "Ka" | "Kd" | "Ks" | "Ke" => numbers(3),
+            "Ns" | "Ni" | "d" => numbers(1),
+            "illum" => match values.first().map(|w| w.parse::<u8>()) {
+                Some(Ok(_)) => None,
+                Some(Err(_)) => Some(format!(
+                    "'{}' is not an illumination model (0-10)",
+                    values[0]
+                )),
+                None => Some("expected an illumination model (0-10)".into()),
+            },
+            "map_Ka" | "map_Kd" | "map_Ks" | "map_Bump" | "map_bump" | "map_Ns" | "map_ns"
+            | "map_NS" | "bump" | "map_d"
+                if values.is_empty() =>
+            {
+                Some("expected a texture file name".into())
+            }
+            _ => None,
+        };
+        match problem {
+            Some(problem) => {
+                let whose = match &current {
+                    Some(name) => {
+                        broken.insert(name.clone());
+                        format!("material '{name}' uses the default material")
+                    }
+                    None if nameless => "its lines are left out".to_string(),
+                    None => "the line is left out".to_string(),
+                };
+                problems.push(format!(
+                    "{}:{}: {keyword}: {problem}; {whose}",
+                    path.display(),
+                    number + 1
+                ));
+            }
+            None => kept.push_str(line),
+        }
+        kept.push('\n');
+    }
+    (kept, broken)
+}
+
+/// The material of an MTL entry (whose numbers [`checked_mtl_text`] has
+/// made sure are finite).
+fn material_from_mtl(m: &tobj::Material) -> Material {
     let rgb =
         |c: Option<[f32; 3]>, default: f32| c.map(Vec3::from_array).unwrap_or(Vec3::splat(default));
     let specular = rgb(m.specular, 0.0);
     // illum 3, 5 and 7 are the MTL modes with ray-traced reflection.
     let reflective = matches!(m.illumination_model, Some(3 | 5 | 7));
-    Ok(Material {
+    Material {
         name: m.name.clone(),
         diffuse: rgb(m.diffuse, 0.7).clamp(Vec3::ZERO, Vec3::ONE),
         checker: None,
@@ -186,25 +350,41 @@ fn material_from_mtl(m: &tobj::Material) -> Result<Material, String> {
         } else {
             0.0
         },
-    })
+    }
 }
 
 /// Loads an OBJ (and its MTL, when present) as triangle meshes, one part per
 /// material, dropping degenerate triangles.
 pub fn load_obj_mesh(path: &Path) -> Result<ObjMesh, SceneError> {
-    let text = std::fs::read_to_string(path)
+    let bytes = std::fs::read(path)
         .map_err(|err| SceneError::new(path, format!("cannot read OBJ file: {err}")))?;
+    let mut problems = Vec::new();
+    let text = decode_lossily(path, &bytes, &mut problems);
     check_obj_text(path, &text)?;
+    let faces = faces_only(path, &text, &mut problems)?;
     let options = tobj::LoadOptions {
         triangulate: true,
         single_index: true,
         ignore_points: true,
         ignore_lines: true,
     };
-    let (models, materials) = tobj::load_obj(path, &options)
+    // tobj calls back for each `mtllib`; what the libraries say goes here.
+    let mtl_problems = RefCell::new(Vec::new());
+    let broken_materials = RefCell::new(HashSet::new());
+    let folder = path.parent().unwrap_or(Path::new(""));
+    let load_mtl = |name: &Path| -> tobj::MTLLoadResult {
+        let mtl_path: PathBuf = folder.join(name);
+        let bytes = std::fs::read(&mtl_path).map_err(|_| tobj::LoadError::OpenFileFailed)?;
+        let (text, broken) = checked_mtl_text(&mtl_path, &bytes, &mut mtl_problems.borrow_mut());
+        broken_materials.borrow_mut().extend(broken);
+        tobj::load_mtl_buf(&mut text.as_bytes())
+    };
+    let (models, materials) = tobj::load_obj_buf(&mut faces.as_bytes(), &options, load_mtl)
         .map_err(|err| SceneError::new(path, format!("cannot parse OBJ: {err}")))?;
-    // A missing or broken MTL is not fatal: the model renders with the
-    // scene's material instead (and the user is told).
+    problems.extend(mtl_problems.into_inner());
+    let broken_materials = broken_materials.into_inner();
+    // A missing MTL is not fatal: the model renders with the scene's
+    // material instead (and the user is told).
     let (materials, material_problem) = match materials {
         Ok(materials) => (materials, None),
         Err(err) => {
@@ -216,6 +396,24 @@ pub fn load_obj_mesh(path: &Path) -> Result<ObjMesh, SceneError> {
             (Vec::new(), Some(format!("{}: {err}", named.join(" "))))
         }
     };
+    if material_problem.is_none() {
+        let defined: HashSet<&str> = materials.iter().map(|m| m.name.as_str()).collect();
+        let mut told = HashSet::new();
+        for (number, line) in text.lines().enumerate() {
+            if line.split_whitespace().next() != Some("usemtl") {
+                continue;
+            }
+            let name = usemtl_name(line);
+            if !defined.contains(name) && told.insert(name) {
+                problems.push(format!(
+                    "{}:{}: usemtl: material '{name}' is not defined in any material library; \
+                     its faces use the default material",
+                    path.display(),
+                    number + 1
+                ));
+            }
+        }
+    }
 
     let mut dropped_degenerate = 0;
     let mut parts: Vec<ObjPart> = Vec::new();
@@ -246,9 +444,8 @@ pub fn load_obj_mesh(path: &Path) -> Result<ObjMesh, SceneError> {
         let material = m
             .material_id
             .and_then(|id| materials.get(id))
-            .map(material_from_mtl)
-            .transpose()
-            .map_err(|message| SceneError::new(path, message).field("mtllib"))?;
+            .filter(|m| !broken_materials.contains(&m.name))
+            .map(material_from_mtl);
         let mesh = TriangleMesh {
             positions,
             triangles,
@@ -264,6 +461,7 @@ pub fn load_obj_mesh(path: &Path) -> Result<ObjMesh, SceneError> {
         parts,
         dropped_degenerate,
         material_problem,
+        problems,
     })
 }
 
@@ -433,11 +631,14 @@ mod tests {
         assert_eq!(err.line, Some(4));
         let err = check("v 0 0 inf\n").unwrap_err();
         assert_eq!(err.field.as_deref(), Some("v"));
+        // tobj would refuse the whole file, naming no line.
+        let err = check("v 0 0 0\nusemtl  \n").unwrap_err();
+        assert_eq!((err.line, err.field.as_deref()), (Some(2), Some("usemtl")));
         assert!(check("# c\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf -3 -2 -1\nf 1/1/1 2//2 3\n").is_ok());
     }
 
     #[test]
-    fn a_material_value_that_is_not_a_number_is_refused() {
+    fn a_material_value_that_is_not_a_number_falls_back_to_the_default() {
         let dir = tempfile::tempdir().unwrap();
         let obj = dir.path().join("m.obj");
         std::fs::write(
@@ -447,8 +648,14 @@ mod tests {
         .unwrap();
         let mtl = |ns: &str| format!("newmtl shiny\nKd 0.5 0.5 0.5\nNs {ns}\n");
         std::fs::write(dir.path().join("m.mtl"), mtl("nan")).unwrap();
-        let err = load_obj_mesh(&obj).unwrap_err();
-        assert!(err.message.contains("'shiny': Ns must be finite"), "{err}");
+        let mesh = load_obj_mesh(&obj).unwrap();
+        assert!(mesh.parts[0].material.is_none());
+        let warnings = mesh.warnings(&obj).join("\n");
+        assert!(
+            warnings
+                .contains("m.mtl:3: Ns: 'nan' is not finite; material 'shiny' uses the default"),
+            "{warnings}"
+        );
         std::fs::write(dir.path().join("m.mtl"), mtl("20")).unwrap();
         let mesh = load_obj_mesh(&obj).unwrap();
         assert_eq!(mesh.parts[0].material.as_ref().unwrap().shininess, 20.0);

@@ -235,9 +235,11 @@ fn empty_mesh() {
         &case.render("empty.obj", &[]),
         &["empty.obj", "no triangles"],
     );
-    // Inside a scene an empty mesh is only a warning: the rest still renders.
+    // Inside a scene a model with faces, all of them degenerate, is only a
+    // warning: the rest still renders. (One with no faces at all is an
+    // error, as on its own: obj_input.rs.)
     let case = Case::new(&[
-        ("empty.obj", "# nothing\n"),
+        ("empty.obj", "v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\n"),
         (
             "s.toml",
             &format!("{CAMERA}[[object]]\ntype = \"mesh\"\nfile = \"empty.obj\"\n[[object]]\ntype = \"sphere\"\ncenter = [0, 0.5, 0]\nradius = 1\n"),
