@@ -444,6 +444,31 @@ pub struct PanFrameStats {
     pub traced: Vec<SampleGroup>,
 }
 
+impl PanFrameStats {
+    /// The frame as a store gives it (`elapsed_ms` in all), and the groups
+    /// it traced.
+    pub fn store_frame(
+        self,
+        frame: Option<Frame>,
+        image: image::RgbImage,
+        elapsed_ms: f64,
+        snap_error: Option<(f64, f64)>,
+    ) -> (StoreFrame, Vec<SampleGroup>) {
+        let made = StoreFrame {
+            frame,
+            image,
+            samples_traced: self.samples_traced,
+            pixels_reused: self.pixels_reused,
+            rays: self.rays,
+            trace_ms: self.trace_ms,
+            assembly_ms: (elapsed_ms - self.trace_ms).max(0.0),
+            snap_error,
+            levels: None,
+        };
+        (made, self.traced)
+    }
+}
+
 impl<L: Lattice> LatticeBuffer<L> {
     /// A buffer for windows within rows `rows` of the lattice.
     pub fn new(lattice: L, rows: std::ops::Range<i64>) -> LatticeBuffer<L> {
@@ -896,20 +921,11 @@ impl SampleStore for PanStore {
             }
         };
         let elapsed = start.elapsed().as_secs_f64() * 1e3;
-        self.traced = pan.traced;
         let snap_error = (self.fractional == FractionalPan::Snap)
             .then_some((self.window.yaw_error, self.window.pitch_error));
-        vec![StoreFrame {
-            frame,
-            image,
-            samples_traced: pan.samples_traced,
-            pixels_reused: pan.pixels_reused,
-            rays: pan.rays,
-            trace_ms: pan.trace_ms,
-            assembly_ms: (elapsed - pan.trace_ms).max(0.0),
-            snap_error,
-            levels: None,
-        }]
+        let (made, traced) = pan.store_frame(frame, image, elapsed, snap_error);
+        self.traced = traced;
+        vec![made]
     }
 
     fn paint_traced(

@@ -98,18 +98,9 @@ impl SampleStore for StillStore {
         let window = image_window(self.buffer.lattice());
         let (frame, image, still) = self.buffer.frame(shader, &window, wanted.linear, ostc);
         let elapsed = start.elapsed().as_secs_f64() * 1e3;
-        self.traced = still.traced;
-        vec![StoreFrame {
-            frame,
-            image,
-            samples_traced: still.samples_traced,
-            pixels_reused: still.pixels_reused,
-            rays: still.rays,
-            trace_ms: still.trace_ms,
-            assembly_ms: (elapsed - still.trace_ms).max(0.0),
-            snap_error: None,
-            levels: None,
-        }]
+        let (made, traced) = still.store_frame(frame, image, elapsed, None);
+        self.traced = traced;
+        vec![made]
     }
 
     fn paint_traced(
