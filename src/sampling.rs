@@ -8,9 +8,12 @@
 //!   positions (a pan's whole turn) get the same offsets in every frame, so
 //!   a reused cell equals a fresh trace of it bit for bit.
 //! - Stratified: with a square count (4, 9, 16, ...) the offsets of a cell
-//!   are a jittered grid, one per stratum of an n x n grid; otherwise each
-//!   axis is stratified (n-rooks: one offset in each of the count's
-//!   slices along x, and along y).
+//!   are multi-jittered (Chiu, Shirley and Wang): one in each cell of an
+//!   n x n grid, and one in each of the count's slices along x and along
+//!   y, so a straight edge across the pixel is covered to within one
+//!   sub-sample's share; otherwise each axis alone is stratified
+//!   (n-rooks: one offset in each of the count's slices along x, and along
+//!   y).
 //! - Separable: x offsets depend on the column alone and y offsets on the
 //!   row alone, so projections that tabulate their column and row terms
 //!   keep doing so (count x (width + height) entries, not per pixel).
@@ -78,34 +81,39 @@ impl PixelSamples {
         if self.count == 1 {
             return 0.5;
         }
-        let (stratum, strata) = if self.grid > 0 {
-            // Sub-sample i of an n x n grid sits in column i % n, row i / n.
-            let along = if axis == 0 {
-                index % self.grid
+        let jitter = unit(hash(&[SEED, axis, line as u64, u64::from(index)]));
+        let slice = if self.grid > 0 {
+            // Sub-sample k sits in grid cell (k % n, k / n); along x its
+            // fine slice within the cell's column is a permutation, drawn
+            // from the line and the column, of the cell's row (and the
+            // same along y with the axes swapped): n-rooks over all n^2.
+            let n = self.grid;
+            let (coarse, fine) = if axis == 0 {
+                (index % n, index / n)
             } else {
-                index / self.grid
+                (index / n, index % n)
             };
-            (along, self.grid)
+            coarse * n + permuted(n, fine, &[axis, line as u64, u64::from(coarse)])
         } else {
             // n-rooks: a permutation of the slices per line and axis.
-            (self.permuted(line, index, axis), self.count)
+            permuted(self.count, index, &[axis, line as u64])
         };
-        let jitter = unit(hash(&[SEED, axis, line as u64, u64::from(index)]));
-        (f64::from(stratum) + jitter) / f64::from(strata)
+        (f64::from(slice) + jitter) / f64::from(self.count)
     }
+}
 
-    /// Slice of sub-sample `index` along `axis` on `line`: a permutation
-    /// of 0..count drawn from the line (Fisher-Yates with hashed draws).
-    fn permuted(self, line: i64, index: u32, axis: u64) -> u32 {
-        let n = self.count as usize;
-        let mut slices: [u16; MAX_SAMPLES_PER_PIXEL as usize] = std::array::from_fn(|i| i as u16);
-        for i in (1..n).rev() {
-            let draw = hash(&[SEED ^ 0x5eed, axis, line as u64, i as u64]);
-            let j = (draw % (i as u64 + 1)) as usize;
-            slices.swap(i, j);
-        }
-        u32::from(slices[index as usize])
+/// Where `index` goes in a permutation of 0..`count` drawn from `key`
+/// (Fisher-Yates with hashed draws).
+fn permuted(count: u32, index: u32, key: &[u64]) -> u32 {
+    let n = count as usize;
+    let mut slots: [u16; MAX_SAMPLES_PER_PIXEL as usize] = std::array::from_fn(|i| i as u16);
+    for i in (1..n).rev() {
+        let mut words = [SEED ^ 0x5eed, i as u64, 0, 0, 0];
+        words[2..2 + key.len()].copy_from_slice(key);
+        let j = (hash(&words[..2 + key.len()]) % (i as u64 + 1)) as usize;
+        slots.swap(i, j);
     }
+    u32::from(slots[index as usize])
 }
 
 /// SplitMix64 over `words`: the same bits everywhere, for any input.
@@ -161,8 +169,8 @@ mod tests {
     }
 
     #[test]
-    fn other_counts_put_one_sample_in_each_slice_of_each_axis() {
-        for count in [2, 3, 5, 8, 12] {
+    fn every_count_puts_one_sample_in_each_slice_of_each_axis() {
+        for count in [2, 3, 4, 5, 8, 9, 12, 16, 256] {
             let samples = PixelSamples::new(count).unwrap();
             for line in [0i64, 9, -40] {
                 for axis in 0..2 {

@@ -61,3 +61,78 @@ on_every_backend! {
         assert!(stats.iter().all(|s| s.mode.as_str() == "ostc"));
     }
 }
+
+/// A converged reference: 256 stratified sub-samples a pixel.
+fn reference() -> PixelSamples {
+    PixelSamples::new(retrace::sampling::REFERENCE_SAMPLES_PER_PIXEL).unwrap()
+}
+
+/// A scene of `objects` seen by a 90-degree perspective camera at the
+/// origin looking down -z, 64x48, lit by the ambient term alone (white):
+/// a surface shows its diffuse colour, the sky the background.
+fn flat_scene(background: [f32; 3], objects: &str) -> Scene {
+    let text = format!(
+        "[render]\nwidth = 64\nheight = 48\nambient = [1.0, 1.0, 1.0]\nbackground = {background:?}\n\
+         [camera]\nprojection = \"perspective\"\nposition = [0, 0, 0]\nfov = 90\n{objects}"
+    );
+    parse_scene_str(&text, Path::new("flat.toml"), &SceneOverrides::default()).unwrap()
+}
+
+#[test]
+fn a_flat_coloured_scene_s_reference_is_the_colour() {
+    // Binary fractions: the mean of 256 equal colours is the colour itself.
+    let scene = flat_scene([0.25, 0.5, 0.75], "");
+    let accel =
+        retrace::accel::Accelerator::build(retrace::accel::BackendKind::Embree, &scene.objects)
+            .unwrap();
+    let (frame, rays) =
+        retrace::render::render_view_sampled(&scene, &scene.camera, reference(), &accel);
+    assert_eq!(rays.primary, 64 * 48 * 256);
+    assert!(
+        frame
+            .pixels
+            .iter()
+            .all(|p| *p == glam::Vec3::new(0.25, 0.5, 0.75)),
+        "{:?}",
+        frame
+            .pixels
+            .iter()
+            .find(|p| **p != glam::Vec3::new(0.25, 0.5, 0.75))
+    );
+}
+
+#[test]
+fn an_edge_between_two_colours_converges_to_its_analytic_coverage() {
+    // A white wall at z = -10 left of x = x0, black sky beyond: the camera
+    // maps x to column 32 + 3.2 x (90 degrees over 64 px), so an edge at
+    // column 20 + f covers f of pixel 20. Several fractions, the rows all
+    // alike (the edge is vertical).
+    for coverage in [0.1f32, 0.3, 0.5, 0.77, 0.93] {
+        let x0 = (20.0 + f64::from(coverage) - 32.0) / 3.2;
+        let wall = format!(
+            "[material.white]\ndiffuse = [1.0, 1.0, 1.0]\n\
+             [[object]]\ntype = \"quad\"\nname = \"wall\"\nmaterial = \"white\"\n\
+             vertices = [[-100.0, -100.0, -10.0], [{x0}, -100.0, -10.0], [{x0}, 100.0, -10.0], [-100.0, 100.0, -10.0]]\n"
+        );
+        let scene = flat_scene([0.0, 0.0, 0.0], &wall);
+        for backend in [
+            retrace::accel::BackendKind::Embree,
+            retrace::accel::BackendKind::Grid,
+        ] {
+            let accel = retrace::accel::Accelerator::build(backend, &scene.objects).unwrap();
+            let (frame, _) =
+                retrace::render::render_view_sampled(&scene, &scene.camera, reference(), &accel);
+            for y in 0..48 {
+                let value = |x: u32| frame.get(x, y).x;
+                assert_eq!(value(19), 1.0, "left of the edge");
+                assert_eq!(value(21), 0.0, "right of the edge");
+                let error = (value(20) - coverage).abs();
+                assert!(
+                    error <= 1.0 / 255.0,
+                    "{backend:?}: coverage {coverage}, row {y}: {} ({error})",
+                    value(20)
+                );
+            }
+        }
+    }
+}
