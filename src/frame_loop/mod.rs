@@ -356,7 +356,11 @@ impl<'a> Animator<'a> {
         if self.has_viewports() {
             let columns = SampleLattice::for_camera(&self.base.camera).columns_per_turn;
             let lattice = SampleLattice::new(camera.position, columns);
-            return Box::new(RsvpStore::new(lattice, self.options.rsvp));
+            return Box::new(RsvpStore::new(
+                lattice,
+                self.options.rsvp,
+                self.options.samples,
+            ));
         }
         if !self.on_lattice(camera) {
             return Box::new(StillStore::new(camera, self.options.samples));

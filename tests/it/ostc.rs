@@ -391,6 +391,7 @@ proptest! {
         extra in random_animation(),
         zoom in 1.0f64..3.0,
         rotate in -40.0f64..40.0,
+        samples in prop_oneof![Just(1u32), Just(4)],
     ) {
         let view = format!(
             "[[viewport]]\nname = \"v\"\nwidth = 40\nheight = 30\nfov = 90.0\n\
@@ -400,8 +401,15 @@ proptest! {
         let scene = paper_with(&format!("{extra}\n{view}"), 48, 32);
         for backend in [BackendKind::Embree, BackendKind::Grid] {
             let mut accel = retrace::accel::Accelerator::build(backend, &scene.objects).unwrap();
-            let mut animator =
-                retrace::frame_loop::Animator::new(&scene, &mut accel, Options::new(Techniques::AUTO, 0..5));
+            // Antialiased, the viewport reads the buffer at four sub-pixel
+            // shifts; the buffer's samples stay what a fresh trace gives.
+            let samples = retrace::sampling::PixelSamples::new(samples).unwrap();
+            let options = Options {
+                samples,
+                rsvp: retrace::reuse::rsvp::RsvpKnobs::default_for(samples),
+                ..Options::new(Techniques::AUTO, 0..5)
+            };
+            let mut animator = retrace::frame_loop::Animator::new(&scene, &mut accel, options);
             for frame in 0..5 {
                 let stats = animator.render(frame).remove(0).stats;
                 // The buffer is kept (no restart; OSTC where something

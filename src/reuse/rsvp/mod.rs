@@ -55,6 +55,7 @@ use crate::render::{trace_each, trace_groups, Frame, PrimaryRays, SampleGroup, G
 use crate::reuse::ostc::Ostc;
 use crate::reuse::regions::{RegionLayout, RegionSet};
 use crate::reuse::{Erasure, FrameMode, SampleStore, StoreFrame, Unfit, Wanted};
+use crate::sampling::PixelSamples;
 use crate::shade::{RayCounts, Shader};
 use blocks::LevelBlocks;
 use filter::filter_reads;
@@ -516,17 +517,53 @@ fn same_bits(a: Vec3, b: Vec3) -> bool {
 
 /// RSVP's sample buffer as the frame loop keeps it: every viewport of a
 /// frame resampled from it with the run's knobs.
+///
+/// Antialiased (`samples` above one), a viewport is resampled at that many
+/// sub-pixel shifts of its pixels (the same for every pixel, stratified)
+/// and the shifted pictures averaged: the buffer read at sub-pixel
+/// positions, its samples untouched. The pyramid level each read needs is
+/// chosen for the shifted pixels' spacing (the oversampling knob times the
+/// square root of the count).
 pub struct RsvpStore {
     buffer: SampleBuffer,
     knobs: RsvpKnobs,
+    samples: PixelSamples,
 }
 
 impl RsvpStore {
-    pub fn new(lattice: SampleLattice, knobs: RsvpKnobs) -> RsvpStore {
+    pub fn new(lattice: SampleLattice, knobs: RsvpKnobs, samples: PixelSamples) -> RsvpStore {
+        let oversample = knobs.oversample * f64::from(samples.count()).sqrt();
         RsvpStore {
             buffer: SampleBuffer::new(lattice),
-            knobs,
+            knobs: RsvpKnobs {
+                oversample,
+                ..knobs
+            },
+            samples,
         }
+    }
+
+    /// `view` at each sub-pixel shift of the antialiasing (itself, with one
+    /// sample a pixel): its 2D transform's translation moved by the shift,
+    /// carried back through the transform into unzoomed pixels.
+    fn shifted(&self, view: &ViewportPose) -> Vec<ViewportPose> {
+        if self.samples.count() == 1 {
+            return vec![view.clone()];
+        }
+        let inverse = view.transform.matrix().inverse();
+        (0..self.samples.count())
+            .map(|k| {
+                let shift =
+                    glam::DVec2::new(self.samples.x(0, k) - 0.5, self.samples.y(0, k) - 0.5);
+                let moved = inverse * shift;
+                let mut transform = view.transform;
+                transform.translate = [
+                    transform.translate[0] + moved.x,
+                    transform.translate[1] + moved.y,
+                ];
+                ViewportPose::new(view.camera.clone(), transform)
+            })
+            .collect()
     }
 }
 
@@ -571,25 +608,55 @@ impl SampleStore for RsvpStore {
         ostc: Option<&Ostc>,
         wanted: Wanted,
     ) -> Vec<StoreFrame> {
+        let count = self.samples.count() as usize;
+        if count == 1 {
+            let frames = self
+                .buffer
+                .render(shader, views, &self.knobs, wanted.linear, ostc);
+            return frames
+                .into_iter()
+                .zip(views)
+                .map(|(view, pose)| store_frame(pose, view))
+                .collect();
+        }
+        // Every view's shifts in one batch: samples any of them needs are
+        // traced once.
+        let shifted: Vec<ViewportPose> = views.iter().flat_map(|v| self.shifted(v)).collect();
         let frames = self
             .buffer
-            .render(shader, views, &self.knobs, wanted.linear, ostc);
-        frames
-            .into_iter()
-            .zip(views)
-            .map(|(view, pose)| {
-                let pixels = u64::from(pose.camera.width) * u64::from(pose.camera.height);
-                StoreFrame {
-                    frame: view.frame,
-                    image: view.image,
-                    samples_traced: view.samples_traced,
-                    pixels_reused: pixels.saturating_sub(view.samples_traced),
-                    rays: view.rays,
-                    trace_ms: view.trace_ms,
-                    assembly_ms: view.map_ms + view.gather_ms,
-                    snap_error: None,
-                    levels: Some(view.levels),
+            .render(shader, &shifted, &self.knobs, true, ostc);
+        let mut frames = frames.into_iter();
+        views
+            .iter()
+            .map(|pose| {
+                let start = Instant::now();
+                let shifts: Vec<ViewportFrame> = frames.by_ref().take(count).collect();
+                let mut mean = Frame::new(pose.camera.width, pose.camera.height);
+                let scale = 1.0 / count as f32;
+                for shift in &shifts {
+                    let frame = shift.frame.as_ref().expect("asked for linear colour");
+                    for (sum, &c) in mean.pixels.iter_mut().zip(&frame.pixels) {
+                        *sum += c;
+                    }
                 }
+                for sum in &mut mean.pixels {
+                    *sum *= scale;
+                }
+                let image = mean.to_rgb8();
+                let averaging_ms = start.elapsed().as_secs_f64() * 1e3;
+                let made = ViewportFrame {
+                    frame: wanted.linear.then_some(mean),
+                    image,
+                    samples_traced: shifts.iter().map(|s| s.samples_traced).sum(),
+                    rays: shifts.iter().fold(RayCounts::default(), |a, s| a + s.rays),
+                    map_ms: shifts.iter().map(|s| s.map_ms).sum(),
+                    trace_ms: shifts.iter().map(|s| s.trace_ms).sum(),
+                    gather_ms: shifts.iter().map(|s| s.gather_ms).sum::<f64>() + averaging_ms,
+                    levels: shifts.iter().fold((u32::MAX, 0), |(lo, hi), s| {
+                        (lo.min(s.levels.0), hi.max(s.levels.1))
+                    }),
+                };
+                store_frame(pose, made)
             })
             .collect()
     }
@@ -600,7 +667,17 @@ impl SampleStore for RsvpStore {
         view: &ViewportPose,
         image: &image::RgbImage,
     ) -> image::RgbImage {
-        self.buffer.fresh_image(view, &self.knobs, image)
+        // Black where any shift read a sample this frame traced.
+        let mut painted = image.clone();
+        for shifted in self.shifted(view) {
+            let one = self.buffer.fresh_image(&shifted, &self.knobs, image);
+            for (out, mark) in painted.pixels_mut().zip(one.pixels()) {
+                if mark.0 == [0, 0, 0] {
+                    *out = *mark;
+                }
+            }
+        }
+        painted
     }
 
     fn picture(&self, camera: &Camera) -> Option<image::RgbImage> {
@@ -612,6 +689,22 @@ impl SampleStore for RsvpStore {
 
     fn verify(&self, shader: &Shader) -> Option<(u64, u64)> {
         Some(self.buffer.verify(shader))
+    }
+}
+
+/// One view's frame as the frame loop takes it from a store.
+fn store_frame(pose: &ViewportPose, view: ViewportFrame) -> StoreFrame {
+    let pixels = u64::from(pose.camera.width) * u64::from(pose.camera.height);
+    StoreFrame {
+        frame: view.frame,
+        image: view.image,
+        samples_traced: view.samples_traced,
+        pixels_reused: pixels.saturating_sub(view.samples_traced),
+        rays: view.rays,
+        trace_ms: view.trace_ms,
+        assembly_ms: view.map_ms + view.gather_ms,
+        snap_error: None,
+        levels: Some(view.levels),
     }
 }
 
