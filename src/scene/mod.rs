@@ -195,9 +195,70 @@ pub fn load_scene(path: &Path, overrides: &SceneOverrides) -> Result<Scene, Scen
     if is_obj {
         return obj::scene_around_obj(path, overrides);
     }
+    let is_mtl = path
+        .extension()
+        .is_some_and(|ext| ext.eq_ignore_ascii_case("mtl"));
+    if is_mtl {
+        return Err(material_library_given(path));
+    }
     let text = std::fs::read_to_string(path)
         .map_err(|err| SceneError::new(path, format!("cannot read scene file: {err}")))?;
     parse_scene_str(&text, path, overrides)
+}
+
+/// The error for an `.mtl` given where a scene belongs: read as TOML it
+/// fails on its first line, which blames the wrong thing. Names the model
+/// beside it that uses the library, when there is one.
+fn material_library_given(path: &Path) -> SceneError {
+    let user = models_using(path);
+    let what = if user.is_empty() {
+        "the .obj model that names it in a `mtllib` line".to_string()
+    } else {
+        user.iter()
+            .map(|p| p.display().to_string())
+            .collect::<Vec<_>>()
+            .join(" or ")
+    };
+    SceneError::new(
+        path,
+        format!("this is a material library (MTL), not a scene: render {what}, which uses it"),
+    )
+}
+
+/// The `.obj` files in `mtl`'s folder whose `mtllib` lines name it, as
+/// paths beside `mtl`'s own.
+fn models_using(mtl: &Path) -> Vec<PathBuf> {
+    use std::io::BufRead;
+    let Some(name) = mtl.file_name() else {
+        return Vec::new();
+    };
+    let folder = mtl.parent().unwrap_or(Path::new(""));
+    let listed = if folder.as_os_str().is_empty() {
+        Path::new(".")
+    } else {
+        folder
+    };
+    let Ok(entries) = std::fs::read_dir(listed) else {
+        return Vec::new();
+    };
+    let mut models: Vec<PathBuf> = entries
+        .filter_map(|entry| Some(folder.join(entry.ok()?.file_name())))
+        .filter(|p| {
+            p.extension().is_some_and(|e| e.eq_ignore_ascii_case("obj"))
+                && std::fs::File::open(p).is_ok_and(|file| {
+                    std::io::BufReader::new(file)
+                        .lines()
+                        .map_while(Result::ok)
+                        .filter_map(|line| line.trim().strip_prefix("mtllib ").map(str::to_owned))
+                        .any(|libs| {
+                            libs.split_whitespace()
+                                .any(|lib| Path::new(lib).file_name() == Some(name))
+                        })
+                })
+        })
+        .collect();
+    models.sort();
+    models
 }
 
 /// The built-in paper scene.

@@ -13,6 +13,7 @@ mod moving_spheres;
 mod ostc;
 mod render;
 mod rsvp;
+mod scene_errors;
 mod still_split;
 mod tradeoff;
 mod validate;
