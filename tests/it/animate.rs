@@ -317,7 +317,7 @@ fn animate_rejects_bad_input_cleanly() {
                 "--stats",
                 "pan.toml/s.csv",
             ],
-            "cannot create output folder pan.toml",
+            "cannot make the folder pan.toml: a file of that name is in the way",
         ),
     ];
     for (args, needle) in cases {

@@ -11,6 +11,7 @@ mod extremes;
 mod layers;
 mod moving_spheres;
 mod ostc;
+mod output_folders;
 mod render;
 mod rsvp;
 mod scene_errors;
