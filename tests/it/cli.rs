@@ -174,7 +174,7 @@ fn obj_that_does_not_parse_names_file_and_line() {
     let case = Case::new(&[("s.toml", &scene)]);
     case.assert_fails(
         &case.render("s.toml", &[]),
-        &["s.toml:5: object[0].file", "bad.obj: no such model file"],
+        &["s.toml:7: object[0].file", "bad.obj: no such model file"],
     );
 }
 
@@ -188,7 +188,7 @@ fn nan_and_inf_coordinates() {
     )]);
     case.assert_fails(
         &case.render("s.toml", &[]),
-        &["s.toml:5", "object[0].center", "finite"],
+        &["s.toml:7", "object[0].center", "finite"],
     );
 }
 

@@ -3,12 +3,143 @@
 //! types, and blames what is at fault (the file, a flag, a material
 //! library given as a scene).
 
+use std::path::Path;
 use std::process::Output;
+
+use retrace::scene::{parse_scene_str, SceneOverrides};
 
 use crate::common::retrace;
 
 fn stderr(out: &Output) -> String {
     String::from_utf8_lossy(&out.stderr).into_owned()
+}
+
+/// A scene that loads, every table in it; each case below breaks one line.
+const SCENE: &str = "\
+[render]
+width = 64
+height = 48
+max_depth = 2
+
+[camera]
+position = [0, 1, 5]
+look_at = [0, 0, 0]
+fov = 60
+
+[[light]]
+position = [0, 5, 0]
+intensity = 1
+
+[material.red]
+diffuse = [1, 0, 0]
+shininess = 20
+
+[[object]]
+type = \"sphere\"
+center = [0, 0, 0]
+radius = 1
+material = \"red\"
+
+[[object]]
+type = \"plane\"
+point = [0, -1, 0]
+normal = [0, 1, 0]
+size = [4, 4]
+
+[animation]
+frames = 10
+
+[[animation.object]]
+object = \"object[0]\"
+frame = 5
+translate = [1, 0, 0]
+";
+
+/// [`SCENE`] with line `line` (1-based) replaced by `text`.
+fn with_line(line: usize, text: &str) -> String {
+    SCENE
+        .lines()
+        .enumerate()
+        .map(|(i, l)| if i + 1 == line { text } else { l })
+        .collect::<Vec<_>>()
+        .join("\n")
+}
+
+/// The error of loading `text` as `s.toml`, as the command line prints it.
+fn error_of(text: &str) -> String {
+    parse_scene_str(text, Path::new("s.toml"), &SceneOverrides::default())
+        .unwrap_err()
+        .to_string()
+}
+
+#[test]
+fn the_base_scene_loads() {
+    parse_scene_str(SCENE, Path::new("s.toml"), &SceneOverrides::default()).unwrap();
+}
+
+#[test]
+fn out_of_range_values_name_their_own_line_not_their_tables() {
+    for (line, text, error) in [
+        (4, "max_depth = 99", "render.max_depth: at most 16, got 99"),
+        (
+            9,
+            "fov = 200",
+            "camera.fov: field of view 200 degrees: must be a number above 0 and below 180 \
+             for perspective",
+        ),
+        (
+            13,
+            "intensity = -2",
+            "light[0].intensity: must be a finite number >= 0, got -2",
+        ),
+        (
+            16,
+            "diffuse = [1, -1, 0]",
+            "material.red.diffuse: colour components must not be negative, got [1.0, -1.0, 0.0]",
+        ),
+        (
+            17,
+            "shininess = -1",
+            "material.red.shininess: must be >= 0, got -1",
+        ),
+        (
+            22,
+            "radius = -1",
+            "object[0].radius: must be above 0, got -1",
+        ),
+        (
+            28,
+            "normal = [0, 0, 0]",
+            "object[1].normal: must not be zero",
+        ),
+        (
+            29,
+            "size = [4, 0]",
+            "object[1].size: both sides must be above 0, got [4.0, 0.0]",
+        ),
+        (32, "frames = 0", "animation.frames: must be at least 1"),
+        (
+            37,
+            "translate = [1e13, 0, 0]",
+            "animation.object[0].translate: [10000000000000.0, 0.0, 0.0] lies beyond the \
+             scene's extent (within ±1e12 of the origin)",
+        ),
+    ] {
+        assert_eq!(
+            error_of(&with_line(line, text)),
+            format!("s.toml:{line}: {error}"),
+            "{text}"
+        );
+    }
+}
+
+#[test]
+fn a_value_left_out_is_blamed_on_its_tables_line() {
+    // No radius to point at: the sphere's [[object]] header.
+    assert_eq!(
+        error_of(&with_line(22, "")),
+        "s.toml:19: object[0].radius: required for type = \"sphere\""
+    );
 }
 
 #[test]

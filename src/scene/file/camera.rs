@@ -133,7 +133,7 @@ mod tests {
         let err = parse("[camera]\nposition = [0, 1, 5]\nfov = 1e-14\n").unwrap_err();
         assert_eq!(
             (err.line, err.field.as_deref()),
-            (Some(1), Some("camera.fov")),
+            (Some(3), Some("camera.fov")),
             "{err}"
         );
         assert!(
@@ -185,7 +185,7 @@ mod tests {
         let err = parse("[camera]\nposition = [0, 1, 5]\nfov = 500\n").unwrap_err();
         assert_eq!(
             (err.field.as_deref(), err.line),
-            (Some("camera.fov"), Some(1)),
+            (Some("camera.fov"), Some(3)),
             "{err}"
         );
     }

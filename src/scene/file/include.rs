@@ -261,7 +261,7 @@ mod tests {
         let err = load_scene(&top, &SceneOverrides::default()).unwrap_err();
         assert_eq!(
             (err.file.clone(), err.line),
-            (top.clone(), Some(2)),
+            (top.clone(), Some(5)),
             "{err}"
         );
     }
@@ -283,7 +283,7 @@ mod tests {
         // Lines after the top-level keys still map to this file.
         assert_eq!(
             (err.file.clone(), err.line),
-            (top.clone(), Some(6)),
+            (top.clone(), Some(9)),
             "{err}"
         );
         assert_eq!(err.field.as_deref(), Some("object[1].radius"), "{err}");

@@ -19,6 +19,7 @@ mod include;
 mod lights;
 mod materials;
 mod objects;
+mod spans;
 mod values;
 mod viewports;
 
@@ -61,15 +62,25 @@ struct Ctx<'a> {
 }
 
 impl Ctx<'_> {
-    /// The error `message` about `field`, at the line where `span` starts.
+    /// The error `message` about `field`, at the line of the value the
+    /// field path names, else (a field left out) where `table`, the span
+    /// of the table it belongs in, starts.
     fn error(
         &self,
-        span: std::ops::Range<usize>,
+        table: std::ops::Range<usize>,
         field: impl Into<String>,
         message: impl Into<String>,
     ) -> SceneError {
-        let (file, line) = self.source.locate(line_of(&self.source.text, span.start));
+        let field = field.into();
+        let at = self.locate(&field, table);
+        let (file, line) = self.source.locate(line_of(&self.source.text, at));
         SceneError::new(file, message).at_line(line).field(field)
+    }
+
+    /// Where the value of the field path `field` starts in the spliced
+    /// text; `table`'s start when the file did not write it.
+    fn locate(&self, field: &str, table: std::ops::Range<usize>) -> usize {
+        spans::value_span(&self.source.text, field).map_or(table.start, |span| span.start)
     }
 
     /// The file a span was written in (relative paths in it start there).
@@ -258,12 +269,12 @@ mod tests {
         let cases = [
             (
                 format!("[camera]\nposition = [0, 1e13, 5]\nfov = 60\n{sphere}"),
-                1,
+                2,
                 "camera.position.y",
             ),
             (
                 format!("{CAMERA}[[light]]\nposition = [1e19, 0, 0]\n{sphere}"),
-                4,
+                5,
                 "light[0].position",
             ),
             (
@@ -273,12 +284,12 @@ mod tests {
             ),
             (
                 format!("{CAMERA}{sphere}[animation]\nframes = 2\n[[animation.camera]]\nframe = 1\nposition = [2e12, 0, 0]\n"),
-                10,
+                12,
                 "animation.camera[0].position.x",
             ),
             (
                 format!("[camera]\nprojection = \"equal-angle\"\nposition = [0, 1, 5]\nfov = 100\n{sphere}[animation]\nframes = 2\n[[animation.camera]]\nframe = 1\npitch = 80\n"),
-                11,
+                13,
                 "animation.camera[0].pitch",
             ),
         ];
@@ -326,19 +337,18 @@ mod tests {
     }
 
     #[test]
-    fn render_and_camera_errors_name_the_line_of_their_table() {
-        // [render] on line 4, [camera] on line 1.
+    fn render_and_camera_errors_name_the_line_of_their_field() {
+        // [render] on line 4, its field on line 6.
         let camera = "[camera]\nposition = [0, 1, 5]\nfov = 60\n";
         for (render, field) in [
             ("background = [nan, 0, 0]", "render.background"),
             ("ambient = [-1, 0, 0]", "render.ambient"),
             ("max_depth = 1000", "render.max_depth"),
-            ("width = 0", "render.width/height"),
         ] {
-            let err = parse(&format!("{camera}[render]\n{render}\n")).unwrap_err();
+            let err = parse(&format!("{camera}[render]\nheight = 10\n{render}\n")).unwrap_err();
             assert_eq!(
                 (err.line, err.field.as_deref()),
-                (Some(4), Some(field)),
+                (Some(6), Some(field)),
                 "{err}"
             );
         }
@@ -346,7 +356,7 @@ mod tests {
             parse("[camera]\nposition = [0, 1, 5]\nfov = 60\nlook_at = [0, nan, 0]\n").unwrap_err();
         assert_eq!(
             (err.line, err.field.as_deref()),
-            (Some(1), Some("camera.look_at")),
+            (Some(4), Some("camera.look_at")),
             "{err}"
         );
     }

@@ -343,7 +343,7 @@ mod tests {
             format!("[[object]]\ntype = \"sphere\"\nname = \"{name}\"\ncenter = [0, 0, 0]\nradius = 1\n")
         };
         let err = parse(&format!("{CAMERA}{}{}", ball("ball"), ball("ball"))).unwrap_err();
-        assert_eq!(err.line, Some(9), "{err}");
+        assert_eq!(err.line, Some(11), "{err}");
         assert_eq!(err.field.as_deref(), Some("object[1].name"), "{err}");
         assert!(err.message.contains("already names object[0]"), "{err}");
         parse(&format!("{CAMERA}{}{}", ball("ball"), ball("ball 2"))).unwrap();
