@@ -146,6 +146,8 @@ impl Scene {
 /// field when known.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub struct SceneError {
+    /// Empty when only values the command line gave are at fault: then
+    /// `field` names those flags (see [`SceneError::of_flags`]).
     pub file: PathBuf,
     pub line: Option<usize>,
     pub field: Option<String>,
@@ -154,14 +156,16 @@ pub struct SceneError {
 
 impl std::fmt::Display for SceneError {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(f, "{}", self.file.display())?;
-        if let Some(line) = self.line {
-            write!(f, ":{line}")?;
+        let mut parts = Vec::new();
+        if !self.file.as_os_str().is_empty() {
+            match self.line {
+                Some(line) => parts.push(format!("{}:{line}", self.file.display())),
+                None => parts.push(self.file.display().to_string()),
+            }
         }
-        if let Some(field) = &self.field {
-            write!(f, ": {field}")?;
-        }
-        write!(f, ": {}", self.message)
+        parts.extend(self.field.clone());
+        parts.push(self.message.clone());
+        write!(f, "{}", parts.join(": "))
     }
 }
 
@@ -171,6 +175,17 @@ impl SceneError {
             file: file.to_path_buf(),
             line: None,
             field: None,
+            message: message.into(),
+        }
+    }
+
+    /// An error of the command line's values alone, `flags` as given
+    /// (`--width 0`): no file is to blame.
+    pub fn of_flags(flags: impl Into<String>, message: impl Into<String>) -> SceneError {
+        SceneError {
+            file: PathBuf::new(),
+            line: None,
+            field: Some(flags.into()),
             message: message.into(),
         }
     }

@@ -182,3 +182,21 @@ fn a_material_library_given_as_a_scene_names_the_model_to_render() {
         assert!(!dir.path().join("out.png").exists());
     }
 }
+
+#[test]
+fn an_image_size_from_the_flags_alone_names_the_flags_not_the_scene() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = retrace(
+        &[
+            "render", "--width", "100000", "--height", "100000", "-o", "out.png",
+        ],
+        dir.path(),
+    );
+    assert_eq!(out.status.code(), Some(1), "{}", stderr(&out));
+    assert_eq!(
+        stderr(&out),
+        "error: --width 100000 --height 100000: image size 100000x100000 is too large \
+         (at most 32768 pixels per side and 268435456 pixels in all)\n"
+    );
+    assert!(!dir.path().join("out.png").exists());
+}

@@ -77,6 +77,20 @@ impl Ctx<'_> {
         SceneError::new(file, message).at_line(line).field(field)
     }
 
+    /// [`Ctx::error`], at the value of the field path `at`, the error
+    /// naming `field` (which says more: `camera.pitch with --fov 170`).
+    fn error_at(
+        &self,
+        table: std::ops::Range<usize>,
+        at: &str,
+        field: impl Into<String>,
+        message: impl Into<String>,
+    ) -> SceneError {
+        let at = self.locate(at, table);
+        let (file, line) = self.source.locate(line_of(&self.source.text, at));
+        SceneError::new(file, message).at_line(line).field(field)
+    }
+
     /// Where the value of the field path `field` starts in the spliced
     /// text; `table`'s start when the file did not write it.
     fn locate(&self, field: &str, table: std::ops::Range<usize>) -> usize {
@@ -344,6 +358,7 @@ mod tests {
             ("background = [nan, 0, 0]", "render.background"),
             ("ambient = [-1, 0, 0]", "render.ambient"),
             ("max_depth = 1000", "render.max_depth"),
+            ("width = 0", "render.width"),
         ] {
             let err = parse(&format!("{camera}[render]\nheight = 10\n{render}\n")).unwrap_err();
             assert_eq!(
@@ -392,7 +407,7 @@ mod tests {
         for (camera, field) in [
             ("[camera]\nposition = [0, 1, 5]\nfov = 0\n", "camera.fov"),
             ("[camera]\nposition = [0, 1, 5]\nfov = 180\n", "camera.fov"),
-            ("[render]\nwidth = 0\n[camera]\nposition = [0, 1, 5]\nfov = 60\n", "render.width/height"),
+            ("[render]\nwidth = 0\n[camera]\nposition = [0, 1, 5]\nfov = 60\n", "render.width"),
             ("[render]\nwidth = 4000000\nheight = 4000000\n[camera]\nposition = [0, 1, 5]\nfov = 60\n", "render.width/height"),
         ] {
             let err = parse(camera).unwrap_err();
