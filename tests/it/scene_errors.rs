@@ -143,6 +143,87 @@ fn a_value_left_out_is_blamed_on_its_tables_line() {
 }
 
 #[test]
+fn type_errors_say_what_a_field_takes_in_words() {
+    for (line, text, error) in [
+        (
+            2,
+            "width = 1.5",
+            "render.width: expected a whole number, got 1.5",
+        ),
+        (
+            7,
+            "position = [0, 1]",
+            "camera.position: expected an array of 3 numbers, got 2 values",
+        ),
+        (
+            9,
+            "fov = \"wide\"",
+            "camera.fov: expected a number, got the string \"wide\"",
+        ),
+        (
+            13,
+            "intensity = true",
+            "light[0].intensity: expected a number, got true",
+        ),
+        (
+            21,
+            "center = \"origin\"",
+            "object[0].center: expected an array of 3 numbers, got the string \"origin\"",
+        ),
+        (
+            22,
+            "radius = \"big\"",
+            "object[0].radius: expected a number, got the string \"big\"",
+        ),
+        (
+            23,
+            "material = 5",
+            "object[0].material: expected a string in quotes, got 5",
+        ),
+        (
+            23,
+            "smooth = \"yes\"",
+            "object[0].smooth: expected true or false, got the string \"yes\"",
+        ),
+        (
+            29,
+            "size = [4]",
+            "object[1].size: expected an array of 2 numbers, got 1 value",
+        ),
+        (
+            32,
+            "frames = -3",
+            "animation.frames: expected a whole number from 0 to 4294967295, got -3",
+        ),
+        (
+            36,
+            "frame = 2.5",
+            "animation.object[0].frame: expected a whole number, got 2.5",
+        ),
+    ] {
+        assert_eq!(
+            error_of(&with_line(line, text)),
+            format!("s.toml:{line}: {error}"),
+            "{text}"
+        );
+    }
+    // Tables and choices, too.
+    assert_eq!(
+        error_of("camera = 5\n"),
+        "s.toml:1: camera: expected a table, got 5"
+    );
+    assert_eq!(
+        error_of(&with_line(8, "projection = \"fish\"")),
+        "s.toml:8: camera.projection: expected one of \"perspective\", \"equal-angle\", \
+         \"fisheye\", got \"fish\""
+    );
+    assert_eq!(
+        error_of(&with_line(8, "projection = 3")),
+        "s.toml:8: camera.projection: expected a string in quotes, got 3"
+    );
+}
+
+#[test]
 fn a_material_library_given_as_a_scene_names_the_model_to_render() {
     let dir = tempfile::tempdir().unwrap();
     let triangle = "v -1 0 0\nv 1 0 0\nv 0 2 0\nusemtl fur\nf 1 2 3\n";

@@ -22,6 +22,7 @@ mod objects;
 mod spans;
 mod values;
 mod viewports;
+mod wording;
 
 use std::path::Path;
 
@@ -165,10 +166,18 @@ pub(crate) fn parse_scene(
     let file: SceneFile = serde_path_to_error::deserialize(deserializer).map_err(|err| {
         let field = user_path(err.path());
         let inner = err.into_inner();
-        let mut e = SceneError::new(path, inner.message().to_string());
-        if let Some(span) = inner.span() {
+        let span = inner.span();
+        // What the file wrote there, for a message that does not say.
+        let written = span
+            .as_ref()
+            .and_then(|span| text.get(span.clone()))
+            .and_then(|value| value.lines().next())
+            .filter(|value| value.len() <= 40);
+        let message = wording::reworded(inner.message(), &field, written);
+        let mut e = SceneError::new(path, message.clone());
+        if let Some(span) = span {
             let (file, line) = source.locate(line_of(text, span.start));
-            e = SceneError::new(file, inner.message().to_string()).at_line(line);
+            e = SceneError::new(file, message).at_line(line);
         }
         if !field.is_empty() {
             e = e.field(field);
