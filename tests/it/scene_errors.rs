@@ -281,3 +281,23 @@ fn an_image_size_from_the_flags_alone_names_the_flags_not_the_scene() {
     );
     assert!(!dir.path().join("out.png").exists());
 }
+
+#[test]
+fn a_scene_without_a_light_warns_and_renders() {
+    let dir = tempfile::tempdir().unwrap();
+    let unlit: String = SCENE
+        .lines()
+        .filter(|l| !l.starts_with("[[light]]") && !l.starts_with("intensity"))
+        .filter(|l| *l != "position = [0, 5, 0]")
+        .map(|l| format!("{l}\n"))
+        .collect();
+    std::fs::write(dir.path().join("s.toml"), unlit).unwrap();
+    let out = retrace(&["render", "s.toml", "-o", "out.png"], dir.path());
+    assert!(out.status.success(), "{}", stderr(&out));
+    assert_eq!(
+        stderr(&out),
+        "warning: s.toml: no [[light]]: surfaces show only the ambient term \
+         (render.ambient = [0.1, 0.1, 0.1]), without highlights or shadows\n"
+    );
+    assert!(dir.path().join("out.png").exists());
+}

@@ -267,6 +267,31 @@ mod tests {
     }
 
     #[test]
+    fn paths_in_a_file_are_relative_to_its_own_folder() {
+        // top.toml includes sub/base.toml, which includes deeper/lights.toml
+        // and names the model m.obj: both beside base.toml, not top.toml.
+        let dir = tempfile::tempdir().unwrap();
+        let sub = dir.path().join("sub");
+        std::fs::create_dir_all(sub.join("deeper")).unwrap();
+        std::fs::write(
+            sub.join("base.toml"),
+            "include = \"deeper/lights.toml\"\n[camera]\nposition = [0, 1, 5]\nfov = 60\n\
+             [[object]]\ntype = \"mesh\"\nfile = \"m.obj\"\n",
+        )
+        .unwrap();
+        std::fs::write(
+            sub.join("deeper/lights.toml"),
+            "[[light]]\nposition = [0, 5, 0]\n",
+        )
+        .unwrap();
+        std::fs::write(sub.join("m.obj"), "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n").unwrap();
+        let top = dir.path().join("top.toml");
+        std::fs::write(&top, "include = \"sub/base.toml\"\n").unwrap();
+        let scene = load_scene(&top, &SceneOverrides::default()).unwrap();
+        assert_eq!((scene.lights.len(), scene.triangle_count()), (1, 1));
+    }
+
+    #[test]
     fn top_level_keys_after_an_include_stay_top_level() {
         let dir = tempfile::tempdir().unwrap();
         std::fs::write(

@@ -218,6 +218,16 @@ pub(crate) fn parse_scene(
     let mut lights = convert_lights(&ctx, &file.light)?;
 
     let mut warnings = Vec::new();
+    // Legal (an all-mirror or a flat-lit scene), but more often a light
+    // forgotten: the picture comes out dim, flat and shadowless.
+    if lights.is_empty() {
+        warnings.push(format!(
+            "{}: no [[light]]: surfaces show only the ambient term (render.ambient = {:?}), \
+             without highlights or shadows",
+            path.display(),
+            ambient.to_array()
+        ));
+    }
     let mut objects =
         convert_objects(&ctx, &file, &mut materials, default_material, &mut warnings)?;
 
@@ -283,6 +293,25 @@ mod tests {
         assert_eq!(scene.objects.len(), 1);
         assert_eq!(scene.materials[scene.objects[0].material].name, "red");
         assert_eq!(scene.camera.width, 640);
+    }
+
+    #[test]
+    fn a_scene_without_lights_warns_that_only_the_ambient_term_lights_it() {
+        let sphere = "[[object]]\ntype = \"sphere\"\ncenter = [0, 0, 0]\nradius = 1\n";
+        let scene = parse(&format!(
+            "{CAMERA}[render]\nambient = [0.2, 0.2, 0.2]\n{sphere}"
+        ))
+        .unwrap();
+        assert_eq!(
+            scene.warnings,
+            ["t.toml: no [[light]]: surfaces show only the ambient term \
+              (render.ambient = [0.2, 0.2, 0.2]), without highlights or shadows"]
+        );
+        let lit = parse(&format!(
+            "{CAMERA}[[light]]\nposition = [0, 5, 0]\n{sphere}"
+        ))
+        .unwrap();
+        assert_eq!(lit.warnings, Vec::<String>::new());
     }
 
     #[test]
