@@ -216,8 +216,7 @@ pub fn load_scene(path: &Path, overrides: &SceneOverrides) -> Result<Scene, Scen
     if is_mtl {
         return Err(material_library_given(path));
     }
-    let text = std::fs::read_to_string(path)
-        .map_err(|err| SceneError::new(path, format!("cannot read scene file: {err}")))?;
+    let text = file::read_text(path, file::MAX_SCENE_TEXT).map_err(|err| err.of_scene(path))?;
     parse_scene_str(&text, path, overrides)
 }
 

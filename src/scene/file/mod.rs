@@ -35,8 +35,8 @@ use crate::geometry::Placement;
 use animation::convert_animation;
 use camera::convert_camera;
 use defs::{RenderDef, SceneFile};
-pub(crate) use include::Files;
-use include::{assemble, line_of, Source};
+use include::{line_of, splice, Source};
+pub(crate) use include::{read_text, Files, MAX_SCENE_TEXT};
 use lights::convert_lights;
 use materials::convert_material;
 use objects::convert_objects;
@@ -160,7 +160,7 @@ pub(crate) fn parse_scene(
     files: Files,
     overrides: &SceneOverrides,
 ) -> Result<Scene, SceneError> {
-    let source = assemble(text, path, files, 0)?;
+    let source = splice(text, path, files)?;
     let text = source.text.as_str();
     let deserializer = toml::Deserializer::new(text);
     let file: SceneFile = serde_path_to_error::deserialize(deserializer).map_err(|err| {
