@@ -8,6 +8,7 @@ mod common;
 mod animate;
 mod cli;
 mod extremes;
+mod fuzz;
 mod layers;
 mod moving_spheres;
 mod ostc;
