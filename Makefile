@@ -48,7 +48,7 @@ test-deep: deps
 	RETRACE_DEEP=1 cargo test --release --test it
 
 # The loaders' fuzzing (tests/it/fuzz.rs) with fifty times its cases, from
-# a fresh seed each run (release build; about 5 minutes on 2 cores).
+# a fresh seed each run (release build; about 6 minutes on 2 cores).
 fuzz: deps
 	RETRACE_FUZZ=50 cargo test --release --test it -- fuzz::
 
