@@ -8,7 +8,7 @@
 DEBIAN_PACKAGES := libembree-dev libclang-dev pkg-config python3-pil
 RETRACE := ./target/release/retrace
 
-.PHONY: all deps build demo test test-deep lint test-embree4 bench clean
+.PHONY: all deps build demo test test-deep fuzz lint test-embree4 bench clean
 
 all: demo
 
@@ -47,6 +47,11 @@ test: lint
 # The property tests with sixteen times their cases (release build).
 test-deep: deps
 	RETRACE_DEEP=1 cargo test --release --test it
+
+# The loaders' fuzzing (tests/it/fuzz.rs) with fifty times its cases, from
+# a fresh seed each run (release build; about 6 minutes on 2 cores).
+fuzz: deps
+	RETRACE_FUZZ=50 cargo test --release --test it -- fuzz::
 
 # The whole suite against Embree 4 (Debian 13) in a chroot; see .ci/embree4.sh.
 test-embree4:

@@ -209,12 +209,47 @@ fn scene_name(args: &SceneArgs) -> String {
         })
 }
 
+/// Makes the folder `path` is written into.
 fn ensure_parent(path: &Path) -> Result<()> {
     if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
-        std::fs::create_dir_all(dir)
-            .with_context(|| format!("cannot create output folder {}", dir.display()))?;
+        make_folder(dir, path.file_name().map(Path::new))?;
     }
     Ok(())
+}
+
+/// Fails, before any work, if a file stands where a folder of `path`
+/// would have to be made; makes nothing.
+fn check_parent(path: &Path) -> Result<()> {
+    match path.parent().and_then(file_in_the_way) {
+        Some(blocker) => Err(in_the_way(blocker, path.file_name().map(Path::new))),
+        None => Ok(()),
+    }
+}
+
+/// Makes the folder `dir` and its parents, for the output `file` if one
+/// is known. A file where a folder should be is named: the system's own
+/// words ("File exists") name neither it nor the problem.
+fn make_folder(dir: &Path, file: Option<&Path>) -> Result<()> {
+    std::fs::create_dir_all(dir).map_err(|err| match file_in_the_way(dir) {
+        Some(blocker) => in_the_way(blocker, file),
+        None => anyhow::Error::new(err)
+            .context(format!("cannot create output folder {}", dir.display())),
+    })
+}
+
+/// The folder of `dir`, or of its parents, that is a file instead.
+fn file_in_the_way(dir: &Path) -> Option<&Path> {
+    dir.ancestors()
+        .filter(|a| !a.as_os_str().is_empty())
+        .find(|a| a.exists() && !a.is_dir())
+}
+
+fn in_the_way(blocker: &Path, file: Option<&Path>) -> anyhow::Error {
+    let for_file = file.map_or(String::new(), |f| format!(" for {}", f.display()));
+    anyhow::anyhow!(
+        "cannot make the folder {}{for_file}: a file of that name is in the way",
+        blocker.display()
+    )
 }
 
 /// `A-B` or `A`, within `0..count`.
@@ -309,8 +344,7 @@ fn folder_of(path: &Path) -> PathBuf {
 
 /// Fails early, before any rendering, if `dir` cannot take new files.
 fn check_writable(dir: &Path) -> Result<()> {
-    std::fs::create_dir_all(dir)
-        .with_context(|| format!("cannot create output folder {}", dir.display()))?;
+    make_folder(dir, None)?;
     let probe = dir.join(format!(".retrace-probe-{}", std::process::id()));
     std::fs::write(&probe, b"")
         .with_context(|| format!("cannot write into output folder {}", dir.display()))?;

@@ -9,7 +9,7 @@ use clap::Args;
 use retrace::output::save_image;
 use retrace::render::render_frame;
 
-use super::{ensure_parent, load, scene_name, BackendArg, SceneArgs};
+use super::{check_parent, ensure_parent, load, scene_name, BackendArg, SceneArgs};
 
 #[derive(Args)]
 pub(crate) struct RenderArgs {
@@ -29,6 +29,7 @@ pub(crate) struct RenderArgs {
 pub(crate) fn render(args: RenderArgs) -> Result<()> {
     // Check the output name before any work: a typo should not cost a render.
     retrace::output::format_for(&args.output)?;
+    check_parent(&args.output)?;
     let scene = load(&args.scene)?;
     let names: Vec<&str> = scene
         .viewports

@@ -146,6 +146,8 @@ impl Scene {
 /// field when known.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub struct SceneError {
+    /// Empty when only values the command line gave are at fault: then
+    /// `field` names those flags (see [`SceneError::of_flags`]).
     pub file: PathBuf,
     pub line: Option<usize>,
     pub field: Option<String>,
@@ -154,14 +156,16 @@ pub struct SceneError {
 
 impl std::fmt::Display for SceneError {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(f, "{}", self.file.display())?;
-        if let Some(line) = self.line {
-            write!(f, ":{line}")?;
+        let mut parts = Vec::new();
+        if !self.file.as_os_str().is_empty() {
+            match self.line {
+                Some(line) => parts.push(format!("{}:{line}", self.file.display())),
+                None => parts.push(self.file.display().to_string()),
+            }
         }
-        if let Some(field) = &self.field {
-            write!(f, ": {field}")?;
-        }
-        write!(f, ": {}", self.message)
+        parts.extend(self.field.clone());
+        parts.push(self.message.clone());
+        write!(f, "{}", parts.join(": "))
     }
 }
 
@@ -171,6 +175,17 @@ impl SceneError {
             file: file.to_path_buf(),
             line: None,
             field: None,
+            message: message.into(),
+        }
+    }
+
+    /// An error of the command line's values alone, `flags` as given
+    /// (`--width 0`): no file is to blame.
+    pub fn of_flags(flags: impl Into<String>, message: impl Into<String>) -> SceneError {
+        SceneError {
+            file: PathBuf::new(),
+            line: None,
+            field: Some(flags.into()),
             message: message.into(),
         }
     }
@@ -195,9 +210,69 @@ pub fn load_scene(path: &Path, overrides: &SceneOverrides) -> Result<Scene, Scen
     if is_obj {
         return obj::scene_around_obj(path, overrides);
     }
-    let text = std::fs::read_to_string(path)
-        .map_err(|err| SceneError::new(path, format!("cannot read scene file: {err}")))?;
+    let is_mtl = path
+        .extension()
+        .is_some_and(|ext| ext.eq_ignore_ascii_case("mtl"));
+    if is_mtl {
+        return Err(material_library_given(path));
+    }
+    let text = file::read_text(path, file::MAX_SCENE_TEXT).map_err(|err| err.of_scene(path))?;
     parse_scene_str(&text, path, overrides)
+}
+
+/// The error for an `.mtl` given where a scene belongs: read as TOML it
+/// fails on its first line, which blames the wrong thing. Names the model
+/// beside it that uses the library, when there is one.
+fn material_library_given(path: &Path) -> SceneError {
+    let user = models_using(path);
+    let what = if user.is_empty() {
+        "the .obj model that names it in a `mtllib` line".to_string()
+    } else {
+        user.iter()
+            .map(|p| p.display().to_string())
+            .collect::<Vec<_>>()
+            .join(" or ")
+    };
+    SceneError::new(
+        path,
+        format!("this is a material library (MTL), not a scene: render {what}, which uses it"),
+    )
+}
+
+/// The `.obj` files in `mtl`'s folder whose `mtllib` lines name it, as
+/// paths beside `mtl`'s own.
+fn models_using(mtl: &Path) -> Vec<PathBuf> {
+    use std::io::BufRead;
+    let Some(name) = mtl.file_name() else {
+        return Vec::new();
+    };
+    let folder = mtl.parent().unwrap_or(Path::new(""));
+    let listed = if folder.as_os_str().is_empty() {
+        Path::new(".")
+    } else {
+        folder
+    };
+    let Ok(entries) = std::fs::read_dir(listed) else {
+        return Vec::new();
+    };
+    let mut models: Vec<PathBuf> = entries
+        .filter_map(|entry| Some(folder.join(entry.ok()?.file_name())))
+        .filter(|p| {
+            p.extension().is_some_and(|e| e.eq_ignore_ascii_case("obj"))
+                && std::fs::File::open(p).is_ok_and(|file| {
+                    std::io::BufReader::new(file)
+                        .lines()
+                        .map_while(Result::ok)
+                        .filter_map(|line| line.trim().strip_prefix("mtllib ").map(str::to_owned))
+                        .any(|libs| {
+                            libs.split_whitespace()
+                                .any(|lib| Path::new(lib).file_name() == Some(name))
+                        })
+                })
+        })
+        .collect();
+    models.sort();
+    models
 }
 
 /// The built-in paper scene.

@@ -317,7 +317,7 @@ fn animate_rejects_bad_input_cleanly() {
                 "--stats",
                 "pan.toml/s.csv",
             ],
-            "cannot create output folder pan.toml",
+            "cannot make the folder pan.toml: a file of that name is in the way",
         ),
     ];
     for (args, needle) in cases {
@@ -330,13 +330,13 @@ fn animate_rejects_bad_input_cleanly() {
                 || std::fs::read_dir(dir.path().join("out")).unwrap().count() == 0
         );
     }
-    // Keyframes out of order: the file and line of the offending key.
+    // Keyframes out of order: the file and line of the offending frame.
     let dir = pan_case(&key(3, "yaw = 10.0"));
     let out = retrace(&["animate", "pan.toml", "-o", "out/f_#.png"], dir.path());
     assert_eq!(out.status.code(), Some(1));
     let err = stderr(&out);
     assert!(
-        err.contains("pan.toml:12")
+        err.contains("pan.toml:13")
             && err.contains("animation.camera[2].frame")
             && err.contains("increasing"),
         "{err}"

@@ -174,7 +174,7 @@ fn obj_that_does_not_parse_names_file_and_line() {
     let case = Case::new(&[("s.toml", &scene)]);
     case.assert_fails(
         &case.render("s.toml", &[]),
-        &["s.toml:5: object[0].file", "bad.obj: no such model file"],
+        &["s.toml:7: object[0].file", "bad.obj: no such model file"],
     );
 }
 
@@ -188,7 +188,7 @@ fn nan_and_inf_coordinates() {
     )]);
     case.assert_fails(
         &case.render("s.toml", &[]),
-        &["s.toml:5", "object[0].center", "finite"],
+        &["s.toml:7", "object[0].center", "finite"],
     );
 }
 
@@ -255,12 +255,12 @@ fn image_size_zero_or_absurd() {
     let case = Case::new(&[("s.toml", CAMERA)]);
     case.assert_fails(
         &case.render("s.toml", &["--width", "0"]),
-        &["--width/--height", "at least 1"],
+        &["error: --width 0: image size 0x24", "at least 1"],
     );
-    // The file's own size keeps its table's name.
+    // The file's own size keeps its field's name and line.
     let case = Case::new(&[("s.toml", &format!("[render]\nwidth = 0\n{CAMERA}"))]);
     let out = retrace(&["render", "s.toml", "-o", "out.png"], case.dir.path());
-    case.assert_fails(&out, &["s.toml:", "render.width/height", "at least 1"]);
+    case.assert_fails(&out, &["s.toml:2: render.width", "at least 1"]);
     let out = case.render("s.toml", &["--width", "1000000", "--height", "1000000"]);
     case.assert_fails(&out, &["too large"]);
 }

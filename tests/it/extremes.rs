@@ -127,7 +127,7 @@ on_every_backend! {
             ..SceneOverrides::default()
         })
         .unwrap_err();
-        assert_eq!(err.field.as_deref(), Some("--fov"));
+        assert_eq!(err.field.as_deref(), Some("--fov 180"));
     }
 
     closed_mesh_is_watertight(backend) {

@@ -237,37 +237,38 @@ fn first_extra_line() -> usize {
 fn bad_viewports_name_file_line_and_field() {
     let line = first_extra_line();
     let view = |fields: &str| format!("[[viewport]]\nname = \"v\"\n{fields}\n");
+    // Each error names the line of its value, `line` + 2 onwards.
     let e = scene_error(&view("width = 0\nheight = 10"));
-    assert_names(&e, line, "viewport[0].width");
+    assert_names(&e, line + 2, "viewport[0].width");
     let e = scene_error(&view("width = 10\nheight = -4"));
-    assert_names(&e, line, "viewport[0].height");
+    assert_names(&e, line + 3, "viewport[0].height");
     let e = scene_error(&view("width = 10\nheight = 10\nzoom = 0.0"));
-    assert_names(&e, line, "viewport[0].zoom");
+    assert_names(&e, line + 4, "viewport[0].zoom");
     assert!(e.contains("1/1000..1000"), "{e}");
     let e = scene_error(&view("width = 10\nheight = 10\nzoom = 1500.0"));
-    assert_names(&e, line, "viewport[0].zoom");
+    assert_names(&e, line + 4, "viewport[0].zoom");
     let e = scene_error(&view("width = 10\nheight = 10\nshear = [2.0, 0.5]"));
-    assert_names(&e, line, "viewport[0].shear");
+    assert_names(&e, line + 4, "viewport[0].shear");
     assert!(e.contains("singular"), "{e}");
     // The paper camera looks 9 degrees down: 85 more is beyond -90.
     let e = scene_error(&view("width = 10\nheight = 10\npitch = -85.0"));
-    assert_names(&e, line, "viewport[0].pitch");
+    assert_names(&e, line + 4, "viewport[0].pitch");
     let e = scene_error(&view(
         "width = 10\nheight = 10\nprojection = \"perspective\"\nfov = 180.0",
     ));
-    assert_names(&e, line, "viewport[0].fov");
-    // Keyframes: their own line, the viewport named.
+    assert_names(&e, line + 5, "viewport[0].fov");
+    // Keyframes: their value's line, the viewport named.
     let keys = format!(
         "{}[animation]\nframes = 10\n[[animation.viewport]]\nframe = 0\nviewport = \"v\"\nzoom = 0.0001\n",
         view("width = 10\nheight = 10")
     );
     let e = scene_error(&keys);
-    assert_names(&e, line + 6, "animation.viewport[0] (viewport 'v').zoom");
+    assert_names(&e, line + 9, "animation.viewport[0] (viewport 'v').zoom");
     let e = scene_error(&keys.replace("viewport = \"v\"", "viewport = \"w\""));
-    assert_names(&e, line + 6, "animation.viewport[0].viewport");
+    assert_names(&e, line + 8, "animation.viewport[0].viewport");
     assert!(e.contains("defined: v"), "{e}");
     let e = scene_error(&keys.replace("zoom = 0.0001", "shear = [1.0, 1.0]"));
-    assert_names(&e, line + 6, "animation.viewport[0] (viewport 'v').shear");
+    assert_names(&e, line + 9, "animation.viewport[0] (viewport 'v').shear");
     // An equal-angle viewport moved, turned or zoomed out past a pole: its
     // transform, statically or keyed (RSVP clamped to the pole row while
     // its own rays went over it).

@@ -1,17 +1,18 @@
 //! The `[camera]` table, and the image size of `[render]`, as a validated
 //! [`Camera`], with the command line's overrides applied.
 //!
-//! Promises: the camera returned passed [`Camera::validate`]; a value the
-//! command line gave is blamed on its flag, a value of the file on the
-//! line of `[camera]` (the image size on `[render]`'s, when the file has
-//! one).
+//! Promises: the camera returned passed [`Camera::validate`]; an error is
+//! blamed on the command line's flags, named with their values, when they
+//! alone gave the values at fault, else on the file's field at fault, at
+//! the line it was written on (a value left out: the line of its table,
+//! `[render]` for the image size, or `[camera]`).
 
 use glam::DVec3;
 use toml::Spanned;
 
 use super::defs::{CameraDef, RenderDef};
 use super::{Ctx, SceneOverrides};
-use crate::camera::{yaw_pitch_toward, Camera};
+use crate::camera::{yaw_pitch_toward, Camera, CameraError, MAX_IMAGE_SIDE};
 use crate::scene::SceneError;
 
 /// The camera of `def`, its image sized by `render` (the [render] table at
@@ -65,58 +66,98 @@ pub(super) fn convert_camera(
         width: overrides.width.unwrap_or(render.width),
         height: overrides.height.unwrap_or(render.height),
     };
-    camera.validate().map_err(|err| {
-        use crate::camera::CameraError;
-        // A value from the command line is named by its flag: the file's
-        // line did not cause it.
-        let (field, flag) = match err {
-            CameraError::EmptyImage { .. } | CameraError::ImageTooLarge { .. } => (
-                "render.width/height",
-                (overrides.width.is_some() || overrides.height.is_some())
-                    .then(|| "--width/--height".to_string()),
-            ),
-            CameraError::FieldOfView { .. } => (
-                "camera.fov",
-                overrides.fov.is_some().then(|| "--fov".to_string()),
-            ),
-            // The field of view over the width.
-            CameraError::TooFine { .. } => (
-                "camera.fov",
-                (overrides.fov.is_some() || overrides.width.is_some())
-                    .then(|| "--fov/--width".to_string()),
-            ),
-            // The pitch, field of view, projection and height together.
-            CameraError::ElevationOutOfRange { .. } => {
-                let given: Vec<&str> = [
-                    (overrides.projection.is_some(), "--camera"),
-                    (overrides.fov.is_some(), "--fov"),
-                    (overrides.height.is_some(), "--height"),
-                ]
-                .into_iter()
-                .filter_map(|(given, flag)| given.then_some(flag))
-                .collect();
-                (
-                    "camera.pitch",
-                    (!given.is_empty()).then(|| format!("camera.pitch with {}", given.join(", "))),
-                )
-            }
-            CameraError::NotFinite { field, .. } | CameraError::TooFar { field, .. } => {
-                (field, None)
-            }
-        };
-        // The image size is the [render] table's, if there is one.
-        let span = match (&err, &render_span) {
-            (CameraError::EmptyImage { .. } | CameraError::ImageTooLarge { .. }, Some(span)) => {
-                span.clone()
-            }
-            _ => def.span(),
-        };
-        match flag {
-            Some(flag) => SceneError::new(ctx.file_of(def.span()), err.to_string()).field(flag),
-            None => ctx.error(span, field, err.to_string()),
-        }
-    })?;
+    camera
+        .validate()
+        .map_err(|err| camera_error(ctx, def, render_span, overrides, err))?;
     Ok(camera)
+}
+
+/// `err` of the camera of `def`, blamed on what gave the values at fault:
+/// the command line's flags, named with their values (`--width 0`), when
+/// they alone did; else the file, at the line of the field (with the flags
+/// that played a part: `camera.pitch with --fov 170`).
+fn camera_error(
+    ctx: &Ctx,
+    def: &Spanned<CameraDef>,
+    render_span: Option<std::ops::Range<usize>>,
+    overrides: &SceneOverrides,
+    err: CameraError,
+) -> SceneError {
+    let flag_of = |name: &str| -> Option<String> {
+        let value = match name {
+            "--width" => overrides.width.map(|v| v.to_string()),
+            "--height" => overrides.height.map(|v| v.to_string()),
+            "--camera" => overrides.projection.map(|v| v.to_string()),
+            "--fov" => overrides.fov.map(|v| v.to_string()),
+            // A value only the file gives.
+            _ => None,
+        };
+        value.map(|value| format!("{name} {value}"))
+    };
+    // The values at fault: (the file's field, the flag that replaces it).
+    let culprits: Vec<(&str, &str)> = match &err {
+        CameraError::EmptyImage { width, height }
+        | CameraError::ImageTooLarge { width, height, .. } => {
+            let bad = |side: u32| match err {
+                CameraError::EmptyImage { .. } => side == 0,
+                _ => side > MAX_IMAGE_SIDE,
+            };
+            let sides = [
+                (bad(*width), ("render.width", "--width")),
+                (bad(*height), ("render.height", "--height")),
+            ];
+            let mut at_fault: Vec<_> = sides.iter().filter(|s| s.0).map(|s| s.1).collect();
+            // Sides each within the limit, too many pixels together.
+            if at_fault.is_empty() {
+                at_fault = sides.iter().map(|s| s.1).collect();
+            }
+            at_fault
+        }
+        CameraError::FieldOfView { .. } => vec![("camera.fov", "--fov")],
+        // The field of view over the width.
+        CameraError::TooFine { .. } => vec![("camera.fov", "--fov"), ("render.width", "--width")],
+        // The pitch with the projection, field of view and height.
+        CameraError::ElevationOutOfRange { .. } => vec![
+            ("camera.pitch", ""),
+            ("camera.projection", "--camera"),
+            ("camera.fov", "--fov"),
+            ("render.height", "--height"),
+        ],
+        CameraError::NotFinite { field, .. } | CameraError::TooFar { field, .. } => {
+            vec![(*field, "")]
+        }
+    };
+    let flags: Vec<String> = culprits.iter().filter_map(|(_, f)| flag_of(f)).collect();
+    let from_file: Vec<&str> = culprits
+        .iter()
+        .filter(|(_, f)| flag_of(f).is_none())
+        .map(|(field, _)| *field)
+        .collect();
+    let message = err.to_string();
+    // A field of view too fine for the width is the flag's doing when the
+    // command line gave either.
+    let flags_alone =
+        from_file.is_empty() || matches!(err, CameraError::TooFine { .. }) && !flags.is_empty();
+    if flags_alone {
+        return SceneError::of_flags(flags.join(" "), message);
+    }
+    // The file's part, at the line of its first value at fault (found
+    // from the table it sits in: the image size's is [render], when the
+    // file has one).
+    let at = from_file[0];
+    let table = match render_span {
+        Some(span) if at.starts_with("render.") => span,
+        _ => def.span(),
+    };
+    let mut named = if from_file.len() > 1 && at.starts_with("render.") {
+        "render.width/height".to_string()
+    } else {
+        at.to_string()
+    };
+    if !flags.is_empty() {
+        named = format!("{named} with {}", flags.join(", "));
+    }
+    ctx.error_at(table, at, named, message)
 }
 
 #[cfg(test)]
@@ -125,7 +166,11 @@ mod tests {
 
     use crate::camera::Projection;
     use crate::scene::file::testing::{parse, CAMERA};
-    use crate::scene::{parse_scene_str, SceneOverrides};
+    use crate::scene::{parse_scene_str, SceneError, SceneOverrides};
+
+    fn with(text: &str, overrides: SceneOverrides) -> SceneError {
+        parse_scene_str(text, Path::new("t.toml"), &overrides).unwrap_err()
+    }
 
     #[test]
     fn a_pixel_finer_than_the_lattices_count_is_refused() {
@@ -134,7 +179,7 @@ mod tests {
         let err = parse("[camera]\nposition = [0, 1, 5]\nfov = 1e-14\n").unwrap_err();
         assert_eq!(
             (err.line, err.field.as_deref()),
-            (Some(1), Some("camera.fov")),
+            (Some(3), Some("camera.fov")),
             "{err}"
         );
         assert!(
@@ -145,49 +190,86 @@ mod tests {
             fov: Some(1e-5),
             ..SceneOverrides::default()
         };
-        let err = parse_scene_str(CAMERA, Path::new("t.toml"), &overrides).unwrap_err();
-        assert_eq!(err.field.as_deref(), Some("--fov/--width"), "{err}");
+        assert_eq!(
+            with(CAMERA, overrides).field.as_deref(),
+            Some("--fov 0.00001")
+        );
         // DESIGN's extreme: 0.01 degrees over 640 pixels.
         parse("[camera]\nposition = [0, 1, 5]\nfov = 0.01\n").unwrap();
     }
 
     #[test]
-    fn bad_command_line_overrides_name_their_flag() {
-        let text = CAMERA;
-        let overrides = SceneOverrides {
-            fov: Some(500.0),
-            ..SceneOverrides::default()
-        };
-        let err = parse_scene_str(text, Path::new("t.toml"), &overrides).unwrap_err();
-        assert_eq!(
-            (err.field.as_deref(), err.line),
-            (Some("--fov"), None),
-            "{err}"
+    fn bad_command_line_overrides_name_their_flags_and_values_not_the_file() {
+        let err = with(
+            CAMERA,
+            SceneOverrides {
+                fov: Some(500.0),
+                ..SceneOverrides::default()
+            },
         );
-        assert!(err.message.contains("field of view 500 degrees"), "{err}");
+        assert_eq!(
+            err.to_string(),
+            "--fov 500: field of view 500 degrees: must be a number above 0 and below 180 \
+             for perspective"
+        );
+        assert_eq!(err.line, None);
+        let err = with(
+            CAMERA,
+            SceneOverrides {
+                width: Some(100_000),
+                height: Some(100_000),
+                ..SceneOverrides::default()
+            },
+        );
+        assert_eq!(
+            err.to_string(),
+            "--width 100000 --height 100000: image size 100000x100000 is too large \
+             (at most 32768 pixels per side and 268435456 pixels in all)"
+        );
+        // Only the flag at fault: the height of 10 is fine.
         let overrides = SceneOverrides {
             width: Some(0),
+            height: Some(10),
             ..SceneOverrides::default()
         };
-        let err = parse_scene_str(text, Path::new("t.toml"), &overrides).unwrap_err();
-        assert_eq!(err.field.as_deref(), Some("--width/--height"), "{err}");
+        assert_eq!(with(CAMERA, overrides).field.as_deref(), Some("--width 0"));
+        // A width of 0 in the file is the file's, whatever the flags say.
+        let sized = format!("[render]\nwidth = 0\n{CAMERA}");
+        let overrides = SceneOverrides {
+            height: Some(10),
+            ..SceneOverrides::default()
+        };
+        let err = with(&sized, overrides);
+        assert_eq!(
+            (err.line, err.field.as_deref()),
+            (Some(2), Some("render.width")),
+            "{err}"
+        );
+        // The file's pitch with the flags' projection and field of view.
         let overrides = SceneOverrides {
             projection: Some(Projection::EqualAngle),
             fov: Some(360.0),
             ..SceneOverrides::default()
         };
-        let err = parse_scene_str(text, Path::new("t.toml"), &overrides).unwrap_err();
+        let err = with(text_with_pitch(), overrides);
         assert_eq!(
-            err.field.as_deref(),
-            Some("camera.pitch with --camera, --fov"),
+            (err.line, err.field.as_deref()),
+            (
+                Some(4),
+                Some("camera.pitch with --camera equal-angle, --fov 360")
+            ),
             "{err}"
         );
         // The file's own bad value keeps its line.
         let err = parse("[camera]\nposition = [0, 1, 5]\nfov = 500\n").unwrap_err();
         assert_eq!(
             (err.field.as_deref(), err.line),
-            (Some("camera.fov"), Some(1)),
+            (Some("camera.fov"), Some(3)),
             "{err}"
         );
+    }
+
+    fn text_with_pitch() -> &'static str {
+        "[camera]\nposition = [0, 1, 5]\nfov = 60\npitch = 10\n"
     }
 }

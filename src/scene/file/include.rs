@@ -5,11 +5,73 @@
 //! Promises: the spliced text parses as the scene the user meant (the
 //! including file's tables replace the included ones of the same name, its
 //! arrays of tables add to them), and [`Source::locate`] names the file and
-//! line a user can open, whichever file a value came from.
+//! line a user can open, whichever file a value came from. A scene holds
+//! each file once (a cycle or a repeat is refused at its `include` line)
+//! and at most [`MAX_SCENE_TEXT`] bytes of text in all, so what splicing
+//! reads and keeps is bounded by the files themselves.
 
-use std::path::Path;
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
 
 use crate::scene::{SceneError, BUILTIN_SCENES};
+
+/// Most text a scene may hold, with everything it includes. toml keeps
+/// every value with its text and spacing, up to some 150 bytes for each
+/// byte of a file (a megabyte of dotted keys took 150 MB), so this bounds
+/// what a scene file makes the loader hold to some 600 MB. Geometry that
+/// would need more belongs in OBJ files.
+pub const MAX_SCENE_TEXT: usize = 4 << 20;
+
+/// Why a scene file could not be read as text.
+pub(crate) enum ReadError {
+    Io(std::io::Error),
+    /// Longer than the bytes the scene had left of [`MAX_SCENE_TEXT`].
+    TooLong,
+    /// This line holds a byte that is not UTF-8.
+    NotText {
+        line: usize,
+    },
+}
+
+impl ReadError {
+    /// The error of the scene file `path` that could not be read.
+    pub(crate) fn of_scene(self, path: &Path) -> SceneError {
+        match self {
+            ReadError::Io(err) => SceneError::new(path, format!("cannot read scene file: {err}")),
+            ReadError::TooLong => SceneError::new(path, too_long()),
+            ReadError::NotText { line } => SceneError::new(path, NOT_TEXT).at_line(line),
+        }
+    }
+}
+
+fn too_long() -> String {
+    format!(
+        "the scene, with its includes, holds more than {} MiB of text \
+         (put large geometry in OBJ files)",
+        MAX_SCENE_TEXT >> 20
+    )
+}
+
+const NOT_TEXT: &str = "not text: this line holds a byte that is not UTF-8";
+
+/// The text of the file `path`, if it holds at most `limit` bytes (a
+/// special file such as `/dev/zero` is cut off there, not read forever).
+pub(crate) fn read_text(path: &Path, limit: usize) -> Result<String, ReadError> {
+    use std::io::Read;
+    let mut bytes = Vec::new();
+    std::fs::File::open(path)
+        .and_then(|file| file.take(limit as u64 + 1).read_to_end(&mut bytes))
+        .map_err(ReadError::Io)?;
+    if bytes.len() > limit {
+        return Err(ReadError::TooLong);
+    }
+    String::from_utf8(bytes).map_err(|err| {
+        let valid = &err.as_bytes()[..err.utf8_error().valid_up_to()];
+        ReadError::NotText {
+            line: valid.iter().filter(|&&b| b == b'\n').count() + 1,
+        }
+    })
+}
 
 /// Where a scene file's includes are read from.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -22,22 +84,36 @@ pub(crate) enum Files {
 }
 
 impl Files {
-    fn read(self, path: &Path) -> std::io::Result<String> {
+    /// The text of `path`, at most `limit` bytes.
+    fn read(self, path: &Path, limit: usize) -> Result<String, ReadError> {
         match self {
-            Files::Disk => std::fs::read_to_string(path),
+            Files::Disk => read_text(path, limit),
             Files::BuiltIn => {
                 let name = path.file_name().and_then(|n| n.to_str());
-                BUILTIN_SCENES
+                let text = BUILTIN_SCENES
                     .iter()
                     .find(|(file, _)| Some(*file) == name)
                     .map(|(_, text)| text.to_string())
                     .ok_or_else(|| {
-                        std::io::Error::new(
+                        ReadError::Io(std::io::Error::new(
                             std::io::ErrorKind::NotFound,
                             "not one of the scene files built into retrace",
-                        )
-                    })
+                        ))
+                    })?;
+                if text.len() > limit {
+                    return Err(ReadError::TooLong);
+                }
+                Ok(text)
             }
+        }
+    }
+
+    /// What names the file `path` whatever the path says: two paths to one
+    /// file on disk (`a.toml`, `./a.toml`, a link) are one file.
+    fn identity(self, path: &Path) -> PathBuf {
+        match self {
+            Files::Disk => std::fs::canonicalize(path).unwrap_or_else(|_| path.to_path_buf()),
+            Files::BuiltIn => path.file_name().map_or_else(PathBuf::new, PathBuf::from),
         }
     }
 }
@@ -51,16 +127,18 @@ pub(super) fn line_of(text: &str, offset: usize) -> usize {
         + 1
 }
 
-/// How deep `include` may nest (a cycle hits this).
+/// How deep `include` may nest.
 const MAX_INCLUDE_DEPTH: usize = 8;
 
 /// A scene's text with its includes spliced in before it, and where each
 /// line came from, so errors name the file and line the user wrote.
 pub(super) struct Source {
     pub(super) text: String,
+    /// Lines `text` holds, as [`line_of`] counts them at its end, less one.
+    lines: usize,
     /// Runs of lines, in order: (file, first line in `text`, number of
     /// lines, the file's line number of the first).
-    pieces: Vec<(std::path::PathBuf, usize, usize, usize)>,
+    pieces: Vec<(PathBuf, usize, usize, usize)>,
 }
 
 impl Source {
@@ -75,18 +153,28 @@ impl Source {
         (file, line.saturating_sub(*first) + first_line)
     }
 
+    fn new() -> Source {
+        Source {
+            text: String::new(),
+            lines: 0,
+            pieces: Vec::new(),
+        }
+    }
+
     /// Appends `text`, lines `first_line..` of `file`.
     fn push(&mut self, file: &Path, text: &str, first_line: usize) {
-        let first = line_of(&self.text, self.text.len());
+        let first = self.lines + 1;
         self.text.push_str(text);
+        self.lines += text.bytes().filter(|&b| b == b'\n').count();
         self.pieces
             .push((file.to_path_buf(), first, text.lines().count(), first_line));
     }
 
     /// Appends another source, its lines mapped as they were.
     fn append(&mut self, other: Source) {
-        let offset = line_of(&self.text, self.text.len()) - 1;
+        let offset = self.lines;
         self.text.push_str(&other.text);
+        self.lines += other.lines;
         self.pieces.extend(
             other
                 .pieces
@@ -96,21 +184,39 @@ impl Source {
     }
 }
 
+/// What splicing one scene's files shares.
+pub(super) struct Splice {
+    files: Files,
+    /// The files being read, outermost first: one included again is a
+    /// cycle.
+    chain: Vec<PathBuf>,
+    /// Every file spliced so far, to the file and line that included it.
+    seen: HashMap<PathBuf, (PathBuf, usize)>,
+    /// Bytes the scene may still read of [`MAX_SCENE_TEXT`].
+    left: usize,
+}
+
+/// The scene file `path`, of `text`, with its includes spliced in.
+pub(super) fn splice(text: &str, path: &Path, files: Files) -> Result<Source, SceneError> {
+    let left = MAX_SCENE_TEXT
+        .checked_sub(text.len())
+        .ok_or_else(|| SceneError::new(path, too_long()))?;
+    let mut splice = Splice {
+        files,
+        chain: vec![files.identity(path)],
+        seen: HashMap::new(),
+        left,
+    };
+    assemble(text, path, &mut splice)
+}
+
 /// Splices `include = "other.toml"` lines (top-level, before any table):
 /// this file's own top-level keys come first, then the included scene, then
 /// this file's tables, which add to it (or replace its tables of the same
 /// name). The keys stay top-level: after the included text they would
 /// fall into its last table.
-pub(super) fn assemble(
-    text: &str,
-    path: &Path,
-    files: Files,
-    depth: usize,
-) -> Result<Source, SceneError> {
-    let mut included = Source {
-        text: String::new(),
-        pieces: Vec::new(),
-    };
+fn assemble(text: &str, path: &Path, splice: &mut Splice) -> Result<Source, SceneError> {
+    let mut included = Source::new();
     let (mut preamble, mut tables) = (String::new(), String::with_capacity(text.len()));
     let mut preamble_lines = 0;
     let mut in_tables = false;
@@ -142,36 +248,61 @@ pub(super) fn assemble(
             .ok()
             .and_then(|v| v.get("v").and_then(|v| v.as_str()).map(str::to_string))
             .ok_or_else(|| located(format!("expected a quoted file name, got {value}")))?;
-        if depth >= MAX_INCLUDE_DEPTH {
+        let other = path.parent().unwrap_or(Path::new(".")).join(&name);
+        let identity = splice.files.identity(&other);
+        if splice.chain.last() == Some(&identity) {
+            return Err(located("a file cannot include itself".into()));
+        }
+        if splice.chain.contains(&identity) {
             return Err(located(format!(
-                "includes nest deeper than {MAX_INCLUDE_DEPTH} (a cycle?)"
+                "{name} includes this file: an include cycle"
             )));
         }
-        let other = path.parent().unwrap_or(Path::new(".")).join(&name);
-        let other_text = files.read(&other).map_err(|err| {
-            located(format!(
-                "cannot read included file {}: {err}",
-                other.display()
-            ))
-        })?;
-        included.append(assemble(&other_text, &other, files, depth + 1)?);
+        if let Some((by, line)) = splice.seen.get(&identity) {
+            return Err(located(format!(
+                "{name} is included already, at {}:{line} (a scene holds each file once)",
+                by.display()
+            )));
+        }
+        if splice.chain.len() > MAX_INCLUDE_DEPTH {
+            return Err(located(format!(
+                "includes nest deeper than {MAX_INCLUDE_DEPTH}"
+            )));
+        }
+        let other_text = splice
+            .files
+            .read(&other, splice.left)
+            .map_err(|err| match err {
+                ReadError::Io(err) => located(format!(
+                    "cannot read included file {}: {err}",
+                    other.display()
+                )),
+                ReadError::TooLong => located(too_long()),
+                ReadError::NotText { line } => SceneError::new(&other, NOT_TEXT).at_line(line),
+            })?;
+        splice.left -= other_text.len();
+        splice
+            .seen
+            .insert(identity.clone(), (path.to_path_buf(), number + 1));
+        splice.chain.push(identity);
+        included.append(assemble(&other_text, &other, splice)?);
+        splice.chain.pop();
         // Keeps this file's line numbers.
         own.push_str("# (include)\n");
     }
     // The tables this file defines again, by header or by a top-level key
     // (`render = { width = 32 }`), replace the included ones.
-    let mut overridden: Vec<String> = tables
+    let mut overridden = TableNames::default();
+    let redefined = tables
         .lines()
         .filter_map(table_header)
         .filter(|(_, array)| !array)
-        .map(|(name, _)| name)
-        .collect();
-    overridden.extend(preamble.lines().filter_map(top_level_key));
+        .map(|(name, _)| name);
+    for name in redefined.chain(preamble.lines().filter_map(top_level_key)) {
+        overridden.insert(&name);
+    }
     included.text = without_overridden(&included.text, &overridden);
-    let mut source = Source {
-        text: String::new(),
-        pieces: Vec::new(),
-    };
+    let mut source = Source::new();
     source.push(path, &preamble, 1);
     source.append(included);
     source.push(path, &tables, preamble_lines + 1);
@@ -211,10 +342,59 @@ fn top_level_key(line: &str) -> Option<String> {
     (bare && key != "include").then(|| key.to_string())
 }
 
+/// Table names (`a.b.c`) as a tree of their dotted parts, flat so that
+/// neither a name of a million parts nor its removal recurses, and a look
+/// up walks a name's parts once.
+#[derive(Default)]
+struct TableNames {
+    /// (parent node, part) to node; node 0 is the root.
+    children: HashMap<(usize, String), usize>,
+    /// The nodes that are a name given.
+    named: Vec<bool>,
+}
+
+impl TableNames {
+    fn insert(&mut self, name: &str) {
+        let mut node = 0;
+        for part in name.split('.') {
+            let next = self.children.len() + 1;
+            node = *self
+                .children
+                .entry((node, part.to_string()))
+                .or_insert(next);
+        }
+        if self.named.len() <= node {
+            self.named.resize(node + 1, false);
+        }
+        self.named[node] = true;
+    }
+
+    fn is_empty(&self) -> bool {
+        self.children.is_empty()
+    }
+
+    /// Whether `name` is a name given, or a table within one.
+    fn covers(&self, name: &str) -> bool {
+        let mut node = 0;
+        for part in name.split('.') {
+            // A borrowed key would need a second map: the owned key costs
+            // one allocation a part.
+            match self.children.get(&(node, part.to_string())) {
+                Some(&child) => node = child,
+                None => return false,
+            }
+            if self.named.get(node) == Some(&true) {
+                return true;
+            }
+        }
+        false
+    }
+}
+
 /// `included` with every table named in `overridden` taken out, with its
 /// sub-tables, so the including file overrides it. Removed lines become
 /// comments: line numbers stay where they were.
-fn without_overridden(included: &str, overridden: &[String]) -> String {
+fn without_overridden(included: &str, overridden: &TableNames) -> String {
     if overridden.is_empty() {
         return included.to_string();
     }
@@ -222,9 +402,7 @@ fn without_overridden(included: &str, overridden: &[String]) -> String {
     let mut skipping = false;
     for line in included.lines() {
         if let Some((name, _)) = table_header(line) {
-            skipping = overridden
-                .iter()
-                .any(|o| name == *o || name.starts_with(&format!("{o}.")));
+            skipping = overridden.covers(&name);
         }
         out.push_str(if skipping { "# (overridden)" } else { line });
         out.push('\n');
@@ -236,6 +414,161 @@ fn without_overridden(included: &str, overridden: &[String]) -> String {
 mod tests {
     use crate::camera::Projection;
     use crate::scene::{load_scene, SceneOverrides};
+
+    const CAMERA: &str = "[camera]\nposition = [0, 1, 5]\nfov = 60\n";
+
+    /// (file, line, message) of loading the first of `files` from a folder
+    /// of them, paths within the folder.
+    fn refusal(files: &[(String, Vec<u8>)]) -> (String, Option<usize>, String) {
+        let dir = tempfile::tempdir().unwrap();
+        for (name, bytes) in files {
+            std::fs::write(dir.path().join(name), bytes).unwrap();
+        }
+        let err = load_scene(&dir.path().join(&files[0].0), &SceneOverrides::default())
+            .expect_err("loaded");
+        let folder = format!("{}/", dir.path().display());
+        (
+            err.file.display().to_string().replace(&folder, ""),
+            err.line,
+            err.message.replace(&folder, ""),
+        )
+    }
+
+    fn texts(files: &[(&str, &str)]) -> Vec<(String, Vec<u8>)> {
+        files
+            .iter()
+            .map(|(name, text)| (name.to_string(), text.as_bytes().to_vec()))
+            .collect()
+    }
+
+    #[test]
+    fn a_file_is_included_once_so_cycles_and_fans_are_refused_at_their_line() {
+        let said =
+            |file: &str, line, message: &str| (file.to_string(), Some(line), message.to_string());
+        assert_eq!(
+            refusal(&texts(&[("top.toml", "include = \"./top.toml\"\n")])),
+            said("top.toml", 1, "a file cannot include itself")
+        );
+        assert_eq!(
+            refusal(&texts(&[
+                ("top.toml", "# a\ninclude = \"b.toml\"\n"),
+                ("b.toml", "include = \"top.toml\"\n"),
+            ])),
+            said("b.toml", 1, "top.toml includes this file: an include cycle")
+        );
+        // A fan: each file including the next twice spliced 2^8 copies.
+        let mut fan: Vec<(String, String)> = (0..8)
+            .map(|i| {
+                let next = format!("f{}.toml", i + 1);
+                let text = format!("include = \"{next}\"\ninclude = \"{next}\"\n");
+                (format!("f{i}.toml"), text)
+            })
+            .collect();
+        fan.push(("f8.toml".into(), CAMERA.into()));
+        let fan: Vec<(&str, &str)> = fan.iter().map(|(a, b)| (a.as_str(), b.as_str())).collect();
+        assert_eq!(
+            refusal(&texts(&fan)),
+            said(
+                "f7.toml",
+                2,
+                "f8.toml is included already, at f7.toml:1 (a scene holds each file once)"
+            )
+        );
+        // Nine deep: one more than the limit; eight is allowed.
+        let mut chain: Vec<(String, String)> = (0..9)
+            .map(|i| {
+                (
+                    format!("f{i}.toml"),
+                    format!("include = \"f{}.toml\"\n", i + 1),
+                )
+            })
+            .collect();
+        chain.push(("f9.toml".into(), CAMERA.into()));
+        let chain: Vec<(&str, &str)> = chain
+            .iter()
+            .map(|(a, b)| (a.as_str(), b.as_str()))
+            .collect();
+        assert_eq!(
+            refusal(&texts(&chain)),
+            said("f8.toml", 1, "includes nest deeper than 8")
+        );
+        let dir = tempfile::tempdir().unwrap();
+        for (name, text) in &chain[1..] {
+            std::fs::write(dir.path().join(name), text).unwrap();
+        }
+        load_scene(&dir.path().join("f1.toml"), &SceneOverrides::default()).unwrap();
+    }
+
+    #[test]
+    fn scene_text_is_read_up_to_its_limit_and_must_be_utf8() {
+        let mut not_text = format!("{CAMERA}# caf").into_bytes();
+        not_text.extend([0xe9, b'\n']);
+        let not_text_message = "not text: this line holds a byte that is not UTF-8";
+        assert_eq!(
+            refusal(&[("top.toml".into(), not_text.clone())]),
+            ("top.toml".into(), Some(4), not_text_message.into())
+        );
+        assert_eq!(
+            refusal(&[
+                ("top.toml".into(), b"include = \"b.toml\"\n".to_vec()),
+                ("b.toml".into(), not_text),
+            ]),
+            ("b.toml".into(), Some(4), not_text_message.into())
+        );
+        let too_long = "the scene, with its includes, holds more than 4 MiB of text \
+                        (put large geometry in OBJ files)";
+        // A special file is read only as far as a scene may be long.
+        assert_eq!(
+            refusal(&texts(&[("top.toml", "include = \"/dev/zero\"\n")])),
+            ("top.toml".into(), Some(1), too_long.into())
+        );
+        let long = format!("{CAMERA}# {}\n", "x".repeat(4 << 20));
+        assert_eq!(
+            refusal(&texts(&[("top.toml", &long)])),
+            ("top.toml".into(), None, too_long.into())
+        );
+        // Together with what it includes: the second include is too much.
+        let half = format!("# {}\n", "x".repeat(5 << 19));
+        assert_eq!(
+            refusal(&texts(&[
+                (
+                    "top.toml",
+                    &format!("include = \"a.toml\"\ninclude = \"b.toml\"\n{CAMERA}")
+                ),
+                ("a.toml", &half),
+                ("b.toml", &half),
+            ])),
+            ("top.toml".into(), Some(2), too_long.into())
+        );
+    }
+
+    #[test]
+    fn an_including_file_that_redefines_many_tables_splices_in_linear_time() {
+        // Comparing each header of the including file with each line of
+        // the included one is quadratic: 20,000 of each take over 15 s in
+        // a test build, a fraction of a second in linear time.
+        let headers: String = (0..20_000).map(|i| format!("[material.m{i}]\n")).collect();
+        let start = std::time::Instant::now();
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::write(dir.path().join("base.toml"), format!("{CAMERA}{headers}")).unwrap();
+        let top = dir.path().join("top.toml");
+        std::fs::write(&top, format!("include = \"base.toml\"\n{headers}")).unwrap();
+        load_scene(&top, &SceneOverrides::default()).unwrap();
+        assert!(start.elapsed().as_secs() < 5, "{:?}", start.elapsed());
+        // A header of half a million parts: looking each of its prefixes
+        // up whole is quadratic too (50 s).
+        let header = format!("[{}a]", "a.".repeat(1 << 19));
+        let start = std::time::Instant::now();
+        assert_eq!(
+            refusal(&texts(&[
+                ("top.toml", "include = \"base.toml\"\n[render]\n"),
+                ("base.toml", &format!("{CAMERA}{header}\n")),
+            ]))
+            .1,
+            Some(4)
+        );
+        assert!(start.elapsed().as_secs() < 5, "{:?}", start.elapsed());
+    }
 
     #[test]
     fn an_including_file_overrides_whole_tables() {
@@ -261,9 +594,34 @@ mod tests {
         let err = load_scene(&top, &SceneOverrides::default()).unwrap_err();
         assert_eq!(
             (err.file.clone(), err.line),
-            (top.clone(), Some(2)),
+            (top.clone(), Some(5)),
             "{err}"
         );
+    }
+
+    #[test]
+    fn paths_in_a_file_are_relative_to_its_own_folder() {
+        // top.toml includes sub/base.toml, which includes deeper/lights.toml
+        // and names the model m.obj: both beside base.toml, not top.toml.
+        let dir = tempfile::tempdir().unwrap();
+        let sub = dir.path().join("sub");
+        std::fs::create_dir_all(sub.join("deeper")).unwrap();
+        std::fs::write(
+            sub.join("base.toml"),
+            "include = \"deeper/lights.toml\"\n[camera]\nposition = [0, 1, 5]\nfov = 60\n\
+             [[object]]\ntype = \"mesh\"\nfile = \"m.obj\"\n",
+        )
+        .unwrap();
+        std::fs::write(
+            sub.join("deeper/lights.toml"),
+            "[[light]]\nposition = [0, 5, 0]\n",
+        )
+        .unwrap();
+        std::fs::write(sub.join("m.obj"), "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n").unwrap();
+        let top = dir.path().join("top.toml");
+        std::fs::write(&top, "include = \"sub/base.toml\"\n").unwrap();
+        let scene = load_scene(&top, &SceneOverrides::default()).unwrap();
+        assert_eq!((scene.lights.len(), scene.triangle_count()), (1, 1));
     }
 
     #[test]
@@ -283,7 +641,7 @@ mod tests {
         // Lines after the top-level keys still map to this file.
         assert_eq!(
             (err.file.clone(), err.line),
-            (top.clone(), Some(6)),
+            (top.clone(), Some(9)),
             "{err}"
         );
         assert_eq!(err.field.as_deref(), Some("object[1].radius"), "{err}");

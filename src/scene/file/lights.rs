@@ -52,10 +52,10 @@ mod tests {
     fn a_negative_intensity_is_refused_in_the_table_and_in_its_keys() {
         let light = "[[light]]\nposition = [0, 5, 0]\n";
         for (text, line, field) in [
-            (format!("{CAMERA}{light}intensity = -1\n"), 4, "light[0].intensity"),
+            (format!("{CAMERA}{light}intensity = -1\n"), 6, "light[0].intensity"),
             (
                 format!("{CAMERA}{light}[animation]\nframes = 2\n[[animation.light]]\nlight = 0\nframe = 1\nintensity = -1\n"),
-                8,
+                11,
                 "animation.light[0].intensity",
             ),
         ] {

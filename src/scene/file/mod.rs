@@ -19,8 +19,10 @@ mod include;
 mod lights;
 mod materials;
 mod objects;
+mod spans;
 mod values;
 mod viewports;
+mod wording;
 
 use std::path::Path;
 
@@ -33,8 +35,8 @@ use crate::geometry::Placement;
 use animation::convert_animation;
 use camera::convert_camera;
 use defs::{RenderDef, SceneFile};
-pub(crate) use include::Files;
-use include::{assemble, line_of, Source};
+use include::{line_of, splice, Source};
+pub(crate) use include::{read_text, Files, MAX_SCENE_TEXT};
 use lights::convert_lights;
 use materials::convert_material;
 use objects::convert_objects;
@@ -61,15 +63,39 @@ struct Ctx<'a> {
 }
 
 impl Ctx<'_> {
-    /// The error `message` about `field`, at the line where `span` starts.
+    /// The error `message` about `field`, at the line of the value the
+    /// field path names, else (a field left out) where `table`, the span
+    /// of the table it belongs in, starts.
     fn error(
         &self,
-        span: std::ops::Range<usize>,
+        table: std::ops::Range<usize>,
         field: impl Into<String>,
         message: impl Into<String>,
     ) -> SceneError {
-        let (file, line) = self.source.locate(line_of(&self.source.text, span.start));
+        let field = field.into();
+        let at = self.locate(&field, table);
+        let (file, line) = self.source.locate(line_of(&self.source.text, at));
         SceneError::new(file, message).at_line(line).field(field)
+    }
+
+    /// [`Ctx::error`], at the value of the field path `at`, the error
+    /// naming `field` (which says more: `camera.pitch with --fov 170`).
+    fn error_at(
+        &self,
+        table: std::ops::Range<usize>,
+        at: &str,
+        field: impl Into<String>,
+        message: impl Into<String>,
+    ) -> SceneError {
+        let at = self.locate(at, table);
+        let (file, line) = self.source.locate(line_of(&self.source.text, at));
+        SceneError::new(file, message).at_line(line).field(field)
+    }
+
+    /// Where the value of the field path `field` starts in the spliced
+    /// text; `table`'s start when the file did not write it.
+    fn locate(&self, field: &str, table: std::ops::Range<usize>) -> usize {
+        spans::value_span(&self.source.text, field).map_or(table.start, |span| span.start)
     }
 
     /// The file a span was written in (relative paths in it start there).
@@ -134,16 +160,24 @@ pub(crate) fn parse_scene(
     files: Files,
     overrides: &SceneOverrides,
 ) -> Result<Scene, SceneError> {
-    let source = assemble(text, path, files, 0)?;
+    let source = splice(text, path, files)?;
     let text = source.text.as_str();
     let deserializer = toml::Deserializer::new(text);
     let file: SceneFile = serde_path_to_error::deserialize(deserializer).map_err(|err| {
         let field = user_path(err.path());
         let inner = err.into_inner();
-        let mut e = SceneError::new(path, inner.message().to_string());
-        if let Some(span) = inner.span() {
+        let span = inner.span();
+        // What the file wrote there, for a message that does not say.
+        let written = span
+            .as_ref()
+            .and_then(|span| text.get(span.clone()))
+            .and_then(|value| value.lines().next())
+            .filter(|value| value.len() <= 40);
+        let message = wording::reworded(inner.message(), &field, written);
+        let mut e = SceneError::new(path, message.clone());
+        if let Some(span) = span {
             let (file, line) = source.locate(line_of(text, span.start));
-            e = SceneError::new(file, inner.message().to_string()).at_line(line);
+            e = SceneError::new(file, message).at_line(line);
         }
         if !field.is_empty() {
             e = e.field(field);
@@ -184,6 +218,16 @@ pub(crate) fn parse_scene(
     let mut lights = convert_lights(&ctx, &file.light)?;
 
     let mut warnings = Vec::new();
+    // Legal (an all-mirror or a flat-lit scene), but more often a light
+    // forgotten: the picture comes out dim, flat and shadowless.
+    if lights.is_empty() {
+        warnings.push(format!(
+            "{}: no [[light]]: surfaces show only the ambient term (render.ambient = {:?}), \
+             without highlights or shadows",
+            path.display(),
+            ambient.to_array()
+        ));
+    }
     let mut objects =
         convert_objects(&ctx, &file, &mut materials, default_material, &mut warnings)?;
 
@@ -252,18 +296,37 @@ mod tests {
     }
 
     #[test]
+    fn a_scene_without_lights_warns_that_only_the_ambient_term_lights_it() {
+        let sphere = "[[object]]\ntype = \"sphere\"\ncenter = [0, 0, 0]\nradius = 1\n";
+        let scene = parse(&format!(
+            "{CAMERA}[render]\nambient = [0.2, 0.2, 0.2]\n{sphere}"
+        ))
+        .unwrap();
+        assert_eq!(
+            scene.warnings,
+            ["t.toml: no [[light]]: surfaces show only the ambient term \
+              (render.ambient = [0.2, 0.2, 0.2]), without highlights or shadows"]
+        );
+        let lit = parse(&format!(
+            "{CAMERA}[[light]]\nposition = [0, 5, 0]\n{sphere}"
+        ))
+        .unwrap();
+        assert_eq!(lit.warnings, Vec::<String>::new());
+    }
+
+    #[test]
     fn a_scene_beyond_the_world_extent_is_refused_by_line_and_field() {
         // Embree aborts on rays from or toward such points: each is named.
         let sphere = "[[object]]\ntype = \"sphere\"\ncenter = [0, 0, 0]\nradius = 1\n";
         let cases = [
             (
                 format!("[camera]\nposition = [0, 1e13, 5]\nfov = 60\n{sphere}"),
-                1,
+                2,
                 "camera.position.y",
             ),
             (
                 format!("{CAMERA}[[light]]\nposition = [1e19, 0, 0]\n{sphere}"),
-                4,
+                5,
                 "light[0].position",
             ),
             (
@@ -273,12 +336,12 @@ mod tests {
             ),
             (
                 format!("{CAMERA}{sphere}[animation]\nframes = 2\n[[animation.camera]]\nframe = 1\nposition = [2e12, 0, 0]\n"),
-                10,
+                12,
                 "animation.camera[0].position.x",
             ),
             (
                 format!("[camera]\nprojection = \"equal-angle\"\nposition = [0, 1, 5]\nfov = 100\n{sphere}[animation]\nframes = 2\n[[animation.camera]]\nframe = 1\npitch = 80\n"),
-                11,
+                13,
                 "animation.camera[0].pitch",
             ),
         ];
@@ -326,19 +389,19 @@ mod tests {
     }
 
     #[test]
-    fn render_and_camera_errors_name_the_line_of_their_table() {
-        // [render] on line 4, [camera] on line 1.
+    fn render_and_camera_errors_name_the_line_of_their_field() {
+        // [render] on line 4, its field on line 6.
         let camera = "[camera]\nposition = [0, 1, 5]\nfov = 60\n";
         for (render, field) in [
             ("background = [nan, 0, 0]", "render.background"),
             ("ambient = [-1, 0, 0]", "render.ambient"),
             ("max_depth = 1000", "render.max_depth"),
-            ("width = 0", "render.width/height"),
+            ("width = 0", "render.width"),
         ] {
-            let err = parse(&format!("{camera}[render]\n{render}\n")).unwrap_err();
+            let err = parse(&format!("{camera}[render]\nheight = 10\n{render}\n")).unwrap_err();
             assert_eq!(
                 (err.line, err.field.as_deref()),
-                (Some(4), Some(field)),
+                (Some(6), Some(field)),
                 "{err}"
             );
         }
@@ -346,7 +409,7 @@ mod tests {
             parse("[camera]\nposition = [0, 1, 5]\nfov = 60\nlook_at = [0, nan, 0]\n").unwrap_err();
         assert_eq!(
             (err.line, err.field.as_deref()),
-            (Some(1), Some("camera.look_at")),
+            (Some(4), Some("camera.look_at")),
             "{err}"
         );
     }
@@ -382,7 +445,7 @@ mod tests {
         for (camera, field) in [
             ("[camera]\nposition = [0, 1, 5]\nfov = 0\n", "camera.fov"),
             ("[camera]\nposition = [0, 1, 5]\nfov = 180\n", "camera.fov"),
-            ("[render]\nwidth = 0\n[camera]\nposition = [0, 1, 5]\nfov = 60\n", "render.width/height"),
+            ("[render]\nwidth = 0\n[camera]\nposition = [0, 1, 5]\nfov = 60\n", "render.width"),
             ("[render]\nwidth = 4000000\nheight = 4000000\n[camera]\nposition = [0, 1, 5]\nfov = 60\n", "render.width/height"),
         ] {
             let err = parse(camera).unwrap_err();

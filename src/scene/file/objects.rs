@@ -338,12 +338,34 @@ mod tests {
     }
 
     #[test]
+    fn placement_scales_then_turns_about_x_y_z_about_the_origin_then_moves() {
+        // What SCENE-FORMAT.md promises: (0, 1, 0) scaled by 2 is (0, 2, 0);
+        // 90 degrees about x takes it to (0, 0, 2), about y then to
+        // (2, 0, 0), about z then to (0, 2, 0); the move adds (0, 0, 10).
+        let scene = parse(&format!(
+            "{CAMERA}[[object]]\ntype = \"sphere\"\ncenter = [0, 1, 0]\nradius = 1\n\
+             scale = 2\nrotate = [90, 90, 90]\ntranslate = [0, 0, 10]\n"
+        ))
+        .unwrap();
+        let crate::geometry::Shape::Sphere(sphere) = &scene.objects[0].shape else {
+            panic!("not a sphere");
+        };
+        assert!(
+            (sphere.center - glam::Vec3::new(0.0, 2.0, 10.0)).length() < 1e-5,
+            "{}",
+            sphere.center
+        );
+        // Uniform: the radius scales too.
+        assert_eq!(sphere.radius, 2.0);
+    }
+
+    #[test]
     fn object_names_are_unique() {
         let ball = |name: &str| {
             format!("[[object]]\ntype = \"sphere\"\nname = \"{name}\"\ncenter = [0, 0, 0]\nradius = 1\n")
         };
         let err = parse(&format!("{CAMERA}{}{}", ball("ball"), ball("ball"))).unwrap_err();
-        assert_eq!(err.line, Some(9), "{err}");
+        assert_eq!(err.line, Some(11), "{err}");
         assert_eq!(err.field.as_deref(), Some("object[1].name"), "{err}");
         assert!(err.message.contains("already names object[0]"), "{err}");
         parse(&format!("{CAMERA}{}{}", ball("ball"), ball("ball 2"))).unwrap();

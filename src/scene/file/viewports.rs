@@ -170,20 +170,20 @@ mod tests {
         let cases = [
             (
                 format!("{CAMERA}{views}{}{}", key("\"right\"", 2), key("1", 1)),
-                18,
+                20,
                 "animation.viewport[1].frame",
                 "keyframes of viewport 'right' must be in increasing frame order: \
                  frame 1 follows frame 2",
             ),
             (
                 format!("{CAMERA}{views}{}", key("\"up\"", 1)),
-                14,
+                15,
                 "animation.viewport[0].viewport",
                 "no such viewport \"up\" (defined: left, right)",
             ),
             (
                 format!("{CAMERA}[animation]\nframes = 4\n{}", key("0", 1)),
-                6,
+                7,
                 "animation.viewport[0].viewport",
                 "no such viewport 0 (defined: none)",
             ),
