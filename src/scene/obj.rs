@@ -78,6 +78,11 @@ impl ObjMesh {
 /// that do not parse, NaN/Inf coordinates, a vertex weight of 0, and face
 /// indices (of positions, texture coordinates and normals) out of range.
 fn check_obj_text(path: &Path, text: &str) -> Result<(), SceneError> {
+    let keyword_anywhere = |wanted: &str| {
+        text.lines()
+            .any(|line| line.split_whitespace().next() == Some(wanted))
+    };
+    let defined_anywhere = [keyword_anywhere("vt"), keyword_anywhere("vn")];
     // Positions, texture coordinates, normals defined so far.
     let (mut vertex_count, mut texcoord_count, mut normal_count): (i64, i64, i64) = (0, 0, 0);
     for (number, line) in text.lines().enumerate() {
@@ -91,7 +96,7 @@ fn check_obj_text(path: &Path, text: &str) -> Result<(), SceneError> {
         };
         match keyword {
             "v" | "vn" | "vt" => {
-                let wanted = if keyword == "vt" { 1 } else { 3 };
+                let wanted = if keyword == "vt" { 2 } else { 3 };
                 let values: Vec<&str> = words.collect();
                 if values.len() < wanted {
                     return fail(
@@ -99,10 +104,19 @@ fn check_obj_text(path: &Path, text: &str) -> Result<(), SceneError> {
                         format!("expected {wanted} numbers, got {}", values.len()),
                     );
                 }
-                for word in values
-                    .iter()
-                    .take(if keyword == "v" { 3 } else { values.len() })
-                {
+                // `v x y z`, `v x y z w` or `v x y z r g b`: tobj refuses
+                // other counts without a line.
+                if keyword == "v" && !matches!(values.len(), 3 | 4 | 6) {
+                    return fail(
+                        "v",
+                        format!(
+                            "expected 3 numbers (x y z), 4 (x y z w) or 6 (x y z r g b), \
+                             got {}",
+                            values.len()
+                        ),
+                    );
+                }
+                for word in &values {
                     match word.parse::<f32>() {
                         Ok(x) if x.is_finite() && (keyword != "v" || x.abs() <= WORLD_LIMIT) => {}
                         Ok(x) if x.is_finite() => {
@@ -120,8 +134,7 @@ fn check_obj_text(path: &Path, text: &str) -> Result<(), SceneError> {
                         Err(_) => return fail(keyword, format!("'{word}' is not a number")),
                     }
                 }
-                // `v x y z w`: tobj divides by w (6 or 7 numbers are a
-                // colour instead).
+                // `v x y z w`: tobj divides by w.
                 if keyword == "v" && values.len() == 4 && values[3].parse::<f32>() == Ok(0.0) {
                     return fail("v", "a vertex weight (w) of 0 puts it at infinity".into());
                 }
@@ -141,20 +154,26 @@ fn check_obj_text(path: &Path, text: &str) -> Result<(), SceneError> {
                 }
                 for r in refs {
                     // v, v/vt, v//vn or v/vt/vn; only the position is needed.
+                    if r.split('/').count() > 3 {
+                        return fail("f", format!("'{r}' is not v, v/vt, v//vn or v/vt/vn"));
+                    }
                     let kinds = [
                         ("vertex", vertex_count),
                         ("texture coordinate", texcoord_count),
                         ("normal", normal_count),
                     ];
                     for (position, (index, (what, count))) in r.split('/').zip(kinds).enumerate() {
-                        // tobj ignores texture coordinates and normals a
-                        // file never defines.
-                        if position > 0 && (index.is_empty() || count == 0) {
+                        if position > 0 && index.is_empty() {
                             continue;
                         }
                         let Ok(index) = index.parse::<i64>() else {
                             return fail("f", format!("'{r}': '{index}' is not a {what} index"));
                         };
+                        // tobj ignores texture coordinates and normals a
+                        // file never defines.
+                        if position > 0 && !defined_anywhere[position - 1] {
+                            continue;
+                        }
                         let resolved = if index < 0 { count + index + 1 } else { index };
                         if index == 0 || resolved < 1 || resolved > count {
                             return fail(
@@ -205,19 +224,29 @@ fn decode_lossily(path: &Path, bytes: &[u8], problems: &mut Vec<String>) -> Stri
     }
 }
 
-/// The OBJ's text for tobj with point (`p`) and line (`l`) elements left out:
-/// they are not surfaces, and tobj would turn a `p` or `l` of three or more
-/// vertices into a face. Warns at the first; fails if no face remains.
+/// The OBJ's text for tobj with point (`p`) and line (`l`) elements left out
+/// (they are not surfaces, and tobj would turn a `p` or `l` of three or more
+/// vertices into a face) and vertex colours dropped. Warns at the first; fails if no face remains.
 fn faces_only(path: &Path, text: &str, problems: &mut Vec<String>) -> Result<String, SceneError> {
     let mut kept = String::with_capacity(text.len());
     let mut left_out = 0;
     let mut first_left_out = None;
     let mut faces = 0;
     for (number, line) in text.lines().enumerate() {
-        match line.split_whitespace().next() {
+        let mut words = line.split_whitespace();
+        match words.next() {
             Some(keyword @ ("p" | "l")) => {
                 left_out += 1;
                 first_left_out.get_or_insert((number + 1, keyword));
+            }
+            // Vertex colours are not used, and tobj refuses a model in
+            // which only some vertices have one.
+            Some("v") if words.clone().count() == 6 => {
+                kept.push('v');
+                for word in words.take(3) {
+                    kept.push(' ');
+                    kept.push_str(word);
+                }
             }
             keyword => {
                 faces += usize::from(keyword == Some("f"));

@@ -22,6 +22,34 @@ use crate::scene::{SceneError, BUILTIN_SCENES};
 /// would need more belongs in OBJ files.
 pub const MAX_SCENE_TEXT: usize = 4 << 20;
 
+/// Most dotted parts a key may have. A scene's deepest is three
+/// (`animation.camera.frame`); toml builds a nested table for each part, some
+/// 200 bytes a byte of a key like `[a.a.a...]`, past what the text limit
+/// allows for.
+const MAX_KEY_PARTS: usize = 32;
+
+/// The dotted parts of the key `line` names, a table header's or a key's
+/// before its `=`; 0 for other lines (values, array rows).
+fn key_parts(line: &str) -> usize {
+    let trimmed = line.trim();
+    let key = match trimmed.strip_prefix('[') {
+        Some(header) => header
+            .trim_start_matches('[')
+            .split(']')
+            .next()
+            .unwrap_or(""),
+        None => trimmed.split('=').next().unwrap_or(""),
+    };
+    let key_like = key.chars().all(|c| {
+        c.is_ascii_alphanumeric() || matches!(c, '_' | '-' | '.' | '"' | '\'' | ' ' | '\t')
+    });
+    if key_like {
+        key.matches('.').count() + 1
+    } else {
+        0
+    }
+}
+
 /// Why a scene file could not be read as text.
 pub(crate) enum ReadError {
     Io(std::io::Error),
@@ -222,6 +250,15 @@ fn assemble(text: &str, path: &Path, splice: &mut Splice) -> Result<Source, Scen
     let mut in_tables = false;
     for (number, line) in text.lines().enumerate() {
         let trimmed = line.trim_start();
+        if key_parts(line) > MAX_KEY_PARTS {
+            return Err(SceneError::new(
+                path,
+                format!(
+                    "a key of more than {MAX_KEY_PARTS} dotted parts: no scene key is that deep"
+                ),
+            )
+            .at_line(number + 1));
+        }
         in_tables |= trimmed.starts_with('[');
         let own = if in_tables {
             &mut tables
@@ -416,6 +453,25 @@ mod tests {
     use crate::scene::{load_scene, SceneOverrides};
 
     const CAMERA: &str = "[camera]\nposition = [0, 1, 5]\nfov = 60\n";
+
+    #[test]
+    fn keys_deeper_than_any_scene_key_are_refused_at_their_line() {
+        let deep = vec!["a"; super::MAX_KEY_PARTS + 1].join(".");
+        for line in [
+            format!("[{deep}]"),
+            format!("{deep} = 1"),
+            format!("[[{deep}]]"),
+        ] {
+            let text = format!("{CAMERA}\n{line}\n");
+            let (_, at, message) = refusal(&[("s.toml".into(), text.into_bytes())]);
+            assert_eq!(at, Some(5), "{line}");
+            assert!(message.contains("dotted parts"), "{message}");
+        }
+        // Values and rows of numbers are not keys.
+        assert_eq!(super::key_parts("  [1.5, 2.5, 3.5],"), 0);
+        assert_eq!(super::key_parts("position = [0.5, 1.5]"), 1);
+        assert_eq!(super::key_parts("[[animation.camera]]"), 2);
+    }
 
     /// (file, line, message) of loading the first of `files` from a folder
     /// of them, paths within the folder.
