@@ -318,13 +318,13 @@ pub fn render_frame(scene: &Scene, intersector: &dyn Intersector) -> (Frame, Ray
 }
 
 /// Renders the scene through `camera` (which may differ from the scene's
-/// own, e.g. posed by a timeline) in full.
+/// own, e.g. posed by a timeline) in full, at the scene's samples a pixel.
 pub fn render_view(
     scene: &Scene,
     camera: &Camera,
     intersector: &dyn Intersector,
 ) -> (Frame, RayCounts) {
-    render_view_sampled(scene, camera, PixelSamples::ONE, intersector)
+    render_view_sampled(scene, camera, scene.samples, intersector)
 }
 
 /// As [`render_view`], `samples` a pixel.

@@ -318,6 +318,11 @@ fn phong(r_dot_v: f32, shininess: f32, whole: Option<u32>) -> f32 {
 }
 
 impl<'a> Shader<'a> {
+    /// The scene this shades.
+    pub fn scene(&self) -> &'a Scene {
+        self.scene
+    }
+
     pub fn new(scene: &'a Scene, intersector: &'a dyn Intersector) -> Shader<'a> {
         Shader {
             scene,

@@ -357,8 +357,7 @@ pub(crate) fn animate(args: AnimateArgs) -> Result<()> {
         linear: args.verify,
         fractional_pan: args.fractional_pan.unwrap_or_default(),
         ostc: args.ostc.settings(),
-        rsvp: args.rsvp.knobs()?,
-        samples: retrace::sampling::PixelSamples::ONE,
+        rsvp: args.rsvp.knobs(scene.samples)?,
         traced_images: traced_files.is_some(),
     };
     refuse_idle_flags(&args, &scene, &options, store_files.is_some())?;

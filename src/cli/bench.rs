@@ -8,7 +8,8 @@ use clap::Args;
 
 use retrace::frame_loop::{Options, Techniques};
 use retrace::lab::bench::{bench_sequence, Measure, SequenceBench};
-use retrace::scene::{Scene, SceneOverrides};
+use retrace::sampling::PixelSamples;
+use retrace::scene::Scene;
 
 use super::{
     check_writable, idle_flag, load, parse_frame_range, scene_name, write_json, BackendArg,
@@ -72,7 +73,7 @@ pub(crate) fn bench(args: BenchArgs) -> Result<()> {
         );
     }
     // Before any work, like the frames.
-    args.rsvp.knobs()?;
+    args.rsvp.knobs(PixelSamples::ONE)?;
     let bar = indicatif::ProgressBar::new(args.frame_repeats() as u64).with_style(
         indicatif::ProgressStyle::with_template("{msg} {bar:30} {pos}/{len} {elapsed}")
             .expect("static template"),
@@ -266,12 +267,7 @@ fn plan_experiment(
     let resized = scene_args.width.is_some() || scene_args.height.is_some();
     let (id, what, technique, paper) = experiment.heading();
     let file = experiment.scene_file();
-    let overrides = SceneOverrides {
-        width: scene_args.width,
-        height: scene_args.height,
-        projection: scene_args.camera,
-        fov: scene_args.fov,
-    };
+    let overrides = scene_args.overrides();
     let (mut scene, scene_label) = match (&scene_args.scene, variant) {
         (Some(path), None | Some(ScalingVariant::Large)) => {
             let scene = load(&scene_args)?;
@@ -450,8 +446,8 @@ fn run_experiment(
         scene,
         frames,
     } = plan;
-    let knobs = args.rsvp.knobs()?;
-    if let (true, Some(changes)) = (info.uses_rsvp(), knobs.changes()) {
+    let knobs = args.rsvp.knobs(scene.samples)?;
+    if let (true, Some(changes)) = (info.uses_rsvp(), knobs.changes(scene.samples)) {
         info.technique = format!("{}, {changes}", info.technique);
     }
     let mut accel = args.backend.build(&scene)?;
@@ -558,15 +554,7 @@ fn bench_knobs(args: &BenchArgs, bar: indicatif::ProgressBar) -> Result<()> {
             }
             scene
         }
-        None => retrace::scene::builtin_scene(
-            "paper-zoom-in.toml",
-            &SceneOverrides {
-                width: args.scene.width,
-                height: args.scene.height,
-                projection: args.scene.camera,
-                fov: args.scene.fov,
-            },
-        )?,
+        None => retrace::scene::builtin_scene("paper-zoom-in.toml", &args.scene.overrides())?,
     };
     let mut accel = args.backend.build(&scene)?;
     let frames = 0..scene.animation.as_ref().map_or(1, |a| a.frames);

@@ -14,6 +14,7 @@ use clap::Args;
 
 use retrace::accel::{Accelerator, BackendKind};
 use retrace::camera::Projection;
+use retrace::sampling::PixelSamples;
 use retrace::scene::{load_scene, paper_scene, Scene, SceneOverrides};
 
 #[derive(Args, Clone)]
@@ -33,6 +34,23 @@ struct SceneArgs {
     /// Horizontal field of view in degrees.
     #[arg(long, allow_negative_numbers = true)]
     fov: Option<f64>,
+    /// Samples per pixel, 1 to 256 (antialiasing: stratified sub-pixel
+    /// positions, box-filtered) [default: the scene's `[render] spp`, or 1].
+    #[arg(long)]
+    spp: Option<u32>,
+}
+
+impl SceneArgs {
+    /// What the flags change of the scene file's settings.
+    fn overrides(&self) -> SceneOverrides {
+        SceneOverrides {
+            width: self.width,
+            height: self.height,
+            projection: self.camera,
+            fov: self.fov,
+            spp: self.spp,
+        }
+    }
 }
 
 #[derive(Args)]
@@ -111,8 +129,10 @@ struct RsvpKnobArgs {
 }
 
 impl RsvpKnobArgs {
-    fn knobs(&self) -> Result<retrace::reuse::rsvp::RsvpKnobs> {
-        let default = retrace::reuse::rsvp::RsvpKnobs::default();
+    /// The knobs asked for, the rest at their defaults for `samples` a
+    /// pixel.
+    fn knobs(&self, samples: PixelSamples) -> Result<retrace::reuse::rsvp::RsvpKnobs> {
+        let default = retrace::reuse::rsvp::RsvpKnobs::default_for(samples);
         let oversample = self.oversample.unwrap_or(default.oversample);
         let level_bias = self.level_bias.unwrap_or(default.level_bias);
         // Finer than 8 samples a pixel, or 4 levels past the one chosen, a
@@ -185,12 +205,7 @@ fn idle_flag(flag: &str, reason: &str) -> anyhow::Error {
 }
 
 fn load(args: &SceneArgs) -> Result<Scene> {
-    let overrides = SceneOverrides {
-        width: args.width,
-        height: args.height,
-        projection: args.camera,
-        fov: args.fov,
-    };
+    let overrides = args.overrides();
     let scene = match &args.scene {
         Some(path) => load_scene(path, &overrides)?,
         None => paper_scene(&overrides)?,

@@ -24,12 +24,19 @@ pub(crate) struct RenderArgs {
     /// its own rays) instead of the camera's image.
     #[arg(long)]
     viewport: Option<String>,
+    /// The converged reference accuracy is measured against: 256
+    /// stratified samples a pixel (the same as --spp 256).
+    #[arg(long, conflicts_with = "spp")]
+    reference: bool,
 }
 
-pub(crate) fn render(args: RenderArgs) -> Result<()> {
+pub(crate) fn render(mut args: RenderArgs) -> Result<()> {
     // Check the output name before any work: a typo should not cost a render.
     retrace::output::format_for(&args.output)?;
     check_parent(&args.output)?;
+    if args.reference {
+        args.scene.spp = Some(retrace::sampling::REFERENCE_SAMPLES_PER_PIXEL);
+    }
     let scene = load(&args.scene)?;
     let names: Vec<&str> = scene
         .viewports
@@ -77,14 +84,20 @@ pub(crate) fn render(args: RenderArgs) -> Result<()> {
     ensure_parent(&args.output)?;
     save_image(&args.output, &frame.to_rgb8())?;
     let seconds = elapsed.as_secs_f64();
+    let spp = scene.samples.count();
     say!(
-        "{}: {}x{} {} via {} in {:.1} ms -> {}",
+        "{}: {}x{} {}{} via {} in {:.1} ms -> {}",
         scene_name(&args.scene),
         frame.width,
         frame.height,
         viewport
             .as_ref()
             .map_or(scene.camera.projection, |pose| pose.camera.projection),
+        if spp > 1 {
+            format!(", {spp} samples a pixel")
+        } else {
+            String::new()
+        },
         accel.kind(),
         seconds * 1e3,
         args.output.display()

@@ -5,8 +5,6 @@ use std::path::PathBuf;
 use anyhow::Result;
 use clap::Args;
 
-use retrace::scene::SceneOverrides;
-
 use super::{check_writable, load, parse_frame_range, scene_name, BackendArg, SceneArgs};
 
 #[derive(Args)]
@@ -36,12 +34,7 @@ pub(crate) fn tradeoff(args: TradeoffArgs) -> Result<()> {
         );
     }
     let scenes = match &args.scene.scene {
-        None => TradeoffScenes::builtin(&SceneOverrides {
-            width: args.scene.width,
-            height: args.scene.height,
-            projection: args.scene.camera,
-            fov: args.scene.fov,
-        })?,
+        None => TradeoffScenes::builtin(&args.scene.overrides())?,
         Some(path) => {
             let scenes = TradeoffScenes::of(load(&args.scene)?);
             let skipped = scenes.skipped();

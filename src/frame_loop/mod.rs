@@ -251,7 +251,7 @@ impl<'a> Animator<'a> {
         view: &View,
     ) -> (Frame, RayCounts) {
         let shader = Shader::new(scene, accel);
-        let samples = self.options.samples;
+        let samples = self.scene.samples;
         if self.has_viewports() {
             return render_direct_sampled(&shader, &view.pose, samples);
         }
@@ -269,7 +269,7 @@ impl<'a> Animator<'a> {
     pub fn render_true_view(&mut self, frame: u32, index: usize) -> (Frame, RayCounts) {
         self.pose(frame);
         let view = self.views(frame).swap_remove(index);
-        let samples = self.options.samples;
+        let samples = self.scene.samples;
         if self.has_viewports() {
             let shader = Shader::new(&self.scene, self.accel);
             return render_direct_sampled(&shader, &view.pose, samples);
@@ -359,11 +359,11 @@ impl<'a> Animator<'a> {
             return Box::new(RsvpStore::new(
                 lattice,
                 self.options.rsvp,
-                self.options.samples,
+                self.scene.samples,
             ));
         }
         if !self.on_lattice(camera) {
-            return Box::new(StillStore::new(camera, self.options.samples));
+            return Box::new(StillStore::new(camera, self.scene.samples));
         }
         let window = EqualAngleLattice::for_camera(camera).window(camera);
         let (mut low, mut high) = (window.row, window.row + i64::from(window.height));
@@ -376,7 +376,7 @@ impl<'a> Animator<'a> {
             low - 1..high + 1,
             self.options.fractional_pan,
             self.options.techniques.pan,
-            self.options.samples,
+            self.scene.samples,
         ))
     }
 
@@ -530,7 +530,7 @@ impl<'a> Animator<'a> {
                 mode: FrameMode::Full,
                 reason: reason.map(Reason::Full),
                 pixels: pixels(&view.pose),
-                samples_traced: cells_traced(&rays, self.options.samples),
+                samples_traced: cells_traced(&rays, self.scene.samples),
                 trace_ms,
                 copy_ms: total_ms - trace_ms,
                 total_ms,

@@ -5,7 +5,6 @@ use crate::reuse::ostc::DEFAULT_VOXELS;
 use crate::reuse::pan::FractionalPan;
 use crate::reuse::regions::RegionGrid;
 use crate::reuse::rsvp::RsvpKnobs;
-use crate::sampling::PixelSamples;
 
 /// One reuse technique.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -123,9 +122,6 @@ pub struct Options {
     pub fractional_pan: FractionalPan,
     pub ostc: OstcSettings,
     pub rsvp: RsvpKnobs,
-    /// Sub-samples a pixel of the camera's image and of the direct renders
-    /// (antialiasing: the mean of stratified sub-samples).
-    pub samples: PixelSamples,
     /// Whether each view also comes with its picture painted black where
     /// the frame traced samples (the paper's figure 4).
     pub traced_images: bool,
@@ -142,7 +138,6 @@ impl Options {
             fractional_pan: FractionalPan::Snap,
             ostc: OstcSettings::default(),
             rsvp: RsvpKnobs::default(),
-            samples: PixelSamples::ONE,
             traced_images: false,
         }
     }

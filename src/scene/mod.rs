@@ -108,6 +108,9 @@ pub struct Scene {
     pub ambient: Vec3,
     /// Reflection bounces after the primary hit.
     pub max_depth: u32,
+    /// Sub-samples a pixel of the camera's image and of the viewports
+    /// (antialiasing: the mean of stratified sub-samples).
+    pub samples: crate::sampling::PixelSamples,
     /// Things the user should know that did not stop loading (e.g. dropped
     /// degenerate triangles).
     pub warnings: Vec<String>,

@@ -612,6 +612,7 @@ pub(super) fn scene_around_obj(
         background: Vec3::new(0.08, 0.09, 0.12),
         ambient: Vec3::splat(0.12),
         max_depth: 3,
+        samples: overrides.samples()?.unwrap_or_default(),
         warnings,
         animation: None,
         viewports: Vec::new(),

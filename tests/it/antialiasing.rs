@@ -43,11 +43,12 @@ fn four() -> PixelSamples {
 
 on_every_backend! {
     antialiased_pans_equal_full_renders_bit_for_bit(backend) {
-        let scene = paper_with(
+        let mut scene = paper_with(
             "[animation]\nframes = 6\n[[animation.camera]]\nframe = 0\nyaw = 0.0\npitch = -9.0\n\
              [[animation.camera]]\nframe = 5\nyaw = 40.0\npitch = -6.0\n",
         );
-        let options = Options { samples: four(), ..Options::new(Techniques::AUTO, 0..6) };
+        scene.samples = four();
+        let options = Options::new(Techniques::AUTO, 0..6);
         let stats = crate::common::run_exact_reusing_with(&scene, backend, options);
         assert!(stats.iter().all(|s| s.mode.as_str() == "pan"));
         // Samples count cells; the rays, their four sub-samples each.
@@ -55,8 +56,9 @@ on_every_backend! {
     }
 
     antialiased_moving_objects_equal_full_renders_bit_for_bit(backend) {
-        let scene = shipped("paper-bounce.toml", 48, 32);
-        let options = Options { samples: four(), ..Options::new(Techniques::AUTO, 0..5) };
+        let mut scene = shipped("paper-bounce.toml", 48, 32);
+        scene.samples = four();
+        let options = Options::new(Techniques::AUTO, 0..5);
         let stats = crate::common::run_exact_reusing_with(&scene, backend, options);
         assert!(stats.iter().all(|s| s.mode.as_str() == "ostc"));
     }
@@ -150,23 +152,27 @@ fn antialiased_viewports_are_no_worse_than_direct_renders_at_the_same_samples() 
     let mut accel =
         retrace::accel::Accelerator::build(retrace::accel::BackendKind::Embree, &scene.objects)
             .unwrap();
+    let at_samples = |samples: u32| retrace::scene::Scene {
+        samples: PixelSamples::new(samples).unwrap(),
+        ..scene.clone()
+    };
+    let (reference, four) = (at_samples(64), at_samples(4));
     for frame in [0, 60, 99] {
-        let at = |samples: u32, techniques: Techniques| {
-            let samples = PixelSamples::new(samples).unwrap();
-            Options {
-                samples,
-                rsvp: retrace::reuse::rsvp::RsvpKnobs::default_for(samples),
-                ..Options::new(techniques, frame..frame + 1)
-            }
+        let at = |scene: &retrace::scene::Scene, techniques: Techniques| Options {
+            rsvp: retrace::reuse::rsvp::RsvpKnobs::default_for(scene.samples),
+            ..Options::new(techniques, frame..frame + 1)
         };
-        let (truth, _) =
-            retrace::frame_loop::Animator::new(&scene, &mut accel, at(64, Techniques::FULL))
-                .render_full(frame, 0);
+        let (truth, _) = retrace::frame_loop::Animator::new(
+            &reference,
+            &mut accel,
+            at(&reference, Techniques::FULL),
+        )
+        .render_full(frame, 0);
         let (direct, _) =
-            retrace::frame_loop::Animator::new(&scene, &mut accel, at(4, Techniques::FULL))
+            retrace::frame_loop::Animator::new(&four, &mut accel, at(&four, Techniques::FULL))
                 .render_full(frame, 0);
         let mut rsvp =
-            retrace::frame_loop::Animator::new(&scene, &mut accel, at(4, Techniques::AUTO));
+            retrace::frame_loop::Animator::new(&four, &mut accel, at(&four, Techniques::AUTO));
         let output = rsvp.render(frame).remove(0);
         assert_eq!(output.stats.mode.as_str(), "rsvp");
         let (compared, differing) = rsvp.verify_store().unwrap();

@@ -655,3 +655,49 @@ fn bench_measures_a_scene_given_on_its_own_timeline() {
     assert!(row.contains(",paper-all,"), "{row}");
     assert!(row.contains("buffer bit-exact"), "{row}");
 }
+
+#[test]
+fn samples_per_pixel_come_from_the_scene_or_the_flag() {
+    let sphere = "[[object]]\ntype = \"sphere\"\ncenter = [0, 0.5, 0]\nradius = 0.8\n\
+                  [[light]]\nposition = [2, 4, 3]\n";
+    let case = Case::new(&[
+        ("one.toml", &format!("{CAMERA}{sphere}")),
+        ("four.toml", &format!("{CAMERA}[render]\nspp = 4\n{sphere}")),
+        ("zero.toml", &format!("{CAMERA}[render]\nspp = 0\n{sphere}")),
+    ]);
+    let image = |scene: &str, extra: &[&str]| {
+        let out = case.render(scene, extra);
+        case.assert_renders(&out)
+    };
+    let (point, file) = (image("one.toml", &[]), image("four.toml", &[]));
+    // The sphere's edge is antialiased: some pixels between the two.
+    assert_ne!(point, file);
+    assert_eq!(image("one.toml", &["--spp", "4"]), file);
+    assert_eq!(image("four.toml", &["--spp", "1"]), point);
+
+    std::fs::remove_file(case.path("out.png")).unwrap();
+    let out = case.render("zero.toml", &[]);
+    case.assert_fails(&out, &["zero.toml:6", "render.spp", "within 1..256, got 0"]);
+    let out = case.render("one.toml", &["--spp", "257"]);
+    case.assert_fails(&out, &["--spp 257", "within 1..256"]);
+    let err = stderr(&out);
+    assert!(
+        !err.contains("one.toml"),
+        "the flag alone is at fault: {err}"
+    );
+}
+
+#[test]
+fn the_reference_is_256_samples_a_pixel() {
+    let dir = tempfile::tempdir().unwrap();
+    let args = ["render", "--width", "16", "--height", "12", "-o", "r.png"];
+    let out = retrace(&[&args[..], &["--reference"]].concat(), dir.path());
+    assert!(out.status.success(), "{}", stderr(&out));
+    assert!(String::from_utf8_lossy(&out.stdout).contains("256 samples a pixel"));
+    let out = retrace(
+        &[&args[..], &["--reference", "--spp", "4"]].concat(),
+        dir.path(),
+    );
+    assert!(!out.status.success());
+    assert!(stderr(&out).contains("'--reference' cannot be used with '--spp"));
+}

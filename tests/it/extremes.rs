@@ -70,6 +70,7 @@ fn paper_with(projection: Projection, fov: f64, width: u32, height: u32) -> retr
         height: Some(height),
         projection: Some(projection),
         fov: Some(fov),
+        spp: None,
     })
     .unwrap()
 }
@@ -307,6 +308,7 @@ on_every_backend! {
                 background: Vec3::ZERO,
                 ambient: Vec3::ZERO,
                 max_depth: 0,
+                samples: retrace::sampling::PixelSamples::ONE,
                 warnings: Vec::new(),
                 animation: None,
                 viewports: Vec::new(),

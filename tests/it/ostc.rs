@@ -360,6 +360,7 @@ proptest! {
         samples in prop_oneof![Just(1u32), Just(4)],
     ) {
         let mut scene = paper_with(&extra, width, height);
+        scene.samples = retrace::sampling::PixelSamples::new(samples).unwrap();
         if let Some(projection) = still {
             scene.camera.projection = projection;
             scene.camera.fov = 80f64.to_radians();
@@ -370,7 +371,6 @@ proptest! {
                 regions: retrace::reuse::regions::RegionGrid(regions),
                 ..Default::default()
             },
-            samples: retrace::sampling::PixelSamples::new(samples).unwrap(),
             ..Options::new(Techniques::AUTO, 0..5)
         };
         for backend in [BackendKind::Embree, BackendKind::Grid] {
@@ -398,14 +398,14 @@ proptest! {
              [[animation.viewport]]\nframe = 0\nzoom = 1.0\n\
              [[animation.viewport]]\nframe = 4\nzoom = {zoom}\nrotate = {rotate}\n"
         );
-        let scene = paper_with(&format!("{extra}\n{view}"), 48, 32);
+        let mut scene = paper_with(&format!("{extra}\n{view}"), 48, 32);
+        let samples = retrace::sampling::PixelSamples::new(samples).unwrap();
+        scene.samples = samples;
         for backend in [BackendKind::Embree, BackendKind::Grid] {
             let mut accel = retrace::accel::Accelerator::build(backend, &scene.objects).unwrap();
             // Antialiased, the viewport reads the buffer at four sub-pixel
             // shifts; the buffer's samples stay what a fresh trace gives.
-            let samples = retrace::sampling::PixelSamples::new(samples).unwrap();
             let options = Options {
-                samples,
                 rsvp: retrace::reuse::rsvp::RsvpKnobs::default_for(samples),
                 ..Options::new(Techniques::AUTO, 0..5)
             };

@@ -279,6 +279,7 @@ mod tests {
         height: Some(24),
         projection: None,
         fov: None,
+        spp: None,
     };
 
     fn oracle(scene: &Scene, frames: std::ops::Range<u32>) -> Vec<u64> {

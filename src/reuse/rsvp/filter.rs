@@ -83,10 +83,10 @@ impl RsvpKnobs {
         }
     }
 
-    /// The knobs set away from their defaults, in words ("oversample 0.9,
-    /// level bias -1"); None at the defaults.
-    pub fn changes(&self) -> Option<String> {
-        let default = RsvpKnobs::default();
+    /// The knobs set away from their defaults at `samples` a pixel, in
+    /// words ("oversample 0.9, level bias -1"); None at the defaults.
+    pub fn changes(&self, samples: crate::sampling::PixelSamples) -> Option<String> {
+        let default = RsvpKnobs::default_for(samples);
         let mut changed = Vec::new();
         if self.filter != default.filter {
             changed.push(format!("{} filter", self.filter));
@@ -234,6 +234,7 @@ pub(super) fn filter_reads(
 mod tests {
     use super::*;
     use crate::color::{encode_srgb, srgb_table};
+    use crate::sampling::PixelSamples;
 
     #[test]
     fn blends_show_a_sample_s_own_byte_where_it_alone_counts() {
@@ -269,20 +270,27 @@ mod tests {
 
     #[test]
     fn changes_name_only_the_knobs_moved_from_their_defaults() {
-        assert_eq!(RsvpKnobs::default().changes(), None);
+        let one = PixelSamples::ONE;
+        assert_eq!(RsvpKnobs::default().changes(one), None);
         let cheap = RsvpKnobs {
             oversample: 0.9,
             ..RsvpKnobs::default()
         };
-        assert_eq!(cheap.changes().as_deref(), Some("oversample 0.9"));
+        assert_eq!(cheap.changes(one).as_deref(), Some("oversample 0.9"));
         let all = RsvpKnobs {
             filter: Filter::Box,
             oversample: 2.0,
             level_bias: -1,
         };
         assert_eq!(
-            all.changes().as_deref(),
+            all.changes(one).as_deref(),
             Some("box filter, oversample 2, level bias -1")
+        );
+        // At four samples a pixel the box filter is the default.
+        let four = PixelSamples::new(4).unwrap();
+        assert_eq!(
+            all.changes(four).as_deref(),
+            Some("oversample 2, level bias -1")
         );
     }
 }

@@ -66,9 +66,10 @@ impl PrimaryRays for ViewportRays<'_> {
     }
 }
 
-/// Traces every pixel of the viewport through its own rays.
+/// Traces every pixel of the viewport through its own rays, at the
+/// scene's samples a pixel.
 pub fn render_direct(shader: &Shader, pose: &ViewportPose) -> (Frame, RayCounts) {
-    render_direct_sampled(shader, pose, PixelSamples::ONE)
+    render_direct_sampled(shader, pose, shader.scene().samples)
 }
 
 /// As [`render_direct`], `samples` a pixel.

@@ -154,6 +154,8 @@ pub(super) struct RenderDef {
     pub(super) background: [f32; 3],
     #[serde(default = "default_ambient")]
     pub(super) ambient: [f32; 3],
+    #[serde(default = "default_spp")]
+    pub(super) spp: u32,
 }
 
 impl Default for RenderDef {
@@ -164,10 +166,14 @@ impl Default for RenderDef {
             max_depth: default_depth(),
             background: [0.0; 3],
             ambient: default_ambient(),
+            spp: default_spp(),
         }
     }
 }
 
+fn default_spp() -> u32 {
+    1
+}
 fn default_width() -> u32 {
     640
 }

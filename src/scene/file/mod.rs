@@ -32,6 +32,7 @@ use toml::Spanned;
 use super::{Material, Scene, SceneError};
 use crate::camera::Projection;
 use crate::geometry::Placement;
+use crate::sampling::PixelSamples;
 use animation::convert_animation;
 use camera::convert_camera;
 use defs::{RenderDef, SceneFile};
@@ -51,6 +52,19 @@ pub struct SceneOverrides {
     pub projection: Option<Projection>,
     /// Degrees.
     pub fov: Option<f64>,
+    /// Samples per pixel (`--spp`).
+    pub spp: Option<u32>,
+}
+
+impl SceneOverrides {
+    /// The samples per pixel `--spp` asks for, if it does.
+    pub(crate) fn samples(&self) -> Result<Option<PixelSamples>, SceneError> {
+        self.spp
+            .map(|spp| {
+                PixelSamples::new(spp).map_err(|m| SceneError::of_flags(format!("--spp {spp}"), m))
+            })
+            .transpose()
+    }
 }
 
 /// Deepest reflection recursion accepted (each level can double the rays).
@@ -206,6 +220,10 @@ pub(crate) fn parse_scene(
         ));
     }
 
+    let samples = match overrides.samples()? {
+        Some(samples) => samples,
+        None => PixelSamples::new(render.spp).map_err(|m| render_error("render.spp", m))?,
+    };
     let camera = convert_camera(&ctx, &file.camera, render, render_span, overrides)?;
 
     let mut materials = Vec::with_capacity(file.material.len() + 1);
@@ -258,6 +276,7 @@ pub(crate) fn parse_scene(
         background,
         ambient,
         max_depth: render.max_depth,
+        samples,
         warnings,
         animation,
     })
