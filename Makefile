@@ -29,9 +29,9 @@ build: deps
 
 demo: build
 	@mkdir -p out
-	$(RETRACE) render -o out/paper.png
-	$(RETRACE) render scenes/bunny.toml -o out/bunny.png
-	$(RETRACE) animate scenes/paper-all.toml --frames 0-23 -o out/anim/frame_####.png \
+	$(RETRACE) render --spp 16 -o out/paper.png
+	$(RETRACE) render scenes/bunny.toml --spp 16 -o out/bunny.png
+	$(RETRACE) animate scenes/paper-all.toml --spp 4 --frames 0-23 -o out/anim/frame_####.png \
 	  --dirty-image out/anim/traced_####.png --stats out/anim/stats.csv
 
 lint: deps
