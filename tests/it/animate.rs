@@ -575,48 +575,57 @@ fn chunks_of_an_array_job_render_the_frames_of_one_run() {
         assert!(out.status.success(), "{extra:?} {env:?}: {}", stderr(&out));
         stderr(&out)
     };
-    run("one/f_#.png", &[], &[]);
-    // Three tasks, each told its index a different way.
-    let said = run(
-        "chunked/f_#.png",
-        &["--chunks", "3", "--stats", "chunked/s.csv"],
-        &[("SLURM_ARRAY_TASK_ID", "1"), ("SLURM_ARRAY_TASK_MIN", "1")],
-    );
-    assert!(
-        said.contains("chunk 0 of 3") && said.contains("frames 0-1"),
-        "{said}"
-    );
-    let said = run(
-        "chunked/f_#.png",
-        &["--chunks", "3", "--stats", "chunked/s.csv"],
-        &[("JOB_COMPLETION_INDEX", "1")],
-    );
-    assert!(said.contains("frames 2-3"), "{said}");
-    run(
-        "chunked/f_#.png",
-        &[
-            "--chunks",
-            "3",
-            "--chunk-index",
-            "2",
-            "--stats",
-            "chunked/s.csv",
-        ],
-        &[],
-    );
-    for frame in 0..7 {
-        let name = format!("f_{frame}_view.png");
-        let one = std::fs::read(dir.path().join("one").join(&name)).unwrap();
-        let chunked = std::fs::read(dir.path().join("chunked").join(&name)).unwrap();
-        assert!(one == chunked, "{name} differs");
-    }
-    // Each task's statistics, its own frames' rows; the first frame of each
-    // chunk traced from scratch.
-    for (index, rows) in [(0, 2), (1, 2), (2, 3)] {
-        let csv = std::fs::read_to_string(dir.path().join(format!("chunked/s.chunk{index}.csv")))
-            .unwrap();
-        assert_eq!(csv.lines().count(), 1 + rows, "chunk {index}");
-        assert!(csv.lines().nth(1).unwrap().contains("first frame"), "{csv}");
+    // At one and at four samples a pixel; the long run at four on one
+    // thread, the chunks on every core: sub-sample positions depend on
+    // neither the thread nor the chunk.
+    for (spp, one_threads) in [("1", None), ("4", Some("1"))] {
+        let (one, chunked) = (format!("one{spp}"), format!("chunked{spp}"));
+        let (one_out, out) = (format!("{one}/f_#.png"), format!("{chunked}/f_#.png"));
+        let stats = format!("{chunked}/s.csv");
+        let mut long = vec!["--spp", spp];
+        if let Some(threads) = one_threads {
+            long.extend(["--threads", threads]);
+        }
+        run(&one_out, &long, &[]);
+        let chunk = |extra: &[&'static str]| -> Vec<String> {
+            ["--spp", spp, "--chunks", "3", "--stats", &stats]
+                .iter()
+                .map(|s| s.to_string())
+                .chain(extra.iter().map(|s| s.to_string()))
+                .collect()
+        };
+        let args = chunk(&[]);
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        // Three tasks, each told its index a different way.
+        let said = run(
+            &out,
+            &args,
+            &[("SLURM_ARRAY_TASK_ID", "1"), ("SLURM_ARRAY_TASK_MIN", "1")],
+        );
+        assert!(
+            said.contains("chunk 0 of 3") && said.contains("frames 0-1"),
+            "{said}"
+        );
+        let said = run(&out, &args, &[("JOB_COMPLETION_INDEX", "1")]);
+        assert!(said.contains("frames 2-3"), "{said}");
+        let last = chunk(&["--chunk-index", "2"]);
+        let last: Vec<&str> = last.iter().map(String::as_str).collect();
+        run(&out, &last, &[]);
+        for frame in 0..7 {
+            let name = format!("f_{frame}_view.png");
+            let one = std::fs::read(dir.path().join(&one).join(&name)).unwrap();
+            let chunked = std::fs::read(dir.path().join(&chunked).join(&name)).unwrap();
+            assert!(one == chunked, "spp {spp}: {name} differs");
+        }
+        // Each task's statistics, its own frames' rows; the first frame of
+        // each chunk traced from scratch.
+        for (index, rows) in [(0, 2), (1, 2), (2, 3)] {
+            let csv =
+                std::fs::read_to_string(dir.path().join(format!("{chunked}/s.chunk{index}.csv")))
+                    .unwrap();
+            assert_eq!(csv.lines().count(), 1 + rows, "chunk {index}");
+            assert!(csv.lines().nth(1).unwrap().contains("first frame"), "{csv}");
+        }
     }
 }
 
