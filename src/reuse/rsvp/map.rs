@@ -364,10 +364,11 @@ impl SampleBuffer {
                         }
                     });
                 }
-                // A box with more than 16 samples a pixel would copy far
-                // more than its pixels read.
+                // A box with more than 16 samples a pixel (times the
+                // oversampling asked for) would copy far more than its
+                // pixels read.
                 let blocks = reads.filter(|b| {
-                    b.area() <= 16.0 * (cols * rows) as f64
+                    b.area() <= 16.0 * knobs.oversample.max(1.0).powi(2) * (cols * rows) as f64
                         && b.c1 - b.c0 < self.lattice.columns(level.x)
                 });
                 (
