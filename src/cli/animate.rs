@@ -9,7 +9,10 @@ use anyhow::{Context, Result};
 use clap::Args;
 
 use retrace::frame_loop::{Animator, FrameStats, Options, Techniques, ViewOutput};
+use retrace::lab::bench::{reference_samples, REFERENCE_EVERY};
+use retrace::metrics::ImageError;
 use retrace::output::{save_image, PendingFile};
+use retrace::sampling::PixelSamples;
 
 use super::{
     check_writable, ensure_parent, folder_of, frame_pattern, idle_flag, load, on_interrupt,
@@ -410,6 +413,7 @@ pub(crate) fn animate(args: AnimateArgs) -> Result<()> {
         .regions
         .region_size(scene.camera.width, scene.camera.height);
     let mut failed_frames = Vec::new();
+    let mut against_reference = ReferenceCheck::new(scene.samples);
     let mut previous_reference: Option<retrace::render::Frame> = None;
     // (frames checked, samples compared, samples differing)
     let mut store_check = (0u32, 0u64, 0u64);
@@ -444,6 +448,16 @@ pub(crate) fn animate(args: AnimateArgs) -> Result<()> {
                 }
                 if animator.is_exact() && differing != (0, 0) {
                     failed_frames.push((frame, differing));
+                }
+                let last = frame == *range.end();
+                let sampled = last || (frame - range.start()) % REFERENCE_EVERY == 0;
+                // Exact output off its camera's own rays is a snapped pan:
+                // approximate against the camera's view, so measured too.
+                let approximate = !animator.is_exact()
+                    || output.stats.yaw_error_deg != 0.0
+                    || output.stats.pitch_error_deg != 0.0;
+                if sampled && approximate {
+                    against_reference.add(&mut animator, frame, index, &output)?;
                 }
             }
             let write_start = Instant::now();
@@ -540,8 +554,87 @@ pub(crate) fn animate(args: AnimateArgs) -> Result<()> {
     say_run(&args, &what, &all_stats, write_ms, references);
     if args.verify && !all_stats.is_empty() {
         say_verified(&animator, &names, &all_stats, &failed_frames)?;
+        against_reference.say(&names);
     }
     Ok(())
+}
+
+/// With `--verify`, approximate output and the full render at the run's
+/// samples, both against a converged reference of the same views (the
+/// bench's: see [`retrace::lab::bench::BENCH_REFERENCE_SAMPLES`]), on every
+/// [`REFERENCE_EVERY`]th frame of the run and the last.
+struct ReferenceCheck {
+    run: PixelSamples,
+    reference: PixelSamples,
+    frames: Vec<u32>,
+    /// (view name, full render's error, output's error)
+    errors: Vec<(String, ImageError, ImageError)>,
+}
+
+impl ReferenceCheck {
+    fn new(run: PixelSamples) -> ReferenceCheck {
+        ReferenceCheck {
+            run,
+            reference: reference_samples(run),
+            frames: Vec::new(),
+            errors: Vec::new(),
+        }
+    }
+
+    fn add(
+        &mut self,
+        animator: &mut Animator,
+        frame: u32,
+        index: usize,
+        output: &ViewOutput,
+    ) -> Result<()> {
+        let image = output
+            .frame
+            .as_ref()
+            .expect("verification keeps linear colour");
+        let (reference, _) = animator.render_view_sampled(frame, index, self.reference);
+        let (full, _) = animator.render_true_view(frame, index);
+        self.errors.push((
+            output.name.clone(),
+            retrace::metrics::image_error(&full, &reference)?,
+            retrace::metrics::image_error(image, &reference)?,
+        ));
+        if self.frames.last() != Some(&frame) {
+            self.frames.push(frame);
+        }
+        Ok(())
+    }
+
+    /// Two lines a view, full render above output, with the same figures.
+    fn say(&self, names: &[String]) {
+        if self.errors.is_empty() {
+            return;
+        }
+        let frames: Vec<String> = self.frames.iter().map(u32::to_string).collect();
+        for name in names {
+            let rows = || self.errors.iter().filter(|(n, _, _)| n == name);
+            let label = if name.is_empty() {
+                String::new()
+            } else {
+                format!(" {name}")
+            };
+            let heading = format!(
+                "verify{label} (against a {}-spp reference, frames {})",
+                self.reference.count(),
+                frames.join(", ")
+            );
+            let full = format!("full render at {} spp:", self.run.count());
+            say!(
+                "{heading}: {full:24} {}",
+                error_summary(rows().map(|(_, full, _)| *full))
+            );
+            say!(
+                "{heading}: {:24} {}",
+                "accelerated output:",
+                error_summary(rows().map(|(_, _, output)| *output))
+            );
+        }
+    }
 }
 
 /// Refuses, with the reason, every flag that cannot act on this run: a
@@ -643,7 +736,7 @@ fn say_verified(
             let rows = stats.iter().filter(|s| &s.viewport == name);
             say!(
                 "verify {name} (against its own rays): {}",
-                error_summary(rows)
+                error_summary(rows.filter_map(|s| s.error))
             );
         }
         return Ok(());
@@ -683,7 +776,7 @@ fn say_verified(
             } else {
                 "resampled"
             },
-            error_summary(stats.iter())
+            error_summary(stats.iter().filter_map(|s| s.error))
         );
     }
     Ok(())
@@ -775,9 +868,9 @@ fn verify_timing(stats: &[retrace::frame_loop::FrameStats]) -> String {
 }
 
 /// Worst and mean PSNR, largest and mean absolute error and share of
-/// differing pixels over the rows that measured an error.
-fn error_summary<'a>(rows: impl Iterator<Item = &'a retrace::frame_loop::FrameStats>) -> String {
-    let errors: Vec<_> = rows.filter_map(|s| s.error).collect();
+/// differing pixels over `errors`.
+fn error_summary(errors: impl Iterator<Item = ImageError>) -> String {
+    let errors: Vec<ImageError> = errors.collect();
     let count = errors.len().max(1) as f64;
     let worst_psnr = errors
         .iter()

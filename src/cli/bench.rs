@@ -459,6 +459,7 @@ fn run_experiment(
     let measure = Measure {
         error: !scene.viewports.is_empty(),
         oracle: true,
+        reference: true,
     };
     let rounds = args.repeats.unwrap_or(1) as usize;
     let result = bench_sequence(&scene, &mut accel, &options, rounds, measure, || bar.inc(1));

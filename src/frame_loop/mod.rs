@@ -41,6 +41,7 @@ use crate::reuse::pan::{cells_traced, render_window, EqualAngleLattice, Fraction
 use crate::reuse::rsvp::{render_direct_sampled, RsvpStore, SampleLattice};
 use crate::reuse::still::StillStore;
 use crate::reuse::{FrameMode, SampleStore, Wanted};
+use crate::sampling::PixelSamples;
 use crate::scene::Scene;
 use crate::shade::{RayCounts, Shader};
 use crate::timeline::Animation;
@@ -267,9 +268,20 @@ impl<'a> Animator<'a> {
     /// View `index` of `frame` through its own, unsnapped rays: the exact
     /// picture any approximation is measured against.
     pub fn render_true_view(&mut self, frame: u32, index: usize) -> (Frame, RayCounts) {
+        self.render_view_sampled(frame, index, self.scene.samples)
+    }
+
+    /// As [`Animator::render_true_view`] at `samples` a pixel rather than
+    /// the scene's: a converged reference of the view, for measuring how
+    /// far the scene's own samples (full or reused) are from it.
+    pub fn render_view_sampled(
+        &mut self,
+        frame: u32,
+        index: usize,
+        samples: PixelSamples,
+    ) -> (Frame, RayCounts) {
         self.pose(frame);
         let view = self.views(frame).swap_remove(index);
-        let samples = self.scene.samples;
         if self.has_viewports() {
             let shader = Shader::new(&self.scene, self.accel);
             return render_direct_sampled(&shader, &view.pose, samples);

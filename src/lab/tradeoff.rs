@@ -186,6 +186,7 @@ pub fn sweep_rsvp_knobs(
 const ERROR_ONLY: Measure = Measure {
     error: true,
     oracle: false,
+    reference: false,
 };
 
 /// OSTC settings: the region grids, then the voxel grids (each with the

@@ -830,3 +830,65 @@ fn pans_by_whole_samples_equal_the_cameras_own_rays() {
         }
     }
 }
+
+/// Resampled output under --verify: the full render and the output, each
+/// against the same converged reference, one line each; exact output that
+/// is its camera's own rays has nothing to add.
+#[test]
+fn verify_measures_resampled_output_and_full_render_against_a_reference() {
+    let dir = pan_case("[[viewport]]\nname = \"v\"\nwidth = 16\nheight = 12\n");
+    let out = retrace(
+        &[
+            "animate",
+            "pan.toml",
+            "--width",
+            "32",
+            "--height",
+            "24",
+            "--spp",
+            "4",
+            "-o",
+            "out/f_###.png",
+            "--verify",
+        ],
+        dir.path(),
+    );
+    assert!(out.status.success(), "{}", stderr(&out));
+    let said = String::from_utf8_lossy(&out.stdout);
+    let heading = "verify v (against a 64-spp reference, frames 0, 5): ";
+    for side in ["full render at 4 spp:", "accelerated output:"] {
+        let line = said
+            .lines()
+            .find(|l| l.starts_with(heading) && l.contains(side))
+            .unwrap_or_else(|| panic!("no {side} line: {said}"));
+        let worst: f64 = line
+            .split("PSNR worst ")
+            .nth(1)
+            .and_then(|rest| rest.split(' ').next())
+            .unwrap()
+            .parse()
+            .unwrap();
+        assert!(worst.is_finite() && worst > 5.0, "{line}");
+    }
+
+    // A still camera's own image: exact and its own rays.
+    let still = retrace(
+        &[
+            "animate",
+            "paper.toml",
+            "--width",
+            "32",
+            "--height",
+            "24",
+            "--frames",
+            "0",
+            "-o",
+            "out/g_###.png",
+            "--verify",
+        ],
+        dir.path(),
+    );
+    assert!(still.status.success(), "{}", stderr(&still));
+    let said = String::from_utf8_lossy(&still.stdout);
+    assert!(!said.contains("reference"), "{said}");
+}

@@ -456,6 +456,55 @@ fn bench_measures_the_viewport_experiments_at_the_knobs_asked_for() {
     }
 }
 
+/// Both sides against a converged reference, side by side, in every
+/// output of the bench: the table, bench.json, bench.csv and report.md.
+#[test]
+fn bench_reports_both_sides_against_the_reference() {
+    let dir = tempfile::tempdir().unwrap();
+    let out_dir = dir.path().join("bench");
+    let out = bench(&out_dir, &["--only", "E2", "--frames", "0-2", "--spp", "4"]);
+    assert!(out.status.success(), "stderr: {}", stderr(&out));
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let header = stdout
+        .lines()
+        .find(|l| l.starts_with("experiment"))
+        .unwrap();
+    for column in ["spp (ref)", "full vs ref dB", "accel vs ref dB"] {
+        assert!(header.contains(column), "no {column}: {stdout}");
+    }
+    let row = stdout.lines().find(|l| l.starts_with("E2 in")).unwrap();
+    assert!(row.contains("  4 (64)  "), "{row}");
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out_dir.join("bench.json")).unwrap())
+            .unwrap();
+    for row in json.as_array().unwrap() {
+        assert_eq!(row["samples_per_pixel"], 4, "{row}");
+        assert_eq!(row["reference_samples"], 64, "{row}");
+        assert_eq!(row["reference_frames"], serde_json::json!([0, 2]), "{row}");
+        for side in ["full_vs_reference", "accelerated_vs_reference"] {
+            let worst = row[side]["worst_psnr_db"].as_f64().expect("finite");
+            assert!(worst > 5.0 && worst < 100.0, "{side}: {row}");
+            let mean_abs = row[side]["mean_abs"].as_f64().unwrap();
+            assert!(mean_abs > 0.0, "{side}: {row}");
+        }
+        // The old comparison stays: against the same samples' full render.
+        assert!(row["worst_psnr_db"].as_f64().is_some(), "{row}");
+    }
+    let csv = std::fs::read_to_string(out_dir.join("bench.csv")).unwrap();
+    let header: Vec<&str> = csv.lines().next().unwrap().split(',').collect();
+    for column in ["full_ref_worst_psnr_db", "accelerated_ref_worst_psnr_db"] {
+        let at = header.iter().position(|c| *c == column).unwrap();
+        let cell = csv.lines().nth(1).unwrap().split(',').nth(at).unwrap();
+        assert!(cell.parse::<f64>().unwrap().is_finite(), "{column}: {cell}");
+    }
+    let report = std::fs::read_to_string(out_dir.join("report.md")).unwrap();
+    assert!(
+        report
+            .contains("Against a 64-spp reference of frames 0, 2: the full render at 4 spp: PSNR"),
+        "{report}"
+    );
+}
+
 #[test]
 fn bench_writes_the_table_profiles_plots_and_report() {
     let dir = tempfile::tempdir().unwrap();

@@ -3,9 +3,9 @@
 //! [`bench_sequence`], for the camera's image and for RSVP viewports alike.
 //!
 //! Timed passes write nothing and keep no linear colour; what the output is
-//! worth (bit-exactness, the error against each view's own rays, the
-//! buffer's self-check, the oracle) is measured on a separate, untimed
-//! pass.
+//! worth (bit-exactness, the error against each view's own rays, the error
+//! of both sides against a converged reference, the buffer's self-check,
+//! the oracle) is measured on a separate, untimed pass.
 
 use std::time::Instant;
 
@@ -14,6 +14,7 @@ use crate::frame_loop::{Animator, Options, Techniques};
 use crate::metrics::{count_differences, image_error, ImageError};
 use crate::render::Frame;
 use crate::reuse::rsvp::RsvpKnobs;
+use crate::sampling::{PixelSamples, REFERENCE_SAMPLES_PER_PIXEL};
 use crate::scene::Scene;
 use crate::shade::{RayCounts, Shader};
 
@@ -48,6 +49,10 @@ pub struct FrameProfile {
     pub oracle_region_samples: Option<u64>,
     /// Approximate views: the worst view's PSNR against its own rays.
     pub psnr_db: Option<f64>,
+    /// Frames the reference was rendered for: the worst view's PSNR of the
+    /// full render, and of the accelerated output, against it.
+    pub full_reference_psnr_db: Option<f64>,
+    pub accelerated_reference_psnr_db: Option<f64>,
     /// Exact views: the accelerated frame equals the full one bit for bit.
     pub exact: Option<bool>,
 }
@@ -64,8 +69,8 @@ impl FrameProfile {
     }
 }
 
-/// The error of approximate output against each view's own rays, over
-/// every frame and view of a sequence.
+/// The error of one side's frames against what they are measured by,
+/// over the frames and views measured.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
 pub struct ErrorSummary {
     pub worst_psnr_db: f64,
@@ -74,12 +79,50 @@ pub struct ErrorSummary {
     pub max_abs: f32,
     pub mean_abs: f64,
     pub differing_share: f64,
-    /// Every frame equal to its view's own rays bit for bit.
+    /// Every frame equal to what it is measured by, bit for bit.
     pub identical: bool,
 }
 
+/// Samples a pixel of the converged reference the bench measures both
+/// sides against. At 640x480 a 64-spp render of an E1 or E2 frame is
+/// 52.7-54.3 dB from a 256-spp one, and 4 spp is 35.6-36.3 dB from it, so
+/// the reference's own error is under 2% of the squared error it helps
+/// measure at 4 spp (under 0.1 dB), at a quarter of 256 spp's time.
+pub const BENCH_REFERENCE_SAMPLES: u32 = 64;
+
+/// Frames between two that get a reference (the last frame always does):
+/// a reference frame costs as much as 64 frames at 1 spp.
+pub const REFERENCE_EVERY: u32 = 20;
+
+/// The reference a run at `run` samples a pixel is measured against: the
+/// bench's count, or the converged count when the run has as many (a
+/// reference no finer than the run would measure nothing).
+pub fn reference_samples(run: PixelSamples) -> PixelSamples {
+    let count = if run.count() < BENCH_REFERENCE_SAMPLES {
+        BENCH_REFERENCE_SAMPLES
+    } else {
+        REFERENCE_SAMPLES_PER_PIXEL
+    };
+    PixelSamples::new(count).expect("the reference counts are within the limits")
+}
+
+/// Both sides of a sequence against a converged reference of the same
+/// views: what antialiasing at the run's samples costs (the full render)
+/// beside what reuse adds to it (the accelerated output).
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct ReferenceErrors {
+    /// The reference's samples a pixel.
+    pub samples: u32,
+    /// The frames measured (every [`REFERENCE_EVERY`]th and the last).
+    pub frames: Vec<u32>,
+    /// The full render at the run's samples against the reference.
+    pub full: ErrorSummary,
+    /// The accelerated output against the reference.
+    pub accelerated: ErrorSummary,
+}
+
 impl ErrorSummary {
-    fn of(errors: &[ImageError], identical: bool) -> ErrorSummary {
+    pub fn of(errors: &[ImageError], identical: bool) -> ErrorSummary {
         let count = errors.len().max(1) as f64;
         ErrorSummary {
             worst_psnr_db: errors
@@ -122,6 +165,10 @@ pub struct Measure {
     pub error: bool,
     /// The camera image's oracle (camera sequences only).
     pub oracle: bool,
+    /// Both sides against a converged reference (see
+    /// [`BENCH_REFERENCE_SAMPLES`]), on every [`REFERENCE_EVERY`]th frame
+    /// and the last.
+    pub reference: bool,
 }
 
 /// One sequence, rendered in full and with reuse in one run.
@@ -148,8 +195,12 @@ pub struct SequenceBench {
     /// Exact output (the camera's image, snapped): every accelerated frame
     /// equal, bit for bit, to its full render. None for approximate output.
     pub exact: Option<bool>,
+    /// The scene's samples a pixel, which both sides trace.
+    pub samples_per_pixel: u32,
     /// With [`Measure::error`]: against each view's own rays.
     pub error: Option<ErrorSummary>,
+    /// With [`Measure::reference`].
+    pub reference: Option<ReferenceErrors>,
     /// A store that checks itself (RSVP's buffer, when the scene moves):
     /// its kept samples re-traced at checkpoints (compared, differing).
     pub buffer_check: Option<(u64, u64)>,
@@ -312,7 +363,9 @@ pub fn bench_sequence(
         bookkeeping_ms,
         knobs: options.rsvp,
         exact: checked.exact,
+        samples_per_pixel: scene.samples.count(),
         error: checked.error,
+        reference: checked.reference,
         buffer_check: checked.buffer_check,
         oracle,
         max_yaw_error_deg: max_yaw_error,
@@ -329,14 +382,15 @@ struct Checked {
     plain_ms: Vec<(u32, f64)>,
     exact: Option<bool>,
     error: Option<ErrorSummary>,
+    reference: Option<ReferenceErrors>,
     buffer_check: Option<(u64, u64)>,
     /// The oracle and the time its region groups took to trace.
     oracle: Option<(Oracle, f64)>,
 }
 
 /// The untimed pass: the accelerated frames again with linear colour,
-/// against full renders (exactness), each view's own rays (error), the
-/// store's own check, and the oracle.
+/// against full renders (exactness), each view's own rays (error), a
+/// converged reference (both sides), the store's own check, and the oracle.
 fn check_sequence(
     scene: &Scene,
     accel: &mut Accelerator,
@@ -366,12 +420,19 @@ fn check_sequence(
     let mut errors = Vec::new();
     let (mut all_exact, mut identical) = (true, true);
     let mut plain_ms = Vec::new();
+    let reference_count = reference_samples(scene.samples);
+    let (mut reference_frames, mut full_vs_reference, mut fast_vs_reference) =
+        (Vec::new(), Vec::new(), Vec::new());
     for (row, frame) in profile.iter_mut().zip(frames.clone()) {
         if (frame - frames.start) % 10 == 0 {
             plain_ms.push((frame, plain_render_ms(&mut check, frame)));
         }
         let outputs = check.render(frame);
         let mut worst = f64::INFINITY;
+        let last = frame + 1 == frames.end;
+        let referenced =
+            measure.reference && (last || (frame - frames.start) % REFERENCE_EVERY == 0);
+        let (mut full_worst, mut fast_worst) = (f64::INFINITY, f64::INFINITY);
         for (index, output) in outputs.iter().enumerate() {
             let image = output.frame.as_ref().expect("linear output is on");
             if exact {
@@ -392,19 +453,33 @@ fn check_sequence(
                     oracle_ms += start.elapsed().as_secs_f64() * 1e3;
                 }
             }
-            if measure.error {
-                let (truth, _) = check.render_true_view(frame, index);
+            let truth =
+                (measure.error || referenced).then(|| check.render_true_view(frame, index).0);
+            if let (true, Some(truth)) = (measure.error, &truth) {
                 // A view and its own rays are one size: a bug otherwise.
-                let error = image_error(image, &truth).expect("a view's frames");
-                identical &= count_differences(image, &truth).expect("a view's frames") == 0;
+                let error = image_error(image, truth).expect("a view's frames");
+                identical &= count_differences(image, truth).expect("a view's frames") == 0;
                 worst = worst.min(error.psnr_db);
                 errors.push(error);
+            }
+            if let (true, Some(truth)) = (referenced, &truth) {
+                let (reference, _) = check.render_view_sampled(frame, index, reference_count);
+                let full = image_error(truth, &reference).expect("a view's frames");
+                let fast = image_error(image, &reference).expect("a view's frames");
+                full_worst = full_worst.min(full.psnr_db);
+                fast_worst = fast_worst.min(fast.psnr_db);
+                full_vs_reference.push(full);
+                fast_vs_reference.push(fast);
             }
         }
         if measure.error && !exact {
             row.psnr_db = Some(worst);
         }
-        let last = frame + 1 == frames.end;
+        if referenced {
+            reference_frames.push(frame);
+            row.full_reference_psnr_db = Some(full_worst);
+            row.accelerated_reference_psnr_db = Some(fast_worst);
+        }
         let checkpoint = last || (frame - frames.start + 1) % BUFFER_CHECK_EVERY == 0;
         if moves && checkpoint {
             if let Some((compared, differing)) = check.verify_store() {
@@ -418,6 +493,17 @@ fn check_sequence(
         plain_ms,
         exact: exact.then_some(all_exact),
         error: measure.error.then(|| ErrorSummary::of(&errors, identical)),
+        reference: measure.reference.then(|| {
+            let summary = |errors: &[ImageError]| {
+                ErrorSummary::of(errors, errors.iter().all(|e| e.psnr_db.is_infinite()))
+            };
+            ReferenceErrors {
+                samples: reference_count.count(),
+                frames: reference_frames,
+                full: summary(&full_vs_reference),
+                accelerated: summary(&fast_vs_reference),
+            }
+        }),
         buffer_check,
         oracle: oracle.map(|o| (o, oracle_ms)),
     }
@@ -443,4 +529,83 @@ fn plain_render_ms(animator: &mut Animator, frame: u32) -> f64 {
         })
         .collect();
     median(times)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::accel::BackendKind;
+    use crate::scene::{builtin_scene, SceneOverrides};
+
+    const REFERENCE_ONLY: Measure = Measure {
+        error: false,
+        oracle: false,
+        reference: true,
+    };
+
+    /// One of the shipped experiments at 32x24 (viewports too) and 4 spp.
+    fn small(file: &str) -> Scene {
+        let overrides = SceneOverrides {
+            width: Some(32),
+            height: Some(24),
+            spp: Some(4),
+            ..SceneOverrides::default()
+        };
+        let mut scene = builtin_scene(file, &overrides).unwrap();
+        for track in &mut scene.viewports {
+            (track.viewport.width, track.viewport.height) = (32, 24);
+        }
+        scene
+    }
+
+    fn reference_errors(scene: &Scene, frames: std::ops::Range<u32>) -> SequenceBench {
+        let mut accel = Accelerator::build(BackendKind::Grid, &scene.objects).unwrap();
+        let options = Options::new(Techniques::AUTO, frames);
+        bench_sequence(scene, &mut accel, &options, 1, REFERENCE_ONLY, || {})
+    }
+
+    /// The bouncing ball before a still camera: OSTC's frames are exact, so
+    /// against the reference they are exactly as far as the full render.
+    #[test]
+    fn an_exact_output_is_as_far_from_the_reference_as_its_full_render() {
+        let bench = reference_errors(&small("paper-bounce.toml"), 40..62);
+        assert_eq!(bench.exact, Some(true));
+        let reference = bench.reference.expect("asked for");
+        assert_eq!(reference.samples, BENCH_REFERENCE_SAMPLES);
+        assert_eq!(reference.frames, [40, 60, 61]);
+        assert_eq!(reference.accelerated, reference.full);
+        // 4 samples a pixel are not 64: a finite error, and not a small one.
+        assert!(reference.full.worst_psnr_db.is_finite());
+        assert!(reference.full.max_abs > 0.0 && reference.full.differing_share > 0.0);
+        let measured: Vec<u32> = bench
+            .profile
+            .iter()
+            .filter(|p| p.full_reference_psnr_db.is_some())
+            .map(|p| p.frame)
+            .collect();
+        assert_eq!(measured, reference.frames);
+    }
+
+    /// A resampled viewport is measured against the same reference as the
+    /// full render, and is not the full render.
+    #[test]
+    fn a_resampled_output_has_its_own_error_against_the_reference() {
+        let bench = reference_errors(&small("paper-zoom-in.toml"), 0..3);
+        assert_eq!(bench.exact, None);
+        let reference = bench.reference.expect("asked for");
+        assert_eq!(reference.frames, [0, 2]);
+        for side in [reference.full, reference.accelerated] {
+            assert!(side.worst_psnr_db.is_finite() && side.worst_psnr_db > 5.0);
+            assert!(side.mean_psnr_db >= side.worst_psnr_db);
+        }
+        assert_ne!(reference.accelerated, reference.full);
+    }
+
+    #[test]
+    fn the_reference_is_finer_than_the_run() {
+        let count = |spp| reference_samples(PixelSamples::new(spp).unwrap()).count();
+        assert_eq!(count(1), BENCH_REFERENCE_SAMPLES);
+        assert_eq!(count(16), BENCH_REFERENCE_SAMPLES);
+        assert_eq!(count(BENCH_REFERENCE_SAMPLES), REFERENCE_SAMPLES_PER_PIXEL);
+    }
 }

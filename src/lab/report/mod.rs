@@ -13,7 +13,7 @@ mod table;
 pub use markdown::{report_markdown, RunInfo};
 pub use table::{profile_csv, rows_csv, rows_json, table, PROFILE_COLUMNS, ROW_COLUMNS};
 
-use crate::lab::bench::{FrameProfile, SequenceBench};
+use crate::lab::bench::{ErrorSummary, FrameProfile, SequenceBench};
 
 /// What an experiment is, before it is measured.
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
@@ -76,6 +76,17 @@ pub struct BenchRow {
     pub exact: Option<bool>,
     /// Worst PSNR of a resampled frame against its direct render.
     pub worst_psnr_db: Option<f64>,
+    /// The samples a pixel both sides traced.
+    pub samples_per_pixel: u32,
+    /// The converged reference's samples a pixel; None where no reference
+    /// was rendered.
+    pub reference_samples: Option<u32>,
+    /// The frames the reference was rendered for.
+    pub reference_frames: Vec<u32>,
+    /// The full render at `samples_per_pixel` against the reference.
+    pub full_vs_reference: Option<ErrorSummary>,
+    /// The accelerated output against the same reference.
+    pub accelerated_vs_reference: Option<ErrorSummary>,
     /// The exactness or error result, in words.
     pub exactness: String,
 }
@@ -201,6 +212,14 @@ impl ExperimentResult {
             oracle_samples,
             exact,
             worst_psnr_db,
+            samples_per_pixel: bench.samples_per_pixel,
+            reference_samples: bench.reference.as_ref().map(|r| r.samples),
+            reference_frames: bench
+                .reference
+                .as_ref()
+                .map_or_else(Vec::new, |r| r.frames.clone()),
+            full_vs_reference: bench.reference.as_ref().map(|r| r.full),
+            accelerated_vs_reference: bench.reference.as_ref().map(|r| r.accelerated),
             exactness,
         };
         ExperimentResult {
@@ -397,6 +416,11 @@ mod tests {
             oracle_samples: oracle.map(|_| 900),
             exact: Some(true),
             worst_psnr_db: None,
+            samples_per_pixel: 1,
+            reference_samples: None,
+            reference_frames: Vec::new(),
+            full_vs_reference: None,
+            accelerated_vs_reference: None,
             exactness: "bit-exact".to_string(),
         }
     }

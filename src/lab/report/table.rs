@@ -1,7 +1,7 @@
 //! The bench's table as the terminal shows it, and as CSV and JSON; each
 //! experiment's per-frame CSV.
 
-use super::{profile_file, BenchRow, FrameProfile};
+use super::{profile_file, BenchRow, ErrorSummary, FrameProfile};
 
 /// The figures measured, joined by " / ": the per-sample oracle, then the
 /// region ones where there are regions; `n/a` if none was.
@@ -14,10 +14,11 @@ fn figures(values: [Option<f64>; 3], show: impl Fn(f64) -> String) -> String {
     }
 }
 
-pub(super) const TABLE_HEADER: [&str; 12] = [
+pub(super) const TABLE_HEADER: [&str; 15] = [
     "experiment",
     "scene",
     "size",
+    "spp (ref)",
     "paper",
     "full ms/frame",
     "vs plain",
@@ -26,16 +27,43 @@ pub(super) const TABLE_HEADER: [&str; 12] = [
     "oracle (sample / region / timed)",
     "efficiency",
     "bookkeeping",
+    "full vs ref dB",
+    "accel vs ref dB",
     "exactness / error",
 ];
 
+/// The columns whose cells are numbers, right-aligned.
+pub(super) fn numeric(column: usize) -> bool {
+    (5..=13).contains(&column)
+}
+
+/// PSNR against the reference, worst and mean over the frames measured;
+/// `n/a` where no reference was rendered.
+fn reference_cell(summary: Option<&ErrorSummary>) -> String {
+    let db = |db: f64| {
+        if db.is_infinite() {
+            "inf".to_string()
+        } else {
+            format!("{db:.1}")
+        }
+    };
+    summary.map_or_else(
+        || "n/a".to_string(),
+        |s| format!("{} / {}", db(s.worst_psnr_db), db(s.mean_psnr_db)),
+    )
+}
+
 /// The cells of a row, as the terminal table and report.md show them.
-pub(super) fn cells(row: &BenchRow) -> [String; 12] {
+pub(super) fn cells(row: &BenchRow) -> [String; 15] {
     let info = &row.info;
     [
         format!("{} ({})", info.id, info.technique),
         format!("{} ({} tris)", info.scene, thousands(info.triangles)),
         format!("{}x{}", info.width, info.height),
+        match row.reference_samples {
+            Some(reference) => format!("{} ({reference})", row.samples_per_pixel),
+            None => row.samples_per_pixel.to_string(),
+        },
         info.paper_speedup.clone(),
         format!("{:.2}", row.full_ms_per_frame),
         format!("{:.2}", row.full_vs_plain),
@@ -59,6 +87,8 @@ pub(super) fn cells(row: &BenchRow) -> [String; 12] {
         ),
         row.bookkeeping_share
             .map_or_else(|| "none".to_string(), |b| format!("{:.1}%", b * 100.0)),
+        reference_cell(row.full_vs_reference.as_ref()),
+        reference_cell(row.accelerated_vs_reference.as_ref()),
         row.exactness.clone(),
     ]
 }
@@ -79,14 +109,13 @@ pub(super) fn thousands(n: u64) -> String {
 /// The table for the terminal: columns padded to their widest cell,
 /// numbers right-aligned.
 pub fn table(rows: &[BenchRow]) -> String {
-    let body: Vec<[String; 12]> = rows.iter().map(cells).collect();
+    let body: Vec<[String; 15]> = rows.iter().map(cells).collect();
     let mut widths = TABLE_HEADER.map(str::len);
     for row in &body {
         for (width, cell) in widths.iter_mut().zip(row) {
             *width = (*width).max(cell.chars().count());
         }
     }
-    let numeric = |column: usize| (4..=10).contains(&column);
     let line = |cells: &[String]| {
         let mut out = String::new();
         for (column, (cell, &width)) in cells.iter().zip(&widths).enumerate() {
@@ -130,7 +159,7 @@ fn opt<T: ToString>(value: Option<T>) -> String {
 }
 
 /// The columns of `bench.csv`.
-pub const ROW_COLUMNS: [&str; 28] = [
+pub const ROW_COLUMNS: [&str; 41] = [
     "experiment",
     "what",
     "technique",
@@ -157,9 +186,33 @@ pub const ROW_COLUMNS: [&str; 28] = [
     "oracle_samples",
     "exact",
     "worst_psnr_db",
+    "spp",
+    "reference_spp",
+    "reference_frames",
+    "full_ref_worst_psnr_db",
+    "full_ref_mean_psnr_db",
+    "full_ref_max_abs",
+    "full_ref_mean_abs",
+    "full_ref_differing_share",
+    "accelerated_ref_worst_psnr_db",
+    "accelerated_ref_mean_psnr_db",
+    "accelerated_ref_max_abs",
+    "accelerated_ref_mean_abs",
+    "accelerated_ref_differing_share",
     "exactness",
     "profile",
 ];
+
+/// An error summary's columns in `bench.csv`; empty where not measured.
+fn summary_fields(summary: Option<&ErrorSummary>) -> [String; 5] {
+    [
+        opt(summary.map(|s| s.worst_psnr_db)),
+        opt(summary.map(|s| s.mean_psnr_db)),
+        opt(summary.map(|s| s.max_abs)),
+        opt(summary.map(|s| s.mean_abs)),
+        opt(summary.map(|s| s.differing_share)),
+    ]
+}
 
 /// The table as CSV (full precision; empty cells where not measured).
 pub fn rows_csv(rows: &[BenchRow]) -> String {
@@ -167,7 +220,9 @@ pub fn rows_csv(rows: &[BenchRow]) -> String {
     out.push('\n');
     for row in rows {
         let info = &row.info;
-        let fields = [
+        let reference_frames: Vec<String> =
+            row.reference_frames.iter().map(u32::to_string).collect();
+        let mut fields = vec![
             info.id.clone(),
             info.what.clone(),
             info.technique.clone(),
@@ -196,9 +251,14 @@ pub fn rows_csv(rows: &[BenchRow]) -> String {
             // Identical frames have an infinite PSNR: JSON has no word for
             // it, CSV says inf.
             opt(row.worst_psnr_db),
-            row.exactness.clone(),
-            profile_file(&info.id),
+            row.samples_per_pixel.to_string(),
+            opt(row.reference_samples),
+            // Frames split by spaces: one cell whatever the count.
+            reference_frames.join(" "),
         ];
+        fields.extend(summary_fields(row.full_vs_reference.as_ref()));
+        fields.extend(summary_fields(row.accelerated_vs_reference.as_ref()));
+        fields.extend([row.exactness.clone(), profile_file(&info.id)]);
         let fields: Vec<String> = fields.iter().map(|f| csv_field(f)).collect();
         out.push_str(&fields.join(","));
         out.push('\n');
@@ -212,7 +272,7 @@ pub fn rows_json(rows: &[BenchRow]) -> String {
 }
 
 /// The columns of each experiment's per-frame CSV.
-pub const PROFILE_COLUMNS: [&str; 20] = [
+pub const PROFILE_COLUMNS: [&str; 22] = [
     "frame",
     "full_ms",
     "accelerated_ms",
@@ -233,6 +293,8 @@ pub const PROFILE_COLUMNS: [&str; 20] = [
     "psnr_db",
     "exact",
     "speedup",
+    "full_ref_psnr_db",
+    "accelerated_ref_psnr_db",
 ];
 
 /// The per-frame CSV of one experiment.
@@ -261,6 +323,8 @@ pub fn profile_csv(profile: &[FrameProfile]) -> String {
             opt(p.psnr_db.map(|db| format!("{db:.3}"))),
             opt(p.exact),
             format!("{:.3}", p.full_ms / p.accelerated_ms),
+            opt(p.full_reference_psnr_db.map(|db| format!("{db:.3}"))),
+            opt(p.accelerated_reference_psnr_db.map(|db| format!("{db:.3}"))),
         ];
         out.push_str(&fields.join(","));
         out.push('\n');
