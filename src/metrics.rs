@@ -33,7 +33,8 @@ pub struct ImageError {
     pub mean_abs: f64,
     /// Peak signal-to-noise ratio in dB (infinite for identical frames).
     pub psnr_db: f64,
-    /// Share of pixels whose 8-bit sRGB value differs.
+    /// Share of pixels whose 8-bit sRGB value differs by more than one
+    /// step in some channel (a step is rounding; two are a difference).
     pub differing_share: f64,
 }
 
@@ -50,8 +51,11 @@ pub fn image_error(frame: &Frame, reference: &Frame) -> Result<ImageError, SizeM
         max_abs = max_abs.max(d.max_element());
         sum_abs += f64::from(d.element_sum()) / 3.0;
         sum_sq += f64::from(d.dot(d)) / 3.0;
-        differing +=
-            u64::from(a.to_array().map(|c| srgb.encode(c)) != b.to_array().map(|c| srgb.encode(c)));
+        let (a8, b8) = (
+            a.to_array().map(|c| srgb.encode(c)),
+            b.to_array().map(|c| srgb.encode(c)),
+        );
+        differing += u64::from(a8.iter().zip(&b8).any(|(x, y)| x.abs_diff(*y) > 1));
     }
     let n = frame.pixels.len().max(1) as f64;
     let mse = sum_sq / n;
@@ -137,6 +141,23 @@ mod tests {
         assert!(count_differences(&a, &short).is_err());
         let (x, y) = (image::RgbImage::new(4, 2), image::RgbImage::new(4, 1));
         assert!(count_byte_differences(&x, &y).is_err());
+    }
+
+    #[test]
+    fn the_differing_share_counts_pixels_more_than_one_8_bit_step_apart() {
+        // The linear value that sRGB-encodes to `code`.
+        let step = |code: u8| {
+            let linear = ((f32::from(code) / 255.0 + 0.055) / 1.055).powf(2.4);
+            assert_eq!(crate::color::encode_srgb(linear), code);
+            linear
+        };
+        let mut reference = Frame::new(3, 1);
+        reference.pixels.fill(Vec3::splat(step(100)));
+        let mut frame = reference.clone();
+        frame.pixels[1].x = step(101);
+        frame.pixels[2].y = step(102);
+        let error = image_error(&frame, &reference).unwrap();
+        assert_eq!(error.differing_share, 1.0 / 3.0);
     }
 
     #[test]

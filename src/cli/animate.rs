@@ -883,7 +883,7 @@ fn error_summary(errors: impl Iterator<Item = ImageError>) -> String {
     let share = errors.iter().map(|e| e.differing_share).sum::<f64>() / count;
     format!(
         "PSNR worst {worst_psnr:.2} dB, mean {mean_psnr:.2} dB; max abs error {max_abs:.4}, \
-         mean abs error {mean:.5}, {:.2}% of pixels differ in 8 bits",
+         mean abs error {mean:.5}, {:.2}% of pixels differ by more than one 8-bit step",
         share * 100.0
     )
 }

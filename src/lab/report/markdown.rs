@@ -127,7 +127,7 @@ fn reference_errors(row: &BenchRow) -> String {
     let frames: Vec<String> = row.reference_frames.iter().map(u32::to_string).collect();
     let figures = |e: ErrorSummary| {
         format!(
-            "PSNR {:.2} dB worst, {:.2} mean; max abs {:.3}; mean abs {:.5}; {:.2}% of pixels differ in 8 bits",
+            "PSNR {:.2} dB worst, {:.2} mean; max abs {:.3}; mean abs {:.5}; {:.2}% of pixels differ by more than one 8-bit step",
             e.worst_psnr_db,
             e.mean_psnr_db,
             e.max_abs,
@@ -222,7 +222,7 @@ converged reference of the same views, rendered on an untimed pass for every 20t
 the last. The first is what the run's samples a pixel cost in accuracy, the second that plus \
 what reuse adds; exact output equals its full render, so the two differ only where the \
 output is resampled or snapped to a lattice. Mean and largest absolute error and the share of \
-pixels differing in 8 bits are in bench.csv and below.
+pixels differing by more than one 8-bit step are in bench.csv and below.
 - **exactness / error**: `bit-exact`: every accelerated frame equals its full render bit for \
 bit (checked on an untimed pass). Viewports are resampled from the sample buffer, so their \
 error against direct renders is given instead (worst PSNR over frames and viewports); with \
