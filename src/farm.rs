@@ -169,6 +169,22 @@ pub fn reused_share(row: &Value) -> Option<f64> {
     (pixels > 0.0).then(|| reused / pixels)
 }
 
+/// The indices of an `ArrayTaskId` field: `3`, or `2-5` for tasks still
+/// pending together (a `%` limit after them left off).
+pub fn task_indices(field: &str) -> Vec<u32> {
+    let field = field.split('%').next().unwrap_or_default();
+    field
+        .split(',')
+        .flat_map(|part| match part.split_once('-') {
+            Some((a, b)) => match (a.parse::<u32>(), b.parse::<u32>()) {
+                (Ok(a), Ok(b)) => (a..=b).collect(),
+                _ => Vec::new(),
+            },
+            None => part.parse().into_iter().collect(),
+        })
+        .collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -247,6 +263,14 @@ JobId=15 JobName=retrace-assemble JobState=PENDING Reason=DependencyNeverSatisfi
             merge_stats(vec![vec![view("a"), view("b")]]).unwrap().len(),
             2
         );
+    }
+
+    #[test]
+    fn task_fields_give_their_indices() {
+        assert_eq!(task_indices("3"), [3]);
+        assert_eq!(task_indices("2-5%2"), [2, 3, 4, 5]);
+        assert_eq!(task_indices("0,7-8"), [0, 7, 8]);
+        assert!(task_indices("x").is_empty());
     }
 
     #[test]

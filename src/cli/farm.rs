@@ -9,7 +9,9 @@ use anyhow::{Context, Result};
 use clap::{Args, Subcommand};
 
 use retrace::chunk::{chunk_frames, chunk_path};
-use retrace::farm::{merge_stats, parse_sacct, parse_scontrol, reused_share, sort_records};
+use retrace::farm::{
+    merge_stats, parse_sacct, parse_scontrol, reused_share, sort_records, task_indices,
+};
 use retrace::scene::SceneOverrides;
 
 use super::animate::{rows_csv, GifWriter};
@@ -39,6 +41,12 @@ enum FarmCommand {
     Assemble(AssembleArgs),
     /// Each task of Slurm jobs: state, exit code, restarts, reason.
     Status(StatusArgs),
+    /// Run tasks of a render array again (cancelled, failed or running
+    /// ones), now rather than after Slurm's requeue delay; they resume
+    /// from the frames already written. With --assembly, the assembly job
+    /// waits for every task again: a failed or cancelled task had made its
+    /// dependency one that could never be met.
+    Requeue(RequeueArgs),
 }
 
 /// What says which frames a farm run renders, and where: `submit` and
@@ -152,12 +160,78 @@ struct StatusArgs {
     jobs: Vec<String>,
 }
 
+#[derive(Args)]
+struct RequeueArgs {
+    /// The render array's job id.
+    array: String,
+    /// The tasks to run again (their indices in the array).
+    #[arg(required = true)]
+    tasks: Vec<u32>,
+    /// The array's assembly job, to wait for the tasks again.
+    #[arg(long)]
+    assembly: Option<String>,
+}
+
 pub(crate) fn farm(args: FarmArgs) -> Result<()> {
     match args.command {
         FarmCommand::Submit(args) => submit(args),
         FarmCommand::Assemble(args) => assemble(args),
         FarmCommand::Status(args) => status(args),
+        FarmCommand::Requeue(args) => requeue(args),
     }
+}
+
+fn requeue(args: RequeueArgs) -> Result<()> {
+    for task in &args.tasks {
+        let id = format!("{}_{task}", args.array);
+        scontrol(&["requeue", &id])?;
+        // A requeued task is otherwise held for about two minutes (its
+        // BeginTime).
+        scontrol(&["update", &format!("jobid={id}"), "StartTime=now"])?;
+        say!("requeued task {task} of {}", args.array);
+    }
+    if let Some(assembly) = &args.assembly {
+        // Named task by task: Slurm remembers an array's worst exit code,
+        // so `afterok:ARRAY` stays unmet after a failed task succeeds on
+        // its requeue (measured on 22.05), while each task's own state is
+        // its latest.
+        let mut tasks: Vec<u32> = job_records(&args.array)?
+            .iter()
+            .filter_map(|r| r.task.as_deref())
+            .flat_map(task_indices)
+            .collect();
+        tasks.sort_unstable();
+        tasks.dedup();
+        let dependency: Vec<String> = tasks
+            .iter()
+            .map(|t| format!("{}_{t}", args.array))
+            .collect();
+        scontrol(&[
+            "update",
+            &format!("jobid={assembly}"),
+            &format!("Dependency=afterok:{}", dependency.join(":")),
+        ])?;
+        say!(
+            "assembly job {assembly} waits for every task of {} again",
+            args.array
+        );
+    }
+    Ok(())
+}
+
+fn scontrol(args: &[&str]) -> Result<()> {
+    let output = Command::new("scontrol")
+        .args(args)
+        .output()
+        .context("cannot run scontrol (is Slurm's client installed and on PATH?)")?;
+    if !output.status.success() {
+        anyhow::bail!(
+            "scontrol {} failed: {}",
+            args.join(" "),
+            String::from_utf8_lossy(&output.stderr).trim()
+        );
+    }
+    Ok(())
 }
 
 fn submit(args: SubmitArgs) -> Result<()> {
