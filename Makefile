@@ -8,7 +8,7 @@
 DEBIAN_PACKAGES := libembree-dev libclang-dev pkg-config python3-pil
 RETRACE := ./target/release/retrace
 
-.PHONY: all deps build demo test test-deep fuzz lint test-embree4 bench clean
+.PHONY: all deps build demo test test-deep fuzz lint test-embree4 bench clean farm-deps test-farm
 
 all: demo
 
@@ -62,6 +62,38 @@ bench: build
 	$(RETRACE) bench --only frame
 	$(RETRACE) bench --only frame scenes/bunny.toml
 	$(RETRACE) bench --scaling --out out/bench
+
+# Slurm for `make test-farm`, without recommends (slurm-wlm would pull 39
+# packages). The packages' scripts would start munged, slurmctld and slurmd
+# on the system's default paths; a policy-rc.d that refuses keeps them off
+# for the install (the test starts its own, in a private folder).
+FARM_PACKAGES := slurmctld slurmd slurm-client munge
+
+farm-deps:
+	@missing=""; \
+	for pkg in $(FARM_PACKAGES); do \
+	  dpkg-query -W -f='$${Status}' $$pkg 2>/dev/null | grep -q "ok installed" || missing="$$missing $$pkg"; \
+	done; \
+	if [ -n "$$missing" ]; then \
+	  echo "make: installing Debian packages:$$missing"; \
+	  if [ "$$(id -u)" = 0 ]; then sudo=""; else sudo="sudo"; fi; \
+	  guard=""; \
+	  if [ ! -e /usr/sbin/policy-rc.d ]; then \
+	    printf '#!/bin/sh\nexit 101\n' | $$sudo tee /usr/sbin/policy-rc.d >/dev/null && \
+	    $$sudo chmod 755 /usr/sbin/policy-rc.d && guard=1; \
+	  fi; \
+	  $$sudo apt-get update -qq && \
+	  DEBIAN_FRONTEND=noninteractive $$sudo apt-get install -y -qq --no-install-recommends $$missing; \
+	  status=$$?; \
+	  if [ -n "$$guard" ]; then $$sudo rm -f /usr/sbin/policy-rc.d; fi; \
+	  exit $$status; \
+	fi
+
+# A real single-node Slurm, started in a private folder and stopped again:
+# chunked renders, a cancelled and requeued task, a failed one
+# (farm/test-farm.sh says what it checks). Needs root for the daemons.
+test-farm: build farm-deps
+	bash farm/test-farm.sh $(RETRACE)
 
 clean:
 	cargo clean

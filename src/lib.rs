@@ -10,6 +10,7 @@ pub mod accel;
 pub mod camera;
 pub mod chunk;
 pub mod color;
+pub mod farm;
 pub mod frame_loop;
 pub mod geometry;
 pub mod lab;

@@ -8,6 +8,7 @@ use clap::{Parser, Subcommand};
 
 use cli::animate::{animate, AnimateArgs};
 use cli::bench::{bench, BenchArgs};
+use cli::farm::{farm, FarmArgs};
 use cli::render::{render, RenderArgs};
 use cli::tradeoff::{tradeoff, TradeoffArgs};
 use cli::validate::{validate, ValidateArgs};
@@ -64,6 +65,10 @@ enum Command {
     /// build); `--frames 0-49` takes half that, with frame 0's full trace
     /// weighing more in each speedup.
     Tradeoff(TradeoffArgs),
+    /// Render an animation on a Slurm cluster: submit a job array (one
+    /// chunk of frames a task) and the job that assembles the result, and
+    /// report each task's state.
+    Farm(FarmArgs),
 }
 
 /// `err` and its causes, each said once: an error that prints its source
@@ -108,6 +113,7 @@ fn main() -> ExitCode {
         Command::Bench(args) => bench(args),
         Command::Validate(args) => validate(args),
         Command::Tradeoff(args) => tradeoff(args),
+        Command::Farm(args) => farm(args),
     });
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -87,7 +87,7 @@ pub(crate) struct AnimateArgs {
     chunk_index: Option<u32>,
 }
 
-struct GifWriter {
+pub(crate) struct GifWriter {
     /// None once finished. Declared first: dropped (closing the file)
     /// before `file` removes an unfinished one.
     encoder: Option<image::codecs::gif::GifEncoder<std::io::BufWriter<std::fs::File>>>,
@@ -96,7 +96,7 @@ struct GifWriter {
 }
 
 impl GifWriter {
-    fn create(path: &Path, fps: f64) -> Result<GifWriter> {
+    pub(crate) fn create(path: &Path, fps: f64) -> Result<GifWriter> {
         ensure_parent(path)?;
         let file = PendingFile::beside(path);
         let out = std::fs::File::create(file.temp())
@@ -128,13 +128,13 @@ impl GifWriter {
 
     /// A frame written by an earlier run (`--skip-existing`), read back so
     /// that the GIF still shows every frame.
-    fn add_file(&mut self, path: &Path) -> Result<()> {
+    pub(crate) fn add_file(&mut self, path: &Path) -> Result<()> {
         let image = image::open(path)
             .with_context(|| format!("cannot read {} back for the GIF", path.display()))?;
         self.add(&image.to_rgb8())
     }
 
-    fn finish(mut self) -> Result<()> {
+    pub(crate) fn finish(mut self) -> Result<()> {
         // Dropping the encoder writes the trailer and flushes the file.
         drop(self.encoder.take());
         Ok(self.file.commit()?)
@@ -146,22 +146,39 @@ fn finish_outputs(
     gif: Option<GifWriter>,
     stats_path: Option<&Path>,
     stats: &[retrace::frame_loop::FrameStats],
+    earlier: &[serde_json::Value],
 ) -> Result<()> {
     if let Some(gif) = gif {
         gif.finish()?;
     }
     if let Some(path) = stats_path {
-        write_stats(path, stats)?;
+        write_stats(path, stats, earlier)?;
     }
     Ok(())
 }
 
-fn write_stats(path: &Path, stats: &[retrace::frame_loop::FrameStats]) -> Result<()> {
-    let is_json = path
-        .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("json"));
-    let text = if is_json {
-        serde_json::to_string_pretty(stats)?
+fn write_stats(
+    path: &Path,
+    stats: &[retrace::frame_loop::FrameStats],
+    earlier: &[serde_json::Value],
+) -> Result<()> {
+    let text = if is_json(path) {
+        let rows = stats
+            .iter()
+            .map(serde_json::to_value)
+            .collect::<Result<Vec<_>, _>>()?;
+        let frames: std::collections::HashSet<u32> = stats.iter().map(|s| s.frame).collect();
+        let kept = earlier
+            .iter()
+            .filter(|row| {
+                row.get("frame")
+                    .and_then(serde_json::Value::as_u64)
+                    .is_some_and(|f| !u32::try_from(f).is_ok_and(|f| frames.contains(&f)))
+            })
+            .cloned()
+            .collect();
+        let rows = retrace::farm::merge_stats(vec![kept, rows]).map_err(anyhow::Error::msg)?;
+        serde_json::to_string_pretty(&rows)?
     } else {
         stats_csv(stats)?
     };
@@ -170,9 +187,41 @@ fn write_stats(path: &Path, stats: &[retrace::frame_loop::FrameStats]) -> Result
     Ok(())
 }
 
+fn is_json(path: &Path) -> bool {
+    path.extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("json"))
+}
+
+/// The rows of a JSON statistics file an earlier run of the same frames
+/// wrote: a resumed run (`--skip-existing`, a requeued farm task) keeps
+/// those of the frames it skips, so the file still covers every frame.
+fn earlier_stats(args: &AnimateArgs, path: Option<&Path>) -> Result<Vec<serde_json::Value>> {
+    let Some(path) = path.filter(|p| args.skip_existing && is_json(p) && p.is_file()) else {
+        return Ok(Vec::new());
+    };
+    let text = std::fs::read_to_string(path)
+        .with_context(|| format!("cannot read {} to keep its rows", path.display()))?;
+    serde_json::from_str(&text).with_context(|| {
+        format!(
+            "{}: not a statistics file of an earlier run (--skip-existing keeps its rows)",
+            path.display()
+        )
+    })
+}
+
 /// The stats as CSV, one column per field (nested fields as `error.psnr_db`),
 /// in the order `FrameStats` declares them, so CSV and JSON never drift apart.
 fn stats_csv(stats: &[retrace::frame_loop::FrameStats]) -> Result<String> {
+    let rows = stats
+        .iter()
+        .map(serde_json::to_value)
+        .collect::<Result<Vec<_>, _>>()?;
+    rows_csv(&rows)
+}
+
+/// Rows of `FrameStats` as JSON values (a run's own, or read back from
+/// its chunks' files) as CSV.
+pub(crate) fn rows_csv(rows: &[serde_json::Value]) -> Result<String> {
     fn flatten(prefix: &str, value: &serde_json::Value, out: &mut Vec<(String, String)>) {
         match value {
             serde_json::Value::Object(map) => {
@@ -218,9 +267,9 @@ fn stats_csv(stats: &[retrace::frame_loop::FrameStats]) -> Result<String> {
         .collect::<Vec<_>>()
         .join(",");
     csv.push('\n');
-    for s in stats {
+    for value in rows {
         let mut row = Vec::new();
-        flatten("", &serde_json::to_value(s)?, &mut row);
+        flatten("", value, &mut row);
         let cells: std::collections::HashMap<_, _> = row.into_iter().collect();
         let line: Vec<&str> = header
             .iter()
@@ -381,8 +430,10 @@ pub(crate) fn animate(args: AnimateArgs) -> Result<()> {
     // What an interrupt says and saves: the frames finished so far, their
     // statistics, and how to resume.
     let finished = Arc::new(Mutex::new(Vec::<FrameStats>::new()));
+    let earlier = Arc::new(earlier_stats(&args, stats_path.as_deref())?);
     {
         let (finished, stats_path) = (Arc::clone(&finished), stats_path.clone());
+        let earlier = Arc::clone(&earlier);
         let first = *range.start();
         on_interrupt(move || {
             let stats = finished.lock().unwrap_or_else(PoisonError::into_inner);
@@ -399,7 +450,7 @@ pub(crate) fn animate(args: AnimateArgs) -> Result<()> {
             );
             if let Some(path) = &stats_path {
                 if !stats.is_empty() {
-                    match write_stats(path, &stats) {
+                    match write_stats(path, &stats, &earlier) {
                         Ok(()) => eprintln!("statistics of those frames: {}", path.display()),
                         Err(err) => eprintln!("cannot write {}: {err}", path.display()),
                     }
@@ -504,7 +555,7 @@ pub(crate) fn animate(args: AnimateArgs) -> Result<()> {
     }
     progress.finish();
     let all_stats = std::mem::take(&mut *finished.lock().unwrap_or_else(PoisonError::into_inner));
-    finish_outputs(gif, stats_path.as_deref(), &all_stats)?;
+    finish_outputs(gif, stats_path.as_deref(), &all_stats, &earlier)?;
     // Reuse that was asked for but could not apply is worth a word.
     let mut refusals: Vec<String> = all_stats
         .iter()

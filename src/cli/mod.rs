@@ -3,6 +3,7 @@
 
 pub(crate) mod animate;
 pub(crate) mod bench;
+pub(crate) mod farm;
 pub(crate) mod render;
 pub(crate) mod tradeoff;
 pub(crate) mod validate;
