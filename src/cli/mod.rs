@@ -116,11 +116,12 @@ fn parse_backend(s: &str) -> Result<BackendKind, String> {
 #[derive(Args)]
 struct RsvpKnobArgs {
     /// RSVP reconstruction filter: nearest, bilinear or box [default:
-    /// bilinear].
+    /// bilinear; box with --spp above 1].
     #[arg(long)]
     filter: Option<retrace::reuse::rsvp::Filter>,
     /// RSVP: buffer samples per viewport pixel (per side) the pyramid level
-    /// is chosen for, at least (0.01 to 8) [default: 1].
+    /// is chosen for, at least (0.01 to 8; with --spp N, per sub-pixel
+    /// shift) [default: 1; 0.71 with --spp above 1].
     #[arg(long)]
     oversample: Option<f64>,
     /// RSVP: pyramid levels added to the chosen one (negative: coarser;
