@@ -462,7 +462,16 @@ fn run_experiment(
         reference: true,
     };
     let rounds = args.repeats.unwrap_or(1) as usize;
-    let result = bench_sequence(&scene, &mut accel, &options, rounds, measure, || bar.inc(1));
+    let mut references = retrace::lab::bench::References::default();
+    let result = bench_sequence(
+        &scene,
+        &mut accel,
+        &options,
+        rounds,
+        measure,
+        &mut references,
+        || bar.inc(1),
+    );
     for reason in &result.full_reasons {
         bar.suspend(|| eprintln!("warning: {}: rendered in full: {reason}", info.id));
     }

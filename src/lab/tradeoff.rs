@@ -20,7 +20,7 @@ use std::path::Path;
 use crate::accel::{AccelError, Accelerator, BackendKind};
 use crate::frame_loop::{Options, OstcSettings, Techniques};
 use crate::lab::bench::ErrorSummary;
-use crate::lab::bench::{bench_sequence, Measure, SequenceBench};
+use crate::lab::bench::{bench_sequence, Measure, References, SequenceBench};
 use crate::lab::plot::{LabelledPoint, PlotError, ScatterGroup};
 use crate::reuse::ostc::DEFAULT_VOXELS;
 use crate::reuse::pan::FractionalPan;
@@ -50,6 +50,11 @@ pub struct TradeoffRow {
     /// Every frame equal to its reference bit for bit; None where the
     /// check does not apply (RSVP resamples, so it is measured only).
     pub bit_exact: Option<bool>,
+    /// Mean PSNR against a converged reference of the full render at the
+    /// run's samples a pixel, and of the accelerated output (see
+    /// [`crate::lab::bench::ReferenceErrors`]).
+    pub full_reference_psnr_db: f64,
+    pub accelerated_reference_psnr_db: f64,
 }
 
 /// The animations the knobs are swept on; a knob group with no scene is
@@ -170,6 +175,7 @@ pub fn sweep_rsvp_knobs(
     frames: Range<u32>,
     mut progress: impl FnMut(),
 ) -> Vec<SequenceBench> {
+    let mut references = References::default();
     rsvp_knob_settings()
         .into_iter()
         .map(|rsvp| {
@@ -177,16 +183,25 @@ pub fn sweep_rsvp_knobs(
                 rsvp,
                 ..Options::new(Techniques::AUTO, frames.clone())
             };
-            bench_sequence(scene, accel, &options, 1, ERROR_ONLY, &mut progress)
+            bench_sequence(
+                scene,
+                accel,
+                &options,
+                1,
+                ERROR_ONLY,
+                &mut references,
+                &mut progress,
+            )
         })
         .collect()
 }
 
-/// The tradeoff measures each setting's error, never the oracle.
+/// The tradeoff measures each setting's error, against the views' own
+/// rays and against a converged reference, never the oracle.
 const ERROR_ONLY: Measure = Measure {
     error: true,
     oracle: false,
-    reference: false,
+    reference: true,
 };
 
 /// OSTC settings: the region grids, then the voxel grids (each with the
@@ -358,6 +373,8 @@ struct Measured {
     /// Every frame equal to its own rays bit for bit; None where the
     /// check does not apply (RSVP resamples, so it is measured only).
     bit_exact: Option<bool>,
+    /// Mean PSNR against the converged reference: (full, accelerated).
+    reference_psnr_db: (f64, f64),
 }
 
 impl Measured {
@@ -365,11 +382,19 @@ impl Measured {
     /// equality with the views' own rays is reported.
     fn of(bench: &SequenceBench, exact_check: bool) -> Measured {
         let error = bench.error.expect("the tradeoff measures every error");
+        let reference = bench
+            .reference
+            .as_ref()
+            .expect("the tradeoff measures against the reference");
         Measured {
             full_ms: bench.full_ms,
             accelerated_ms: bench.accelerated_ms,
             error,
             bit_exact: exact_check.then_some(error.identical),
+            reference_psnr_db: (
+                reference.full.mean_psnr_db,
+                reference.accelerated.mean_psnr_db,
+            ),
         }
     }
 
@@ -387,6 +412,8 @@ impl Measured {
             worst_psnr_db: self.error.worst_psnr_db,
             differing_share: self.error.differing_share,
             bit_exact: self.bit_exact,
+            full_reference_psnr_db: self.reference_psnr_db.0,
+            accelerated_reference_psnr_db: self.reference_psnr_db.1,
         }
     }
 }
@@ -400,6 +427,7 @@ fn measure_camera_settings(
     settings: &[CameraSetting],
     mut progress: impl FnMut(&str),
 ) -> Vec<Measured> {
+    let mut references = References::default();
     settings
         .iter()
         .map(|setting| {
@@ -408,9 +436,15 @@ fn measure_camera_settings(
                 ostc: setting.ostc,
                 ..Options::new(Techniques::AUTO, frames.clone())
             };
-            let bench = bench_sequence(scene, accel, &options, 1, ERROR_ONLY, || {
-                progress("sequence")
-            });
+            let bench = bench_sequence(
+                scene,
+                accel,
+                &options,
+                1,
+                ERROR_ONLY,
+                &mut references,
+                || progress("sequence"),
+            );
             Measured::of(&bench, true)
         })
         .collect()
@@ -428,11 +462,12 @@ fn psnr_text(db: f64) -> String {
 pub fn csv(rows: &[TradeoffRow]) -> String {
     let mut text = String::from(
         "knob,setting,frames,full_ms_per_frame,accelerated_ms_per_frame,speedup,\
-         max_abs_error,mean_abs_error,worst_psnr_db,differing_share,bit_exact\n",
+         max_abs_error,mean_abs_error,worst_psnr_db,differing_share,bit_exact,\
+         full_reference_psnr_db,accelerated_reference_psnr_db\n",
     );
     for r in rows {
         text.push_str(&format!(
-            "{},{},{},{:.4},{:.4},{:.4},{},{},{},{},{}\n",
+            "{},{},{},{:.4},{:.4},{:.4},{},{},{},{},{},{},{}\n",
             r.knob,
             r.setting,
             r.frames,
@@ -444,6 +479,8 @@ pub fn csv(rows: &[TradeoffRow]) -> String {
             psnr_text(r.worst_psnr_db),
             r.differing_share,
             r.bit_exact.map_or(String::new(), |b| b.to_string()),
+            psnr_text(r.full_reference_psnr_db),
+            psnr_text(r.accelerated_reference_psnr_db),
         ));
     }
     text
@@ -452,7 +489,7 @@ pub fn csv(rows: &[TradeoffRow]) -> String {
 /// The rows as a table for a terminal.
 pub fn table(rows: &[TradeoffRow]) -> String {
     let mut text = format!(
-        "{:<18} {:<18} {:>9} {:>9} {:>8} {:>9} {:>10} {:>9} {:>8} {:>5}\n",
+        "{:<18} {:<18} {:>9} {:>9} {:>8} {:>9} {:>10} {:>9} {:>8} {:>5} {:>11} {:>11}\n",
         "knob",
         "setting",
         "full ms",
@@ -462,11 +499,13 @@ pub fn table(rows: &[TradeoffRow]) -> String {
         "mean abs",
         "PSNR dB",
         "differ",
-        "exact"
+        "exact",
+        "full vs ref",
+        "accel vs ref"
     );
     for r in rows {
         text.push_str(&format!(
-            "{:<18} {:<18} {:>9.2} {:>9.2} {:>7.2}x {:>9.4} {:>10.6} {:>9} {:>7.2}% {:>5}\n",
+            "{:<18} {:<18} {:>9.2} {:>9.2} {:>7.2}x {:>9.4} {:>10.6} {:>9} {:>7.2}% {:>5} {:>8} dB {:>8} dB\n",
             r.knob,
             r.setting,
             r.full_ms_per_frame,
@@ -477,6 +516,8 @@ pub fn table(rows: &[TradeoffRow]) -> String {
             psnr_text(r.worst_psnr_db),
             r.differing_share * 100.0,
             r.bit_exact.map_or("-", |b| if b { "yes" } else { "NO" }),
+            psnr_text(r.full_reference_psnr_db),
+            psnr_text(r.accelerated_reference_psnr_db),
         ));
     }
     text
@@ -537,6 +578,8 @@ mod tests {
             worst_psnr_db: 31.5,
             differing_share: 0.2,
             bit_exact,
+            full_reference_psnr_db: 28.5,
+            accelerated_reference_psnr_db: 30.25,
         }
     }
 
@@ -556,8 +599,13 @@ mod tests {
         let columns = lines[0].split(',').count();
         assert!(lines.iter().all(|l| l.split(',').count() == columns));
         assert!(lines[2].contains(",inf,"), "{}", lines[2]);
-        assert!(lines[2].ends_with(",true"));
-        assert!(lines[3].ends_with(','), "no exactness claim for RSVP");
+        assert!(lines[2].ends_with(",true,28.50,30.25"), "{}", lines[2]);
+        assert!(
+            lines[3].ends_with(",,28.50,30.25"),
+            "no exactness claim for RSVP: {}",
+            lines[3]
+        );
+        assert!(lines[0].ends_with(",full_reference_psnr_db,accelerated_reference_psnr_db"));
     }
 
     #[test]

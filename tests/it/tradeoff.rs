@@ -88,6 +88,16 @@ fn a_short_sweep_reports_every_knob_with_exact_ones_at_zero_error() {
         assert_eq!(number(row, "max_abs_error"), 0.0, "{row:?}");
         assert_eq!(number(row, "differing_share"), 0.0, "{row:?}");
         assert_eq!(row["worst_psnr_db"], "inf", "{row:?}");
+        // Exact: as far from the converged reference as the full render.
+        let full = number(row, "full_reference_psnr_db");
+        assert!(full.is_finite() && full > 10.0, "{row:?}");
+        assert_eq!(number(row, "accelerated_reference_psnr_db"), full, "{row:?}");
+    }
+    // Every setting is scored against the reference on both sides.
+    for row in &rows {
+        for column in ["full_reference_psnr_db", "accelerated_reference_psnr_db"] {
+            assert!(number(row, column).is_finite(), "{column}: {row:?}");
+        }
     }
     // Snapping a pan to whole samples shows a slightly wrong angle: against
     // the camera's true yaw it is not exact (3.6 deg is 2.3 columns here).

@@ -21,7 +21,7 @@ mod viewport_oracle;
 pub use oracle::{rays_per_pixel, OracleRays};
 pub use sequence::{
     bench_sequence, reference_samples, ErrorSummary, FrameProfile, Measure, OracleSpeedups,
-    ReferenceErrors, SequenceBench, BENCH_REFERENCE_SAMPLES, REFERENCE_EVERY,
+    ReferenceErrors, References, SequenceBench, BENCH_REFERENCE_SAMPLES, REFERENCE_EVERY,
 };
 pub use viewport_oracle::viewport_oracle;
 

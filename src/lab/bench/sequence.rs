@@ -106,6 +106,12 @@ pub fn reference_samples(run: PixelSamples) -> PixelSamples {
     PixelSamples::new(count).expect("the reference counts are within the limits")
 }
 
+/// Converged references of a scene's views, by frame and view: runs of
+/// the same scene, samples and frames at other knobs (the tradeoff's
+/// settings) share them, as a reference costs as much as 64 frames.
+#[derive(Default)]
+pub struct References(std::collections::HashMap<(u32, usize), Frame>);
+
 /// Both sides of a sequence against a converged reference of the same
 /// views: what antialiasing at the run's samples costs (the full render)
 /// beside what reuse adds to it (the accelerated output).
@@ -243,6 +249,7 @@ pub fn bench_sequence(
     options: &Options,
     rounds: usize,
     measure: Measure,
+    references: &mut References,
     mut progress: impl FnMut(),
 ) -> SequenceBench {
     let frames = options.frames.clone();
@@ -335,7 +342,15 @@ pub fn bench_sequence(
         fast_times.push(elapsed);
     }
     set_frame_medians(&mut profile, full_frame_ms, fast_frame_ms);
-    let checked = check_sequence(scene, accel, options, measure, &mut profile, &mut progress);
+    let checked = check_sequence(
+        scene,
+        accel,
+        options,
+        measure,
+        references,
+        &mut profile,
+        &mut progress,
+    );
     let timed_regions = |oracle_ms: f64| full_times[0] / oracle_ms.max(1e-9);
     let oracle = checked.oracle.map(|(oracle, traced_ms)| OracleSpeedups {
         // Weighted by the rays each sample costs (see `Oracle::rays`).
@@ -396,6 +411,7 @@ fn check_sequence(
     accel: &mut Accelerator,
     options: &Options,
     measure: Measure,
+    references: &mut References,
     profile: &mut [FrameProfile],
     progress: &mut impl FnMut(),
 ) -> Checked {
@@ -463,9 +479,12 @@ fn check_sequence(
                 errors.push(error);
             }
             if let (true, Some(truth)) = (referenced, &truth) {
-                let (reference, _) = check.render_view_sampled(frame, index, reference_count);
-                let full = image_error(truth, &reference).expect("a view's frames");
-                let fast = image_error(image, &reference).expect("a view's frames");
+                let reference = references
+                    .0
+                    .entry((frame, index))
+                    .or_insert_with(|| check.render_view_sampled(frame, index, reference_count).0);
+                let full = image_error(truth, reference).expect("a view's frames");
+                let fast = image_error(image, reference).expect("a view's frames");
                 full_worst = full_worst.min(full.psnr_db);
                 fast_worst = fast_worst.min(fast.psnr_db);
                 full_vs_reference.push(full);
@@ -561,7 +580,16 @@ mod tests {
     fn reference_errors(scene: &Scene, frames: std::ops::Range<u32>) -> SequenceBench {
         let mut accel = Accelerator::build(BackendKind::Grid, &scene.objects).unwrap();
         let options = Options::new(Techniques::AUTO, frames);
-        bench_sequence(scene, &mut accel, &options, 1, REFERENCE_ONLY, || {})
+        let mut references = References::default();
+        bench_sequence(
+            scene,
+            &mut accel,
+            &options,
+            1,
+            REFERENCE_ONLY,
+            &mut references,
+            || {},
+        )
     }
 
     /// The bouncing ball before a still camera: OSTC's frames are exact, so
