@@ -91,7 +91,11 @@ fn a_short_sweep_reports_every_knob_with_exact_ones_at_zero_error() {
         // Exact: as far from the converged reference as the full render.
         let full = number(row, "full_reference_psnr_db");
         assert!(full.is_finite() && full > 10.0, "{row:?}");
-        assert_eq!(number(row, "accelerated_reference_psnr_db"), full, "{row:?}");
+        assert_eq!(
+            number(row, "accelerated_reference_psnr_db"),
+            full,
+            "{row:?}"
+        );
     }
     // Every setting is scored against the reference on both sides.
     for row in &rows {
