@@ -188,7 +188,7 @@ pub fn sweep_rsvp_knobs(
                 accel,
                 &options,
                 1,
-                ERROR_ONLY,
+                ERRORS_NOT_ORACLE,
                 &mut references,
                 &mut progress,
             )
@@ -198,7 +198,7 @@ pub fn sweep_rsvp_knobs(
 
 /// The tradeoff measures each setting's error, against the views' own
 /// rays and against a converged reference, never the oracle.
-const ERROR_ONLY: Measure = Measure {
+const ERRORS_NOT_ORACLE: Measure = Measure {
     error: true,
     oracle: false,
     reference: true,
@@ -441,7 +441,7 @@ fn measure_camera_settings(
                 accel,
                 &options,
                 1,
-                ERROR_ONLY,
+                ERRORS_NOT_ORACLE,
                 &mut references,
                 || progress("sequence"),
             );
