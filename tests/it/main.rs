@@ -10,6 +10,7 @@ mod antialiasing;
 mod cli;
 mod cli_messages;
 mod extremes;
+mod farm;
 mod fuzz;
 mod layers;
 mod moving_spheres;
