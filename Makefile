@@ -67,7 +67,8 @@ bench: build
 # packages). The packages' scripts would start munged, slurmctld and slurmd
 # on the system's default paths; a policy-rc.d that refuses keeps them off
 # for the install (the test starts its own, in a private folder).
-FARM_PACKAGES := slurmctld slurmd slurm-client munge
+# ffmpeg: the assembly's MP4, which the test checks.
+FARM_PACKAGES := slurmctld slurmd slurm-client munge ffmpeg
 
 farm-deps:
 	@missing=""; \

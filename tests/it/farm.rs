@@ -90,6 +90,20 @@ fn an_assembled_report_says_what_the_runs_restarts_cost() {
         .find(|l| l.starts_with("Restarts:"))
         .unwrap_or_else(|| panic!("no restart line in:\n{report}"));
     assert!(line.contains("the 1 restarts"), "{line}");
+    assert!(dir.path().join("animation.gif").is_file());
+    // The MP4 is made where ffmpeg is installed: every frame in it.
+    let probe = std::process::Command::new("ffprobe")
+        .args(["-v", "error", "-count_frames", "-select_streams", "v:0"])
+        .args(["-show_entries", "stream=nb_read_frames", "-of", "csv=p=0"])
+        .arg(dir.path().join("animation.mp4"))
+        .output();
+    match probe {
+        Ok(probe) => {
+            assert!(probe.status.success(), "{}", stderr(&probe));
+            assert_eq!(String::from_utf8_lossy(&probe.stdout).trim(), "8");
+        }
+        Err(_) => eprintln!("no ffprobe: the MP4 is not checked"),
+    }
 }
 
 #[test]
