@@ -5,6 +5,7 @@
 //! valid, every mesh triangle has non-zero area, and the camera validated.
 
 mod file;
+pub mod glass;
 mod obj;
 
 use std::path::{Path, PathBuf};
@@ -16,6 +17,7 @@ use crate::geometry::{Light, Object, Shape};
 use crate::timeline::{Animation, ViewportTrack};
 
 pub use file::{parse_scene_str, SceneOverrides};
+pub use glass::Glass;
 pub use obj::{load_obj_mesh, ObjMesh};
 
 /// The scene files of `scenes/` built into the binary, so `retrace render`
@@ -70,6 +72,8 @@ pub struct Material {
     pub shininess: f32,
     /// Share of the mirror reflection added to the colour (0 = none).
     pub reflectivity: f32,
+    /// Transparent materials only: how light goes through.
+    pub glass: Option<Glass>,
 }
 
 /// Highlights dimmer than this are not computed (an sRGB byte changes only
@@ -94,6 +98,7 @@ impl Material {
             specular: Vec3::ZERO,
             shininess: 1.0,
             reflectivity: 0.0,
+            glass: None,
         }
     }
 }

@@ -19,6 +19,7 @@ use glam::{DVec3, Vec3};
 use super::file::SceneOverrides;
 use super::{Checker, Material, Scene, SceneError};
 use crate::camera::{yaw_pitch_toward, Camera, Projection};
+use crate::geometry::normals::{apply_crease_normals, DEFAULT_CREASE_ANGLE_DEG};
 use crate::geometry::Light;
 use crate::geometry::{Aabb, Object, Placement, Plane, Shape, TriangleMesh, WORLD_LIMIT};
 
@@ -320,7 +321,10 @@ fn checked_mtl_text(
                 continue;
             }
             "Ka" | "Kd" | "Ks" | "Ke" => numbers(3),
-            "Ns" | "Ni" | "d" => numbers(1),
+            "Ns" => numbers(1),
+            "Ni" | "d" | "Tr" | "Tf" => {
+                numbers(1).or_else(|| super::glass::mtl_value_problem(keyword, &values))
+            }
             "illum" => match values.first().map(|w| w.parse::<u8>()) {
                 Some(Ok(_)) => None,
                 Some(Err(_)) => Some(format!(
@@ -379,6 +383,7 @@ fn material_from_mtl(m: &tobj::Material) -> Material {
         } else {
             0.0
         },
+        glass: super::glass::glass_from_mtl(m),
     }
 }
 
@@ -481,7 +486,12 @@ pub fn load_obj_mesh(path: &Path) -> Result<ObjMesh, SceneError> {
             normals,
         };
         // Parts with the same material merge: fewer objects, same picture.
-        match parts.iter_mut().find(|p| p.material == material) {
+        // Not a part with normals and one without: the file's normals stay
+        // as given, and only the other gets normals of its own.
+        let same_kind = |p: &ObjPart| {
+            p.material == material && p.mesh.normals.is_empty() == mesh.normals.is_empty()
+        };
+        match parts.iter_mut().find(|p| same_kind(p)) {
             Some(part) => append_mesh(&mut part.mesh, mesh),
             None => parts.push(ObjPart { mesh, material }),
         }
@@ -508,8 +518,8 @@ fn append_mesh(into: &mut TriangleMesh, mesh: TriangleMesh) {
     }
 }
 
-/// A scene for a bare model: the model (smooth-shaded where the file has no
-/// normals), a checkered ground plane under it, a key light, and a camera
+/// A scene for a bare model: the model (where the file has no normals,
+/// smooth only across edges below the default crease angle), a checkered ground plane under it, a key light, and a camera
 /// that frames its bounds.
 pub(super) fn scene_around_obj(
     path: &Path,
@@ -553,7 +563,7 @@ pub(super) fn scene_around_obj(
         };
         let mut mesh = part.mesh;
         if mesh.normals.is_empty() {
-            mesh.compute_smooth_normals();
+            apply_crease_normals(&mut mesh, DEFAULT_CREASE_ANGLE_DEG);
         }
         objects.push(Object {
             name: format!("model part {i}"),

@@ -2,13 +2,14 @@
 //!
 //! Promises: every colour is finite and not negative, a checker's scale
 //! above 0, the shininess finite and not negative, the reflectivity within
-//! 0..1.
+//! 0..1; a transparent material's values as [`Glass`] promises.
 
 use toml::Spanned;
 
 use super::defs::MaterialDef;
 use super::values::colour;
 use super::Ctx;
+use crate::scene::glass::{Glass, DEFAULT_IOR};
 use crate::scene::{Checker, Material, SceneError};
 
 /// The material `name` of a `[material.name]` table.
@@ -53,6 +54,12 @@ pub(super) fn convert_material(
             m.reflectivity
         )));
     }
+    let filter = match m.transmission_filter {
+        Some(filter) => colour(filter).map_err(err("transmission_filter"))?,
+        None => glam::Vec3::ONE,
+    };
+    let glass = Glass::new(m.transparency, m.ior.unwrap_or(DEFAULT_IOR), filter)
+        .map_err(|(f, message)| err(f)(message))?;
     Ok(Material {
         name: name.to_string(),
         diffuse: colour(m.diffuse).map_err(err("diffuse"))?,
@@ -60,5 +67,6 @@ pub(super) fn convert_material(
         specular: colour(m.specular).map_err(err("specular"))?,
         shininess: m.shininess,
         reflectivity: m.reflectivity,
+        glass,
     })
 }
