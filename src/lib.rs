@@ -24,4 +24,5 @@ pub mod sampling;
 pub mod scene;
 pub mod shade;
 pub mod timeline;
+pub mod view;
 pub mod voxel;

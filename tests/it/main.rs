@@ -27,3 +27,4 @@ mod tga;
 mod tradeoff;
 mod validate;
 mod validate_seeds;
+mod view;
