@@ -14,7 +14,7 @@ use std::cell::RefCell;
 use std::collections::HashSet;
 use std::path::{Path, PathBuf};
 
-use glam::{DVec3, Vec3};
+use glam::{DVec3, Vec2, Vec3};
 
 use super::file::SceneOverrides;
 use super::{Checker, Material, Scene, SceneError};
@@ -461,6 +461,15 @@ pub fn load_obj_mesh(path: &Path) -> Result<ObjMesh, SceneError> {
         if normals.len() != positions.len() {
             normals.clear();
         }
+        // OBJ's v runs up the image; textures are stored top row first.
+        let mut texcoords: Vec<Vec2> = m
+            .texcoords
+            .chunks_exact(2)
+            .map(|c| Vec2::new(c[0], 1.0 - c[1]))
+            .collect();
+        if texcoords.len() != positions.len() {
+            texcoords.clear();
+        }
         let mut triangles = Vec::with_capacity(m.indices.len() / 3);
         for t in m.indices.chunks_exact(3) {
             let [a, b, c] = [t[0], t[1], t[2]].map(|i| positions[i as usize]);
@@ -479,6 +488,7 @@ pub fn load_obj_mesh(path: &Path) -> Result<ObjMesh, SceneError> {
             positions,
             triangles,
             normals,
+            texcoords,
         };
         // Parts with the same material merge: fewer objects, same picture.
         match parts.iter_mut().find(|p| p.material == material) {
@@ -498,6 +508,14 @@ fn append_mesh(into: &mut TriangleMesh, mesh: TriangleMesh) {
     let base = into.positions.len() as u32;
     let keep_normals = !into.normals.is_empty() && !mesh.normals.is_empty()
         || into.positions.is_empty() && !mesh.normals.is_empty();
+    // Faces without texture coordinates beside faces with them (under one
+    // material) read the texture at (0, 0), as other OBJ readers do.
+    if !into.texcoords.is_empty() || !mesh.texcoords.is_empty() {
+        into.texcoords.resize(into.positions.len(), Vec2::ZERO);
+        into.texcoords.extend(mesh.texcoords);
+        into.texcoords
+            .resize(into.positions.len() + mesh.positions.len(), Vec2::ZERO);
+    }
     into.positions.extend(mesh.positions);
     into.triangles
         .extend(mesh.triangles.into_iter().map(|t| t.map(|i| i + base)));
@@ -665,6 +683,36 @@ mod tests {
         let err = check("v 0 0 0\nusemtl  \n").unwrap_err();
         assert_eq!((err.line, err.field.as_deref()), (Some(2), Some("usemtl")));
         assert!(check("# c\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf -3 -2 -1\nf 1/1/1 2//2 3\n").is_ok());
+    }
+
+    #[test]
+    fn texture_coordinates_are_carried_per_vertex_and_nan_ones_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let obj = dir.path().join("quad.obj");
+        let quad = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\n\
+                    vt 0 0\nvt 2 0\nvt 2 2\nvt 0 2\nf 1/1 2/2 3/3 4/4\n";
+        std::fs::write(&obj, quad).unwrap();
+        let mesh = &load_obj_mesh(&obj).unwrap().parts[0].mesh;
+        assert_eq!(mesh.texcoords.len(), mesh.positions.len());
+        // The image's top row is v = 1 in OBJ, row 0 in the texture.
+        for (p, t) in mesh.positions.iter().zip(&mesh.texcoords) {
+            assert_eq!(*t, Vec2::new(p.x * 2.0, 1.0 - p.y * 2.0));
+        }
+        // Interpolated at a hit's barycentrics.
+        let [a, b, c] = mesh.triangles[0].map(|i| mesh.texcoords[i as usize]);
+        let at = mesh.texcoord(0, 0.25, 0.5).unwrap();
+        assert!((at - (a * 0.25 + b * 0.25 + c * 0.5)).length() < 1e-6);
+        for bad in ["nan", "inf"] {
+            let text = quad.replace("vt 2 2", &format!("vt 2 {bad}"));
+            std::fs::write(&obj, text).unwrap();
+            let err = load_obj_mesh(&obj).unwrap_err();
+            assert_eq!(
+                (err.line, err.field.as_deref()),
+                (Some(7), Some("vt")),
+                "{err}"
+            );
+            assert!(err.message.contains("not finite"), "{err}");
+        }
     }
 
     #[test]

@@ -307,6 +307,7 @@ fn polygon_mesh(points: Vec<Vec3>) -> Result<Shape, String> {
         positions: points,
         triangles,
         normals: Vec::new(),
+        texcoords: Vec::new(),
     };
     let area: f32 = (0..mesh.triangles.len() as u32)
         .map(|t| {
