@@ -23,5 +23,6 @@ pub mod rng;
 pub mod sampling;
 pub mod scene;
 pub mod shade;
+pub mod texture;
 pub mod timeline;
 pub mod voxel;
