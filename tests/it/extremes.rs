@@ -71,7 +71,7 @@ fn paper_with(projection: Projection, fov: f64, width: u32, height: u32) -> retr
         height: Some(height),
         projection: Some(projection),
         fov: Some(fov),
-        spp: None,
+        ..SceneOverrides::default()
     })
     .unwrap()
 }

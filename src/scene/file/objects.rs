@@ -244,7 +244,8 @@ fn convert_object(
                     format!("{}: no such model file", obj_path.display()),
                 ));
             }
-            let loaded = crate::scene::load_obj_mesh(&obj_path)?;
+            let loaded =
+                crate::scene::load_obj_mesh_with(&obj_path, &mut ctx.textures.borrow_mut())?;
             warnings.extend(loaded.warnings(&obj_path));
             if loaded.triangle_count() == 0 {
                 warnings.push(format!("{}: mesh has no triangles", obj_path.display()));
