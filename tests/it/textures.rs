@@ -241,6 +241,21 @@ fn a_scene_materials_texture_is_read_relative_to_its_file_and_warns_when_missing
     assert!(!said.contains("warning"), "{said}");
     let (left, right) = halves(&image);
     assert!(left[0] > 200 && right[2] > 200, "{left:?} {right:?}");
+    // On a shape without texture coordinates, a warning.
+    std::fs::write(
+        dir.path().join("s.toml"),
+        format!(
+            "{}[[object]]\ntype = \"sphere\"\ncenter = [0, 0, -5]\nradius = 1\n\
+             material = \"t\"\n",
+            scene("maps/rb.png")
+        ),
+    )
+    .unwrap();
+    let (_, said) = render(dir.path(), &[]);
+    assert!(
+        said.contains("s.toml:17: object[1]: 'object[1]' has no texture coordinates"),
+        "{said}"
+    );
     std::fs::write(dir.path().join("s.toml"), scene("maps/none.png")).unwrap();
     let (image, said) = render(dir.path(), &[]);
     assert!(

@@ -54,6 +54,21 @@ pub(super) fn convert_objects(
         };
         let converted = convert_object(ctx, i, def, material, materials, warnings)?;
         for object in &converted {
+            let untextured = match &object.shape {
+                Shape::Mesh(mesh) => mesh.texcoords.is_empty(),
+                _ => true,
+            };
+            if untextured && materials[object.material].diffuse_map.is_some() {
+                let at = ctx.error(def.span(), format!("object[{i}]"), "");
+                warnings.push(format!(
+                    "{}:{}: object[{i}]: '{}' has no texture coordinates: material '{}' \
+                     shows its diffuse colour without its texture",
+                    at.file.display(),
+                    at.line.unwrap_or(0),
+                    object.name,
+                    materials[object.material].name
+                ));
+            }
             // Keys find objects by name (a mesh's parts by "name part k"):
             // one name, one object.
             if let Some(other) = names.insert(object.name.clone(), i) {
