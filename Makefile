@@ -3,9 +3,13 @@
 #               a textured scene (out/textured.png) and 24 frames of pan + zoom + a bouncing ball (out/anim/)
 #   make test   runs the whole test suite (format, lints, unit and integration tests)
 # Both install the Debian packages they need first (Embree, libclang for bindgen,
-# Pillow for the test that reads our TGA frames with another decoder).
+# Pillow for the test that reads our TGA frames with another decoder, the X
+# libraries `retrace view` loads at run time, and an X server with xdotool and
+# ImageMagick for the window's tests).
 
-DEBIAN_PACKAGES := libembree-dev libclang-dev pkg-config python3-pil
+VIEW_PACKAGES := libxkbcommon-x11-0 libx11-xcb1 libxcursor1 libxi6 \
+	xvfb xauth xdotool x11-apps imagemagick
+DEBIAN_PACKAGES := libembree-dev libclang-dev pkg-config python3-pil $(VIEW_PACKAGES)
 RETRACE := ./target/release/retrace
 
 .PHONY: all deps build demo test test-deps test-deep fuzz lint test-embree4 bench clean farm-deps test-farm
@@ -73,7 +77,8 @@ bench: build
 # packages). The packages' scripts would start munged, slurmctld and slurmd
 # on the system's default paths; a policy-rc.d that refuses keeps them off
 # for the install (the test starts its own, in a private folder).
-FARM_PACKAGES := slurmctld slurmd slurm-client munge
+# ffmpeg: the assembly's MP4, which the test checks.
+FARM_PACKAGES := slurmctld slurmd slurm-client munge ffmpeg
 
 farm-deps:
 	@missing=""; \

@@ -254,12 +254,16 @@ same_frames "$work/ref-e4" "$work/e4" 100 >&2 || fail "E4 frames"
 no_partial_files "$work/ball"
 no_partial_files "$work/e4"
 [[ $(states "$e4_assembly") == COMPLETED ]] || fail "E4's assembly job: $(states "$e4_assembly")"
-for f in animation.gif stats.csv stats.json report.md savings.png; do
+for f in animation.gif animation.mp4 stats.csv stats.json report.md savings.png; do
   [[ -s $work/e4/$f ]] || fail "E4's assembly wrote no $f"
 done
 rows=$(($(wc -l <"$work/e4/stats.csv") - 1))
 ((rows == 100)) || fail "E4's merged stats.csv has $rows rows, not 100"
-log "E4 assembled: animation.gif, stats.csv (100 rows), stats.json, report.md, savings.png"
+mp4_frames=$(ffprobe -v error -count_frames -select_streams v:0 \
+  -show_entries stream=nb_read_frames -of csv=p=0 "$work/e4/animation.mp4")
+((mp4_frames == 100)) || fail "E4's animation.mp4 has $mp4_frames frames, not 100"
+grep -q "^Restarts: " "$work/e4/report.md" || fail "E4's report.md does not say what its restarts cost"
+log "E4 assembled: animation.gif, animation.mp4 (100 frames), stats.csv (100 rows), stats.json, report.md, savings.png"
 [[ $(states "$ball_assembly") == COMPLETED ]] || fail "the ball's assembly job after the requeue: $(states "$ball_assembly")"
 rows=$(($(wc -l <"$work/ball/stats.csv") - 1))
 ((rows == 100)) || fail "the ball's merged stats.csv has $rows rows, not 100 (the requeued chunk's earlier frames lost?)"

@@ -185,9 +185,52 @@ pub fn task_indices(field: &str) -> Vec<u32> {
         .collect()
 }
 
+/// What one chunk restart costs, in frames' worth of the reuse one long run
+/// has, as `retrace bench --only chunking` measures it (docs/RESULTS.md):
+/// a restarted chunk traces its first frame in full, and a viewport's
+/// lazily traced buffer is filled again over its first few frames.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RestartCost {
+    pub frames: f64,
+}
+
+impl RestartCost {
+    /// Pans and OSTC: the first frame is traced in full (measured 1.1
+    /// frames on E1, 1.3 on E3).
+    pub const EXACT: RestartCost = RestartCost { frames: 1.3 };
+    /// RSVP viewports: an empty buffer besides (measured 3.6 frames on E4).
+    pub const VIEWPORTS: RestartCost = RestartCost { frames: 3.6 };
+
+    /// The share of a long run's reuse that cutting `frames` frames into
+    /// `chunks` chunks loses (at most all of it).
+    pub fn reuse_lost(self, chunks: u32, frames: u32) -> f64 {
+        (self.frames * f64::from(chunks.saturating_sub(1)) / f64::from(frames.max(1))).min(1.0)
+    }
+
+    /// The fewest frames a chunk should have to lose less than `share` of
+    /// the reuse.
+    pub fn min_frames_per_chunk(self, share: f64) -> u32 {
+        (self.frames / share).ceil().max(1.0) as u32
+    }
+}
+
+/// The share of the reuse the recommended chunk size may lose.
+pub const ACCEPTED_REUSE_LOSS: f64 = 0.1;
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn chunking_loses_one_restart_of_reuse_a_chunk() {
+        let exact = RestartCost { frames: 1.0 };
+        assert_eq!(exact.reuse_lost(1, 100), 0.0);
+        assert!((exact.reuse_lost(11, 100) - 0.1).abs() < 1e-12);
+        assert_eq!(exact.min_frames_per_chunk(0.1), 10);
+        assert_eq!(RestartCost { frames: 3.6 }.min_frames_per_chunk(0.1), 36);
+        // More chunks than restarts can lose is all of it, never more.
+        assert_eq!(exact.reuse_lost(100, 10), 1.0);
+    }
 
     #[test]
     fn scontrol_lines_give_each_task() {

@@ -8,6 +8,8 @@ use glam::{Affine3A, Mat3A, Vec2, Vec3};
 
 use crate::ray::{LaneMask, Ray, RayPacket, PACKET_WIDTH};
 
+pub mod normals;
+
 /// How far from the origin a scene may reach, on each axis. Beyond, f32
 /// positions lie more than 6e4 apart, and Embree refuses (aborts on) rays
 /// whose origin or direction passes 1.8e18: within this every ray, a
@@ -192,19 +194,6 @@ impl TriangleMesh {
         }
         let [a, b, c] = self.triangles[prim as usize].map(|i| self.texcoords[i as usize]);
         Some(a * (1.0 - u - v) + b * u + c * v)
-    }
-
-    /// Area-weighted vertex normals, for meshes whose file gave none.
-    pub fn compute_smooth_normals(&mut self) {
-        let mut normals = vec![Vec3::ZERO; self.positions.len()];
-        for tri in &self.triangles {
-            let [a, b, c] = tri.map(|i| self.positions[i as usize]);
-            let n = (b - a).cross(c - a);
-            for &i in tri {
-                normals[i as usize] += n;
-            }
-        }
-        self.normals = normals.into_iter().map(|n| n.normalize_or_zero()).collect();
     }
 }
 

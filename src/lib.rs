@@ -25,4 +25,5 @@ pub mod scene;
 pub mod shade;
 pub mod texture;
 pub mod timeline;
+pub mod view;
 pub mod voxel;

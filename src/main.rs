@@ -12,6 +12,7 @@ use cli::farm::{farm, FarmArgs};
 use cli::render::{render, RenderArgs};
 use cli::tradeoff::{tradeoff, TradeoffArgs};
 use cli::validate::{validate, ValidateArgs};
+use cli::view::{view, ViewArgs};
 
 /// Prints a line to stdout; a closed stdout (`retrace ... | head -1`) is
 /// not an error worth a panic: the work is done, only the report is cut.
@@ -69,6 +70,11 @@ enum Command {
     /// chunk of frames a task) and the job that assembles the result, and
     /// report each task's state.
     Farm(FarmArgs),
+    /// Open a scene in a window: drag pans, the wheel zooms about the
+    /// cursor, space plays the timeline, `t` shows the samples each picture
+    /// traced, `m` turns reuse off and on, `s` saves, `q` quits. With
+    /// --script, the same input from a file, without a display.
+    View(ViewArgs),
 }
 
 /// `err` and its causes, each said once: an error that prints its source
@@ -102,19 +108,13 @@ fn main() -> ExitCode {
             return ExitCode::FAILURE;
         }
     }
-    // The command runs on a worker thread of the pool, so each parallel
-    // step starts at once on this thread while the other workers wake.
-    // Called from outside the pool, every step first waited for a sleeping
-    // worker, ~0.2 ms here (2 vCPUs); an RSVP frame has five steps of
-    // 0.2-2 ms each, so it paid that wait five times a frame.
-    let result = rayon::scope(|_| match cli.command {
-        Command::Render(args) => render(args),
-        Command::Animate(args) => animate(args),
-        Command::Bench(args) => bench(args),
-        Command::Validate(args) => validate(args),
-        Command::Tradeoff(args) => tradeoff(args),
-        Command::Farm(args) => farm(args),
-    });
+    let result = match cli.command {
+        // The window's thread waits for input: run on one of the pool's
+        // workers it would leave the frame loop one thread short. The
+        // viewer runs its frame loop on the pool itself.
+        Command::View(args) => view(args),
+        command => run_in_pool(command),
+    };
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(err) => {
@@ -122,4 +122,21 @@ fn main() -> ExitCode {
             ExitCode::FAILURE
         }
     }
+}
+
+/// Runs `command` on a worker thread of the pool, so each parallel step
+/// starts at once on this thread while the other workers wake. Called from
+/// outside the pool, every step first waited for a sleeping worker, ~0.2
+/// ms here (2 vCPUs); an RSVP frame has five steps of 0.2-2 ms each, so it
+/// paid that wait five times a frame.
+fn run_in_pool(command: Command) -> anyhow::Result<()> {
+    rayon::scope(|_| match command {
+        Command::Render(args) => render(args),
+        Command::Animate(args) => animate(args),
+        Command::Bench(args) => bench(args),
+        Command::Validate(args) => validate(args),
+        Command::Tradeoff(args) => tradeoff(args),
+        Command::Farm(args) => farm(args),
+        Command::View(args) => view(args),
+    })
 }

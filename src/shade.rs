@@ -10,11 +10,13 @@ use glam::{Affine3A, Mat3A, Vec3};
 
 use crate::accel::Intersector;
 use crate::camera::Projection;
+use crate::geometry::normals::terminator_point;
 use crate::geometry::{
     normal_matrix, plane_axes, transform_normal, Object, Placement, Shape, TriangleMesh,
 };
 use crate::ray::{lanes, offset_origin, Hit, LaneMask, Ray, RayPacket, PACKET_WIDTH};
-use crate::scene::{Material, Scene};
+use crate::scene::glass::refract;
+use crate::scene::{Glass, Material, Scene};
 use crate::texture::{cone_level_of_detail, Texture};
 
 /// Rays traced, by kind.
@@ -23,11 +25,12 @@ pub struct RayCounts {
     pub primary: u64,
     pub shadow: u64,
     pub reflection: u64,
+    pub refraction: u64,
 }
 
 impl RayCounts {
     pub fn total(&self) -> u64 {
-        self.primary + self.shadow + self.reflection
+        self.primary + self.shadow + self.reflection + self.refraction
     }
 }
 
@@ -36,6 +39,7 @@ impl std::ops::AddAssign for RayCounts {
         self.primary += other.primary;
         self.shadow += other.shadow;
         self.reflection += other.reflection;
+        self.refraction += other.refraction;
     }
 }
 
@@ -72,6 +76,8 @@ pub enum RayKind {
         blocked: LaneMask,
     },
     Reflection,
+    /// Through a transparent surface (glass).
+    Refraction,
 }
 
 /// Where a ray met a surface, refined for shading and for spawning rays.
@@ -89,7 +95,14 @@ pub struct Surface {
     /// leaves from that side (lights behind the surface are skipped, and
     /// reflections are kept above it).
     pub spawn_point: Vec3,
+    /// Where shadow rays start: `spawn_point`, except on smooth-shaded
+    /// triangles, where it is lifted toward the curved surface their
+    /// vertex normals describe (`geometry::normals::terminator_point`).
+    pub shadow_point: Vec3,
     pub material: usize,
+    /// Whether the ray arrived on the side the shape's own normal points to
+    /// (outside a sphere, the front of a triangle as wound): into glass.
+    pub front_face: bool,
     /// In-plane coordinates for plane checkers; None elsewhere.
     pub plane_uv: Option<(f32, f32)>,
 }
@@ -180,6 +193,9 @@ impl<'a> WorldShape<'a> {
 
     #[inline]
     fn surface(&self, ray: &Ray, hit: &Hit, material: usize) -> Surface {
+        // Smooth triangles: the vertices and their unit normals, turned to
+        // the side the shading normal faces before `facing` applies.
+        let mut curved: Option<([Vec3; 3], [Vec3; 3])> = None;
         let (point, normal, shading, scale, plane_uv) = match self {
             WorldShape::Mesh {
                 mesh,
@@ -204,12 +220,22 @@ impl<'a> WorldShape<'a> {
                         None => n,
                     };
                     let n = n.normalize_or_zero();
+                    let side = if n.dot(normal) < 0.0 { -1.0 } else { 1.0 };
+                    if n != Vec3::ZERO {
+                        let vertex_normals = [i, j, k].map(|index| {
+                            let n = mesh.normals[index as usize];
+                            let n = match transform {
+                                Some(_) => normal_matrix.mul_vec3(n),
+                                None => n,
+                            };
+                            n.normalize_or_zero() * side
+                        });
+                        curved = Some(([a, b, c], vertex_normals));
+                    }
                     if n == Vec3::ZERO {
                         normal
-                    } else if n.dot(normal) < 0.0 {
-                        -n
                     } else {
-                        n
+                        n * side
                     }
                 };
                 let scale = a.abs().max(b.abs()).max(c.abs()).max_element();
@@ -246,12 +272,32 @@ impl<'a> WorldShape<'a> {
         };
         let facing = if normal.dot(ray.dir) > 0.0 { -1.0 } else { 1.0 };
         let geometric_normal = normal * facing;
+        let spawn_point = offset_origin(point, geometric_normal, scale);
+        let shadow_point = match curved {
+            None => spawn_point,
+            Some((vertices, normals)) => {
+                let (u, v) = (hit.u, hit.v);
+                let lifted = terminator_point(
+                    point,
+                    vertices,
+                    normals.map(|n| n * facing),
+                    [1.0 - u - v, u, v],
+                );
+                if lifted == point {
+                    spawn_point
+                } else {
+                    offset_origin(lifted, geometric_normal, scale)
+                }
+            }
+        };
         Surface {
             point,
             geometric_normal,
             shading_normal: shading * facing,
-            spawn_point: offset_origin(point, geometric_normal, scale),
+            spawn_point,
+            shadow_point,
             material,
+            front_face: facing > 0.0,
             plane_uv,
         }
     }
@@ -358,6 +404,9 @@ pub struct Shader<'a> {
     textured: bool,
     /// The spread of the cone around a primary ray.
     primary_spread: f32,
+    /// Whether any object is transparent: scenes without glass skip all
+    /// of refraction's work.
+    any_glass: bool,
 }
 
 /// `x` to the power `n` by repeated squaring, the same multiplications in
@@ -419,6 +468,10 @@ impl<'a> Shader<'a> {
                 .collect(),
             textured: scene.materials.iter().any(|m| m.diffuse_map.is_some()),
             primary_spread: sample_spread(scene),
+            any_glass: scene
+                .objects
+                .iter()
+                .any(|o| scene.materials[o.material].glass.is_some()),
         }
     }
 
@@ -442,7 +495,17 @@ impl<'a> Shader<'a> {
             width: [0.0; PACKET_WIDTH],
             spread: [self.primary_spread; PACKET_WIDTH],
         };
-        self.shade_lanes(rays, mask, depth, &cones, counts, observer)
+        let kind = if depth == 0 {
+            RayKind::Primary
+        } else {
+            RayKind::Reflection
+        };
+        let generation = Generation {
+            depth,
+            kind,
+            cones: &cones,
+        };
+        self.shade_lanes(rays, mask, generation, counts, observer)
             .vectors()
     }
 
@@ -453,30 +516,25 @@ impl<'a> Shader<'a> {
         &self,
         rays: &RayPacket,
         mask: LaneMask,
-        depth: u32,
-        cones: &RayCones,
+        generation: Generation<'_>,
         counts: &mut RayCounts,
         mut observer: Option<&mut dyn RayObserver>,
     ) -> Vec3Lanes {
+        let Generation { depth, kind, cones } = generation;
         let scene = self.scene;
         if mask == 0 {
             return Vec3Lanes::default();
         }
         let traced = u64::from(mask.count_ones());
-        if depth == 0 {
-            counts.primary += traced;
-        } else {
-            counts.reflection += traced;
+        match kind {
+            RayKind::Primary => counts.primary += traced,
+            RayKind::Refraction => counts.refraction += traced,
+            _ => counts.reflection += traced,
         }
         let mut hits = [None; PACKET_WIDTH];
         self.intersector.intersect8(rays, mask, &mut hits);
         if let Some(observer) = observer.as_deref_mut() {
             let ends = std::array::from_fn(|lane| hits[lane].map_or(rays[lane].tmax, |h| h.t));
-            let kind = if depth == 0 {
-                RayKind::Primary
-            } else {
-                RayKind::Reflection
-            };
             observer.traced(kind, rays, mask, &ends);
         }
 
@@ -511,6 +569,10 @@ impl<'a> Shader<'a> {
             lanes_hit.set(lane, &surface, albedo, rays[lane].dir);
             lanes_hit.cutoff[lane] = object.highlight_cutoff;
             lanes_hit.reflectivity[lane] = object.material.reflectivity;
+            if self.any_glass {
+                lanes_hit.glass[lane] = object.material.glass;
+                lanes_hit.front_face[lane] = surface.front_face;
+            }
         }
         lanes_hit.normalize_directions();
         let mut colors = first_colors(
@@ -532,7 +594,7 @@ impl<'a> Shader<'a> {
             // Nearly every lane is lit: filling all of them and resetting
             // the few others beats picking lanes out one by one.
             let mut shadow_rays: RayPacket = std::array::from_fn(|lane| {
-                Ray::segment(h.spawn_point.get(lane), to_light.get(lane), 1.0)
+                Ray::segment(h.shadow_point.get(lane), to_light.get(lane), 1.0)
             });
             for lane in lanes(!lit_mask) {
                 shadow_rays[lane] = Ray::INACTIVE;
@@ -580,23 +642,35 @@ impl<'a> Shader<'a> {
             let h = &lanes_hit;
             // Scene numbers are finite (a `Scene` promise), so no NaN to exclude.
             let mirror_mask = hit_mask & lanes_where(|lane| h.reflectivity[lane] > 0.0);
-            if mirror_mask != 0 {
+            let glass = if self.any_glass {
+                h.glass_lanes(hit_mask)
+            } else {
+                GlassLanes::default()
+            };
+            let reflect_mask = mirror_mask | glass.reflecting;
+            let mut mirrored = Vec3Lanes::default();
+            if reflect_mask != 0 {
                 let directions = h.mirror_directions();
                 // As for shadow rays: all lanes, then reset the others.
                 let mut reflected: RayPacket = std::array::from_fn(|lane| {
                     Ray::new(h.spawn_point.get(lane), directions.get(lane))
                 });
-                for lane in lanes(!mirror_mask) {
+                for lane in lanes(!reflect_mask) {
                     reflected[lane] = Ray::INACTIVE;
                 }
-                let mirrored = self.shade_lanes(
+                mirrored = self.shade_lanes(
                     &reflected,
-                    mirror_mask,
-                    depth + 1,
-                    &next_cones,
+                    reflect_mask,
+                    Generation {
+                        depth: depth + 1,
+                        kind: RayKind::Reflection,
+                        cones: &next_cones,
+                    },
                     counts,
-                    observer,
+                    reborrow(&mut observer),
                 );
+            }
+            if mirror_mask != 0 {
                 mix_reflection(
                     &mut colors,
                     &mirrored,
@@ -604,12 +678,94 @@ impl<'a> Shader<'a> {
                     &lane_flags(mirror_mask),
                 );
             }
+            if glass.lanes != 0 {
+                // A refracted cone is passed on as it arrives (the bend
+                // of the glass's curvature left out).
+                let refracted = self.shade_lanes(
+                    &glass.rays,
+                    glass.refracting,
+                    Generation {
+                        depth: depth + 1,
+                        kind: RayKind::Refraction,
+                        cones: &next_cones,
+                    },
+                    counts,
+                    observer,
+                );
+                glass.mix(&mut colors, &mirrored, &refracted);
+            }
         }
         colors
     }
 }
 
+/// What a packet of rays is in the recursion: its depth (0 for primary
+/// rays), its kind (primary, reflection or refraction) and the ray cones
+/// it carries.
+#[derive(Clone, Copy)]
+struct Generation<'c> {
+    depth: u32,
+    kind: RayKind,
+    cones: &'c RayCones,
+}
+
+/// The transparent lanes of a packet's hits, worked out lane by lane (only
+/// scenes with glass get here): how much each reflects (exact Fresnel), the
+/// refracted rays, and what the light coming through is filtered by.
+struct GlassLanes {
+    /// Lanes on a transparent surface.
+    lanes: LaneMask,
+    /// Of those, the ones whose Fresnel reflection is traced (all but
+    /// those of index 1, which reflect nothing).
+    reflecting: LaneMask,
+    /// The ones a refracted ray leaves (all but total internal reflection).
+    refracting: LaneMask,
+    rays: RayPacket,
+    transparency: Lanes,
+    reflectance: Lanes,
+    /// The glass's filter where the ray goes in, white where it comes out.
+    filter: [Vec3; PACKET_WIDTH],
+}
+
+impl Default for GlassLanes {
+    fn default() -> GlassLanes {
+        GlassLanes {
+            lanes: 0,
+            reflecting: 0,
+            refracting: 0,
+            rays: [Ray::INACTIVE; PACKET_WIDTH],
+            transparency: [0.0; PACKET_WIDTH],
+            reflectance: [0.0; PACKET_WIDTH],
+            filter: [Vec3::ONE; PACKET_WIDTH],
+        }
+    }
+}
+
+impl GlassLanes {
+    /// `colors` in the glass lanes: the surface's own colour kept by
+    /// `1 - transparency`, the rest the Fresnel blend of what the reflected
+    /// and the (filtered) refracted rays see.
+    fn mix(&self, colors: &mut Vec3Lanes, mirrored: &Vec3Lanes, refracted: &Vec3Lanes) {
+        for lane in lanes(self.lanes) {
+            let (t, f) = (self.transparency[lane], self.reflectance[lane]);
+            let behind =
+                mirrored.get(lane) * f + self.filter[lane] * refracted.get(lane) * (1.0 - f);
+            colors.set(lane, colors.get(lane) * (1.0 - t) + behind * t);
+        }
+    }
+}
+
 type Lanes = [f32; PACKET_WIDTH];
+
+/// `observer` lent for one call, its trait object's lifetime shortened to
+/// the loan (which `as_deref_mut` does not do).
+#[inline]
+fn reborrow<'s>(observer: &'s mut Option<&mut dyn RayObserver>) -> Option<&'s mut dyn RayObserver> {
+    match observer {
+        Some(observer) => Some(&mut **observer),
+        None => None,
+    }
+}
 
 /// The mask of lanes where `test` holds.
 #[inline]
@@ -850,6 +1006,7 @@ struct HitLanes {
     geometric_normal: Vec3Lanes,
     shading_normal: Vec3Lanes,
     spawn_point: Vec3Lanes,
+    shadow_point: Vec3Lanes,
     albedo: Vec3Lanes,
     /// The incoming ray's direction; unit once
     /// [`HitLanes::normalize_directions`] has run.
@@ -858,15 +1015,23 @@ struct HitLanes {
     /// The material's highlight cutoff and reflectivity.
     cutoff: Lanes,
     reflectivity: Lanes,
+    /// Scenes with glass only: each lane's glass, if its material is
+    /// transparent, and whether the ray arrived on the front face.
+    glass: [Option<Glass>; PACKET_WIDTH],
+    front_face: [bool; PACKET_WIDTH],
 }
 
 impl HitLanes {
-    /// Toward a light at `light`: the facing term `n_g . (light - point)`
-    /// (the light is in front where it is positive), the direction the
+    /// Toward a light at `light`: the facing term `n_s . (light - point)`
+    /// (the light is in front where it is positive; by the shading normal,
+    /// which is the geometric one except on smooth triangles, where a
+    /// light below a facet's plane still lights the curved surface it
+    /// stands for, and the shadow ray from the lifted shadow point decides),
+    /// the direction the
     /// light falls from (from the points themselves: the spawn points sit
     /// off the surface by an amount that grows with the distance from the
     /// origin, 19 units at 1e7, enough to bend the cosines), and the shadow
-    /// rays' directions, from the spawn points to the light (so the
+    /// rays' directions, from the shadow points to the light (so the
     /// segment ends at t = 1).
     ///
     /// The lighting math is kept out of line (here, [`HitLanes::cosines`]
@@ -877,8 +1042,8 @@ impl HitLanes {
     fn toward(&self, light: Vec3) -> (Lanes, Vec3Lanes, Vec3Lanes) {
         let light = Vec3Lanes::splat(light);
         let from_point = light.sub(&self.point);
-        let facing = self.geometric_normal.dot(&from_point);
-        (facing, from_point, light.sub(&self.spawn_point))
+        let facing = self.shading_normal.dot(&from_point);
+        (facing, from_point, light.sub(&self.shadow_point))
     }
 
     /// Where mirror reflections leave: the incoming direction mirrored
@@ -891,6 +1056,52 @@ impl HitLanes {
         let by_geometry = reflect_lanes(d, &self.geometric_normal);
         let bent = by_shading.dot(&self.geometric_normal).map(|c| c <= 0.0);
         by_geometry.select(&bent, &by_shading)
+    }
+
+    /// The glass lanes among `hit_mask`: Fresnel reflectance and the
+    /// refracted rays, bent by Snell's law about the shading normal (about
+    /// the geometric one where the shading normal would send the ray back
+    /// out on the side it came from), leaving from the far side of the
+    /// surface. Going in through the front face, the index ratio is
+    /// 1 / ior; coming out, ior.
+    fn glass_lanes(&self, hit_mask: LaneMask) -> GlassLanes {
+        let mut out = GlassLanes::default();
+        for lane in lanes(hit_mask) {
+            let Some(glass) = self.glass[lane] else {
+                continue;
+            };
+            let d = self.direction.get(lane);
+            let geometric = self.geometric_normal.get(lane);
+            let eta = if self.front_face[lane] {
+                1.0 / glass.ior
+            } else {
+                glass.ior
+            };
+            let (mut reflectance, mut bent) = refract(d, self.shading_normal.get(lane), eta);
+            if bent.is_some_and(|t| t.dot(geometric) >= 0.0) {
+                (reflectance, bent) = refract(d, geometric, eta);
+            }
+            out.lanes |= 1 << lane;
+            if reflectance > 0.0 {
+                out.reflecting |= 1 << lane;
+            }
+            if let Some(t) = bent {
+                out.refracting |= 1 << lane;
+                // The spawn point mirrored through the surface: as far
+                // below it as rays leaving the near side start above it.
+                let point = self.point.get(lane);
+                let through = point + (point - self.spawn_point.get(lane));
+                out.rays[lane] = Ray::new(through, t);
+            }
+            out.transparency[lane] = glass.transparency;
+            out.reflectance[lane] = reflectance;
+            out.filter[lane] = if self.front_face[lane] {
+                glass.filter
+            } else {
+                Vec3::ONE
+            };
+        }
+        out
     }
 
     /// Makes every lane's direction unit length, all lanes at once rather
@@ -919,6 +1130,7 @@ impl HitLanes {
         self.geometric_normal.set(lane, surface.geometric_normal);
         self.shading_normal.set(lane, surface.shading_normal);
         self.spawn_point.set(lane, surface.spawn_point);
+        self.shadow_point.set(lane, surface.shadow_point);
         self.albedo.set(lane, albedo);
         self.direction.set(lane, direction);
         self.material[lane] = surface.material as u32;

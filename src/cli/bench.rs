@@ -11,6 +11,8 @@ use retrace::lab::bench::{bench_sequence, Measure, SequenceBench};
 use retrace::sampling::PixelSamples;
 use retrace::scene::Scene;
 
+mod chunking;
+
 use super::{
     check_writable, idle_flag, load, parse_frame_range, scene_name, write_json, BackendArg,
     OstcArgs, RsvpKnobArgs, SceneArgs,
@@ -28,9 +30,15 @@ pub(crate) struct BenchArgs {
     /// frame against bare Embree on the same ray packets), `backends` (the
     /// grid against Embree on the same ray packets), `E4nomotion` (pan 3.6
     /// deg/frame and zoom together) or `knobs` (RSVP filter, oversampling
-    /// and level bias: cost and error).
+    /// and level bias: cost and error), `chunking` (E1, E3 and E4, or the
+    /// scene given, cut into farm chunks: CPU and wall time against the
+    /// number of chunks).
     #[arg(long, default_value = "all")]
     only: String,
+    /// With `--only chunking`: the numbers of chunks measured (one long
+    /// run is always among them).
+    #[arg(long, value_delimiter = ',', default_value = "1,2,4,8,16")]
+    chunk_counts: Vec<u32>,
     /// Frames of every experiment, `A-B` or `A` (default: all 100).
     #[arg(long)]
     frames: Option<String>,
@@ -39,9 +47,10 @@ pub(crate) struct BenchArgs {
     #[arg(long)]
     scaling: bool,
     /// Folder for the table (bench.csv, bench.json), per-frame CSVs, plots
-    /// and report.md.
-    #[arg(long, default_value = "out/bench")]
-    out: PathBuf,
+    /// and report.md (default: out/bench, and out/chunking for `--only
+    /// chunking`).
+    #[arg(long)]
+    out: Option<PathBuf>,
     /// Timed repetitions, the median reported (default: 15 for `frame`
     /// and `backends`, one run of each sequence for the experiments; with
     /// more, an experiment alternates full and accelerated runs).
@@ -60,6 +69,17 @@ pub(crate) struct BenchArgs {
 }
 
 impl BenchArgs {
+    /// The folder written.
+    fn out(&self) -> PathBuf {
+        self.out.clone().unwrap_or_else(|| {
+            PathBuf::from(if self.only.eq_ignore_ascii_case("chunking") {
+                "out/chunking"
+            } else {
+                "out/bench"
+            })
+        })
+    }
+
     /// Repetitions of a single-frame measurement.
     fn frame_repeats(&self) -> usize {
         self.repeats.unwrap_or(15) as usize
@@ -93,6 +113,7 @@ pub(crate) fn bench(args: BenchArgs) -> Result<()> {
         "e4" => vec![Experiment::E4],
         "e4nomotion" => vec![Experiment::E4NoMotion],
         "scaling" => Vec::new(),
+        "chunking" => return chunking::bench_chunking_cli(&args, bar),
         "frame" | "backends" | "knobs" => {
             // These measure a single frame, or sweep the RSVP knobs
             // themselves: no knob given applies.
@@ -114,7 +135,7 @@ pub(crate) fn bench(args: BenchArgs) -> Result<()> {
         }
         _ => {
             anyhow::bail!(
-                "unknown measurement '{}' for --only (available: all, E1, E2, E3, E4, scaling, frame, backends, E4nomotion, knobs)",
+                "unknown measurement '{}' for --only (available: all, E1, E2, E3, E4, scaling, frame, backends, E4nomotion, knobs, chunking)",
                 args.only
             )
         }
@@ -349,7 +370,7 @@ fn bench_suite(
     bar: indicatif::ProgressBar,
 ) -> Result<()> {
     let load_at_start = load_average();
-    check_writable(&args.out)?;
+    check_writable(&args.out())?;
     let rounds = args.repeats.unwrap_or(1);
     bar.set_length(planned.iter().map(|plan| plan.steps(rounds)).sum());
     bar.set_position(0);
@@ -385,7 +406,7 @@ fn bench_suite(
         load: load_at_start.zip(load_average()),
         release: !cfg!(debug_assertions),
     };
-    let written = retrace::lab::report::write_bench(&args.out, &run, &results, draw_chart)?;
+    let written = retrace::lab::report::write_bench(&args.out(), &run, &results, draw_chart)?;
     if let Some(path) = &args.json {
         let rows: serde_json::Value =
             serde_json::from_str(&retrace::lab::report::rows_json(&rows))?;
@@ -394,8 +415,8 @@ fn bench_suite(
     say!(
         "wrote {} files to {} (open {})",
         written.len(),
-        args.out.display(),
-        args.out.join("report.md").display()
+        args.out().display(),
+        args.out().join("report.md").display()
     );
     let inexact: Vec<&str> = rows
         .iter()

@@ -11,6 +11,7 @@ use clap::{Args, Subcommand};
 use retrace::chunk::{chunk_frames, chunk_path};
 use retrace::farm::{
     merge_stats, parse_sacct, parse_scontrol, reused_share, sort_records, task_indices,
+    RestartCost, ACCEPTED_REUSE_LOSS,
 };
 use retrace::scene::SceneOverrides;
 
@@ -244,7 +245,7 @@ fn submit(args: SubmitArgs) -> Result<()> {
         ..Default::default()
     };
     // Refused here, not in every task's log: a scene that does not load.
-    retrace::scene::load_scene(&run.scene, &overrides)?;
+    let scene = retrace::scene::load_scene(&run.scene, &overrides)?;
     let (range, _, _) = run.frames()?;
     let dir = run.out_dir();
     let logs = dir.join("logs");
@@ -295,7 +296,7 @@ fn submit(args: SubmitArgs) -> Result<()> {
         sizes.iter().max().copied().unwrap_or(0),
     );
     eprintln!(
-        "frames {}-{} in {} chunks of {}{} frames; each chunk traces its first frame in full",
+        "frames {}-{} in {} chunks of {}{} frames",
         range.start(),
         range.end(),
         run.chunks,
@@ -305,6 +306,21 @@ fn submit(args: SubmitArgs) -> Result<()> {
         } else {
             String::new()
         }
+    );
+    let frame_count = range.end() - range.start() + 1;
+    let (restart, restarted) = if scene.viewports.is_empty() {
+        (RestartCost::EXACT, "")
+    } else {
+        (RestartCost::VIEWPORTS, " and refills its viewport buffer")
+    };
+    eprintln!(
+        "each chunk restarts from a full frame{restarted}: {} chunks lose about {:.0}% of the \
+         reuse one run has; keep at least {} frames a chunk to lose < {:.0}% \
+         (measured by `retrace bench --only chunking`)",
+        run.chunks,
+        100.0 * restart.reuse_lost(run.chunks, frame_count),
+        restart.min_frames_per_chunk(ACCEPTED_REUSE_LOSS),
+        100.0 * ACCEPTED_REUSE_LOSS
     );
     if args.dry_run {
         say!("sbatch {}", shell_words(&render));
@@ -573,6 +589,7 @@ fn report(
         all_ms / count,
         100.0 * all_reused / all_pixels.max(1.0)
     ));
+    text.push_str(&restart_cost(chunks, view, all_ms));
     text.push_str(
         "![pixels reused per frame](savings.png)\n\n\
          Files: `animation.gif` (and `animation.mp4` where ffmpeg is installed), \
@@ -580,6 +597,37 @@ fn report(
          `stats.chunkN.json` (each task's own), `logs/` (each task's log).\n",
     );
     text
+}
+
+/// What the run's own restarts cost: each chunk's first frame against its
+/// other frames (a paragraph, empty with one chunk or one frame a chunk).
+fn restart_cost(chunks: &[Chunk], view: &str, all_ms: f64) -> String {
+    let (mut first, mut rest) = (Vec::new(), Vec::new());
+    for (_, _, rows) in chunks {
+        let ms: Vec<f64> = rows
+            .iter()
+            .filter(|r| r["viewport"].as_str().unwrap_or_default() == view)
+            .map(|r| r["total_ms"].as_f64().unwrap_or(0.0))
+            .collect();
+        if let Some((head, tail)) = ms.split_first() {
+            first.push(*head);
+            rest.extend_from_slice(tail);
+        }
+    }
+    if first.len() < 2 || rest.is_empty() {
+        return String::new();
+    }
+    let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
+    let (first_ms, rest_ms) = (mean(&first), mean(&rest));
+    let restarts = (first.len() - 1) as f64;
+    let lost = restarts * (first_ms - rest_ms);
+    format!(
+        "Restarts: a chunk's first frame took {first_ms:.1} ms on average, its other frames \
+         {rest_ms:.1} ms; the {restarts:.0} restarts beyond one run's cost about {lost:.0} ms, \
+         {:.1}% of the rendering time (`retrace bench --only chunking` measures the whole \
+         curve, and `retrace farm submit` prints the chunk size it recommends).\n\n",
+        100.0 * lost / all_ms.max(f64::MIN_POSITIVE)
+    )
 }
 
 fn status(args: StatusArgs) -> Result<()> {

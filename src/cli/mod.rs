@@ -7,6 +7,7 @@ pub(crate) mod farm;
 pub(crate) mod render;
 pub(crate) mod tradeoff;
 pub(crate) mod validate;
+pub(crate) mod view;
 
 use std::path::{Path, PathBuf};
 

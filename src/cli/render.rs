@@ -102,8 +102,12 @@ pub(crate) fn render(mut args: RenderArgs) -> Result<()> {
         seconds * 1e3,
         args.output.display()
     );
+    let refraction = match rays.refraction {
+        0 => String::new(),
+        n => format!(", {n} refraction"),
+    };
     say!(
-        "rays: {} primary, {} shadow, {} reflection ({:.1} Mrays/s)",
+        "rays: {} primary, {} shadow, {} reflection{refraction} ({:.1} Mrays/s)",
         rays.primary,
         rays.shadow,
         rays.reflection,

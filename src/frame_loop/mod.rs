@@ -106,6 +106,9 @@ pub struct Animator<'a> {
     kept: Option<Kept>,
     /// Why OSTC, asked for, could not be kept.
     ostc_refusal: Option<String>,
+    /// Whether the views come from the caller ([`Animator::render_views`]),
+    /// not from the timeline alone.
+    interactive: bool,
 }
 
 impl<'a> Animator<'a> {
@@ -120,7 +123,25 @@ impl<'a> Animator<'a> {
             facts,
             kept: None,
             ostc_refusal: None,
+            interactive: false,
         }
+    }
+
+    /// An animator for views no timeline knows in advance (an interactive
+    /// viewer's, given to [`Animator::render_views`]): the scene's objects
+    /// and lights still follow the timeline, but the camera may turn
+    /// anywhere at any frame, so an equal-angle camera's frames live on the
+    /// pan lattice from the first, and its pan buffer holds every row of
+    /// the lattice, pole to pole.
+    pub fn interactive(
+        scene: &'a Scene,
+        accel: &'a mut Accelerator,
+        options: Options,
+    ) -> Animator<'a> {
+        let mut animator = Animator::new(scene, accel, options);
+        animator.facts.free_camera(scene);
+        animator.interactive = true;
+        animator
     }
 
     pub fn options(&self) -> &Options {
@@ -348,6 +369,10 @@ impl<'a> Animator<'a> {
         if !techniques.ostc && !equal_angle {
             return Some(Some(FullReason::PanNeedsEqualAngle(camera.projection)));
         }
+        // The store says whether it fits camera views no timeline foresees.
+        if self.interactive {
+            return None;
+        }
         // Without panning a store holds only while the camera stands still.
         let moves = |other: u32| self.camera_at(other) != *camera;
         let still = (frame == 0 || !moves(frame - 1)) && !moves(frame + 1);
@@ -438,9 +463,20 @@ impl<'a> Animator<'a> {
     /// sRGB (frame assembly is part of the cost) and, when asked, linear
     /// colour, with what each took.
     pub fn render(&mut self, frame: u32) -> Vec<ViewOutput> {
+        let views = self.views(frame);
+        self.render_views(frame, views)
+    }
+
+    /// As [`Animator::render`], showing `views` (of the kind
+    /// [`Animator::views`] gives: the camera's image, or one per viewport)
+    /// rather than the timeline's: for an [`Animator::interactive`] one.
+    pub fn render_views(&mut self, frame: u32, views: Vec<View>) -> Vec<ViewOutput> {
+        debug_assert!(
+            self.interactive || views == self.views(frame),
+            "views other than the timeline's need an interactive animator"
+        );
         let start = Instant::now();
         self.pose(frame);
-        let views = self.views(frame);
         if let Some(reason) = self.full_reason(frame, &views) {
             self.kept = None;
             return self.render_in_full(frame, views, reason);
@@ -531,9 +567,10 @@ impl<'a> Animator<'a> {
         reason: Option<FullReason>,
     ) -> Vec<ViewOutput> {
         let mut outputs = Vec::with_capacity(views.len());
-        for (index, view) in views.into_iter().enumerate() {
+        self.pose(frame);
+        for view in views {
             let start = Instant::now();
-            let (image, rays) = self.render_full(frame, index);
+            let (image, rays) = self.render_view_in_full(&self.scene, self.accel, &view);
             let trace_ms = start.elapsed().as_secs_f64() * 1e3;
             let rgb = image.to_rgb8();
             let total_ms = start.elapsed().as_secs_f64() * 1e3;
@@ -627,6 +664,27 @@ fn pixels(pose: &ViewportPose) -> u64 {
 }
 
 impl TimelineFacts {
+    /// The facts for a camera that may turn anywhere at any frame: it
+    /// moves, and the views of each pan lattice may reach every row.
+    fn free_camera(&mut self, scene: &Scene) {
+        self.camera_moves = true;
+        let mut cameras = vec![scene.camera.clone()];
+        if let Some(animation) = &scene.animation {
+            cameras.extend((0..animation.frames).map(|f| animation.camera_at(&scene.camera, f)));
+        }
+        for camera in cameras {
+            if camera.projection != Projection::EqualAngle {
+                continue;
+            }
+            let rows = EqualAngleLattice::rows_for(&camera);
+            self.row_spans.insert(lattice_key(&camera), (0, rows));
+            // Resampling reads a row more on either side.
+            self.pan_buffer_bytes = self
+                .pan_buffer_bytes
+                .max(EqualAngleLattice::buffer_bytes(&camera, rows + 2));
+        }
+    }
+
     /// Whether a full render of `camera` is taken on the pan lattice (see
     /// [`Animator::render_full`]).
     fn on_lattice(&self, camera: &Camera) -> bool {

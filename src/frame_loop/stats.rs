@@ -117,6 +117,7 @@ pub struct FrameStats {
     pub primary_rays: u64,
     pub shadow_rays: u64,
     pub reflection_rays: u64,
+    pub refraction_rays: u64,
     /// OSTC: regions found dirty (object or light changes) and erased.
     pub dirty_regions: u64,
     /// OSTC: traced samples nulled by the erasure.
@@ -171,6 +172,7 @@ impl FrameStats {
         self.primary_rays = rays.primary;
         self.shadow_rays = rays.shadow;
         self.reflection_rays = rays.reflection;
+        self.refraction_rays = rays.refraction;
     }
 
     /// The rays counted, as one value.
@@ -179,6 +181,7 @@ impl FrameStats {
             primary: self.primary_rays,
             shadow: self.shadow_rays,
             reflection: self.reflection_rays,
+            refraction: self.refraction_rays,
         }
     }
 }

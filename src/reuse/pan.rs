@@ -86,9 +86,7 @@ impl EqualAngleLattice {
     pub fn for_camera_sampled(camera: &Camera, samples: PixelSamples) -> EqualAngleLattice {
         let columns_per_turn = Self::columns_per_turn_for(camera);
         let step = TAU / columns_per_turn as f64;
-        // Rows from pole to pole, rounded up to whole groups.
-        let rows = ((FRAC_PI_2 * 2.0 / step / f64::from(GROUP_HEIGHT)).ceil()
-            * f64::from(GROUP_HEIGHT)) as i64;
+        let rows = Self::rows_at(step);
         EqualAngleLattice {
             position: camera.position,
             columns_per_turn,
@@ -140,6 +138,18 @@ impl EqualAngleLattice {
             self.sample_columns[self.wrap_column(col) as usize * count + index as usize];
         let (sin_el, cos_el) = self.sample_row_angles[row as usize * count + index as usize];
         Some(DVec3::new(cos_el * sin_az, sin_el, -cos_el * cos_az))
+    }
+
+    /// Rows from pole to pole at `step` radians a row, rounded up to whole
+    /// groups.
+    fn rows_at(step: f64) -> i64 {
+        ((FRAC_PI_2 * 2.0 / step / f64::from(GROUP_HEIGHT)).ceil() * f64::from(GROUP_HEIGHT)) as i64
+    }
+
+    /// The rows of `camera`'s lattice, from pole to pole, known without
+    /// making the lattice.
+    pub fn rows_for(camera: &Camera) -> i64 {
+        Self::rows_at(TAU / Self::columns_per_turn_for(camera) as f64)
     }
 
     /// The rows `camera`'s snapped window covers on its lattice, known

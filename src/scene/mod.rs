@@ -5,6 +5,7 @@
 //! valid, every mesh triangle has non-zero area, and the camera validated.
 
 mod file;
+pub mod glass;
 mod obj;
 
 use std::path::{Path, PathBuf};
@@ -17,6 +18,7 @@ use crate::texture::TextureRef;
 use crate::timeline::{Animation, ViewportTrack};
 
 pub use file::{parse_scene_str, SceneOverrides};
+pub use glass::Glass;
 pub use obj::{load_obj_mesh, load_obj_mesh_with, ObjMesh};
 
 /// The scene files of `scenes/` built into the binary, so `retrace render`
@@ -74,6 +76,8 @@ pub struct Material {
     /// An image the diffuse colour is multiplied by, on meshes with
     /// texture coordinates (MTL `map_Kd`, a scene's `texture`).
     pub diffuse_map: Option<TextureRef>,
+    /// Transparent materials only: how light goes through.
+    pub glass: Option<Glass>,
 }
 
 /// Highlights dimmer than this are not computed (an sRGB byte changes only
@@ -99,6 +103,7 @@ impl Material {
             shininess: 1.0,
             reflectivity: 0.0,
             diffuse_map: None,
+            glass: None,
         }
     }
 }

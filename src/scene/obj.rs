@@ -19,6 +19,7 @@ use glam::{DVec3, Vec2, Vec3};
 use super::file::SceneOverrides;
 use super::{Checker, Material, Scene, SceneError};
 use crate::camera::{yaw_pitch_toward, Camera, Projection};
+use crate::geometry::normals::{apply_crease_normals, DEFAULT_CREASE_ANGLE_DEG};
 use crate::geometry::Light;
 use crate::geometry::{Aabb, Object, Placement, Plane, Shape, TriangleMesh, WORLD_LIMIT};
 use crate::texture::load::{TextureCache, TextureProblem};
@@ -324,7 +325,10 @@ fn checked_mtl_text(
                 continue;
             }
             "Ka" | "Kd" | "Ks" | "Ke" => numbers(3),
-            "Ns" | "Ni" | "d" => numbers(1),
+            "Ns" => numbers(1),
+            "Ni" | "d" | "Tr" | "Tf" => {
+                numbers(1).or_else(|| super::glass::mtl_value_problem(keyword, &values))
+            }
             "illum" => match values.first().map(|w| w.parse::<u8>()) {
                 Some(Ok(_)) => None,
                 Some(Err(_)) => Some(format!(
@@ -448,6 +452,7 @@ fn material_from_mtl(m: &tobj::Material, diffuse_map: Option<TextureRef>) -> Mat
             0.0
         },
         diffuse_map,
+        glass: super::glass::glass_from_mtl(m),
     }
 }
 
@@ -599,7 +604,12 @@ pub fn load_obj_mesh_with(path: &Path, textures: &mut TextureCache) -> Result<Ob
             texcoords,
         };
         // Parts with the same material merge: fewer objects, same picture.
-        match parts.iter_mut().find(|p| p.material == material) {
+        // Not a part with normals and one without: the file's normals stay
+        // as given, and only the other gets normals of its own.
+        let same_kind = |p: &ObjPart| {
+            p.material == material && p.mesh.normals.is_empty() == mesh.normals.is_empty()
+        };
+        match parts.iter_mut().find(|p| same_kind(p)) {
             Some(part) => append_mesh(&mut part.mesh, mesh),
             None => parts.push(ObjPart { mesh, material }),
         }
@@ -634,8 +644,8 @@ fn append_mesh(into: &mut TriangleMesh, mesh: TriangleMesh) {
     }
 }
 
-/// A scene for a bare model: the model (smooth-shaded where the file has no
-/// normals), a checkered ground plane under it, a key light, and a camera
+/// A scene for a bare model: the model (where the file has no normals,
+/// smooth only across edges below the default crease angle), a checkered ground plane under it, a key light, and a camera
 /// that frames its bounds.
 pub(super) fn scene_around_obj(
     path: &Path,
@@ -679,7 +689,7 @@ pub(super) fn scene_around_obj(
         };
         let mut mesh = part.mesh;
         if mesh.normals.is_empty() {
-            mesh.compute_smooth_normals();
+            apply_crease_normals(&mut mesh, DEFAULT_CREASE_ANGLE_DEG);
         }
         objects.push(Object {
             name: format!("model part {i}"),

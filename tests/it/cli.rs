@@ -448,10 +448,12 @@ fn bench_measures_the_viewport_experiments_at_the_knobs_asked_for() {
     };
     let (stdout, default) = samples(&[], "default");
     assert!(stdout.contains("E2 in (RSVP)"), "{stdout}");
-    // A level bias of -1 halves the density on each axis: far fewer samples.
-    let (stdout, coarse) = samples(&["--level-bias", "-1"], "coarse");
-    assert!(stdout.contains("E2 in (RSVP, level bias -1)"), "{stdout}");
-    for (fine, coarse) in default.iter().zip(&coarse) {
+    // A level bias of +1 doubles the density on each axis: far more
+    // samples (the zoom starts at the coarsest level, so -1 could not halve
+    // it).
+    let (stdout, fine) = samples(&["--level-bias", "1"], "fine");
+    assert!(stdout.contains("E2 in (RSVP, level bias +1)"), "{stdout}");
+    for (coarse, fine) in default.iter().zip(&fine) {
         assert!(2 * coarse < *fine, "{coarse} against {fine}");
     }
 }

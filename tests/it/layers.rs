@@ -20,6 +20,7 @@ const LAYERS: &[&[&str]] = &[
     &["reuse"],
     &["frame_loop"],
     &["lab"],
+    &["view"],
 ];
 
 fn layer_of(module: &str) -> Option<usize> {

@@ -14,10 +14,12 @@
 //! run, with a per-frame profile of both sides and the oracle (the least
 //! tracing any reuse could do); [`crate::lab::report`] turns them into the table.
 
+mod chunking;
 mod oracle;
 mod sequence;
 mod viewport_oracle;
 
+pub use chunking::{bench_chunking, ChunkingBench, ChunkingRow};
 pub use oracle::{rays_per_pixel, OracleRays};
 pub use sequence::{
     bench_sequence, reference_samples, ErrorSummary, FrameProfile, Measure, OracleSpeedups,

@@ -515,6 +515,7 @@ mod tests {
                 primary: 100,
                 shadow: 150,
                 reflection: 20,
+                refraction: 0,
             },
             oracle_samples: Some(5),
             accelerated_trace_ms: 1.5,

@@ -535,7 +535,7 @@ impl RayObserver for RegionMarker<'_> {
                     }
                 }
             }
-            RayKind::Reflection => {}
+            RayKind::Reflection | RayKind::Refraction => {}
         }
         let Some(voxels) = &self.ostc.voxels else {
             return;

@@ -57,34 +57,37 @@ pub struct RsvpKnobs {
 }
 
 impl Default for RsvpKnobs {
+    /// The defaults at one sample a pixel; [`RsvpKnobs::default_for`] gives
+    /// them at any count.
     fn default() -> Self {
         RsvpKnobs {
             filter: Filter::Bilinear,
-            oversample: 1.0,
+            oversample: DEFAULT_OVERSAMPLE,
             level_bias: 0,
         }
     }
 }
 
-/// Buffer samples a shifted pixel, per side, that antialiased viewports'
-/// levels are chosen for by default (the box filter then reads one level
-/// finer).
-const ANTIALIASED_OVERSAMPLE: f64 = 0.71;
+/// Buffer samples a viewport pixel (or shifted pixel, antialiased), per
+/// side, that the levels are chosen for by default. Below 1 some pixels
+/// read fewer than one sample each, and the filter spreads them: against a
+/// converged reference that still measured closer to the truth than direct
+/// renders at the same samples a pixel, on every viewport scene shipped
+/// (E2, E4, the bunnies; 0.8-1.7 dB better at one sample a pixel, 0.2-1.2
+/// at four), at about twice the speed of oversampling 1 (docs/RESULTS.md).
+const DEFAULT_OVERSAMPLE: f64 = 0.71;
 
 impl RsvpKnobs {
-    /// The default knobs at `samples` a pixel: antialiased, the box filter
-    /// over levels chosen for 0.71 buffer samples a shifted pixel (per
-    /// side), which against a converged reference measured no worse than
-    /// direct renders at four samples a pixel on E2 (0.2-1.2 dB better)
-    /// at 1.6-2.1x their speed, where oversampling 1 cost twice that and
-    /// bilinear fell up to 0.7 dB short (docs/RESULTS.md).
+    /// The default knobs at `samples` a pixel: bilinear at one sample a
+    /// pixel; antialiased, the box filter (over one level finer), where
+    /// bilinear fell up to 0.7 dB short of direct renders at four samples
+    /// a pixel.
     pub fn default_for(samples: crate::sampling::PixelSamples) -> RsvpKnobs {
         if samples.count() == 1 {
             return RsvpKnobs::default();
         }
         RsvpKnobs {
             filter: Filter::Box,
-            oversample: ANTIALIASED_OVERSAMPLE,
             ..RsvpKnobs::default()
         }
     }

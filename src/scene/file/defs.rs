@@ -240,6 +240,11 @@ pub(super) struct MaterialDef {
     pub(super) shininess: f32,
     #[serde(default)]
     pub(super) reflectivity: f32,
+    /// Glass: share of the colour that is what lies behind (0 = opaque).
+    #[serde(default)]
+    pub(super) transparency: f32,
+    pub(super) ior: Option<f32>,
+    pub(super) transmission_filter: Option<[f32; 3]>,
 }
 
 fn default_shininess() -> f32 {
@@ -286,8 +291,11 @@ pub(super) struct ObjectDef {
     pub(super) rotate: [f32; 3],
     #[serde(default = "one")]
     pub(super) scale: f32,
-    /// Meshes without normals in the file: interpolate area-weighted vertex
-    /// normals instead of shading each triangle flat.
+    /// Meshes without normals in the file: smooth across every edge (a
+    /// crease angle of 180 degrees).
     #[serde(default)]
     pub(super) smooth: bool,
+    /// Meshes without normals in the file: degrees between two faces'
+    /// normals below which their shared edge is smoothed.
+    pub(super) crease_angle: Option<f32>,
 }

@@ -2,7 +2,7 @@
 //!
 //! Promises: every colour is finite and not negative, a checker's scale
 //! above 0, the shininess finite and not negative, the reflectivity within
-//! 0..1.
+//! 0..1; a transparent material's values as [`Glass`] promises.
 
 use std::path::Path;
 
@@ -11,6 +11,7 @@ use toml::Spanned;
 use super::defs::MaterialDef;
 use super::values::colour;
 use super::Ctx;
+use crate::scene::glass::{Glass, DEFAULT_IOR};
 use crate::scene::{Checker, Material, SceneError};
 use crate::texture::load::TextureProblem;
 use crate::texture::{path::resolve, TextureRef};
@@ -113,6 +114,12 @@ pub(super) fn convert_material(
         Some(written) => texture(ctx, name, written)?,
     };
     let untextured_grey = if diffuse_map.is_some() { 1.0 } else { 0.7 };
+    let filter = match m.transmission_filter {
+        Some(filter) => colour(filter).map_err(err("transmission_filter"))?,
+        None => glam::Vec3::ONE,
+    };
+    let glass = Glass::new(m.transparency, m.ior.unwrap_or(DEFAULT_IOR), filter)
+        .map_err(|(f, message)| err(f)(message))?;
     Ok(Material {
         name: name.to_string(),
         diffuse: colour(m.diffuse.unwrap_or([untextured_grey; 3])).map_err(err("diffuse"))?,
@@ -121,5 +128,6 @@ pub(super) fn convert_material(
         specular: colour(m.specular).map_err(err("specular"))?,
         shininess: m.shininess,
         reflectivity: m.reflectivity,
+        glass,
     })
 }

@@ -15,6 +15,7 @@ use toml::Spanned;
 use super::defs::{ObjectDef, ObjectKind, SceneFile};
 use super::values::{finite3, world3};
 use super::{names_or_none, Ctx};
+use crate::geometry::normals::{apply_crease_normals, DEFAULT_CREASE_ANGLE_DEG};
 use crate::geometry::{
     within_world, Object, Placement, Plane, Shape, Sphere, TriangleMesh, WORLD_LIMIT,
 };
@@ -138,12 +139,13 @@ fn convert_object(
         ("vertices", o.vertices.is_some()),
         ("file", o.file.is_some()),
         ("smooth", o.smooth),
+        ("crease_angle", o.crease_angle.is_some()),
     ];
     let used: &[&str] = match o.kind {
         ObjectKind::Sphere => &["center", "radius"],
         ObjectKind::Plane => &["point", "normal", "size"],
         ObjectKind::Quad | ObjectKind::Polygon => &["vertices"],
-        ObjectKind::Mesh => &["file", "smooth"],
+        ObjectKind::Mesh => &["file", "smooth", "crease_angle"],
     };
     if let Some((unused, _)) = given.iter().find(|(f, given)| *given && !used.contains(f)) {
         return Err(err(
@@ -259,6 +261,7 @@ fn convert_object(
                     format!("{}: no such model file", obj_path.display()),
                 ));
             }
+            let crease_deg = mesh_crease_angle(o).map_err(|(f, m)| err(f, m))?;
             let loaded =
                 crate::scene::load_obj_mesh_with(&obj_path, &mut ctx.textures.borrow_mut())?;
             warnings.extend(loaded.warnings(&obj_path));
@@ -275,8 +278,8 @@ fn convert_object(
                 for n in &mut mesh.normals {
                     *n = crate::geometry::transform_normal(&transform, *n);
                 }
-                if o.smooth && mesh.normals.is_empty() {
-                    mesh.compute_smooth_normals();
+                if mesh.normals.is_empty() {
+                    apply_crease_normals(&mut mesh, crease_deg);
                 }
                 // The scene's material wins; without one, the MTL's.
                 let part_material = match (&o.material, part.material) {
@@ -306,6 +309,24 @@ fn convert_object(
         material,
         placement: Placement::World,
     }])
+}
+
+/// The crease angle of a mesh's table, in degrees: `crease_angle`, 180 for
+/// `smooth = true`, else the default. On error, the field and the message.
+fn mesh_crease_angle(o: &ObjectDef) -> Result<f32, (&'static str, String)> {
+    match (o.crease_angle, o.smooth) {
+        (Some(_), true) => Err((
+            "crease_angle",
+            "give either crease_angle or smooth = true (a crease angle of 180), not both".into(),
+        )),
+        (Some(angle), false) if !(0.0..=180.0).contains(&angle) => Err((
+            "crease_angle",
+            format!("must be within 0..180 degrees, got {angle}"),
+        )),
+        (Some(angle), false) => Ok(angle),
+        (None, true) => Ok(180.0),
+        (None, false) => Ok(DEFAULT_CREASE_ANGLE_DEG),
+    }
 }
 
 /// Fan-triangulates a planar convex polygon, rejecting degenerate ones.

@@ -1,0 +1,172 @@
+//! `retrace view`: a scene in a window (drag, zoom, play), or the same
+//! input from a script without a display.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, Result};
+use clap::Args;
+
+use retrace::output::{save_image, save_text};
+use retrace::view::script::{parse_script, run_script, stats_csv, EventStats};
+use retrace::view::window::{run_window, Hooks};
+use retrace::view::{next_save_path, Picture, RenderThread, Viewer};
+
+use super::{check_writable, ensure_parent, load, scene_name, BackendArg, SceneArgs};
+
+#[derive(Args)]
+pub(crate) struct ViewArgs {
+    #[command(flatten)]
+    scene: SceneArgs,
+    #[command(flatten)]
+    backend: BackendArg,
+    /// Run the input of this script instead of opening a window (drag DX
+    /// DY, wheel N [X Y], key K, play N, wait, save PATH; see the guide),
+    /// through the same render thread, without a display.
+    #[arg(long)]
+    script: Option<PathBuf>,
+    /// Statistics as CSV: with --script one row per command (ms from the
+    /// command to its picture, samples traced), in a window one per
+    /// picture shown.
+    #[arg(long)]
+    stats: Option<PathBuf>,
+    /// Where `s` saves pictures (view_0001.png, view_0002.png, ...).
+    #[arg(long, default_value = "out")]
+    save_dir: PathBuf,
+    /// Print a line for every picture the window shows (its request, state
+    /// and times): for tests and scripts that drive the window.
+    #[arg(long)]
+    print_pictures: bool,
+}
+
+pub(crate) fn view(args: ViewArgs) -> Result<()> {
+    if let Some(path) = &args.stats {
+        if path.extension().map(|e| e.to_ascii_lowercase()) != Some("csv".into()) {
+            anyhow::bail!("--stats {}: use a .csv file", path.display());
+        }
+        check_writable(&super::folder_of(path))?;
+    }
+    // A script is read and checked before the scene is loaded or traced.
+    let script = match &args.script {
+        Some(path) => Some((
+            path,
+            std::fs::read_to_string(path)
+                .with_context(|| format!("cannot read the script {}", path.display()))?,
+        )),
+        None => None,
+    };
+    let scene = load(&args.scene)?;
+    if !scene.viewports.is_empty() {
+        eprintln!(
+            "note: the view shows the scene's camera; its viewports are not shown (`retrace \
+             animate` renders them)"
+        );
+    }
+    let name = scene_name(&args.scene);
+    let grid = args.backend.grid_resolution()?;
+    match script {
+        Some((path, text)) => {
+            let viewer = Viewer::new(&scene);
+            let lines = parse_script(&text, path, viewer.size())?;
+            let thread =
+                RenderThread::spawn(scene, args.backend.backend, grid, true, Box::new(|| {}))
+                    .map_err(anyhow::Error::msg)?;
+            let save_dir = args.save_dir.clone();
+            let mut next_save = move || next_save_path(&save_dir);
+            let mut save = |path: &Path, image: &image::RgbImage| -> Result<(), String> {
+                ensure_parent(path).map_err(|e| e.to_string())?;
+                save_image(path, image).map_err(|e| e.to_string())?;
+                say!("saved {}", path.display());
+                Ok(())
+            };
+            let rows = run_script(&thread, &viewer, &lines, &mut next_save, &mut save)
+                .map_err(anyhow::Error::msg)?;
+            say_script(&name, &rows);
+            if let Some(path) = &args.stats {
+                save_text(path, &stats_csv(&rows))?;
+            }
+            Ok(())
+        }
+        None => {
+            let mut hooks = WindowHooks {
+                print: args.print_pictures,
+                save_dir: args.save_dir.clone(),
+                rows: Vec::new(),
+            };
+            run_window(scene, &name, args.backend.backend, grid, &mut hooks)
+                .map_err(anyhow::Error::msg)?;
+            if let Some(path) = &args.stats {
+                save_text(path, &stats_csv(&hooks.rows))?;
+            }
+            Ok(())
+        }
+    }
+}
+
+/// A script's run in a few lines: the pictures' times.
+fn say_script(name: &str, rows: &[EventStats]) {
+    let times: Vec<f64> = rows.iter().filter_map(|r| r.ms_to_picture).collect();
+    let traced: u64 = rows.iter().filter_map(|r| r.samples_traced).sum();
+    say!(
+        "{name}: {} commands with a picture, ms to picture: median {:.1}, max {:.1}; {} samples traced",
+        times.len(),
+        median(&times),
+        times.iter().copied().fold(0.0, f64::max),
+        traced
+    );
+}
+
+fn median(values: &[f64]) -> f64 {
+    let mut sorted = values.to_vec();
+    sorted.sort_by(f64::total_cmp);
+    match sorted.len() {
+        0 => 0.0,
+        n => sorted[n / 2],
+    }
+}
+
+struct WindowHooks {
+    print: bool,
+    save_dir: PathBuf,
+    rows: Vec<EventStats>,
+}
+
+impl Hooks for WindowHooks {
+    fn presented(&mut self, picture: &Picture, latency_ms: f64, title: &str) {
+        let state = &picture.state;
+        if self.print {
+            say!(
+                "picture {}: frame {} yaw {:.6} pitch {:.6} zoom notches {} reuse {} mode {} \
+                 render {:.2} ms latency {:.2} ms traced {} | {title}",
+                picture.generation,
+                state.frame,
+                state.yaw.to_degrees(),
+                state.pitch.to_degrees(),
+                state.notches,
+                if state.reuse { "on" } else { "off" },
+                picture.mode,
+                picture.render_ms,
+                latency_ms,
+                picture.samples_traced
+            );
+        }
+        self.rows.push(EventStats {
+            line: 0,
+            event: format!("picture {}", picture.generation),
+            frame: state.frame,
+            reuse: state.reuse,
+            mode: Some(picture.mode),
+            ms_to_picture: Some(latency_ms),
+            render_ms: Some(picture.render_ms),
+            samples_traced: Some(picture.samples_traced),
+            pixels: picture.pixels,
+        });
+    }
+
+    fn save(&mut self, image: &image::RgbImage) -> Result<String, String> {
+        let path = next_save_path(&self.save_dir);
+        ensure_parent(&path).map_err(|e| e.to_string())?;
+        save_image(&path, image).map_err(|e| e.to_string())?;
+        say!("saved {}", path.display());
+        Ok(path.display().to_string())
+    }
+}

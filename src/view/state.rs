@@ -1,0 +1,457 @@
+//! What a viewer shows and how input changes it: the view the user has
+//! turned, zoomed and played to, and the views of the frame loop that
+//! show it.
+//!
+//! Promises: a view is computed from the state alone (the timeline's
+//! camera at the state's frame, then the user's turn and zoom), never
+//! accumulated from the previous picture; the same input gives the same
+//! state in a window and in a script. With the transform at identity the
+//! view is the camera's own image, so a drag of an equal-angle camera is a
+//! Panimation pan, exact; zoomed or rotated it is an RSVP viewport.
+
+use std::f64::consts::FRAC_PI_2;
+
+use glam::{DMat2, DVec2};
+
+use crate::camera::{Camera, Projection, ViewTransform, Viewport, ViewportPose};
+use crate::frame_loop::View;
+use crate::scene::Scene;
+use crate::timeline::Animation;
+
+/// One wheel notch magnifies by this much.
+pub const ZOOM_STEP: f64 = 1.1;
+/// Wheel notches allowed each way: 1.1^48 is about 97x in, 1/97 out (the
+/// equal-angle view then meets the poles well before).
+pub const MAX_NOTCHES: i32 = 48;
+/// An arrow key pans by this many window pixels.
+pub const ARROW_STEP: f64 = 32.0;
+/// `[` and `]` turn the view by this much, radians.
+pub const ROTATE_STEP: f64 = 5.0 * std::f64::consts::PI / 180.0;
+
+/// The name of the viewer's RSVP viewport (statistics name their view).
+pub const VIEWPORT_NAME: &str = "view";
+
+/// Everything a picture of the viewer depends on.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ViewState {
+    /// The timeline's frame.
+    pub frame: u32,
+    /// Added to the timeline camera's yaw and pitch, radians (equal-angle
+    /// cameras: a drag turns the camera, a pan).
+    pub yaw: f64,
+    pub pitch: f64,
+    /// Magnification [`ZOOM_STEP`]^`notches`.
+    pub notches: i32,
+    /// Radians, counter-clockwise as seen.
+    pub rotate: f64,
+    /// The viewport's translation, in pixels of the unzoomed image (other
+    /// projections' pans; equal-angle ones turn the camera instead).
+    pub translate: DVec2,
+    /// Reuse on (every technique the frame loop can use) or off (every
+    /// picture traced afresh).
+    pub reuse: bool,
+}
+
+impl Default for ViewState {
+    fn default() -> Self {
+        ViewState {
+            frame: 0,
+            yaw: 0.0,
+            pitch: 0.0,
+            notches: 0,
+            rotate: 0.0,
+            translate: DVec2::ZERO,
+            reuse: true,
+        }
+    }
+}
+
+/// A key the viewer acts on.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Key {
+    Left,
+    Right,
+    Up,
+    Down,
+    /// Play or pause the timeline.
+    Space,
+    /// One frame back.
+    Comma,
+    /// One frame on.
+    Period,
+    /// Reuse off or on.
+    M,
+    /// The traced-samples overlay off or on.
+    T,
+    /// Save the picture.
+    S,
+    /// Turn the view counter-clockwise (`[`) or clockwise (`]`).
+    RotateLeft,
+    RotateRight,
+    Quit,
+}
+
+impl Key {
+    /// The key a script or a window names: a character, or Left, Right,
+    /// Up, Down, Space, Escape.
+    pub fn parse(name: &str) -> Option<Key> {
+        Some(match name {
+            "Left" | "left" => Key::Left,
+            "Right" | "right" => Key::Right,
+            "Up" | "up" => Key::Up,
+            "Down" | "down" => Key::Down,
+            "space" | "Space" | " " => Key::Space,
+            "," | "comma" => Key::Comma,
+            "." | "period" => Key::Period,
+            "m" => Key::M,
+            "t" => Key::T,
+            "s" => Key::S,
+            "[" => Key::RotateLeft,
+            "]" => Key::RotateRight,
+            "q" | "Escape" | "escape" => Key::Quit,
+            _ => return None,
+        })
+    }
+}
+
+/// Input as the viewer receives it, in window pixels.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Input {
+    /// The picture dragged by (dx, dy): x right, y down.
+    Drag(DVec2),
+    /// Wheel notches (positive: zoom in) about a window point.
+    Wheel {
+        notches: i32,
+        at: DVec2,
+    },
+    Key(Key),
+}
+
+/// What an input asks of the viewer beyond a new state.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Effect {
+    /// The state changed: a new picture is wanted.
+    Changed,
+    /// Nothing to do (a zoom or turn past what the view allows, a frame
+    /// step without a timeline).
+    Nothing,
+    TogglePlay,
+    /// Show the picture, or the picture painted black where it traced
+    /// (the paper's figure 4): the same picture, nothing to render.
+    ToggleOverlay,
+    Save,
+    Quit,
+}
+
+/// The scene's camera and timeline as the viewer needs them.
+#[derive(Clone, Debug)]
+pub struct Viewer {
+    camera: Camera,
+    animation: Option<Animation>,
+}
+
+impl Viewer {
+    pub fn new(scene: &Scene) -> Viewer {
+        Viewer {
+            camera: scene.camera.clone(),
+            animation: scene.animation.clone(),
+        }
+    }
+
+    /// Frames in the timeline (1 without one).
+    pub fn frames(&self) -> u32 {
+        self.animation.as_ref().map_or(1, |a| a.frames.max(1))
+    }
+
+    /// The timeline's frames a second.
+    pub fn fps(&self) -> f64 {
+        self.animation.as_ref().map_or(25.0, |a| a.fps)
+    }
+
+    /// The picture's size in pixels.
+    pub fn size(&self) -> (u32, u32) {
+        (self.camera.width, self.camera.height)
+    }
+
+    /// Whether a drag turns the camera (equal-angle: a pan) rather than
+    /// translating the viewport.
+    fn turns(&self) -> bool {
+        self.camera.projection == Projection::EqualAngle
+    }
+
+    fn transform(state: &ViewState) -> ViewTransform {
+        ViewTransform {
+            zoom: ZOOM_STEP.powi(state.notches),
+            rotate: state.rotate,
+            shear: [0.0, 0.0],
+            translate: state.translate.to_array(),
+        }
+    }
+
+    /// Whether `state` shows the camera's own image (no zoom, turn or
+    /// translation): else an RSVP viewport.
+    pub fn is_camera_view(state: &ViewState) -> bool {
+        state.notches == 0 && state.rotate == 0.0 && state.translate == DVec2::ZERO
+    }
+
+    /// The viewport the viewer shows when zoomed or turned.
+    pub fn viewport(&self) -> Viewport {
+        Viewport {
+            name: VIEWPORT_NAME.to_string(),
+            width: self.camera.width,
+            height: self.camera.height,
+            projection: self.camera.projection,
+            fov: self.camera.fov,
+            yaw: 0.0,
+            pitch: 0.0,
+            transform: ViewTransform::default(),
+        }
+    }
+
+    /// The timeline's camera at the state's frame, turned by the user.
+    pub fn camera(&self, state: &ViewState) -> Camera {
+        let mut camera = match &self.animation {
+            Some(animation) => animation.camera_at(&self.camera, state.frame),
+            None => self.camera.clone(),
+        };
+        if self.turns() {
+            camera.yaw += state.yaw;
+            camera.pitch += state.pitch;
+        }
+        camera
+    }
+
+    /// The one view of `state`: the camera's image, or the viewer's
+    /// viewport.
+    pub fn view(&self, state: &ViewState) -> View {
+        let camera = self.camera(state);
+        if Self::is_camera_view(state) {
+            return View {
+                name: String::new(),
+                pose: ViewportPose::new(camera, ViewTransform::default()),
+            };
+        }
+        View {
+            name: VIEWPORT_NAME.to_string(),
+            pose: ViewportPose::new(camera, Self::transform(state)),
+        }
+    }
+
+    /// Whether `state` can be shown: its camera valid (an equal-angle
+    /// view within the poles) and its transform too.
+    pub fn check(&self, state: &ViewState) -> Result<(), String> {
+        let camera = self.camera(state);
+        camera.validate().map_err(|e| e.to_string())?;
+        let base = Camera {
+            yaw: camera.yaw,
+            pitch: camera.pitch,
+            ..self.camera.clone()
+        };
+        self.viewport()
+            .validate_transform(&base, &Self::transform(state))
+            .map_err(|e| format!("{}: {}", e.field, e.message))
+    }
+
+    /// `state` changed by `input`: a new state where the input changes
+    /// what is shown, and what else it asks for. A change the view cannot
+    /// take (past a pole, past the zoom limits) leaves the state as it was.
+    pub fn apply(&self, state: &mut ViewState, input: Input) -> Effect {
+        let mut next = state.clone();
+        match input {
+            Input::Drag(delta) => self.drag(&mut next, delta),
+            Input::Wheel { notches, at } => {
+                let notches = (state.notches + notches).clamp(-MAX_NOTCHES, MAX_NOTCHES);
+                self.zoom_about(&mut next, notches, at);
+            }
+            Input::Key(key) => match key {
+                Key::Left => self.drag(&mut next, DVec2::new(ARROW_STEP, 0.0)),
+                Key::Right => self.drag(&mut next, DVec2::new(-ARROW_STEP, 0.0)),
+                Key::Up => self.drag(&mut next, DVec2::new(0.0, ARROW_STEP)),
+                Key::Down => self.drag(&mut next, DVec2::new(0.0, -ARROW_STEP)),
+                Key::Comma | Key::Period => {
+                    let frames = self.frames();
+                    let step = if key == Key::Period { 1 } else { frames - 1 };
+                    next.frame = (state.frame + step) % frames;
+                }
+                Key::M => next.reuse = !state.reuse,
+                Key::T => return Effect::ToggleOverlay,
+                Key::RotateLeft | Key::RotateRight => {
+                    let sign = if key == Key::RotateLeft { 1.0 } else { -1.0 };
+                    // Whole steps from zero, so turning back is exactly 0.
+                    let steps = (state.rotate / ROTATE_STEP).round() + sign;
+                    next.rotate = steps * ROTATE_STEP;
+                    self.settle(&mut next);
+                }
+                Key::Space => return Effect::TogglePlay,
+                Key::S => return Effect::Save,
+                Key::Quit => return Effect::Quit,
+            },
+        }
+        if next == *state || self.check(&next).is_err() {
+            return Effect::Nothing;
+        }
+        *state = next;
+        Effect::Changed
+    }
+
+    /// The next frame of a playing timeline.
+    pub fn advance(&self, state: &mut ViewState) -> Effect {
+        self.apply(state, Input::Key(Key::Period))
+    }
+
+    /// Drags the picture by `delta` window pixels: the point under the
+    /// cursor stays under it.
+    fn drag(&self, state: &mut ViewState, delta: DVec2) {
+        let base = Self::transform(state).matrix().inverse() * delta;
+        if self.turns() {
+            let step = self.camera.angle_step();
+            state.yaw -= base.x * step;
+            state.pitch = self.clamp_pitch(state, state.pitch + base.y * step);
+        } else {
+            state.translate -= base;
+        }
+    }
+
+    /// Zooms to `notches` about window point `at`: the point under it
+    /// stays under it.
+    fn zoom_about(&self, state: &mut ViewState, notches: i32, at: DVec2) {
+        let inverse = |s: &ViewState| -> DMat2 { Self::transform(s).matrix().inverse() };
+        let before = inverse(state);
+        state.notches = notches;
+        let after = inverse(state);
+        let centre = DVec2::new(f64::from(self.camera.width), f64::from(self.camera.height)) * 0.5;
+        state.translate += (before - after) * (at - centre);
+        self.settle(state);
+    }
+
+    /// An equal-angle camera's translation becomes a turn of the camera (a
+    /// shift of its image is exactly a turn), so that a view back at zoom 1
+    /// is the camera's own image again, and pans stay Panimation's.
+    fn settle(&self, state: &mut ViewState) {
+        if !self.turns() {
+            return;
+        }
+        let step = self.camera.angle_step();
+        state.yaw += state.translate.x * step;
+        state.pitch = self.clamp_pitch(state, state.pitch - state.translate.y * step);
+        state.translate = DVec2::ZERO;
+    }
+
+    /// `pitch` (the user's, added to the timeline's) kept so that the view
+    /// stays within the poles, where it can.
+    fn clamp_pitch(&self, state: &ViewState, pitch: f64) -> f64 {
+        let camera = self.camera(&ViewState {
+            pitch: 0.0,
+            ..state.clone()
+        });
+        let pose = ViewportPose::new(camera.clone(), Self::transform(state));
+        let (w, h) = (f64::from(camera.width), f64::from(camera.height));
+        // The view's rows reach this far from its centre row, in pixels of
+        // the camera's image: its corners bound it.
+        let reach = [(0.0, 0.0), (w, 0.0), (0.0, h), (w, h)]
+            .map(|(x, y)| (pose.base_point(DVec2::new(x, y)).y - 0.5 * h).abs())
+            .into_iter()
+            .fold(0.0, f64::max);
+        let limit = FRAC_PI_2 - reach * camera.angle_step();
+        if limit < 0.0 {
+            return pitch;
+        }
+        (camera.pitch + pitch).clamp(-limit, limit) - camera.pitch
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::{paper_scene, SceneOverrides};
+
+    fn paper() -> Viewer {
+        Viewer::new(&paper_scene(&SceneOverrides::default()).unwrap())
+    }
+
+    #[test]
+    fn a_drag_turns_an_equal_angle_camera_by_its_pixels() {
+        let viewer = paper();
+        let mut state = ViewState::default();
+        let step = viewer.camera.angle_step();
+        assert_eq!(
+            viewer.apply(&mut state, Input::Drag(DVec2::new(-24.0, 8.0))),
+            Effect::Changed
+        );
+        assert!((state.yaw - 24.0 * step).abs() < 1e-15);
+        assert!((state.pitch - 8.0 * step).abs() < 1e-15);
+        assert!(Viewer::is_camera_view(&state));
+        // Dragged far up, the view stops at the pole.
+        for _ in 0..100 {
+            viewer.apply(&mut state, Input::Drag(DVec2::new(0.0, 100.0)));
+        }
+        let camera = viewer.camera(&state);
+        camera.validate().unwrap();
+        let top = camera.pitch + 0.5 * f64::from(camera.height) * step;
+        assert!((top - FRAC_PI_2).abs() < 1e-9, "{}", top.to_degrees());
+    }
+
+    #[test]
+    fn a_zoom_keeps_the_point_under_the_cursor_and_comes_back_exactly() {
+        let viewer = paper();
+        let mut state = ViewState::default();
+        let at = DVec2::new(100.0, 90.0);
+        let looks = |state: &ViewState| viewer.view(state).pose.direction(at).unwrap();
+        let before = looks(&state);
+        for _ in 0..3 {
+            viewer.apply(&mut state, Input::Wheel { notches: 1, at });
+        }
+        assert!(!Viewer::is_camera_view(&state));
+        assert_eq!(state.translate, DVec2::ZERO, "equal-angle: a turn");
+        assert!((looks(&state) - before).length() < 1e-9);
+        viewer.apply(&mut state, Input::Wheel { notches: -3, at });
+        assert!(Viewer::is_camera_view(&state));
+        assert!((looks(&state) - before).length() < 1e-9);
+    }
+
+    #[test]
+    fn a_perspective_view_pans_by_translating_its_viewport() {
+        let overrides = SceneOverrides {
+            projection: Some(Projection::Perspective),
+            fov: Some(60.0),
+            ..SceneOverrides::default()
+        };
+        let viewer = Viewer::new(&paper_scene(&overrides).unwrap());
+        let mut state = ViewState::default();
+        viewer.apply(&mut state, Input::Drag(DVec2::new(10.0, -4.0)));
+        assert_eq!(state.translate, DVec2::new(-10.0, 4.0));
+        assert_eq!((state.yaw, state.pitch), (0.0, 0.0));
+        assert_eq!(viewer.view(&state).name, VIEWPORT_NAME);
+        // Zoomed in twice as far, the same drag moves half as far.
+        let at = DVec2::new(320.0, 240.0);
+        let mut zoomed = ViewState::default();
+        viewer.apply(&mut zoomed, Input::Wheel { notches: 7, at });
+        let zoom = ZOOM_STEP.powi(7);
+        viewer.apply(&mut zoomed, Input::Drag(DVec2::new(10.0, 0.0)));
+        assert!((zoomed.translate.x + 10.0 / zoom).abs() < 1e-12);
+    }
+
+    #[test]
+    fn keys_step_frames_and_toggle() {
+        let viewer = paper();
+        let mut state = ViewState::default();
+        // The paper scene has one frame: stepping changes nothing.
+        assert_eq!(
+            viewer.apply(&mut state, Input::Key(Key::Period)),
+            Effect::Nothing
+        );
+        assert_eq!(
+            viewer.apply(&mut state, Input::Key(Key::M)),
+            Effect::Changed
+        );
+        assert!(!state.reuse);
+        assert_eq!(
+            viewer.apply(&mut state, Input::Key(Key::Quit)),
+            Effect::Quit
+        );
+        viewer.apply(&mut state, Input::Key(Key::RotateLeft));
+        viewer.apply(&mut state, Input::Key(Key::RotateRight));
+        assert_eq!(state.rotate, 0.0);
+        assert!(Viewer::is_camera_view(&state));
+    }
+}

@@ -1,0 +1,350 @@
+//! The viewer's render thread: the frame loop ([`Animator`]) off the
+//! input's thread, always rendering the latest view asked for.
+//!
+//! Promises: asking never blocks (the request replaces any not yet
+//! started: input arriving faster than pictures is coalesced, never
+//! queued); every picture is the frame loop's picture of one requested
+//! state, tagged with that request's number; the thread sleeps while
+//! nothing new is asked. Reuse is the frame loop's: an animator lives as
+//! long as its kind of view (the camera's image or the viewport) and the
+//! reuse mode last, so its kept samples carry from picture to picture.
+
+use std::sync::{Arc, Condvar, Mutex, MutexGuard, PoisonError};
+use std::thread::JoinHandle;
+use std::time::Instant;
+
+use crate::accel::{Accelerator, BackendKind};
+use crate::frame_loop::{Animator, Options, Techniques};
+use crate::reuse::rsvp::RsvpKnobs;
+use crate::scene::Scene;
+use crate::timeline::ViewportTrack;
+
+use super::state::{ViewState, Viewer};
+
+/// One finished picture and what it cost.
+#[derive(Clone, Debug)]
+pub struct Picture {
+    /// The request it answers.
+    pub generation: u64,
+    pub state: ViewState,
+    pub image: image::RgbImage,
+    /// The picture painted black where it traced (the paper's figure 4).
+    pub traced: image::RgbImage,
+    /// Milliseconds the frame loop took for it.
+    pub render_ms: f64,
+    /// When it was finished.
+    pub done: Instant,
+    pub samples_traced: u64,
+    pub pixels: u64,
+    /// The frame loop's word for how it was made (pan, rsvp, full, ...).
+    pub mode: &'static str,
+}
+
+impl Picture {
+    /// Samples traced for this picture over its pixels.
+    pub fn traced_share(&self) -> f64 {
+        self.samples_traced as f64 / self.pixels.max(1) as f64
+    }
+
+    /// What is shown: the picture, or with the overlay, the picture
+    /// painted where it traced.
+    pub fn shown(&self, overlay: bool) -> &image::RgbImage {
+        if overlay {
+            &self.traced
+        } else {
+            &self.image
+        }
+    }
+}
+
+/// A finished picture as the log keeps it: enough to time each request.
+#[derive(Clone, Copy, Debug)]
+pub struct Finished {
+    pub generation: u64,
+    pub done: Instant,
+    pub render_ms: f64,
+    pub samples_traced: u64,
+    pub mode: &'static str,
+}
+
+#[derive(Default)]
+struct Inbox {
+    /// The latest request not yet started.
+    request: Option<(u64, ViewState)>,
+    quit: bool,
+}
+
+#[derive(Default)]
+struct Outbox {
+    latest: Option<Arc<Picture>>,
+    /// Every picture finished, in order, when a log is kept (scripts).
+    log: Vec<Finished>,
+    keep_log: bool,
+    /// Why the thread stopped, if it failed.
+    failure: Option<String>,
+    stopped: bool,
+}
+
+struct Shared {
+    inbox: Mutex<Inbox>,
+    asked: Condvar,
+    outbox: Mutex<Outbox>,
+    finished: Condvar,
+}
+
+fn lock<T>(mutex: &Mutex<T>) -> MutexGuard<'_, T> {
+    mutex.lock().unwrap_or_else(PoisonError::into_inner)
+}
+
+/// Called on the render thread whenever a picture is finished (a window
+/// wakes its event loop with it).
+pub type Notify = Box<dyn Fn() + Send + Sync>;
+
+/// The render thread and the way to it.
+pub struct RenderThread {
+    shared: Arc<Shared>,
+    handle: Option<JoinHandle<()>>,
+}
+
+impl RenderThread {
+    /// Starts the thread on `scene` with `backend`: it builds the
+    /// accelerator there (an error building it is returned here) and then
+    /// waits for requests. `log`: keep every finished picture's timing.
+    pub fn spawn(
+        scene: Scene,
+        backend: BackendKind,
+        grid_resolution: Option<[u32; 3]>,
+        log: bool,
+        notify: Notify,
+    ) -> Result<RenderThread, String> {
+        let shared = Arc::new(Shared {
+            inbox: Mutex::new(Inbox::default()),
+            asked: Condvar::new(),
+            outbox: Mutex::new(Outbox {
+                keep_log: log,
+                ..Outbox::default()
+            }),
+            finished: Condvar::new(),
+        });
+        let (ready_tx, ready_rx) = std::sync::mpsc::channel();
+        let thread_shared = Arc::clone(&shared);
+        let handle = std::thread::Builder::new()
+            .name("retrace-view-render".to_string())
+            .spawn(move || {
+                let shared = thread_shared;
+                let failure = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+                    // On a worker of the pool, so that each parallel step of
+                    // the frame loop starts at once (see main.rs).
+                    rayon::scope(|_| {
+                        let accel =
+                            match Accelerator::build_with(backend, &scene.objects, grid_resolution)
+                            {
+                                Ok(accel) => accel,
+                                Err(err) => {
+                                    let _ = ready_tx.send(Err(err.to_string()));
+                                    return;
+                                }
+                            };
+                        let _ = ready_tx.send(Ok(()));
+                        serve(&shared, &scene, accel, &notify);
+                    })
+                }))
+                .err()
+                .map(|panic| panic_text(panic.as_ref()));
+                let mut outbox = lock(&shared.outbox);
+                outbox.failure = failure;
+                outbox.stopped = true;
+                drop(outbox);
+                shared.finished.notify_all();
+                notify();
+            })
+            .map_err(|err| format!("cannot start the render thread: {err}"))?;
+        let thread = RenderThread {
+            shared,
+            handle: Some(handle),
+        };
+        match ready_rx.recv() {
+            Ok(Ok(())) => Ok(thread),
+            Ok(Err(err)) => Err(err),
+            Err(_) => Err(thread
+                .failure()
+                .unwrap_or_else(|| "the render thread stopped before starting".to_string())),
+        }
+    }
+
+    /// Asks for a picture of `state`, replacing any request not started yet.
+    pub fn request(&self, generation: u64, state: ViewState) {
+        lock(&self.shared.inbox).request = Some((generation, state));
+        self.shared.asked.notify_one();
+    }
+
+    /// The latest finished picture.
+    pub fn latest(&self) -> Option<Arc<Picture>> {
+        lock(&self.shared.outbox).latest.clone()
+    }
+
+    /// Why the thread stopped, if it failed.
+    pub fn failure(&self) -> Option<String> {
+        lock(&self.shared.outbox).failure.clone()
+    }
+
+    /// Waits for a picture answering request `generation` or a later one.
+    pub fn wait_for(&self, generation: u64) -> Result<Arc<Picture>, String> {
+        let mut outbox = lock(&self.shared.outbox);
+        loop {
+            if let Some(picture) = outbox
+                .latest
+                .as_ref()
+                .filter(|p| p.generation >= generation)
+            {
+                return Ok(Arc::clone(picture));
+            }
+            if outbox.stopped {
+                return Err(outbox
+                    .failure
+                    .clone()
+                    .unwrap_or_else(|| "the render thread stopped".to_string()));
+            }
+            outbox = self
+                .shared
+                .finished
+                .wait(outbox)
+                .unwrap_or_else(PoisonError::into_inner);
+        }
+    }
+
+    /// The pictures finished so far (with a log kept).
+    pub fn log(&self) -> Vec<Finished> {
+        lock(&self.shared.outbox).log.clone()
+    }
+}
+
+impl Drop for RenderThread {
+    fn drop(&mut self) {
+        lock(&self.shared.inbox).quit = true;
+        self.shared.asked.notify_all();
+        if let Some(handle) = self.handle.take() {
+            let _ = handle.join();
+        }
+    }
+}
+
+fn panic_text(panic: &(dyn std::any::Any + Send)) -> String {
+    let text = panic
+        .downcast_ref::<String>()
+        .map(String::as_str)
+        .or_else(|| panic.downcast_ref::<&str>().copied())
+        .unwrap_or("unknown panic");
+    format!("the render thread failed: {text}")
+}
+
+/// Which animator serves a state: its kept samples are for one kind of
+/// view and one reuse mode.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct AnimatorKind {
+    viewport: bool,
+    reuse: bool,
+}
+
+impl AnimatorKind {
+    fn of(state: &ViewState) -> AnimatorKind {
+        AnimatorKind {
+            viewport: !Viewer::is_camera_view(state),
+            reuse: state.reuse,
+        }
+    }
+}
+
+/// The render loop: waits for a request, renders the latest, repeats
+/// until told to quit.
+fn serve(shared: &Shared, scene: &Scene, mut accel: Accelerator, notify: &Notify) {
+    let viewer = Viewer::new(scene);
+    // The camera's image and the viewer's viewport: the frame loop serves
+    // one kind of view per animator. The scene's own viewports are not
+    // the viewer's.
+    let mut camera_scene = scene.clone();
+    camera_scene.viewports.clear();
+    let mut viewport_scene = camera_scene.clone();
+    viewport_scene.viewports.push(ViewportTrack {
+        viewport: viewer.viewport(),
+        keys: Vec::new(),
+    });
+    let mut current: Option<(AnimatorKind, Animator)> = None;
+    loop {
+        let (generation, state) = {
+            let mut inbox = lock(&shared.inbox);
+            loop {
+                if inbox.quit {
+                    return;
+                }
+                if let Some(request) = inbox.request.take() {
+                    break request;
+                }
+                inbox = shared
+                    .asked
+                    .wait(inbox)
+                    .unwrap_or_else(PoisonError::into_inner);
+            }
+        };
+        let kind = AnimatorKind::of(&state);
+        if current.as_ref().map(|(k, _)| *k) != Some(kind) {
+            // The old animator lets go of the accelerator first.
+            drop(current.take());
+            let scene = if kind.viewport {
+                &viewport_scene
+            } else {
+                &camera_scene
+            };
+            let options = Options {
+                techniques: if kind.reuse {
+                    Techniques::AUTO
+                } else {
+                    Techniques::FULL
+                },
+                frames: 0..viewer.frames(),
+                linear: false,
+                rsvp: RsvpKnobs::default_for(scene.samples),
+                traced_images: true,
+                ..Options::new(Techniques::FULL, 0..1)
+            };
+            current = Some((kind, Animator::interactive(scene, &mut accel, options)));
+        }
+        let (_, animator) = current.as_mut().expect("an animator for the state");
+        let picture = render(animator, &viewer, generation, state);
+        let mut outbox = lock(&shared.outbox);
+        if outbox.keep_log {
+            outbox.log.push(Finished {
+                generation,
+                done: picture.done,
+                render_ms: picture.render_ms,
+                samples_traced: picture.samples_traced,
+                mode: picture.mode,
+            });
+        }
+        outbox.latest = Some(Arc::new(picture));
+        drop(outbox);
+        shared.finished.notify_all();
+        notify();
+    }
+}
+
+/// The frame loop's picture of `state`.
+fn render(animator: &mut Animator, viewer: &Viewer, generation: u64, state: ViewState) -> Picture {
+    let start = Instant::now();
+    let view = viewer.view(&state);
+    let output = animator
+        .render_views(state.frame, vec![view])
+        .pop()
+        .expect("one view, one picture");
+    Picture {
+        generation,
+        render_ms: start.elapsed().as_secs_f64() * 1e3,
+        done: Instant::now(),
+        samples_traced: output.stats.samples_traced,
+        pixels: output.stats.pixels,
+        mode: output.stats.mode.as_str(),
+        traced: output.traced_image.expect("traced images asked for"),
+        image: output.image,
+        state,
+    }
+}

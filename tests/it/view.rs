@@ -1,0 +1,565 @@
+//! `retrace view`: scripted input against `retrace render` of the view it
+//! should show, and the window itself under Xvfb, driven by xdotool.
+
+use std::io::{BufRead, BufReader, Read};
+use std::path::Path;
+use std::process::{Child, Command, Stdio};
+use std::sync::mpsc;
+use std::time::{Duration, Instant};
+
+use crate::common::{retrace, retrace_ok};
+
+/// The paper scene at 320x240 (its 100-degree field of view: 0.3125
+/// degrees a pixel) with the pitch moved from -9 to -9.375 degrees, so
+/// that the camera's own image sits exactly on the pan lattice (its top
+/// row a whole, even lattice row; at -9 the lattice snaps it by 0.4 of a
+/// row): then `retrace render` of a camera turned by a multiple of 4
+/// pixels traces the same rays in the same groups as the viewer's pan.
+fn paper_on_lattice(dir: &Path, name: &str, yaw: f64, pitch: f64) {
+    let text = retrace::scene::BUILTIN_SCENES
+        .iter()
+        .find(|(file, _)| *file == "paper.toml")
+        .unwrap()
+        .1;
+    assert!(text.contains("\nyaw = 0.0\n") && text.contains("\npitch = -9.0\n"));
+    let text = text
+        .replace("\nyaw = 0.0\n", &format!("\nyaw = {yaw}\n"))
+        .replace("\npitch = -9.0\n", &format!("\npitch = {pitch}\n"));
+    std::fs::write(dir.join(name), text).unwrap();
+}
+
+const SMALL: [&str; 4] = ["--width", "320", "--height", "240"];
+/// Degrees a pixel at 320 pixels over 100 degrees.
+const STEP: f64 = 0.3125;
+
+fn args<'a>(head: &[&'a str], tail: &[&'a str]) -> Vec<&'a str> {
+    head.iter()
+        .chain(SMALL.iter())
+        .chain(tail)
+        .copied()
+        .collect()
+}
+
+fn png(path: &Path) -> image::RgbImage {
+    image::open(path)
+        .unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+        .to_rgb8()
+}
+
+/// PSNR of `a` against `b`, 8-bit.
+fn psnr(a: &image::RgbImage, b: &image::RgbImage) -> f64 {
+    assert_eq!(a.dimensions(), b.dimensions());
+    let sum: f64 = a
+        .as_raw()
+        .iter()
+        .zip(b.as_raw())
+        .map(|(&x, &y)| (f64::from(x) - f64::from(y)).powi(2))
+        .sum();
+    let mse = sum / a.as_raw().len() as f64;
+    10.0 * (255.0 * 255.0 / mse.max(1e-12)).log10()
+}
+
+#[test]
+fn a_scripted_drag_equals_a_render_of_the_turned_camera() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path();
+    paper_on_lattice(path, "scene.toml", 0.0, -9.375);
+    // Dragged 24 pixels left and 8 down, the view turns 24 pixels right
+    // and 8 up: yaw 7.5, pitch -6.875 (both on the lattice's groups).
+    paper_on_lattice(path, "turned.toml", 24.0 * STEP, -9.375 + 8.0 * STEP);
+    std::fs::write(
+        path.join("drag.txt"),
+        "save open.png\ndrag -10 3\ndrag -14 5\nsave dragged.png\n",
+    )
+    .unwrap();
+    let out = retrace_ok(
+        &args(
+            &["view", "scene.toml"],
+            &["--script", "drag.txt", "--stats", "stats.csv"],
+        ),
+        path,
+    );
+    assert!(String::from_utf8_lossy(&out.stdout).contains("saved dragged.png"));
+    retrace_ok(
+        &args(&["render", "scene.toml"], &["-o", "open_render.png"]),
+        path,
+    );
+    retrace_ok(
+        &args(&["render", "turned.toml"], &["-o", "turned_render.png"]),
+        path,
+    );
+    assert!(png(&path.join("open.png")) == png(&path.join("open_render.png")));
+    let dragged = png(&path.join("dragged.png"));
+    assert!(
+        dragged == png(&path.join("turned_render.png")),
+        "the dragged view differs from a render of the turned camera"
+    );
+    assert!(dragged != png(&path.join("open.png")));
+    // One row per command that asked for a picture: the opening, both
+    // drags; the drags were panned, tracing only what came into view.
+    let stats = std::fs::read_to_string(path.join("stats.csv")).unwrap();
+    let rows: Vec<Vec<&str>> = stats
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').collect())
+        .collect();
+    assert_eq!(rows.len(), 3, "{stats}");
+    assert!(stats.starts_with("line,event,frame,reuse,mode,ms_to_picture,"));
+    assert_eq!(rows[0][1], "\"open\"");
+    for row in &rows[1..] {
+        assert_eq!(row[4], "pan", "{stats}");
+        let traced: u64 = row[7].parse().unwrap();
+        assert!(traced > 0 && traced < 320 * 240 / 4, "{stats}");
+    }
+}
+
+#[test]
+fn a_scripted_zoom_magnifies_about_the_cursor() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path();
+    paper_on_lattice(path, "scene.toml", 0.0, -9.375);
+    // Four notches in (1.1^4 = 1.4641) about (80, 60), then back out.
+    std::fs::write(
+        path.join("zoom.txt"),
+        "save open.png\nwheel 4 80 60\nsave zoomed.png\nwheel -4 80 60\nsave back.png\n",
+    )
+    .unwrap();
+    retrace_ok(
+        &args(&["view", "scene.toml"], &["--script", "zoom.txt"]),
+        path,
+    );
+    // The same view through its own rays: a viewport magnified 1.4641
+    // whose point (80, 60) shows what the camera's did; and, to show the
+    // comparison can tell, the same zoom about the centre.
+    let zoom = 1.1f64.powi(4);
+    let (cx, cy) = (160.0, 120.0);
+    let translate = |px: f64, py: f64| {
+        (
+            (1.0 - 1.0 / zoom) * (px - cx),
+            (1.0 - 1.0 / zoom) * (py - cy),
+        )
+    };
+    for (name, (tx, ty)) in [("cursor", translate(80.0, 60.0)), ("centre", (0.0, 0.0))] {
+        let scene = format!(
+            "include = \"scene.toml\"\n[[viewport]]\nname = \"{name}\"\nwidth = 320\nheight = 240\n\
+             projection = \"equal-angle\"\nfov = 100.0\nzoom = {zoom}\ntranslate = [{tx}, {ty}]\n"
+        );
+        std::fs::write(path.join(format!("{name}.toml")), scene).unwrap();
+        retrace_ok(
+            &[
+                "render",
+                &format!("{name}.toml"),
+                "--viewport",
+                name,
+                "-o",
+                &format!("{name}.png"),
+            ],
+            path,
+        );
+    }
+    let zoomed = png(&path.join("zoomed.png"));
+    let about_cursor = psnr(&zoomed, &png(&path.join("cursor.png")));
+    let about_centre = psnr(&zoomed, &png(&path.join("centre.png")));
+    let unzoomed = psnr(&zoomed, &png(&path.join("open.png")));
+    // RSVP resamples: close to the view's own rays, far from the others.
+    assert!(about_cursor > 25.0, "{about_cursor:.1} dB");
+    assert!(
+        about_centre < about_cursor - 8.0 && unzoomed < about_cursor - 8.0,
+        "cursor {about_cursor:.1} dB, centre {about_centre:.1}, unzoomed {unzoomed:.1}"
+    );
+    // Zoomed back out, the view is the camera's own image again, exact.
+    assert!(png(&path.join("back.png")) == png(&path.join("open.png")));
+}
+
+#[test]
+fn a_bad_script_names_its_line_and_renders_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("bad.txt"), "drag 1 2\nwheel in\n").unwrap();
+    let out = retrace(&["view", "--script", "bad.txt"], dir.path());
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("bad.txt:2: wheel: N 'in'"), "{err}");
+    assert!(!err.contains("panicked"), "{err}");
+}
+
+#[test]
+fn without_a_display_the_window_is_a_clear_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_retrace"))
+        .args(["view"])
+        .current_dir(dir.path())
+        .env_remove("DISPLAY")
+        .env_remove("WAYLAND_DISPLAY")
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("cannot open a window: DISPLAY is not set"),
+        "{err}"
+    );
+    assert!(!err.contains("panicked"), "{err}");
+}
+
+/// Whether the window tests can run: Xvfb, xdotool and ImageMagick's
+/// `import`. Missing, they are skipped with the reason, except under
+/// `CI=true`, where they must run.
+fn window_tools() -> bool {
+    let missing: Vec<&str> = ["Xvfb", "xdotool", "import"]
+        .into_iter()
+        .filter(|tool| {
+            Command::new("sh")
+                .args(["-c", &format!("command -v {tool}")])
+                .output()
+                .map_or(true, |o| !o.status.success())
+        })
+        .collect();
+    if missing.is_empty() {
+        return true;
+    }
+    let why = format!(
+        "window tests need {} (make test installs xvfb xdotool imagemagick)",
+        missing.join(", ")
+    );
+    if std::env::var("CI").is_ok_and(|v| v == "true") {
+        panic!("{why}");
+    }
+    eprintln!("skipped: {why}");
+    false
+}
+
+/// An X server of its own, stopped when dropped.
+struct Xvfb {
+    child: Child,
+    display: String,
+}
+
+impl Xvfb {
+    fn start() -> Xvfb {
+        // -displayfd: Xvfb picks a free display and says which once it is
+        // ready, so tests run side by side.
+        let mut child = Command::new("Xvfb")
+            .args([
+                "-displayfd",
+                "1",
+                "-screen",
+                "0",
+                "1024x768x24",
+                "-nolisten",
+                "tcp",
+            ])
+            .stdout(Stdio::piped())
+            .stderr(Stdio::null())
+            .spawn()
+            .expect("start Xvfb");
+        let mut line = String::new();
+        BufReader::new(child.stdout.take().unwrap())
+            .read_line(&mut line)
+            .unwrap();
+        let number: u32 = line
+            .trim()
+            .parse()
+            .unwrap_or_else(|_| panic!("Xvfb said '{line}', not a display"));
+        Xvfb {
+            child,
+            display: format!(":{number}"),
+        }
+    }
+
+    fn run(&self, program: &str, args: &[&str]) -> String {
+        let out = Command::new("timeout")
+            .arg("20")
+            .arg(program)
+            .args(args)
+            .env("DISPLAY", &self.display)
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{program} {}: {}",
+            args.join(" "),
+            String::from_utf8_lossy(&out.stderr)
+        );
+        String::from_utf8_lossy(&out.stdout).into_owned()
+    }
+
+    fn screenshot(&self, window: &str, (width, height): (u32, u32)) -> image::RgbImage {
+        let out = Command::new("import")
+            .args(["-window", window, "-depth", "8", "rgb:-"])
+            .env("DISPLAY", &self.display)
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        image::RgbImage::from_raw(width, height, out.stdout).expect("a screenshot of the window")
+    }
+}
+
+impl Drop for Xvfb {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+/// `retrace view` in a window, its picture lines read as they come.
+struct Viewer {
+    child: Child,
+    lines: mpsc::Receiver<String>,
+    seen: Vec<String>,
+}
+
+impl Viewer {
+    fn open(x: &Xvfb, dir: &Path, scene: &str) -> Viewer {
+        let mut child = Command::new(env!("CARGO_BIN_EXE_retrace"))
+            .args(args(
+                &["view", scene],
+                &["--print-pictures", "--save-dir", "saved"],
+            ))
+            .current_dir(dir)
+            .env("DISPLAY", &x.display)
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        let stdout = child.stdout.take().unwrap();
+        let (send, lines) = mpsc::channel();
+        std::thread::spawn(move || {
+            for line in BufReader::new(stdout).lines() {
+                if send.send(line.unwrap()).is_err() {
+                    break;
+                }
+            }
+        });
+        Viewer {
+            child,
+            lines,
+            seen: Vec::new(),
+        }
+    }
+
+    /// Waits (at most 30 s) for a line the program prints that `wanted`
+    /// accepts.
+    fn wait_for(&mut self, what: &str, wanted: impl Fn(&str) -> bool) -> String {
+        let deadline = Instant::now() + Duration::from_secs(30);
+        loop {
+            let left = deadline.saturating_duration_since(Instant::now());
+            match self.lines.recv_timeout(left) {
+                Ok(line) => {
+                    self.seen.push(line.clone());
+                    if wanted(&line) {
+                        return line;
+                    }
+                }
+                Err(_) => panic!("no {what}; the viewer said:\n{}", self.seen.join("\n")),
+            }
+        }
+    }
+
+    /// Waits (at most 30 s) for the program to end; its exit code and
+    /// stderr.
+    fn wait_exit(mut self) -> (Option<i32>, String) {
+        let deadline = Instant::now() + Duration::from_secs(30);
+        loop {
+            if let Some(status) = self.child.try_wait().unwrap() {
+                let mut err = String::new();
+                self.child
+                    .stderr
+                    .take()
+                    .unwrap()
+                    .read_to_string(&mut err)
+                    .unwrap();
+                return (status.code(), err);
+            }
+            if Instant::now() > deadline {
+                let _ = self.child.kill();
+                panic!("the viewer did not end; it said:\n{}", self.seen.join("\n"));
+            }
+            std::thread::sleep(Duration::from_millis(20));
+        }
+    }
+}
+
+impl Drop for Viewer {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+/// A field of a picture line: `... yaw 7.500000 ...` -> "7.500000".
+fn field<'a>(line: &'a str, name: &str) -> &'a str {
+    let words: Vec<&str> = line.split_whitespace().collect();
+    let at = words
+        .windows(2)
+        .position(|w| w[0] == name)
+        .unwrap_or_else(|| panic!("no {name} in '{line}'"));
+    words[at + 1]
+}
+
+#[test]
+fn the_window_pans_exactly_zooms_about_the_cursor_and_quits_on_q() {
+    if !window_tools() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path();
+    paper_on_lattice(path, "scene.toml", 0.0, -9.375);
+    paper_on_lattice(path, "turned.toml", 24.0 * STEP, -9.375 + 8.0 * STEP);
+    retrace_ok(&args(&["render", "scene.toml"], &["-o", "open.png"]), path);
+    retrace_ok(
+        &args(&["render", "turned.toml"], &["-o", "turned.png"]),
+        path,
+    );
+    let x = Xvfb::start();
+    let mut viewer = Viewer::open(&x, path, "scene.toml");
+    viewer.wait_for("first picture", |l| l.starts_with("picture 1:"));
+    let window = x.run("xdotool", &["search", "--sync", "--name", "^retrace view"]);
+    let window = window.lines().next().unwrap().to_string();
+    let size = (320, 240);
+    let before = x.screenshot(&window, size);
+    assert!(before == png(&path.join("open.png")), "the opened window");
+
+    // A drag of 24 pixels left and 8 down, in two moves.
+    x.run(
+        "xdotool",
+        &[
+            "mousemove",
+            "--window",
+            &window,
+            "--sync",
+            "200",
+            "100",
+            "mousedown",
+            "1",
+            "mousemove",
+            "--window",
+            &window,
+            "--sync",
+            "190",
+            "104",
+            "mousemove",
+            "--window",
+            &window,
+            "--sync",
+            "176",
+            "108",
+            "mouseup",
+            "1",
+        ],
+    );
+    let yaw = format!("{:.6}", 24.0 * STEP);
+    viewer.wait_for("the dragged picture", |l| {
+        l.starts_with("picture") && field(l, "yaw") == yaw && field(l, "pitch") == "2.500000"
+    });
+    let after = x.screenshot(&window, size);
+    assert!(
+        after == png(&path.join("turned.png")),
+        "the dragged window differs from a render of the turned camera"
+    );
+    // Moved by the drag, pixel for pixel: what was at (x + 24, y - 8) is
+    // now at (x, y).
+    for y in 8..240 {
+        for x in 0..320 - 24 {
+            assert_eq!(
+                after.get_pixel(x, y),
+                before.get_pixel(x + 24, y - 8),
+                "({x}, {y})"
+            );
+        }
+    }
+
+    // The wheel in, at (60, 50). winit 0.30 takes one click as one or two
+    // notches: the script below makes the same input, notch by notch.
+    x.run(
+        "xdotool",
+        &[
+            "mousemove",
+            "--window",
+            &window,
+            "--sync",
+            "60",
+            "50",
+            "click",
+            "4",
+        ],
+    );
+    viewer.wait_for("a zoomed picture", |l| {
+        l.starts_with("picture") && field(l, "notches") != "0"
+    });
+    std::thread::sleep(Duration::from_millis(500));
+    while let Ok(line) = viewer.lines.try_recv() {
+        viewer.seen.push(line);
+    }
+    let last = viewer
+        .seen
+        .iter()
+        .rev()
+        .find(|l| l.starts_with("picture"))
+        .unwrap()
+        .clone();
+    assert_eq!(field(&last, "mode"), "rsvp", "{last}");
+    let notches: usize = field(&last, "notches").parse().unwrap();
+    let zoomed = x.screenshot(&window, size);
+    assert!(
+        psnr(&zoomed, &after) < 30.0,
+        "the wheel barely changed the picture"
+    );
+    // The window's picture is the frame loop's for the same input, as a
+    // script gives it without X.
+    let script = format!(
+        "drag -10 4\ndrag -14 4\n{}save scripted.png\n",
+        "wheel 1 60 50\n".repeat(notches)
+    );
+    std::fs::write(path.join("same.txt"), script).unwrap();
+    retrace_ok(
+        &args(&["view", "scene.toml"], &["--script", "same.txt"]),
+        path,
+    );
+    assert!(
+        zoomed == png(&path.join("scripted.png")),
+        "{notches} notches"
+    );
+
+    // `s` saves, `q` quits with 0; keys need the focus (no window manager).
+    x.run("xdotool", &["windowfocus", "--sync", &window]);
+    x.run("xdotool", &["key", "s"]);
+    viewer.wait_for("the save", |l| l.starts_with("saved "));
+    x.run("xdotool", &["key", "q"]);
+    let (code, err) = viewer.wait_exit();
+    assert_eq!(code, Some(0), "{err}");
+    assert!(png(&path.join("saved/view_0001.png")) == zoomed);
+}
+
+#[test]
+fn a_missing_xkbcommon_x11_is_a_clear_error() {
+    if !window_tools() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    // An empty file where the loader looks first: the library cannot load.
+    let fake = dir.path().join("lib");
+    std::fs::create_dir(&fake).unwrap();
+    std::fs::write(fake.join("libxkbcommon-x11.so.0"), b"").unwrap();
+    std::fs::write(fake.join("libxkbcommon-x11.so"), b"").unwrap();
+    let x = Xvfb::start();
+    let out = Command::new("timeout")
+        .arg("20")
+        .arg(env!("CARGO_BIN_EXE_retrace"))
+        .arg("view")
+        .current_dir(dir.path())
+        .env("DISPLAY", &x.display)
+        .env("LD_LIBRARY_PATH", &fake)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("cannot open a window") && err.contains("libxkbcommon-x11"),
+        "{err}"
+    );
+    assert!(!err.contains("panicked"), "{err}");
+}
