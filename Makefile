@@ -1,6 +1,6 @@
 # retrace: two commands on a fresh Debian machine.
-#   make demo   renders the paper scene (out/paper.png), the bunny (out/bunny.png)
-#               and 24 frames of pan + zoom + a bouncing ball (out/anim/)
+#   make demo   renders the paper scene (out/paper.png), the bunny (out/bunny.png),
+#               a textured scene (out/textured.png) and 24 frames of pan + zoom + a bouncing ball (out/anim/)
 #   make test   runs the whole test suite (format, lints, unit and integration tests)
 # Both install the Debian packages they need first (Embree, libclang for bindgen,
 # Pillow for the test that reads our TGA frames with another decoder, the X
@@ -12,7 +12,7 @@ VIEW_PACKAGES := libxkbcommon-x11-0 libx11-xcb1 libxcursor1 libxi6 \
 DEBIAN_PACKAGES := libembree-dev libclang-dev pkg-config python3-pil $(VIEW_PACKAGES)
 RETRACE := ./target/release/retrace
 
-.PHONY: all deps build demo test test-deep fuzz lint test-embree4 bench clean farm-deps test-farm
+.PHONY: all deps build demo test test-deps test-deep fuzz lint test-embree4 bench clean farm-deps test-farm
 
 all: demo
 
@@ -35,6 +35,7 @@ demo: build
 	@mkdir -p out
 	$(RETRACE) render --spp 16 -o out/paper.png
 	$(RETRACE) render scenes/bunny.toml --spp 16 -o out/bunny.png
+	$(RETRACE) render scenes/textured.toml --spp 4 -o out/textured.png
 	$(RETRACE) animate scenes/paper-all.toml --spp 4 --frames 0-23 -o out/anim/frame_####.png \
 	  --dirty-image out/anim/traced_####.png --stats out/anim/stats.csv
 
@@ -45,8 +46,13 @@ lint: deps
 # --all-targets builds the criterion benches too and runs each once, in
 # test mode (a separate optimised `cargo bench --no-run` cost a fresh
 # machine about 3 more minutes and checked nothing more).
-test: lint
+test: lint test-deps
 	cargo test --all-targets
+
+# Debian's OBJ test models (the textured spider) for the test that renders them.
+test-deps:
+	@$(MAKE) --no-print-directory deps DEBIAN_PACKAGES="$(DEBIAN_PACKAGES) assimp-testmodels"
+
 
 # The property tests with sixteen times their cases (release build).
 test-deep: deps

@@ -4,7 +4,7 @@
 //! only non-degenerate triangles: the loader drops zero-area ones and counts
 //! them, so backends never see a triangle without a normal.
 
-use glam::{Affine3A, Mat3A, Vec3};
+use glam::{Affine3A, Mat3A, Vec2, Vec3};
 
 use crate::ray::{LaneMask, Ray, RayPacket, PACKET_WIDTH};
 
@@ -164,6 +164,10 @@ pub struct TriangleMesh {
     /// Per-vertex shading normals (same length as `positions`), or empty for
     /// flat shading.
     pub normals: Vec<Vec3>,
+    /// Per-vertex texture coordinates (same length as `positions`), or
+    /// empty for a mesh without them. Finite (the loader refuses others);
+    /// any value, since textures wrap.
+    pub texcoords: Vec<Vec2>,
 }
 
 impl TriangleMesh {
@@ -178,6 +182,18 @@ impl TriangleMesh {
             self.positions[b as usize],
             self.positions[c as usize],
         ]
+    }
+
+    /// The texture coordinates at barycentrics (`u`, `v`) of triangle
+    /// `prim`, in the backends' convention (p = (1-u-v) v0 + u v1 + v v2);
+    /// `None` for a mesh without texture coordinates.
+    #[inline]
+    pub fn texcoord(&self, prim: u32, u: f32, v: f32) -> Option<Vec2> {
+        if self.texcoords.is_empty() {
+            return None;
+        }
+        let [a, b, c] = self.triangles[prim as usize].map(|i| self.texcoords[i as usize]);
+        Some(a * (1.0 - u - v) + b * u + c * v)
     }
 }
 

@@ -23,6 +23,7 @@ pub mod rng;
 pub mod sampling;
 pub mod scene;
 pub mod shade;
+pub mod texture;
 pub mod timeline;
 pub mod view;
 pub mod voxel;

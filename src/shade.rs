@@ -9,6 +9,7 @@
 use glam::{Affine3A, Mat3A, Vec3};
 
 use crate::accel::Intersector;
+use crate::camera::Projection;
 use crate::geometry::normals::terminator_point;
 use crate::geometry::{
     normal_matrix, plane_axes, transform_normal, Object, Placement, Shape, TriangleMesh,
@@ -16,6 +17,7 @@ use crate::geometry::{
 use crate::ray::{lanes, offset_origin, Hit, LaneMask, Ray, RayPacket, PACKET_WIDTH};
 use crate::scene::glass::refract;
 use crate::scene::{Glass, Material, Scene};
+use crate::texture::{cone_level_of_detail, Texture};
 
 /// Rays traced, by kind.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
@@ -301,6 +303,68 @@ impl<'a> WorldShape<'a> {
     }
 }
 
+impl WorldShape<'_> {
+    /// The diffuse colour `map` gives at `hit` on a mesh with texture
+    /// coordinates (`None` elsewhere), filtered over the footprint of a ray
+    /// cone `width` wide at the hit (Ray Tracing Gems ch. 20): the triangle's
+    /// texel-to-world area ratio and the ray's slant to it set the mip level.
+    #[inline(never)]
+    fn texel(&self, map: &Texture, ray: &Ray, hit: &Hit, width: f32) -> Option<Vec3> {
+        let WorldShape::Mesh {
+            mesh, transform, ..
+        } = self
+        else {
+            return None;
+        };
+        let uv = mesh.texcoord(hit.prim, hit.u, hit.v)?;
+        let [a, b, c] = mesh
+            .vertices(hit.prim)
+            .map(|p| transform.map_or(p, |xf| xf.transform_point3(p)));
+        let [ta, tb, tc] = mesh.triangles[hit.prim as usize].map(|i| mesh.texcoords[i as usize]);
+        let (w, h) = map.size();
+        let cross = (b - a).cross(c - a);
+        let world_area = cross.length();
+        let texel_area = (tb - ta).perp_dot(tc - ta).abs() * w as f32 * h as f32;
+        let cos = ray.dir.dot(cross) / (ray.dir.length() * world_area);
+        let lod = cone_level_of_detail(width, cos, texel_area, world_area);
+        Some(map.sample(uv, lod).truncate())
+    }
+
+    /// How much a mirror at this shape widens a cone `width` wide at the
+    /// hit: a sphere's normals turn by `width / radius` across the
+    /// footprint, the reflection by twice that. Planes and meshes are
+    /// taken as flat.
+    #[inline]
+    fn cone_bend(&self, width: f32) -> f32 {
+        match self {
+            WorldShape::Sphere { radius, .. } => 2.0 * width / radius,
+            _ => 0.0,
+        }
+    }
+}
+
+/// Ray cones (Akenine-Möller et al., Ray Tracing Gems ch. 20) lane by
+/// lane: the cone's width where each ray starts and the angle it spreads
+/// at. A pure function of the ray's path from the eye: the camera's pixel
+/// angle, the distances travelled and the mirrors met.
+#[derive(Clone, Copy, Default)]
+struct RayCones {
+    width: Lanes,
+    spread: Lanes,
+}
+
+/// The angle one sample covers: the camera's pixel angle (at the image's
+/// centre, for a perspective camera) over the square root of the samples
+/// a pixel, as those samples share the pixel.
+fn sample_spread(scene: &Scene) -> f32 {
+    let camera = &scene.camera;
+    let pixel = match camera.projection {
+        Projection::Perspective => 2.0 * (0.5 * camera.fov).tan() / f64::from(camera.width),
+        _ => camera.fov / f64::from(camera.width),
+    };
+    (pixel / f64::from(scene.samples.count()).sqrt()) as f32
+}
+
 #[inline]
 fn albedo(material: &Material, surface: &Surface) -> Vec3 {
     let Some(checker) = &material.checker else {
@@ -335,6 +399,11 @@ pub struct Shader<'a> {
     /// Per material: the Phong exponent when it is a whole number, so the
     /// highlight is a few multiplications instead of a powf.
     whole_exponents: Vec<Option<u32>>,
+    /// Whether any material has a texture: only then are ray cones
+    /// followed.
+    textured: bool,
+    /// The spread of the cone around a primary ray.
+    primary_spread: f32,
     /// Whether any object is transparent: scenes without glass skip all
     /// of refraction's work.
     any_glass: bool,
@@ -397,6 +466,8 @@ impl<'a> Shader<'a> {
                         .then_some(m.shininess as u32)
                 })
                 .collect(),
+            textured: scene.materials.iter().any(|m| m.diffuse_map.is_some()),
+            primary_spread: sample_spread(scene),
             any_glass: scene
                 .objects
                 .iter()
@@ -420,28 +491,36 @@ impl<'a> Shader<'a> {
         counts: &mut RayCounts,
         observer: Option<&mut dyn RayObserver>,
     ) -> [Vec3; PACKET_WIDTH] {
+        let cones = RayCones {
+            width: [0.0; PACKET_WIDTH],
+            spread: [self.primary_spread; PACKET_WIDTH],
+        };
         let kind = if depth == 0 {
             RayKind::Primary
         } else {
             RayKind::Reflection
         };
-        self.shade_lanes(rays, mask, depth, kind, counts, observer)
+        let generation = Generation {
+            depth,
+            kind,
+            cones: &cones,
+        };
+        self.shade_lanes(rays, mask, generation, counts, observer)
             .vectors()
     }
 
     /// [`Shader::shade`] with the colours by coordinate, as the recursion
     /// mixes them: reflections blend into their parents lane-parallel, and
     /// the colours change layout once per primary packet, not per bounce.
-    /// `kind` is what these rays are (primary, reflection or refraction).
     fn shade_lanes(
         &self,
         rays: &RayPacket,
         mask: LaneMask,
-        depth: u32,
-        kind: RayKind,
+        generation: Generation<'_>,
         counts: &mut RayCounts,
         mut observer: Option<&mut dyn RayObserver>,
     ) -> Vec3Lanes {
+        let Generation { depth, kind, cones } = generation;
         let scene = self.scene;
         if mask == 0 {
             return Vec3Lanes::default();
@@ -467,13 +546,26 @@ impl<'a> Shader<'a> {
                 .select(&lane_flags(mask), &Vec3Lanes::default());
         }
         let mut lanes_hit = HitLanes::default();
+        // The cones leaving each hit, followed only where textures are.
+        let mut next_cones = RayCones::default();
         for lane in lanes(hit_mask) {
             let Some(hit) = &hits[lane] else { continue };
             let object = &self.objects[hit.object as usize];
             let surface = object
                 .shape
                 .surface(&rays[lane], hit, object.material_index);
-            let albedo = albedo(object.material, &surface);
+            let mut albedo = albedo(object.material, &surface);
+            if self.textured {
+                let ray = &rays[lane];
+                let width = cones.width[lane] + cones.spread[lane] * hit.t * ray.dir.length();
+                next_cones.width[lane] = width;
+                next_cones.spread[lane] = cones.spread[lane] + object.shape.cone_bend(width);
+                if let Some(map) = &object.material.diffuse_map {
+                    if let Some(texel) = object.shape.texel(map, ray, hit, width) {
+                        albedo *= texel;
+                    }
+                }
+            }
             lanes_hit.set(lane, &surface, albedo, rays[lane].dir);
             lanes_hit.cutoff[lane] = object.highlight_cutoff;
             lanes_hit.reflectivity[lane] = object.material.reflectivity;
@@ -569,8 +661,11 @@ impl<'a> Shader<'a> {
                 mirrored = self.shade_lanes(
                     &reflected,
                     reflect_mask,
-                    depth + 1,
-                    RayKind::Reflection,
+                    Generation {
+                        depth: depth + 1,
+                        kind: RayKind::Reflection,
+                        cones: &next_cones,
+                    },
                     counts,
                     reborrow(&mut observer),
                 );
@@ -584,11 +679,16 @@ impl<'a> Shader<'a> {
                 );
             }
             if glass.lanes != 0 {
+                // A refracted cone is passed on as it arrives (the bend
+                // of the glass's curvature left out).
                 let refracted = self.shade_lanes(
                     &glass.rays,
                     glass.refracting,
-                    depth + 1,
-                    RayKind::Refraction,
+                    Generation {
+                        depth: depth + 1,
+                        kind: RayKind::Refraction,
+                        cones: &next_cones,
+                    },
                     counts,
                     observer,
                 );
@@ -597,6 +697,16 @@ impl<'a> Shader<'a> {
         }
         colors
     }
+}
+
+/// What a packet of rays is in the recursion: its depth (0 for primary
+/// rays), its kind (primary, reflection or refraction) and the ray cones
+/// it carries.
+#[derive(Clone, Copy)]
+struct Generation<'c> {
+    depth: u32,
+    kind: RayKind,
+    cones: &'c RayCones,
 }
 
 /// The transparent lanes of a packet's hits, worked out lane by lane (only

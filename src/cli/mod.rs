@@ -18,6 +18,7 @@ use retrace::accel::{Accelerator, BackendKind};
 use retrace::camera::Projection;
 use retrace::sampling::PixelSamples;
 use retrace::scene::{load_scene, paper_scene, Scene, SceneOverrides};
+use retrace::texture::TextureFilter;
 
 #[derive(Args, Clone)]
 struct SceneArgs {
@@ -40,6 +41,15 @@ struct SceneArgs {
     /// positions, box-filtered) [default: the scene's `[render] spp`, or 1].
     #[arg(long)]
     spp: Option<u32>,
+    /// The most memory textures may take, in MB (texels and mip levels at
+    /// 4 bytes a texel) [default: 1024].
+    #[arg(long, value_name = "MB")]
+    texture_memory: Option<u64>,
+    /// How textures are filtered: trilinear (mip-mapped by each ray's
+    /// footprint), bilinear or nearest (the full-size image only)
+    /// [default: trilinear].
+    #[arg(long, value_parser = str::parse::<TextureFilter>)]
+    texture_filter: Option<TextureFilter>,
 }
 
 impl SceneArgs {
@@ -51,6 +61,8 @@ impl SceneArgs {
             projection: self.camera,
             fov: self.fov,
             spp: self.spp,
+            texture_memory_mb: self.texture_memory,
+            texture_filter: self.texture_filter,
         }
     }
 }

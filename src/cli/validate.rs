@@ -60,6 +60,18 @@ pub(crate) fn validate(args: ValidateArgs) -> Result<()> {
             a.mean_hit_point_ratio
         );
     }
+    for (name, a) in [
+        ("camera", &report.camera_rays),
+        ("random", &report.random_rays),
+    ] {
+        if a.textured > 0 {
+            say!(
+                "{name} rays on textured triangles: {}; texture coordinates' max sep/bound {:.3}",
+                a.textured,
+                a.max_texcoord_ratio
+            );
+        }
+    }
     let image = &report.image;
     say!(
         "image        {:>9} pixels: {:.4}% differ by more than 1/255, max difference {:.4}, mean {:.2e}",

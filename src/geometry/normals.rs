@@ -28,9 +28,9 @@ pub const DEFAULT_CREASE_ANGLE_DEG: f32 = 30.0;
 /// tilt it); a vertex a crease runs through gets one copy per side.
 ///
 /// Edges are found by position, not by index, so vertices a file splits
-/// for their texture coordinates still join. Returns, per vertex of the
-/// new mesh, the vertex of the old one it copies (for other per-vertex
-/// data, such as texture coordinates).
+/// for their texture coordinates still join. A copied vertex keeps its
+/// texture coordinates. Returns, per vertex of the new mesh, the vertex of
+/// the old one it copies.
 pub fn apply_crease_normals(mesh: &mut TriangleMesh, crease_deg: f32) -> Vec<u32> {
     let identity: Vec<u32> = (0..mesh.positions.len() as u32).collect();
     if crease_deg <= 0.0 || mesh.triangles.is_empty() {
@@ -137,6 +137,9 @@ pub fn apply_crease_normals(mesh: &mut TriangleMesh, crease_deg: f32) -> Vec<u32
                 Some(_) => *copies.entry((vertex, group)).or_insert_with(|| {
                     source.push(vertex);
                     mesh.positions.push(mesh.positions[vertex as usize]);
+                    if !mesh.texcoords.is_empty() {
+                        mesh.texcoords.push(mesh.texcoords[vertex as usize]);
+                    }
                     normals.push(sums[&group].normalize_or_zero());
                     mesh.positions.len() as u32 - 1
                 }),
@@ -238,6 +241,7 @@ mod tests {
             positions,
             triangles,
             normals: Vec::new(),
+            texcoords: Vec::new(),
         }
     }
 
@@ -295,6 +299,24 @@ mod tests {
             positions,
             triangles,
             normals: Vec::new(),
+            texcoords: Vec::new(),
+        }
+    }
+
+    #[test]
+    fn a_vertex_split_at_a_crease_keeps_its_texture_coordinates() {
+        let mut mesh = capped_cylinder(24);
+        mesh.texcoords = (0..mesh.positions.len())
+            .map(|i| glam::Vec2::new(i as f32, 0.5))
+            .collect();
+        let source = apply_crease_normals(&mut mesh, DEFAULT_CREASE_ANGLE_DEG);
+        assert!(
+            source.len() > mesh.positions.len() / 2,
+            "some vertices split"
+        );
+        assert_eq!(mesh.texcoords.len(), mesh.positions.len());
+        for (vertex, &from) in source.iter().enumerate() {
+            assert_eq!(mesh.texcoords[vertex].x, from as f32, "vertex {vertex}");
         }
     }
 
@@ -340,6 +362,7 @@ mod tests {
             ],
             triangles: vec![[0, 1, 2], [4, 3, 5]],
             normals: Vec::new(),
+            texcoords: Vec::new(),
         };
         apply_crease_normals(&mut mesh, DEFAULT_CREASE_ANGLE_DEG);
         assert_eq!(mesh.positions.len(), 6);

@@ -19,6 +19,10 @@
 //! 1e-5, where rounding of coordinates near 10 is a large share of t), and
 //! one along the ray fails rays that graze a surface, where any error in
 //! `t` is stretched by 1/cos of the angle; neither is a disagreement.
+//!
+//! On textured meshes the texture coordinates each backend's barycentrics
+//! give must agree too ([`texcoord_bound`]): a texture lookup then reads
+//! the same texels whichever backend found the hit.
 
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
@@ -162,6 +166,43 @@ pub fn hit_point_bound(scene: &Scene, ray: &Ray, a: &Hit, b: &Hit, n: u32) -> (f
     (separation, gamma(n) * magnitude)
 }
 
+/// How far apart the texture coordinates of `a` and `b` (both on the same
+/// triangle of a mesh with texture coordinates; `None` otherwise) lie, and
+/// the bound rounding keeps them within. The two crossing points of the
+/// triangle's plane lie within `gamma(n) M / |cos|` of each other along the
+/// plane (M as in [`hit_point_bound`], the cosine between ray and normal),
+/// so each barycentric differs by at most that over the triangle's least
+/// altitude, and the coordinates by the sum of both differences times the
+/// longest texture-space edge from the first vertex.
+pub fn texcoord_bound(scene: &Scene, ray: &Ray, a: &Hit, b: &Hit, n: u32) -> Option<(f64, f64)> {
+    let object = &scene.objects[a.object as usize];
+    let Shape::Mesh(mesh) = &object.shape else {
+        return None;
+    };
+    let (uv_a, uv_b) = (
+        mesh.texcoord(a.prim, a.u, a.v)?,
+        mesh.texcoord(b.prim, b.u, b.v)?,
+    );
+    let place = |p: Vec3| match object.placement {
+        Placement::World => p,
+        Placement::Instance(xf) => xf.transform_point3(p),
+    };
+    let [p, q, r] = mesh.vertices(a.prim).map(|v| place(v).as_dvec3());
+    let cross = (q - p).cross(r - p);
+    let longest = (q - p).length().max((r - q).length()).max((p - r).length());
+    let least_altitude = cross.length() / longest;
+    let dir = ray.dir.as_dvec3();
+    let cos = dir.normalize_or_zero().dot(cross.normalize_or_zero()).abs();
+    let [ta, tb, tc] = mesh.triangles[a.prim as usize].map(|i| mesh.texcoords[i as usize]);
+    let uv_edge = f64::from((tb - ta).length().max((tc - ta).length()));
+    let magnitude = ray.origin.as_dvec3().abs().max_element()
+        + f64::from(a.t.abs().max(b.t.abs())) * dir.abs().max_element()
+        + p.abs().max(q.abs()).max(r.abs()).max_element();
+    let along_plane = gamma(n) * magnitude / cos;
+    let bound = 2.0 * along_plane / least_altitude * uv_edge;
+    Some((f64::from((uv_a - uv_b).length()), bound))
+}
+
 #[derive(Clone, Debug, Default, serde::Serialize)]
 pub struct RayAgreement {
     pub rays: usize,
@@ -176,6 +217,14 @@ pub struct RayAgreement {
     /// The separation and the bound of the ray with the largest ratio.
     pub worst_separation: f64,
     pub worst_bound: f64,
+    /// Of those, the rays on a mesh with texture coordinates.
+    pub textured: usize,
+    /// On them: the largest ratio of the texture coordinates' separation to
+    /// its bound ([`texcoord_bound`]; above 1 fails), with that separation
+    /// and bound.
+    pub max_texcoord_ratio: f64,
+    pub worst_texcoord_separation: f64,
+    pub worst_texcoord_bound: f64,
 }
 
 impl RayAgreement {
@@ -297,6 +346,22 @@ fn compare_rays(
                         agreement.worst_bound = bound;
                     }
                     disagree = ratio > 1.0;
+                    if let Some((separation, bound)) =
+                        texcoord_bound(scene, ray, a, b, thresholds.hit_point_gamma)
+                    {
+                        agreement.textured += 1;
+                        let ratio = match separation / bound {
+                            _ if separation == 0.0 => 0.0,
+                            ratio if ratio.is_nan() => f64::INFINITY,
+                            ratio => ratio,
+                        };
+                        if ratio > agreement.max_texcoord_ratio {
+                            agreement.max_texcoord_ratio = ratio;
+                            agreement.worst_texcoord_separation = separation;
+                            agreement.worst_texcoord_bound = bound;
+                        }
+                        disagree |= ratio > 1.0;
+                    }
                 } else {
                     disagree = true;
                 }
@@ -345,6 +410,15 @@ fn ray_failures(name: &str, agreement: &RayAgreement, thresholds: &Thresholds) -
             agreement.max_hit_point_ratio,
             thresholds.hit_point_gamma,
             agreement.worst_bound
+        ));
+    }
+    if agreement.max_texcoord_ratio > 1.0 {
+        failures.push(format!(
+            "{name} rays: texture coordinates on the same triangle up to {:.2e} apart, \
+             {:.1} times their rounding bound {:.2e}",
+            agreement.worst_texcoord_separation,
+            agreement.max_texcoord_ratio,
+            agreement.worst_texcoord_bound
         ));
     }
     failures
@@ -435,7 +509,7 @@ pub fn validate(
 mod tests {
     use super::*;
     use crate::accel::{Accelerator, BackendKind};
-    use crate::geometry::{Object, Sphere};
+    use crate::geometry::{Object, Sphere, TriangleMesh};
     use crate::scene::{paper_scene, SceneOverrides};
 
     /// A backend whose distances are all off by a relative `skew`.
@@ -484,6 +558,107 @@ mod tests {
         }
         // Far past the bound, not just over it.
         assert!(report.camera_rays.max_hit_point_ratio > 100.0, "{report:?}");
+    }
+
+    /// A latitude-longitude sphere of `rings` x `segments` quads with
+    /// texture coordinates, as a textured model would have them.
+    fn textured_sphere(rings: u32, segments: u32, center: Vec3, radius: f32) -> TriangleMesh {
+        let mut mesh = TriangleMesh::default();
+        for ring in 0..=rings {
+            for segment in 0..=segments {
+                let (s, t) = (segment as f32 / segments as f32, ring as f32 / rings as f32);
+                let (theta, phi) = (t * std::f32::consts::PI, s * std::f32::consts::TAU);
+                let dir = Vec3::new(
+                    theta.sin() * phi.cos(),
+                    theta.cos(),
+                    theta.sin() * phi.sin(),
+                );
+                mesh.positions.push(center + dir * radius);
+                mesh.texcoords.push(glam::Vec2::new(s * 3.0, t * 2.0));
+            }
+        }
+        let at = |ring: u32, segment: u32| ring * (segments + 1) + segment;
+        for ring in 0..rings {
+            for segment in 0..segments {
+                let [a, b, c, d] = [
+                    at(ring, segment),
+                    at(ring, segment + 1),
+                    at(ring + 1, segment + 1),
+                    at(ring + 1, segment),
+                ];
+                mesh.triangles.extend([[a, b, c], [a, c, d]]);
+            }
+        }
+        mesh.triangles.retain(|&t| {
+            let [p, q, r] = t.map(|i| mesh.positions[i as usize]);
+            (q - p).cross(r - p).length_squared() > 0.0
+        });
+        mesh
+    }
+
+    /// A backend whose barycentrics are all off by `skew`.
+    struct SkewedBarycentrics<'a> {
+        inner: &'a dyn Intersector,
+        skew: f32,
+    }
+
+    impl Intersector for SkewedBarycentrics<'_> {
+        fn intersect(&self, ray: &Ray) -> Option<Hit> {
+            self.inner.intersect(ray).map(|hit| Hit {
+                u: hit.u + self.skew,
+                ..hit
+            })
+        }
+
+        fn occluded(&self, ray: &Ray) -> bool {
+            self.inner.occluded(ray)
+        }
+    }
+
+    #[test]
+    fn both_backends_give_the_same_texture_coordinates() {
+        let mut scene = paper_scene(&SceneOverrides {
+            width: Some(96),
+            height: Some(64),
+            ..SceneOverrides::default()
+        })
+        .unwrap();
+        let ball = textured_sphere(24, 48, Vec3::new(0.0, 3.0, -6.0), 3.0);
+        scene.objects.push(Object {
+            name: "textured ball".into(),
+            shape: Shape::Mesh(ball.clone()),
+            material: 0,
+            placement: Placement::World,
+        });
+        scene.objects.push(Object {
+            name: "placed textured ball".into(),
+            shape: Shape::Mesh(ball),
+            material: 0,
+            placement: Placement::Instance(glam::Affine3A::from_rotation_translation(
+                glam::Quat::from_rotation_y(0.4),
+                Vec3::new(6.0, 0.5, 0.0),
+            )),
+        });
+        let embree = Accelerator::build(BackendKind::Embree, &scene.objects).unwrap();
+        let grid = Accelerator::build(BackendKind::Grid, &scene.objects).unwrap();
+        let report = validate(&scene, &embree, &grid, 20_000, 2, 5);
+        assert!(report.passed(), "{:?}", report.failures);
+        assert!(report.camera_rays.textured > 100, "{report:?}");
+        assert!(report.random_rays.textured > 200, "{report:?}");
+        // A barycentric off by 1e-3 (a texel in a 1024-texel texture) fails.
+        let skewed = SkewedBarycentrics {
+            inner: &embree,
+            skew: 1e-3,
+        };
+        let report = validate(&scene, &skewed, &grid, 20_000, 2, 5);
+        assert!(
+            report
+                .failures
+                .iter()
+                .any(|f| f.starts_with("camera rays: texture coordinates")),
+            "{:?}",
+            report.failures
+        );
     }
 
     #[test]

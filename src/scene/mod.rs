@@ -14,11 +14,12 @@ use glam::Vec3;
 
 use crate::camera::Camera;
 use crate::geometry::{Light, Object, Shape};
+use crate::texture::TextureRef;
 use crate::timeline::{Animation, ViewportTrack};
 
 pub use file::{parse_scene_str, SceneOverrides};
 pub use glass::Glass;
-pub use obj::{load_obj_mesh, ObjMesh};
+pub use obj::{load_obj_mesh, load_obj_mesh_with, ObjMesh};
 
 /// The scene files of `scenes/` built into the binary, so `retrace render`
 /// and the lab work with no files at all: the paper's scene (checkerboard
@@ -72,6 +73,9 @@ pub struct Material {
     pub shininess: f32,
     /// Share of the mirror reflection added to the colour (0 = none).
     pub reflectivity: f32,
+    /// An image the diffuse colour is multiplied by, on meshes with
+    /// texture coordinates (MTL `map_Kd`, a scene's `texture`).
+    pub diffuse_map: Option<TextureRef>,
     /// Transparent materials only: how light goes through.
     pub glass: Option<Glass>,
 }
@@ -98,6 +102,7 @@ impl Material {
             specular: Vec3::ZERO,
             shininess: 1.0,
             reflectivity: 0.0,
+            diffuse_map: None,
             glass: None,
         }
     }

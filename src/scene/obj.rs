@@ -11,10 +11,10 @@
 //! has passed these checks.
 
 use std::cell::RefCell;
-use std::collections::HashSet;
+use std::collections::{HashMap, HashSet};
 use std::path::{Path, PathBuf};
 
-use glam::{DVec3, Vec3};
+use glam::{DVec3, Vec2, Vec3};
 
 use super::file::SceneOverrides;
 use super::{Checker, Material, Scene, SceneError};
@@ -22,6 +22,9 @@ use crate::camera::{yaw_pitch_toward, Camera, Projection};
 use crate::geometry::normals::{apply_crease_normals, DEFAULT_CREASE_ANGLE_DEG};
 use crate::geometry::Light;
 use crate::geometry::{Aabb, Object, Placement, Plane, Shape, TriangleMesh, WORLD_LIMIT};
+use crate::texture::load::{TextureCache, TextureProblem};
+use crate::texture::path::{mtl_file_name, resolve};
+use crate::texture::TextureRef;
 
 /// One material's worth of an OBJ file.
 #[derive(Clone, Debug)]
@@ -285,6 +288,7 @@ fn checked_mtl_text(
     path: &Path,
     bytes: &[u8],
     problems: &mut Vec<String>,
+    texture_lines: &mut HashMap<String, TextureLine>,
 ) -> (String, HashSet<String>) {
     let text = decode_lossily(path, bytes, problems);
     let mut kept = String::with_capacity(text.len());
@@ -357,16 +361,80 @@ fn checked_mtl_text(
                     number + 1
                 ));
             }
-            None => kept.push_str(line),
+            None => {
+                if let (Some(name), "map_Kd") = (&current, keyword) {
+                    texture_lines.insert(
+                        name.clone(),
+                        TextureLine {
+                            mtl: path.to_path_buf(),
+                            line: number + 1,
+                        },
+                    );
+                }
+                kept.push_str(line)
+            }
         }
         kept.push('\n');
     }
     (kept, broken)
 }
 
+/// Where a material's `map_Kd` was written.
+#[derive(Clone, Debug)]
+struct TextureLine {
+    mtl: PathBuf,
+    line: usize,
+}
+
+/// The texture of a material's `map_Kd` (`arguments`, written at `at`):
+/// `None`, with a warning naming the MTL file and line, when the file is
+/// missing or not a readable image; an error past the texture memory
+/// limit.
+fn load_mtl_texture(
+    material: &str,
+    arguments: &str,
+    at: &TextureLine,
+    textures: &mut TextureCache,
+    problems: &mut Vec<String>,
+) -> Result<Option<TextureRef>, SceneError> {
+    let here = format!("{}:{}: map_Kd", at.mtl.display(), at.line);
+    let fallback = format!("material '{material}' uses its Kd");
+    let (name, options) = mtl_file_name(arguments);
+    if !options.is_empty() {
+        problems.push(format!(
+            "{here}: options {} are not supported: left out",
+            options.join(" ")
+        ));
+    }
+    let folder = at.mtl.parent().unwrap_or(Path::new(""));
+    let Some(found) = resolve(folder, &name) else {
+        problems.push(format!(
+            "{here}: no file '{name}' (looked in {}); {fallback}",
+            folder.display()
+        ));
+        return Ok(None);
+    };
+    if found.case_differs {
+        problems.push(format!(
+            "{here}: '{name}' found as {} (the case differs)",
+            found.path.display()
+        ));
+    }
+    match textures.load(&found.path) {
+        Ok(texture) => Ok(Some(texture)),
+        Err(TextureProblem::Skipped(why)) => {
+            problems.push(format!("{here}: {why}; {fallback}"));
+            Ok(None)
+        }
+        Err(TextureProblem::OverBudget(why)) => Err(SceneError::new(&at.mtl, why)
+            .at_line(at.line)
+            .field("map_Kd")),
+    }
+}
+
 /// The material of an MTL entry (whose numbers [`checked_mtl_text`] has
-/// made sure are finite).
-fn material_from_mtl(m: &tobj::Material) -> Material {
+/// made sure are finite), with its diffuse texture.
+fn material_from_mtl(m: &tobj::Material, diffuse_map: Option<TextureRef>) -> Material {
     let rgb =
         |c: Option<[f32; 3]>, default: f32| c.map(Vec3::from_array).unwrap_or(Vec3::splat(default));
     let specular = rgb(m.specular, 0.0);
@@ -383,13 +451,21 @@ fn material_from_mtl(m: &tobj::Material) -> Material {
         } else {
             0.0
         },
+        diffuse_map,
         glass: super::glass::glass_from_mtl(m),
     }
 }
 
 /// Loads an OBJ (and its MTL, when present) as triangle meshes, one part per
-/// material, dropping degenerate triangles.
+/// material, dropping degenerate triangles; textures within the default
+/// memory limit.
 pub fn load_obj_mesh(path: &Path) -> Result<ObjMesh, SceneError> {
+    load_obj_mesh_with(path, &mut TextureCache::default())
+}
+
+/// [`load_obj_mesh`], its textures loaded through `textures` (shared with
+/// the rest of a scene, and bounded by its limit).
+pub fn load_obj_mesh_with(path: &Path, textures: &mut TextureCache) -> Result<ObjMesh, SceneError> {
     let bytes = std::fs::read(path)
         .map_err(|err| SceneError::new(path, format!("cannot read OBJ file: {err}")))?;
     let mut problems = Vec::new();
@@ -405,11 +481,17 @@ pub fn load_obj_mesh(path: &Path) -> Result<ObjMesh, SceneError> {
     // tobj calls back for each `mtllib`; what the libraries say goes here.
     let mtl_problems = RefCell::new(Vec::new());
     let broken_materials = RefCell::new(HashSet::new());
+    let texture_lines = RefCell::new(HashMap::new());
     let folder = path.parent().unwrap_or(Path::new(""));
     let load_mtl = |name: &Path| -> tobj::MTLLoadResult {
         let mtl_path: PathBuf = folder.join(name);
         let bytes = std::fs::read(&mtl_path).map_err(|_| tobj::LoadError::OpenFileFailed)?;
-        let (text, broken) = checked_mtl_text(&mtl_path, &bytes, &mut mtl_problems.borrow_mut());
+        let (text, broken) = checked_mtl_text(
+            &mtl_path,
+            &bytes,
+            &mut mtl_problems.borrow_mut(),
+            &mut texture_lines.borrow_mut(),
+        );
         broken_materials.borrow_mut().extend(broken);
         tobj::load_mtl_buf(&mut text.as_bytes())
     };
@@ -417,6 +499,7 @@ pub fn load_obj_mesh(path: &Path) -> Result<ObjMesh, SceneError> {
         .map_err(|err| SceneError::new(path, format!("cannot parse OBJ: {err}")))?;
     problems.extend(mtl_problems.into_inner());
     let broken_materials = broken_materials.into_inner();
+    let texture_lines = texture_lines.into_inner();
     // A missing MTL is not fatal: the model renders with the scene's
     // material instead (and the user is told).
     let (materials, material_problem) = match materials {
@@ -449,7 +532,24 @@ pub fn load_obj_mesh(path: &Path) -> Result<ObjMesh, SceneError> {
         }
     }
 
+    // Each material once (its texture loads once), by index.
+    let mut converted: Vec<Option<Material>> = Vec::with_capacity(materials.len());
+    for m in &materials {
+        if broken_materials.contains(&m.name) {
+            converted.push(None);
+            continue;
+        }
+        let diffuse_map = match (&m.diffuse_texture, texture_lines.get(&m.name)) {
+            (Some(arguments), Some(at)) => {
+                load_mtl_texture(&m.name, arguments, at, textures, &mut problems)?
+            }
+            _ => None,
+        };
+        converted.push(Some(material_from_mtl(m, diffuse_map)));
+    }
+
     let mut dropped_degenerate = 0;
+    let mut untextured: HashSet<String> = HashSet::new();
     let mut parts: Vec<ObjPart> = Vec::new();
     for model in models {
         let m = &model.mesh;
@@ -466,6 +566,15 @@ pub fn load_obj_mesh(path: &Path) -> Result<ObjMesh, SceneError> {
         if normals.len() != positions.len() {
             normals.clear();
         }
+        // OBJ's v runs up the image; textures are stored top row first.
+        let mut texcoords: Vec<Vec2> = m
+            .texcoords
+            .chunks_exact(2)
+            .map(|c| Vec2::new(c[0], 1.0 - c[1]))
+            .collect();
+        if texcoords.len() != positions.len() {
+            texcoords.clear();
+        }
         let mut triangles = Vec::with_capacity(m.indices.len() / 3);
         for t in m.indices.chunks_exact(3) {
             let [a, b, c] = [t[0], t[1], t[2]].map(|i| positions[i as usize]);
@@ -477,13 +586,22 @@ pub fn load_obj_mesh(path: &Path) -> Result<ObjMesh, SceneError> {
         }
         let material = m
             .material_id
-            .and_then(|id| materials.get(id))
-            .filter(|m| !broken_materials.contains(&m.name))
-            .map(material_from_mtl);
+            .and_then(|id| converted.get(id).cloned().flatten());
+        if let Some(textured) = material.as_ref().filter(|m| m.diffuse_map.is_some()) {
+            if texcoords.is_empty() && untextured.insert(textured.name.clone()) {
+                problems.push(format!(
+                    "{}: faces with material '{}' have no texture coordinates (vt): its \
+                     texture is not shown on them",
+                    path.display(),
+                    textured.name
+                ));
+            }
+        }
         let mesh = TriangleMesh {
             positions,
             triangles,
             normals,
+            texcoords,
         };
         // Parts with the same material merge: fewer objects, same picture.
         // Not a part with normals and one without: the file's normals stay
@@ -508,6 +626,14 @@ fn append_mesh(into: &mut TriangleMesh, mesh: TriangleMesh) {
     let base = into.positions.len() as u32;
     let keep_normals = !into.normals.is_empty() && !mesh.normals.is_empty()
         || into.positions.is_empty() && !mesh.normals.is_empty();
+    // Faces without texture coordinates beside faces with them (under one
+    // material) read the texture at (0, 0), as other OBJ readers do.
+    if !into.texcoords.is_empty() || !mesh.texcoords.is_empty() {
+        into.texcoords.resize(into.positions.len(), Vec2::ZERO);
+        into.texcoords.extend(mesh.texcoords);
+        into.texcoords
+            .resize(into.positions.len() + mesh.positions.len(), Vec2::ZERO);
+    }
     into.positions.extend(mesh.positions);
     into.triangles
         .extend(mesh.triangles.into_iter().map(|t| t.map(|i| i + base)));
@@ -525,7 +651,7 @@ pub(super) fn scene_around_obj(
     path: &Path,
     overrides: &SceneOverrides,
 ) -> Result<Scene, SceneError> {
-    let loaded = load_obj_mesh(path)?;
+    let loaded = load_obj_mesh_with(path, &mut overrides.texture_cache())?;
     let warnings = loaded.warnings(path);
     let bounds = loaded.bounds();
     if loaded.triangle_count() == 0 || !bounds.is_finite() {
@@ -675,6 +801,36 @@ mod tests {
         let err = check("v 0 0 0\nusemtl  \n").unwrap_err();
         assert_eq!((err.line, err.field.as_deref()), (Some(2), Some("usemtl")));
         assert!(check("# c\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf -3 -2 -1\nf 1/1/1 2//2 3\n").is_ok());
+    }
+
+    #[test]
+    fn texture_coordinates_are_carried_per_vertex_and_nan_ones_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let obj = dir.path().join("quad.obj");
+        let quad = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\n\
+                    vt 0 0\nvt 2 0\nvt 2 2\nvt 0 2\nf 1/1 2/2 3/3 4/4\n";
+        std::fs::write(&obj, quad).unwrap();
+        let mesh = &load_obj_mesh(&obj).unwrap().parts[0].mesh;
+        assert_eq!(mesh.texcoords.len(), mesh.positions.len());
+        // The image's top row is v = 1 in OBJ, row 0 in the texture.
+        for (p, t) in mesh.positions.iter().zip(&mesh.texcoords) {
+            assert_eq!(*t, Vec2::new(p.x * 2.0, 1.0 - p.y * 2.0));
+        }
+        // Interpolated at a hit's barycentrics.
+        let [a, b, c] = mesh.triangles[0].map(|i| mesh.texcoords[i as usize]);
+        let at = mesh.texcoord(0, 0.25, 0.5).unwrap();
+        assert!((at - (a * 0.25 + b * 0.25 + c * 0.5)).length() < 1e-6);
+        for bad in ["nan", "inf"] {
+            let text = quad.replace("vt 2 2", &format!("vt 2 {bad}"));
+            std::fs::write(&obj, text).unwrap();
+            let err = load_obj_mesh(&obj).unwrap_err();
+            assert_eq!(
+                (err.line, err.field.as_deref()),
+                (Some(7), Some("vt")),
+                "{err}"
+            );
+            assert!(err.message.contains("not finite"), "{err}");
+        }
     }
 
     #[test]

@@ -58,6 +58,7 @@ fn closed_sphere_mesh(levels: u32) -> TriangleMesh {
         positions,
         triangles,
         normals: Vec::new(),
+        texcoords: Vec::new(),
     }
 }
 
@@ -70,7 +71,7 @@ fn paper_with(projection: Projection, fov: f64, width: u32, height: u32) -> retr
         height: Some(height),
         projection: Some(projection),
         fov: Some(fov),
-        spp: None,
+        ..SceneOverrides::default()
     })
     .unwrap()
 }
@@ -187,7 +188,7 @@ on_every_backend! {
             }
             triangles.extend([[base, base + 1, base + 2], [base, base + 2, base + 3]]);
         }
-        let accel = build(backend, &[object(Shape::Mesh(TriangleMesh { positions, triangles, normals: Vec::new() }))]);
+        let accel = build(backend, &[object(Shape::Mesh(TriangleMesh { positions, triangles, normals: Vec::new(), texcoords: Vec::new() }))]);
         for axis in 0..3 {
             for sign in [1.0f32, -1.0] {
                 for zero in [0.0f32, -0.0] {
@@ -240,6 +241,7 @@ on_every_backend! {
             positions,
             triangles: vec![[0, 1, 1], [0, 1, 3], [0, 1, 2]],
             normals: Vec::new(),
+            texcoords: Vec::new(),
         };
         let accel = build(backend, &[object(Shape::Mesh(mesh)), object(Shape::Mesh(TriangleMesh::default()))]);
         for x in [-0.5f32, 0.0, 0.5, 1.5] {

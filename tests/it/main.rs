@@ -23,6 +23,7 @@ mod render;
 mod rsvp;
 mod scene_errors;
 mod still_split;
+mod textures;
 mod tga;
 mod tradeoff;
 mod validate;

@@ -125,6 +125,7 @@ fn icosphere(subdivisions: u32, center: Vec3, radius: f32) -> TriangleMesh {
         positions: positions.iter().map(|p| center + *p * radius).collect(),
         triangles,
         normals: Vec::new(),
+        texcoords: Vec::new(),
     }
 }
 
@@ -593,6 +594,7 @@ fn baked(shape: &Shape, xf: &Affine3A) -> Shape {
                 .collect(),
             triangles: mesh.triangles.clone(),
             normals: Vec::new(),
+            texcoords: Vec::new(),
         }),
         Shape::Sphere(s) => sphere(
             xf.transform_point3(s.center),
@@ -786,6 +788,7 @@ fn empty_and_degenerate_scenes() {
         ],
         triangles: vec![[0, 1, 2], [0, 0, 0], [0, 1, 3]],
         normals: Vec::new(),
+        texcoords: Vec::new(),
     };
     let objects = vec![
         world(Shape::Mesh(TriangleMesh::default())),
@@ -818,6 +821,7 @@ fn empty_and_degenerate_scenes() {
             [0, 2, 3],
         ],
         normals: Vec::new(),
+        texcoords: Vec::new(),
     };
     let grid = GridIntersector::build(&[world(Shape::Mesh(quad))], None);
     assert_eq!(grid.spec().unwrap().resolution[2], 1);
@@ -894,6 +898,7 @@ fn comparison_scene(mesh: TriangleMesh, mesh_scale: f32) -> Vec<Object> {
             positions: vec![c - u - v, c + u - v, c + u + v, c - u + v],
             triangles: vec![[0, 1, 2], [0, 2, 3]],
             normals: Vec::new(),
+            texcoords: Vec::new(),
         };
         objects.push(world(Shape::Mesh(quad)));
     }

@@ -280,6 +280,8 @@ mod tests {
         projection: None,
         fov: None,
         spp: None,
+        texture_memory_mb: None,
+        texture_filter: None,
     };
 
     fn oracle(scene: &Scene, frames: std::ops::Range<u32>) -> Vec<u64> {

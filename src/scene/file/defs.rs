@@ -226,8 +226,13 @@ fn one() -> f32 {
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 pub(super) struct MaterialDef {
-    #[serde(default = "grey")]
-    pub(super) diffuse: [f32; 3],
+    /// Grey 0.7 when not given; white under a `texture`.
+    #[serde(default)]
+    pub(super) diffuse: Option<[f32; 3]>,
+    /// An image file, relative to the scene file, the diffuse colour is
+    /// multiplied by.
+    #[serde(default)]
+    pub(super) texture: Option<Spanned<String>>,
     pub(super) checker: Option<CheckerDef>,
     #[serde(default)]
     pub(super) specular: [f32; 3],
@@ -242,9 +247,6 @@ pub(super) struct MaterialDef {
     pub(super) transmission_filter: Option<[f32; 3]>,
 }
 
-fn grey() -> [f32; 3] {
-    [0.7; 3]
-}
 fn default_shininess() -> f32 {
     32.0
 }

@@ -4,6 +4,8 @@
 //! above 0, the shininess finite and not negative, the reflectivity within
 //! 0..1; a transparent material's values as [`Glass`] promises.
 
+use std::path::Path;
+
 use toml::Spanned;
 
 use super::defs::MaterialDef;
@@ -11,6 +13,59 @@ use super::values::colour;
 use super::Ctx;
 use crate::scene::glass::{Glass, DEFAULT_IOR};
 use crate::scene::{Checker, Material, SceneError};
+use crate::texture::load::TextureProblem;
+use crate::texture::{path::resolve, TextureRef};
+
+/// The texture `written` names for material `name`, relative to the file
+/// that names it. A file that is missing or not a readable image is a
+/// warning (the material renders untextured); one past the texture memory
+/// limit an error.
+fn texture(
+    ctx: &Ctx,
+    name: &str,
+    written: &Spanned<String>,
+) -> Result<Option<TextureRef>, SceneError> {
+    let field = format!("material.{name}.texture");
+    let here = || {
+        let (file, line) = ctx
+            .source
+            .locate(super::line_of(&ctx.source.text, written.span().start));
+        format!("{}:{line}: {field}", file.display())
+    };
+    let folder = ctx
+        .file_of(written.span())
+        .parent()
+        .unwrap_or(Path::new(""));
+    let Some(found) = resolve(folder, written.get_ref()) else {
+        ctx.texture_warnings.borrow_mut().push(format!(
+            "{}: no file '{}' (looked in {}); the material renders without it",
+            here(),
+            written.get_ref(),
+            folder.display()
+        ));
+        return Ok(None);
+    };
+    if found.case_differs {
+        ctx.texture_warnings.borrow_mut().push(format!(
+            "{}: '{}' found as {} (the case differs)",
+            here(),
+            written.get_ref(),
+            found.path.display()
+        ));
+    }
+    let loaded = ctx.textures.borrow_mut().load(&found.path);
+    match loaded {
+        Ok(texture) => Ok(Some(texture)),
+        Err(TextureProblem::Skipped(why)) => {
+            ctx.texture_warnings.borrow_mut().push(format!(
+                "{}: {why}; the material renders without it",
+                here()
+            ));
+            Ok(None)
+        }
+        Err(TextureProblem::OverBudget(why)) => Err(ctx.error(written.span(), field, why)),
+    }
+}
 
 /// The material `name` of a `[material.name]` table.
 pub(super) fn convert_material(
@@ -54,6 +109,11 @@ pub(super) fn convert_material(
             m.reflectivity
         )));
     }
+    let diffuse_map = match &m.texture {
+        None => None,
+        Some(written) => texture(ctx, name, written)?,
+    };
+    let untextured_grey = if diffuse_map.is_some() { 1.0 } else { 0.7 };
     let filter = match m.transmission_filter {
         Some(filter) => colour(filter).map_err(err("transmission_filter"))?,
         None => glam::Vec3::ONE,
@@ -62,7 +122,8 @@ pub(super) fn convert_material(
         .map_err(|(f, message)| err(f)(message))?;
     Ok(Material {
         name: name.to_string(),
-        diffuse: colour(m.diffuse).map_err(err("diffuse"))?,
+        diffuse: colour(m.diffuse.unwrap_or([untextured_grey; 3])).map_err(err("diffuse"))?,
+        diffuse_map,
         checker,
         specular: colour(m.specular).map_err(err("specular"))?,
         shininess: m.shininess,

@@ -33,6 +33,8 @@ use super::{Material, Scene, SceneError};
 use crate::camera::Projection;
 use crate::geometry::Placement;
 use crate::sampling::PixelSamples;
+use crate::texture::load::{TextureCache, DEFAULT_TEXTURE_MEMORY_MB};
+use crate::texture::TextureFilter;
 use animation::convert_animation;
 use camera::convert_camera;
 use defs::{RenderDef, SceneFile};
@@ -54,6 +56,10 @@ pub struct SceneOverrides {
     pub fov: Option<f64>,
     /// Samples per pixel (`--spp`).
     pub spp: Option<u32>,
+    /// The most memory textures may take, in MB (`--texture-memory`).
+    pub texture_memory_mb: Option<u64>,
+    /// How textures are filtered (`--texture-filter`).
+    pub texture_filter: Option<TextureFilter>,
 }
 
 impl SceneOverrides {
@@ -65,6 +71,14 @@ impl SceneOverrides {
             })
             .transpose()
     }
+
+    /// Where the scene's textures load, within the memory asked for.
+    pub(crate) fn texture_cache(&self) -> TextureCache {
+        TextureCache::new(
+            self.texture_memory_mb.unwrap_or(DEFAULT_TEXTURE_MEMORY_MB),
+            self.texture_filter.unwrap_or_default(),
+        )
+    }
 }
 
 /// Deepest reflection recursion accepted (each level can double the rays).
@@ -74,6 +88,10 @@ pub const MAX_DEPTH_LIMIT: u32 = 16;
 /// file and line of a span.
 struct Ctx<'a> {
     source: &'a Source,
+    /// The scene's textures (materials' and models' alike), and what
+    /// loading them went past.
+    textures: std::cell::RefCell<TextureCache>,
+    texture_warnings: std::cell::RefCell<Vec<String>>,
 }
 
 impl Ctx<'_> {
@@ -198,7 +216,11 @@ pub(crate) fn parse_scene(
         }
         e
     })?;
-    let ctx = Ctx { source: &source };
+    let ctx = Ctx {
+        source: &source,
+        textures: std::cell::RefCell::new(overrides.texture_cache()),
+        texture_warnings: std::cell::RefCell::new(Vec::new()),
+    };
 
     let default_render = RenderDef::default();
     let render_span = file.render.as_ref().map(Spanned::span);
@@ -248,6 +270,7 @@ pub(crate) fn parse_scene(
     }
     let mut objects =
         convert_objects(&ctx, &file, &mut materials, default_material, &mut warnings)?;
+    warnings.extend(ctx.texture_warnings.take());
 
     let animation = file
         .animation

@@ -55,6 +55,21 @@ pub(super) fn convert_objects(
         };
         let converted = convert_object(ctx, i, def, material, materials, warnings)?;
         for object in &converted {
+            let untextured = match &object.shape {
+                Shape::Mesh(mesh) => mesh.texcoords.is_empty(),
+                _ => true,
+            };
+            if untextured && materials[object.material].diffuse_map.is_some() {
+                let at = ctx.error(def.span(), format!("object[{i}]"), "");
+                warnings.push(format!(
+                    "{}:{}: object[{i}]: '{}' has no texture coordinates: material '{}' \
+                     shows its diffuse colour without its texture",
+                    at.file.display(),
+                    at.line.unwrap_or(0),
+                    object.name,
+                    materials[object.material].name
+                ));
+            }
             // Keys find objects by name (a mesh's parts by "name part k"):
             // one name, one object.
             if let Some(other) = names.insert(object.name.clone(), i) {
@@ -247,7 +262,8 @@ fn convert_object(
                 ));
             }
             let crease_deg = mesh_crease_angle(o).map_err(|(f, m)| err(f, m))?;
-            let loaded = crate::scene::load_obj_mesh(&obj_path)?;
+            let loaded =
+                crate::scene::load_obj_mesh_with(&obj_path, &mut ctx.textures.borrow_mut())?;
             warnings.extend(loaded.warnings(&obj_path));
             if loaded.triangle_count() == 0 {
                 warnings.push(format!("{}: mesh has no triangles", obj_path.display()));
@@ -328,6 +344,7 @@ fn polygon_mesh(points: Vec<Vec3>) -> Result<Shape, String> {
         positions: points,
         triangles,
         normals: Vec::new(),
+        texcoords: Vec::new(),
     };
     let area: f32 = (0..mesh.triangles.len() as u32)
         .map(|t| {
