@@ -422,7 +422,11 @@ pub struct LatticeBuffer<L: Lattice = EqualAngleLattice> {
     /// First stored row (even) and number of stored rows (even).
     first_row: i64,
     row_count: i64,
-    colors: Vec<Vec3>,
+    /// Linear colours, as plain arrays: a zeroed array vector is allocated
+    /// zeroed by the system (pages mapped when first written, by the
+    /// tracing threads), where zeroing a turn of `Vec3`s would fill tens of
+    /// megabytes on one thread before the first frame.
+    colors: Vec<[f32; 3]>,
     /// The same samples as 8-bit sRGB, converted once when traced, so a
     /// frame's output image is a byte copy.
     bytes: Vec<[u8; 3]>,
@@ -435,7 +439,7 @@ struct Band<'a> {
     groups: &'a [SampleGroup],
     first_row: i64,
     turn: usize,
-    colors: &'a mut [Vec3],
+    colors: &'a mut [[f32; 3]],
     bytes: &'a mut [[u8; 3]],
     /// The row's group flags.
     traced: &'a mut [bool],
@@ -492,7 +496,7 @@ impl<L: Lattice> LatticeBuffer<L> {
             lattice,
             first_row,
             row_count,
-            colors: vec![Vec3::ZERO; samples],
+            colors: vec![[0.0; 3]; samples],
             bytes: vec![[0; 3]; samples],
             traced: vec![false; groups],
         }
@@ -606,7 +610,7 @@ impl<L: Lattice> LatticeBuffer<L> {
                     band.traced[(group.col / i64::from(GROUP_WIDTH)) as usize] = true;
                     for (lane, (col, row)) in group.lane_samples().into_iter().enumerate() {
                         let sample = (row - band.first_row) as usize * band.turn + col as usize;
-                        band.colors[sample] = colors[lane];
+                        band.colors[sample] = colors[lane].to_array();
                         band.bytes[sample] = colors[lane].to_array().map(|c| srgb.encode(c));
                         fresh += window_positions(lattice, window, col, row).count() as u64;
                     }
@@ -699,7 +703,7 @@ impl<L: Lattice> LatticeBuffer<L> {
                 let run = (turn - col).min(width - x);
                 let samples = row_start + col..row_start + col + run;
                 if linear {
-                    pixels.extend_from_slice(&self.colors[samples.clone()]);
+                    pixels.extend(self.colors[samples.clone()].iter().map(|&c| Vec3::from(c)));
                 }
                 bytes.extend_from_slice(self.bytes[samples].as_flattened());
                 x += run;
@@ -780,10 +784,11 @@ impl LatticeBuffer<EqualAngleLattice> {
             let below = (row + 1).min(last_row);
             for x in 0..width as i64 {
                 let col = window.col + x;
-                let c = self.colors[self.sample_index(col, row)] * weights[0]
-                    + self.colors[self.sample_index(col + 1, row)] * weights[1]
-                    + self.colors[self.sample_index(col, below)] * weights[2]
-                    + self.colors[self.sample_index(col + 1, below)] * weights[3];
+                let color = |col, row| Vec3::from(self.colors[self.sample_index(col, row)]);
+                let c = color(col, row) * weights[0]
+                    + color(col + 1, row) * weights[1]
+                    + color(col, below) * weights[2]
+                    + color(col + 1, below) * weights[3];
                 bytes.extend(c.to_array().map(|v| srgb.encode(v)));
                 if linear {
                     pixels.push(c);
