@@ -131,12 +131,14 @@ struct WindowHooks {
 }
 
 impl Hooks for WindowHooks {
-    fn presented(&mut self, picture: &Picture, latency_ms: f64, title: &str) {
+    fn presented(&mut self, picture: &Picture, latency_ms: f64, first_ms: f64, title: &str) {
         let state = &picture.state;
+        let (width, height) = (picture.image.width(), picture.image.height());
         if self.print {
             say!(
-                "picture {}: frame {} yaw {:.6} pitch {:.6} zoom notches {} reuse {} mode {} \
+                "{}picture {}: size {width}x{height} frame {} yaw {:.6} pitch {:.6} zoom notches {} reuse {} mode {} \
                  render {:.2} ms latency {:.2} ms traced {} | {title}",
+                if picture.complete { "" } else { "coarse " },
                 picture.generation,
                 state.frame,
                 state.yaw.to_degrees(),
@@ -149,12 +151,16 @@ impl Hooks for WindowHooks {
                 picture.samples_traced
             );
         }
+        if !picture.complete {
+            return;
+        }
         self.rows.push(EventStats {
             line: 0,
             event: format!("picture {}", picture.generation),
             frame: state.frame,
             reuse: state.reuse,
             mode: Some(picture.mode),
+            ms_to_first_picture: Some(first_ms),
             ms_to_picture: Some(latency_ms),
             render_ms: Some(picture.render_ms),
             samples_traced: Some(picture.samples_traced),

@@ -9,6 +9,7 @@
 //!                 X Y (default: the centre)
 //! key K           a key as the window takes it: Left Right Up Down , . m t
 //!                 s [ ] q Escape (space plays only in a window: use play)
+//! resize W H      the window resized to W x H pixels
 //! play N          the timeline's next N frames, each once the last is shown
 //! wait            until the picture shows every command so far
 //! save PATH       the picture of every command so far as PNG (or TGA): with
@@ -25,7 +26,7 @@ use std::time::Instant;
 use glam::DVec2;
 
 use super::state::{Effect, Input, Key, ViewState, Viewer};
-use super::worker::RenderThread;
+use super::worker::{Finished, RenderThread};
 
 /// One command of a script.
 #[derive(Clone, Debug, PartialEq)]
@@ -61,6 +62,8 @@ pub fn parse_script(
     size: (u32, u32),
 ) -> Result<Vec<ScriptLine>, ScriptError> {
     let mut lines = Vec::new();
+    // A wheel without X Y turns about the centre of the window as resized.
+    let mut size = size;
     for (index, raw) in text.lines().enumerate() {
         let number = index + 1;
         let content = raw.split('#').next().unwrap_or("").trim();
@@ -73,6 +76,9 @@ pub fn parse_script(
             message,
         };
         let command = parse_command(content, size).map_err(error)?;
+        if let Command::Input(Input::Resize(width, height)) = command {
+            size = (width, height);
+        }
         lines.push(ScriptLine {
             number,
             text: content.to_string(),
@@ -119,6 +125,16 @@ fn parse_command(content: &str, size: (u32, u32)) -> Result<Command, String> {
                 format!("key: unknown key '{name}' (Left Right Up Down , . m t s [ ] q Escape)")
             }),
         ["key", ..] => Err("key takes one key".to_string()),
+        ["resize", w, h] => {
+            let side = |name: &str, word: &str| {
+                word.parse::<u32>()
+                    .ok()
+                    .filter(|&v| v > 0)
+                    .ok_or_else(|| format!("resize: {name} '{word}' is not a number of pixels"))
+            };
+            Ok(Command::Input(Input::Resize(side("W", w)?, side("H", h)?)))
+        }
+        ["resize", ..] => Err("resize takes W H (pixels)".to_string()),
         ["play", n] => n
             .parse::<u32>()
             .map(Command::Play)
@@ -129,7 +145,7 @@ fn parse_command(content: &str, size: (u32, u32)) -> Result<Command, String> {
         ["save", path] => Ok(Command::Save(PathBuf::from(path))),
         ["save", ..] => Err("save takes one PATH (no spaces)".to_string()),
         [other, ..] => Err(format!(
-            "unknown command '{other}' (drag, wheel, key, play, wait, save)"
+            "unknown command '{other}' (drag, wheel, key, resize, play, wait, save)"
         )),
         [] => unreachable!("blank lines are skipped"),
     }
@@ -145,7 +161,10 @@ pub struct EventStats {
     pub reuse: bool,
     /// How the frame loop made the picture.
     pub mode: Option<&'static str>,
-    /// From the command to its picture, ms.
+    /// From the command to the first picture showing it (coarse or
+    /// complete), ms.
+    pub ms_to_first_picture: Option<f64>,
+    /// From the command to its complete picture, ms.
     pub ms_to_picture: Option<f64>,
     /// The frame loop's time for that picture, ms.
     pub render_ms: Option<f64>,
@@ -223,24 +242,26 @@ pub fn run_script(
     }
     thread.wait_for(generation)?;
     let log = thread.log();
-    let pixels = {
-        let (w, h) = viewer.size();
-        u64::from(w) * u64::from(h)
-    };
     Ok(sent
         .into_iter()
         .map(|(line, event, generation, state, at)| {
-            let answer = log.iter().find(|f| f.generation >= generation);
+            let first = log.iter().find(|f| f.generation >= generation);
+            let answer = log
+                .iter()
+                .find(|f| f.generation >= generation && f.complete);
+            let since = |f: &Finished| f.done.duration_since(at).as_secs_f64() * 1e3;
+            let (width, height) = viewer.size_of(&state);
             EventStats {
                 line,
                 event,
                 frame: state.frame,
                 reuse: state.reuse,
                 mode: answer.map(|f| f.mode),
-                ms_to_picture: answer.map(|f| f.done.duration_since(at).as_secs_f64() * 1e3),
+                ms_to_first_picture: first.map(since),
+                ms_to_picture: answer.map(since),
                 render_ms: answer.map(|f| f.render_ms),
                 samples_traced: answer.map(|f| f.samples_traced),
-                pixels,
+                pixels: u64::from(width) * u64::from(height),
             }
         })
         .collect())
@@ -249,11 +270,11 @@ pub fn run_script(
 /// The statistics as CSV, one row per command.
 pub fn stats_csv(rows: &[EventStats]) -> String {
     let mut csv =
-        String::from("line,event,frame,reuse,mode,ms_to_picture,render_ms,samples_traced,pixels\n");
+        String::from("line,event,frame,reuse,mode,ms_to_picture,render_ms,samples_traced,pixels,ms_to_first_picture\n");
     let opt = |v: Option<f64>| v.map_or(String::new(), |v| format!("{v:.3}"));
     for row in rows {
         csv.push_str(&format!(
-            "{},\"{}\",{},{},{},{},{},{},{}\n",
+            "{},\"{}\",{},{},{},{},{},{},{},{}\n",
             row.line,
             row.event.replace('"', "\"\""),
             row.frame,
@@ -262,7 +283,8 @@ pub fn stats_csv(rows: &[EventStats]) -> String {
             opt(row.ms_to_picture),
             opt(row.render_ms),
             row.samples_traced.map_or(String::new(), |v| v.to_string()),
-            row.pixels
+            row.pixels,
+            opt(row.ms_to_first_picture)
         ));
     }
     csv
@@ -307,6 +329,8 @@ mod tests {
             ("key F5", "unknown key 'F5'"),
             ("zoom 2", "unknown command 'zoom'"),
             ("drag inf 0", "not a number"),
+            ("resize 0 10", "W '0' is not a number of pixels"),
+            ("resize 10", "resize takes W H"),
         ] {
             let err = parse_script(&format!("wait\n{bad}\n"), Path::new("s.txt"), (640, 480))
                 .unwrap_err();

@@ -50,6 +50,8 @@ pub struct ViewState {
     /// Reuse on (every technique the frame loop can use) or off (every
     /// picture traced afresh).
     pub reuse: bool,
+    /// The window's size in pixels (None: the scene camera's).
+    pub size: Option<(u32, u32)>,
 }
 
 impl Default for ViewState {
@@ -62,6 +64,7 @@ impl Default for ViewState {
             rotate: 0.0,
             translate: DVec2::ZERO,
             reuse: true,
+            size: None,
         }
     }
 }
@@ -125,6 +128,8 @@ pub enum Input {
         at: DVec2,
     },
     Key(Key),
+    /// The window resized to (width, height) pixels.
+    Resize(u32, u32),
 }
 
 /// What an input asks of the viewer beyond a new state.
@@ -168,9 +173,35 @@ impl Viewer {
         self.animation.as_ref().map_or(25.0, |a| a.fps)
     }
 
-    /// The picture's size in pixels.
+    /// The picture's size in pixels as the scene gives it.
     pub fn size(&self) -> (u32, u32) {
         (self.camera.width, self.camera.height)
+    }
+
+    /// The picture's size in pixels for `state`.
+    pub fn size_of(&self, state: &ViewState) -> (u32, u32) {
+        state.size.unwrap_or_else(|| self.size())
+    }
+
+    /// `camera` showing `size` pixels at the angle or focal length per
+    /// pixel it had: a bigger window shows more of the scene at the same
+    /// scale rather than the same view magnified. An equal-angle camera
+    /// keeps its pan lattice, so pans stay exact at any size and a window
+    /// twice as wide is the scene's image with twice the field of view.
+    pub fn resized(camera: &Camera, (width, height): (u32, u32)) -> Camera {
+        let scale = f64::from(width) / f64::from(camera.width);
+        let fov = match camera.projection {
+            Projection::Perspective => 2.0 * ((0.5 * camera.fov).tan() * scale).atan(),
+            Projection::EqualAngle | Projection::Fisheye => {
+                (camera.fov * scale).min(std::f64::consts::TAU)
+            }
+        };
+        Camera {
+            width,
+            height,
+            fov,
+            ..camera.clone()
+        }
     }
 
     /// Whether a drag turns the camera (equal-angle: a pan) rather than
@@ -194,14 +225,15 @@ impl Viewer {
         state.notches == 0 && state.rotate == 0.0 && state.translate == DVec2::ZERO
     }
 
-    /// The viewport the viewer shows when zoomed or turned.
-    pub fn viewport(&self) -> Viewport {
+    /// The viewport the viewer shows when zoomed or turned, `size` pixels.
+    pub fn viewport(&self, size: (u32, u32)) -> Viewport {
+        let camera = Self::resized(&self.camera, size);
         Viewport {
             name: VIEWPORT_NAME.to_string(),
-            width: self.camera.width,
-            height: self.camera.height,
-            projection: self.camera.projection,
-            fov: self.camera.fov,
+            width: camera.width,
+            height: camera.height,
+            projection: camera.projection,
+            fov: camera.fov,
             yaw: 0.0,
             pitch: 0.0,
             transform: ViewTransform::default(),
@@ -218,7 +250,10 @@ impl Viewer {
             camera.yaw += state.yaw;
             camera.pitch += state.pitch;
         }
-        camera
+        match state.size {
+            Some(size) if size != (camera.width, camera.height) => Self::resized(&camera, size),
+            _ => camera,
+        }
     }
 
     /// The one view of `state`: the camera's image, or the viewer's
@@ -237,6 +272,26 @@ impl Viewer {
         }
     }
 
+    /// The view of `state` at `size` pixels over the same field: a coarse
+    /// picture of what [`Viewer::view`] shows.
+    pub fn coarse_view(&self, state: &ViewState, size: (u32, u32)) -> View {
+        let mut camera = self.camera(state);
+        let scale = f64::from(size.0) / f64::from(camera.width);
+        camera.width = size.0;
+        camera.height = size.1;
+        let mut transform = Self::transform(state);
+        transform.translate = (state.translate * scale).to_array();
+        let name = if Self::is_camera_view(state) {
+            String::new()
+        } else {
+            VIEWPORT_NAME.to_string()
+        };
+        View {
+            name,
+            pose: ViewportPose::new(camera, transform),
+        }
+    }
+
     /// Whether `state` can be shown: its camera valid (an equal-angle
     /// view within the poles) and its transform too.
     pub fn check(&self, state: &ViewState) -> Result<(), String> {
@@ -245,9 +300,9 @@ impl Viewer {
         let base = Camera {
             yaw: camera.yaw,
             pitch: camera.pitch,
-            ..self.camera.clone()
+            ..Self::resized(&self.camera, self.size_of(state))
         };
-        self.viewport()
+        self.viewport(self.size_of(state))
             .validate_transform(&base, &Self::transform(state))
             .map_err(|e| format!("{}: {}", e.field, e.message))
     }
@@ -262,6 +317,9 @@ impl Viewer {
             Input::Wheel { notches, at } => {
                 let notches = (state.notches + notches).clamp(-MAX_NOTCHES, MAX_NOTCHES);
                 self.zoom_about(&mut next, notches, at);
+            }
+            Input::Resize(width, height) => {
+                next.size = Some((width, height)).filter(|&size| size != self.size());
             }
             Input::Key(key) => match key {
                 Key::Left => self.drag(&mut next, DVec2::new(ARROW_STEP, 0.0)),
@@ -319,7 +377,8 @@ impl Viewer {
         let before = inverse(state);
         state.notches = notches;
         let after = inverse(state);
-        let centre = DVec2::new(f64::from(self.camera.width), f64::from(self.camera.height)) * 0.5;
+        let (width, height) = self.size_of(state);
+        let centre = DVec2::new(f64::from(width), f64::from(height)) * 0.5;
         state.translate += (before - after) * (at - centre);
         self.settle(state);
     }

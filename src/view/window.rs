@@ -26,8 +26,9 @@ use super::worker::{Picture, RenderThread};
 /// What the window's owner does with presented pictures and saves.
 pub trait Hooks {
     /// A picture was presented for the first time; `latency_ms` from the
-    /// input it answers (or the opening) to its presentation.
-    fn presented(&mut self, picture: &Picture, latency_ms: f64, title: &str);
+    /// input it answers (or the opening) to its presentation, `first_ms`
+    /// to the first picture shown for that input (a coarse one, or this).
+    fn presented(&mut self, picture: &Picture, latency_ms: f64, first_ms: f64, title: &str);
     /// `s` was pressed: save `image` (the picture as shown); returns where
     /// it went.
     fn save(&mut self, image: &image::RgbImage) -> Result<String, String>;
@@ -65,7 +66,9 @@ pub fn run_window(
         dragging: false,
         playing: None,
         overlay: false,
-        presented: 0,
+        presented: (0, false),
+        first_shown: None,
+        surface_size: (0, 0),
         hooks,
         error: None,
     };
@@ -136,8 +139,13 @@ struct App<'h> {
     playing: Option<Instant>,
     /// Showing the picture painted where it traced.
     overlay: bool,
-    /// The request of the picture last presented.
-    presented: u64,
+    /// The request of the picture last presented, and whether it was
+    /// complete.
+    presented: (u64, bool),
+    /// The request whose coarse picture was presented, and its latency.
+    first_shown: Option<(u64, f64)>,
+    /// The window's drawing buffer, pixels.
+    surface_size: (u32, u32),
     hooks: &'h mut dyn Hooks,
     error: Option<String>,
 }
@@ -229,30 +237,46 @@ impl App<'_> {
             Err(err) => return self.fail(event_loop, format!("cannot draw the window: {err}")),
         };
         let shown = picture.shown(self.overlay);
-        if buffer.len() == shown.pixels().len() {
-            for (word, p) in buffer.iter_mut().zip(shown.pixels()) {
+        // Until the picture of a new size is ready, the last one shows in
+        // the corner of the resized window.
+        let width = self.surface_size.0 as usize;
+        if (shown.width(), shown.height()) != self.surface_size {
+            buffer.fill(0);
+        }
+        for (row, line) in buffer
+            .chunks_exact_mut(width.max(1))
+            .zip(shown.as_raw().chunks_exact(3 * shown.width() as usize))
+        {
+            for (word, p) in row.iter_mut().zip(line.chunks_exact(3)) {
                 *word = u32::from(p[0]) << 16 | u32::from(p[1]) << 8 | u32::from(p[2]);
             }
-        } else {
-            buffer.fill(0);
         }
         if let Err(err) = buffer.present() {
             return self.fail(event_loop, format!("cannot draw the window: {err}"));
         }
-        if picture.generation > self.presented {
-            self.presented = picture.generation;
+        let key = (picture.generation, picture.complete);
+        if key > self.presented {
+            self.presented = key;
             let now = Instant::now();
             let since = self
                 .asked
                 .iter()
                 .find(|(g, _)| *g <= picture.generation)
                 .map_or(0.0, |(_, at)| now.duration_since(*at).as_secs_f64() * 1e3);
-            self.asked.retain(|(g, _)| *g > picture.generation);
+            let first = match self.first_shown {
+                Some((g, ms)) if g == picture.generation => ms,
+                _ => since,
+            };
+            if picture.complete {
+                self.asked.retain(|(g, _)| *g > picture.generation);
+            } else {
+                self.first_shown = Some((picture.generation, since));
+            }
             let title = self.title(Some(&picture));
             if let Some(window) = &self.window {
                 window.set_title(&title);
             }
-            self.hooks.presented(&picture, since, &title);
+            self.hooks.presented(&picture, since, first, &title);
         }
     }
 }
@@ -266,7 +290,7 @@ impl ApplicationHandler<Wake> for App<'_> {
         let attributes = Window::default_attributes()
             .with_title(self.title(None))
             .with_inner_size(PhysicalSize::new(width, height))
-            .with_resizable(false);
+            .with_resizable(true);
         let window = match event_loop.create_window(attributes) {
             Ok(window) => Rc::new(window),
             Err(err) => return self.fail(event_loop, format!("cannot open a window: {err}")),
@@ -288,6 +312,7 @@ impl ApplicationHandler<Wake> for App<'_> {
         }
         self.window = Some(window);
         self.surface = Some(surface);
+        self.surface_size = (width, height);
         self.ask();
     }
 
@@ -318,6 +343,27 @@ impl ApplicationHandler<Wake> for App<'_> {
         match event {
             WindowEvent::CloseRequested => event_loop.exit(),
             WindowEvent::RedrawRequested => self.present(event_loop),
+            WindowEvent::Resized(size) => {
+                let (Some(width), Some(height)) = (
+                    std::num::NonZeroU32::new(size.width),
+                    std::num::NonZeroU32::new(size.height),
+                ) else {
+                    return;
+                };
+                if (size.width, size.height) == self.surface_size {
+                    return;
+                }
+                if let Some(surface) = self.surface.as_mut() {
+                    if let Err(err) = surface.resize(width, height) {
+                        return self.fail(event_loop, format!("cannot draw the window: {err}"));
+                    }
+                }
+                self.surface_size = (size.width, size.height);
+                self.act(event_loop, Input::Resize(size.width, size.height));
+                if let Some(window) = &self.window {
+                    window.request_redraw();
+                }
+            }
             WindowEvent::CursorMoved { position, .. } => {
                 let at = DVec2::new(position.x, position.y);
                 let delta = at - self.cursor;

@@ -8,12 +8,17 @@
 //! nothing new is asked. Reuse is the frame loop's: an animator lives as
 //! long as its kind of view (the camera's image or the viewport) and the
 //! reuse mode last, so its kept samples carry from picture to picture.
+//! A new animator (a new kind of view, reuse mode or window size) starts
+//! its buffers from nothing: its first picture is preceded by a coarse
+//! one (a sixteenth of the samples, traced afresh, marked not complete),
+//! and the full picture then shows the latest request.
 
 use std::sync::{Arc, Condvar, Mutex, MutexGuard, PoisonError};
 use std::thread::JoinHandle;
 use std::time::Instant;
 
 use crate::accel::{Accelerator, BackendKind};
+use crate::camera::{Camera, Viewport};
 use crate::frame_loop::{Animator, Options, Techniques};
 use crate::reuse::rsvp::RsvpKnobs;
 use crate::scene::Scene;
@@ -36,8 +41,11 @@ pub struct Picture {
     pub done: Instant,
     pub samples_traced: u64,
     pub pixels: u64,
-    /// The frame loop's word for how it was made (pan, rsvp, full, ...).
+    /// The frame loop's word for how it was made (pan, rsvp, full, ...),
+    /// or `coarse`.
     pub mode: &'static str,
+    /// False for a coarse picture shown while the full one is traced.
+    pub complete: bool,
 }
 
 impl Picture {
@@ -65,6 +73,7 @@ pub struct Finished {
     pub render_ms: f64,
     pub samples_traced: u64,
     pub mode: &'static str,
+    pub complete: bool,
 }
 
 #[derive(Default)]
@@ -188,14 +197,15 @@ impl RenderThread {
         lock(&self.shared.outbox).failure.clone()
     }
 
-    /// Waits for a picture answering request `generation` or a later one.
+    /// Waits for a complete picture answering request `generation` or a
+    /// later one.
     pub fn wait_for(&self, generation: u64) -> Result<Arc<Picture>, String> {
         let mut outbox = lock(&self.shared.outbox);
         loop {
             if let Some(picture) = outbox
                 .latest
                 .as_ref()
-                .filter(|p| p.generation >= generation)
+                .filter(|p| p.generation >= generation && p.complete)
             {
                 return Ok(Arc::clone(picture));
             }
@@ -255,76 +265,187 @@ impl AnimatorKind {
     }
 }
 
+/// A coarse picture is this many times smaller each way than the full
+/// one: a sixteenth of its samples, traced afresh in a few ms.
+pub const COARSE_FACTOR: u32 = 4;
+
+/// The scenes the frame loop serves at one window size: the camera's
+/// image and the viewer's viewport, full and coarse.
+struct Scenes {
+    size: (u32, u32),
+    coarse_size: (u32, u32),
+    camera: Scene,
+    viewport: Scene,
+    coarse_camera: Scene,
+    coarse_viewport: Scene,
+}
+
+impl Scenes {
+    fn new(scene: &Scene, viewer: &Viewer, size: (u32, u32)) -> Scenes {
+        let coarse_size = (
+            size.0.div_ceil(COARSE_FACTOR),
+            size.1.div_ceil(COARSE_FACTOR),
+        );
+        // The window's picture, and the coarse one: the same field in
+        // fewer, bigger pixels.
+        let full = Viewer::resized(&scene.camera, size);
+        let coarse = Camera {
+            width: coarse_size.0,
+            height: coarse_size.1,
+            ..full.clone()
+        };
+        let at = |camera: Camera| {
+            // The scene's own viewports are not the viewer's.
+            let mut camera_scene = scene.clone();
+            camera_scene.viewports.clear();
+            let viewport = Viewport {
+                width: camera.width,
+                height: camera.height,
+                ..viewer.viewport(size)
+            };
+            camera_scene.camera = camera;
+            let mut viewport_scene = camera_scene.clone();
+            viewport_scene.viewports.push(ViewportTrack {
+                viewport,
+                keys: Vec::new(),
+            });
+            (camera_scene, viewport_scene)
+        };
+        let (camera, viewport) = at(full);
+        let (coarse_camera, coarse_viewport) = at(coarse);
+        Scenes {
+            size,
+            coarse_size,
+            camera,
+            viewport,
+            coarse_camera,
+            coarse_viewport,
+        }
+    }
+
+    fn of(&self, kind: AnimatorKind, coarse: bool) -> &Scene {
+        match (kind.viewport, coarse) {
+            (false, false) => &self.camera,
+            (true, false) => &self.viewport,
+            (false, true) => &self.coarse_camera,
+            (true, true) => &self.coarse_viewport,
+        }
+    }
+}
+
+/// The next request, waiting for one; None when told to quit.
+fn next_request(shared: &Shared) -> Option<(u64, ViewState)> {
+    let mut inbox = lock(&shared.inbox);
+    loop {
+        if inbox.quit {
+            return None;
+        }
+        if let Some(request) = inbox.request.take() {
+            return Some(request);
+        }
+        inbox = shared
+            .asked
+            .wait(inbox)
+            .unwrap_or_else(PoisonError::into_inner);
+    }
+}
+
+/// A request that came in meanwhile, without waiting.
+fn newer_request(shared: &Shared) -> Option<(u64, ViewState)> {
+    lock(&shared.inbox).request.take()
+}
+
+fn publish(shared: &Shared, notify: &Notify, picture: Picture) {
+    let mut outbox = lock(&shared.outbox);
+    if outbox.keep_log {
+        outbox.log.push(Finished {
+            generation: picture.generation,
+            done: picture.done,
+            render_ms: picture.render_ms,
+            samples_traced: picture.samples_traced,
+            mode: picture.mode,
+            complete: picture.complete,
+        });
+    }
+    outbox.latest = Some(Arc::new(picture));
+    drop(outbox);
+    shared.finished.notify_all();
+    notify();
+}
+
 /// The render loop: waits for a request, renders the latest, repeats
-/// until told to quit.
+/// until told to quit. Each window size has its own scenes and animators.
 fn serve(shared: &Shared, scene: &Scene, mut accel: Accelerator, notify: &Notify) {
     let viewer = Viewer::new(scene);
-    // The camera's image and the viewer's viewport: the frame loop serves
-    // one kind of view per animator. The scene's own viewports are not
-    // the viewer's.
-    let mut camera_scene = scene.clone();
-    camera_scene.viewports.clear();
-    let mut viewport_scene = camera_scene.clone();
-    viewport_scene.viewports.push(ViewportTrack {
-        viewport: viewer.viewport(),
-        keys: Vec::new(),
-    });
+    let mut pending = next_request(shared);
+    while let Some(request) = pending {
+        let scenes = Scenes::new(scene, &viewer, viewer.size_of(&request.1));
+        pending = serve_size(shared, &viewer, &scenes, &mut accel, notify, request);
+    }
+}
+
+/// Renders requests of one window size; returns the first request of
+/// another size (None: quit).
+fn serve_size(
+    shared: &Shared,
+    viewer: &Viewer,
+    scenes: &Scenes,
+    accel: &mut Accelerator,
+    notify: &Notify,
+    first: (u64, ViewState),
+) -> Option<(u64, ViewState)> {
+    let options = |kind: AnimatorKind, scene: &Scene| Options {
+        techniques: if kind.reuse {
+            Techniques::AUTO
+        } else {
+            Techniques::FULL
+        },
+        frames: 0..viewer.frames(),
+        linear: false,
+        rsvp: RsvpKnobs::default_for(scene.samples),
+        traced_images: true,
+        ..Options::new(Techniques::FULL, 0..1)
+    };
     let mut current: Option<(AnimatorKind, Animator)> = None;
+    let mut request = Some(first);
     loop {
-        let (generation, state) = {
-            let mut inbox = lock(&shared.inbox);
-            loop {
-                if inbox.quit {
-                    return;
-                }
-                if let Some(request) = inbox.request.take() {
-                    break request;
-                }
-                inbox = shared
-                    .asked
-                    .wait(inbox)
-                    .unwrap_or_else(PoisonError::into_inner);
-            }
-        };
-        let kind = AnimatorKind::of(&state);
+        let (mut generation, mut state) = request.take().or_else(|| next_request(shared))?;
+        if viewer.size_of(&state) != scenes.size {
+            return Some((generation, state));
+        }
+        let mut kind = AnimatorKind::of(&state);
         if current.as_ref().map(|(k, _)| *k) != Some(kind) {
             // The old animator lets go of the accelerator first.
             drop(current.take());
-            let scene = if kind.viewport {
-                &viewport_scene
-            } else {
-                &camera_scene
+            // A new animator starts its buffers from nothing (a full
+            // trace, or several for a viewport's levels): show a coarse
+            // picture, traced afresh, first.
+            let coarse_scene = scenes.of(kind, true);
+            let coarse_options = Options {
+                techniques: Techniques::FULL,
+                ..options(kind, coarse_scene)
             };
-            let options = Options {
-                techniques: if kind.reuse {
-                    Techniques::AUTO
-                } else {
-                    Techniques::FULL
-                },
-                frames: 0..viewer.frames(),
-                linear: false,
-                rsvp: RsvpKnobs::default_for(scene.samples),
-                traced_images: true,
-                ..Options::new(Techniques::FULL, 0..1)
-            };
-            current = Some((kind, Animator::interactive(scene, &mut accel, options)));
+            let mut coarse = Animator::interactive(coarse_scene, accel, coarse_options);
+            let picture = render_coarse(&mut coarse, viewer, scenes, generation, state.clone());
+            drop(coarse);
+            publish(shared, notify, picture);
+            // Input that came meanwhile is what the full picture shows.
+            if let Some(newer) = newer_request(shared) {
+                if viewer.size_of(&newer.1) != scenes.size {
+                    return Some(newer);
+                }
+                (generation, state) = newer;
+                kind = AnimatorKind::of(&state);
+            }
+            let scene = scenes.of(kind, false);
+            current = Some((
+                kind,
+                Animator::interactive(scene, accel, options(kind, scene)),
+            ));
         }
         let (_, animator) = current.as_mut().expect("an animator for the state");
-        let picture = render(animator, &viewer, generation, state);
-        let mut outbox = lock(&shared.outbox);
-        if outbox.keep_log {
-            outbox.log.push(Finished {
-                generation,
-                done: picture.done,
-                render_ms: picture.render_ms,
-                samples_traced: picture.samples_traced,
-                mode: picture.mode,
-            });
-        }
-        outbox.latest = Some(Arc::new(picture));
-        drop(outbox);
-        shared.finished.notify_all();
-        notify();
+        let picture = render(animator, viewer, generation, state);
+        publish(shared, notify, picture);
     }
 }
 
@@ -345,6 +466,136 @@ fn render(animator: &mut Animator, viewer: &Viewer, generation: u64, state: View
         mode: output.stats.mode.as_str(),
         traced: output.traced_image.expect("traced images asked for"),
         image: output.image,
+        complete: true,
         state,
+    }
+}
+
+/// A picture of `state` traced at the coarse size and magnified to the
+/// full one (each coarse pixel a block).
+fn render_coarse(
+    animator: &mut Animator,
+    viewer: &Viewer,
+    scenes: &Scenes,
+    generation: u64,
+    state: ViewState,
+) -> Picture {
+    let start = Instant::now();
+    let view = viewer.coarse_view(&state, scenes.coarse_size);
+    let output = animator
+        .render_views(state.frame, vec![view])
+        .pop()
+        .expect("one view, one picture");
+    let (width, height) = scenes.size;
+    let magnify = |image: &image::RgbImage| {
+        image::RgbImage::from_fn(width, height, |x, y| {
+            *image.get_pixel(x / COARSE_FACTOR, y / COARSE_FACTOR)
+        })
+    };
+    Picture {
+        generation,
+        render_ms: start.elapsed().as_secs_f64() * 1e3,
+        done: Instant::now(),
+        samples_traced: output.stats.samples_traced,
+        pixels: u64::from(width) * u64::from(height),
+        mode: "coarse",
+        traced: magnify(
+            output
+                .traced_image
+                .as_ref()
+                .expect("traced images asked for"),
+        ),
+        image: magnify(&output.image),
+        complete: false,
+        state,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::{paper_scene, SceneOverrides};
+    use glam::DVec2;
+
+    /// PSNR of `a` against `b`, 8-bit.
+    fn psnr(a: &image::RgbImage, b: &image::RgbImage) -> f64 {
+        let sum: f64 = a
+            .as_raw()
+            .iter()
+            .zip(b.as_raw())
+            .map(|(&x, &y)| (f64::from(x) - f64::from(y)).powi(2))
+            .sum();
+        let mse = sum / a.as_raw().len() as f64;
+        10.0 * (255.0 * 255.0 / mse.max(1e-12)).log10()
+    }
+
+    /// `image` averaged over blocks of `COARSE_FACTOR` pixels each way.
+    fn shrink(image: &image::RgbImage) -> image::RgbImage {
+        let f = COARSE_FACTOR;
+        image::RgbImage::from_fn(image.width() / f, image.height() / f, |x, y| {
+            let mut sum = [0u32; 3];
+            for dy in 0..f {
+                for dx in 0..f {
+                    let p = image.get_pixel(x * f + dx, y * f + dy);
+                    for c in 0..3 {
+                        sum[c] += u32::from(p[c]);
+                    }
+                }
+            }
+            image::Rgb(sum.map(|v| (v / (f * f)) as u8))
+        })
+    }
+
+    #[test]
+    fn a_coarse_picture_shows_the_same_field_as_the_full_one() {
+        let overrides = SceneOverrides {
+            width: Some(160),
+            height: Some(120),
+            ..SceneOverrides::default()
+        };
+        let scene = paper_scene(&overrides).unwrap();
+        let viewer = Viewer::new(&scene);
+        let mut accel =
+            Accelerator::build_with(BackendKind::default(), &scene.objects, None).unwrap();
+        let mut zoomed = ViewState::default();
+        viewer.apply(
+            &mut zoomed,
+            super::super::Input::Wheel {
+                notches: 3,
+                at: DVec2::new(40.0, 30.0),
+            },
+        );
+        for state in [ViewState::default(), zoomed] {
+            let scenes = Scenes::new(&scene, &viewer, viewer.size_of(&state));
+            let kind = AnimatorKind::of(&state);
+            let options = |scene: &Scene| Options {
+                linear: false,
+                rsvp: RsvpKnobs::default_for(scene.samples),
+                traced_images: true,
+                ..Options::new(Techniques::FULL, 0..1)
+            };
+            let coarse_scene = scenes.of(kind, true);
+            let mut coarse = Animator::interactive(coarse_scene, &mut accel, options(coarse_scene));
+            let rough = render_coarse(&mut coarse, &viewer, &scenes, 1, state.clone());
+            drop(coarse);
+            let full_scene = scenes.of(kind, false);
+            let mut full = Animator::interactive(full_scene, &mut accel, options(full_scene));
+            let exact = render(&mut full, &viewer, 1, state.clone());
+            assert!(!rough.complete && exact.complete);
+            assert_eq!(rough.image.dimensions(), exact.image.dimensions());
+            // A sixteenth of the samples (snapped to whole sample groups).
+            assert!(
+                (40 * 30..2 * 40 * 30).contains(&rough.samples_traced),
+                "{}",
+                rough.samples_traced
+            );
+            // One coarse pixel a block: near the block's average (point
+            // samples of a checkerboard at 40x30 alias: 17-21 dB here).
+            let blocks = image::RgbImage::from_fn(40, 30, |x, y| {
+                *rough.image.get_pixel(x * COARSE_FACTOR, y * COARSE_FACTOR)
+            });
+            let score = psnr(&blocks, &shrink(&exact.image));
+            assert!(score > 15.0, "{state:?}: {score:.1} dB");
+        }
     }
 }

@@ -106,6 +106,18 @@ fn a_scripted_drag_equals_a_render_of_the_turned_camera() {
     assert_eq!(rows.len(), 3, "{stats}");
     assert!(stats.starts_with("line,event,frame,reuse,mode,ms_to_picture,"));
     assert_eq!(rows[0][1], "\"open\"");
+    // The opening starts the buffer from nothing: a coarse picture came
+    // first, sooner than the complete one; a pan is complete at once.
+    assert!(stats
+        .lines()
+        .next()
+        .unwrap()
+        .ends_with(",ms_to_first_picture"));
+    let ms = |row: &Vec<&str>, column: usize| row[column].parse::<f64>().unwrap();
+    assert!(ms(&rows[0], 9) < ms(&rows[0], 5), "{stats}");
+    for row in &rows[1..] {
+        assert_eq!(ms(row, 9), ms(row, 5), "{stats}");
+    }
     for row in &rows[1..] {
         assert_eq!(row[4], "pan", "{stats}");
         let traced: u64 = row[7].parse().unwrap();
@@ -562,4 +574,78 @@ fn a_missing_xkbcommon_x11_is_a_clear_error() {
         "{err}"
     );
     assert!(!err.contains("panicked"), "{err}");
+}
+
+#[test]
+fn a_resized_window_shows_more_at_the_same_angle_per_pixel() {
+    if !window_tools() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path();
+    paper_on_lattice(path, "scene.toml", 0.0, -9.375);
+    // Twice as wide keeps 0.3125 degrees a pixel: 200 degrees across
+    // (doubling is exact in floating point, so the fields of view agree
+    // to the bit).
+    retrace_ok(
+        &[
+            "render",
+            "scene.toml",
+            "--width",
+            "640",
+            "--height",
+            "360",
+            "--fov",
+            "200",
+            "-o",
+            "wide.png",
+        ],
+        path,
+    );
+    let x = Xvfb::start();
+    let mut viewer = Viewer::open(&x, path, "scene.toml");
+    viewer.wait_for("first picture", |l| l.starts_with("picture 1:"));
+    let window = x.run("xdotool", &["search", "--sync", "--name", "^retrace view"]);
+    let window = window.lines().next().unwrap().to_string();
+    x.run("xdotool", &["windowsize", "--sync", &window, "640", "360"]);
+    viewer.wait_for("the resized picture", |l| {
+        l.starts_with("picture") && field(l, "size") == "640x360"
+    });
+    let wide = x.screenshot(&window, (640, 360));
+    assert!(
+        wide == png(&path.join("wide.png")),
+        "the resized window differs from a render at its size"
+    );
+    // A drag after the resize is still a pan of the wider camera.
+    x.run(
+        "xdotool",
+        &[
+            "mousemove",
+            "--window",
+            &window,
+            "--sync",
+            "300",
+            "100",
+            "mousedown",
+            "1",
+            "mousemove",
+            "--window",
+            &window,
+            "--sync",
+            "276",
+            "100",
+            "mouseup",
+            "1",
+        ],
+    );
+    let yaw = format!("{:.6}", 24.0 * STEP);
+    let line = viewer.wait_for("the dragged picture", |l| {
+        l.starts_with("picture") && field(l, "yaw") == yaw
+    });
+    assert_eq!(field(&line, "mode"), "pan", "{line}");
+    assert_eq!(field(&line, "size"), "640x360", "{line}");
+    x.run("xdotool", &["windowfocus", "--sync", &window]);
+    x.run("xdotool", &["key", "q"]);
+    let (code, err) = viewer.wait_exit();
+    assert_eq!(code, Some(0), "{err}");
 }
