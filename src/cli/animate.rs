@@ -888,10 +888,11 @@ fn run_summary(stats: &[retrace::frame_loop::FrameStats], write_ms: f64) -> Stri
     let traced: u64 = stats.iter().map(|s| s.samples_traced).sum();
     let pixels: u64 = stats.iter().map(|s| s.pixels).sum();
     let per_pixel = traced as f64 / pixels.max(1) as f64;
-    // RSVP traces the pyramid level a viewport's pixels need: zoomed in,
-    // finer than the pixels themselves.
+    // RSVP traces the pyramid level a viewport's pixels need, a whole
+    // level at a time: zoomed in or at a wide view's edges, finer than the
+    // pixels themselves.
     let why = if per_pixel > 1.0 && stats.iter().any(|s| !s.viewport.is_empty()) {
-        " (RSVP traces pyramid levels at least as fine as the viewports' pixels)"
+        " (RSVP traces whole pyramid levels about as fine as the viewports' pixels, finer where a view is squeezed)"
     } else {
         ""
     };

@@ -221,7 +221,7 @@ fn a_log_gets_plain_progress_lines_and_the_summary_counts_in_words() {
     let per_pixel = text
         .split("samples for 128000 pixels: ")
         .nth(1)
-        .and_then(|rest| rest.split_once(" a pixel (RSVP traces pyramid levels"))
+        .and_then(|rest| rest.split_once(" a pixel (RSVP traces whole pyramid levels"))
         .unwrap_or_else(|| panic!("{text}"))
         .0;
     assert!(per_pixel.parse::<f64>().unwrap() > 1.0, "{text}");
