@@ -71,6 +71,24 @@ pub fn image_error(frame: &Frame, reference: &Frame) -> Result<ImageError, SizeM
     })
 }
 
+/// PSNR in dB of one 8-bit picture against another, over every channel
+/// (infinite for identical pictures): for pictures known only as shown.
+pub fn psnr_8bit(a: &image::RgbImage, b: &image::RgbImage) -> Result<f64, SizeMismatch> {
+    same_size(a.dimensions(), b.dimensions())?;
+    let sum: f64 = a
+        .as_raw()
+        .iter()
+        .zip(b.as_raw())
+        .map(|(&x, &y)| (f64::from(x) - f64::from(y)).powi(2))
+        .sum();
+    let mse = sum / a.as_raw().len().max(1) as f64;
+    Ok(if mse == 0.0 {
+        f64::INFINITY
+    } else {
+        10.0 * (255.0 * 255.0 / mse).log10()
+    })
+}
+
 /// Regions of `size` pixels (tiling the image from its top-left corner) in
 /// which some pixel differs in any bit: OSTC's oracle, the fewest regions
 /// any region-based reuse must re-trace.

@@ -517,16 +517,8 @@ mod tests {
     use crate::scene::{paper_scene, SceneOverrides};
     use glam::DVec2;
 
-    /// PSNR of `a` against `b`, 8-bit.
     fn psnr(a: &image::RgbImage, b: &image::RgbImage) -> f64 {
-        let sum: f64 = a
-            .as_raw()
-            .iter()
-            .zip(b.as_raw())
-            .map(|(&x, &y)| (f64::from(x) - f64::from(y)).powi(2))
-            .sum();
-        let mse = sum / a.as_raw().len() as f64;
-        10.0 * (255.0 * 255.0 / mse.max(1e-12)).log10()
+        crate::metrics::psnr_8bit(a, b).expect("same size")
     }
 
     /// `image` averaged over blocks of `COARSE_FACTOR` pixels each way.

@@ -46,17 +46,8 @@ fn png(path: &Path) -> image::RgbImage {
         .to_rgb8()
 }
 
-/// PSNR of `a` against `b`, 8-bit.
 fn psnr(a: &image::RgbImage, b: &image::RgbImage) -> f64 {
-    assert_eq!(a.dimensions(), b.dimensions());
-    let sum: f64 = a
-        .as_raw()
-        .iter()
-        .zip(b.as_raw())
-        .map(|(&x, &y)| (f64::from(x) - f64::from(y)).powi(2))
-        .sum();
-    let mse = sum / a.as_raw().len() as f64;
-    10.0 * (255.0 * 255.0 / mse.max(1e-12)).log10()
+    retrace::metrics::psnr_8bit(a, b).expect("same size")
 }
 
 #[test]
