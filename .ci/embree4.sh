@@ -21,7 +21,11 @@ set -euo pipefail
 
 SUITE=trixie
 MIRROR=${EMBREE4_MIRROR:-http://deb.debian.org/debian}
-PACKAGES=(libembree-dev libclang-dev clang pkg-config gcc libc6-dev ca-certificates python3-pil)
+# And whatever else the tests need, from the Makefile (the window's X
+# server and tools, the OBJ test models), so the suite runs whole in here.
+# shellcheck disable=SC2206 # a space-separated list, split on purpose
+PACKAGES=(libembree-dev libclang-dev clang pkg-config gcc libc6-dev ca-certificates
+          ${EMBREE4_EXTRA_PACKAGES:-})
 STAMP_NAME=.embree4-ready           # holds the package list it was made with
 BOOTSTRAPPED_NAME=.embree4-bootstrapped
 MARKER_NAME=.embree4-chroot-marker  # "this directory is ours to delete"

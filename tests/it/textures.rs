@@ -360,10 +360,10 @@ fn a_pan_over_textures_reuses_bit_exactly() {
 fn debians_spider_renders_with_its_textures() {
     let spider = Path::new("/usr/share/assimp/models/OBJ/spider.obj");
     if !spider.exists() {
-        eprintln!(
-            "skipped: {} not installed (apt-get install assimp-testmodels)",
+        crate::common::skip_unless_ci(&format!(
+            "{} not installed (make test-deps installs assimp-testmodels)",
             spider.display()
-        );
+        ));
         return;
     }
     let model = load_obj_mesh(spider).unwrap();
