@@ -163,10 +163,14 @@ impl Oracle {
     }
 }
 
-/// Rays traced for each pixel of a full render through `camera` (primary,
-/// shadow and reflection rays of its sample), counted on an untimed pass:
-/// what each pixel costs to trace.
-pub fn rays_per_pixel(shader: &crate::shade::Shader, camera: &crate::camera::Camera) -> Vec<u32> {
+/// Rays traced for each pixel of a full render through `camera` at
+/// `samples` a pixel (primary, shadow and reflection rays of all its
+/// sub-samples), counted on an untimed pass: what each pixel costs to trace.
+pub fn rays_per_pixel(
+    shader: &crate::shade::Shader,
+    camera: &crate::camera::Camera,
+    samples: crate::sampling::PixelSamples,
+) -> Vec<u32> {
     use crate::render::{trace_groups_observed, SampleGroup};
     use crate::shade::{RayKind, RayObserver};
     use std::sync::atomic::{AtomicU32, Ordering};
@@ -198,7 +202,7 @@ pub fn rays_per_pixel(shader: &crate::shade::Shader, camera: &crate::camera::Cam
 
     let (width, height) = (i64::from(camera.width), i64::from(camera.height));
     let sink: Vec<AtomicU32> = (0..width * height).map(|_| AtomicU32::new(0)).collect();
-    let table = crate::camera::RayTable::new(camera);
+    let table = crate::camera::RayTable::with_samples(camera, samples);
     let groups = SampleGroup::covering(0..width, 0..height);
     trace_groups_observed(shader, &table, &groups, |group| {
         Some(Counter {
@@ -222,36 +226,40 @@ mod tests {
 
     /// The paper scene at 64x48: a full render, its ray counts, and the
     /// rays of each pixel.
-    fn small_paper_traced() -> (Scene, crate::render::Frame, RayCounts, Vec<u32>) {
+    fn small_paper_traced(samples: u32) -> (Scene, crate::render::Frame, RayCounts, Vec<u32>) {
         let scene = paper_scene(&SceneOverrides {
             width: Some(64),
             height: Some(48),
+            spp: Some(samples),
             ..SceneOverrides::default()
         })
         .unwrap();
         let accel = Accelerator::build(BackendKind::Embree, &scene.objects).unwrap();
         let (frame, counts) = render_view(&scene, &scene.camera, &accel);
-        let rays = rays_per_pixel(&Shader::new(&scene, &accel), &scene.camera);
+        let shader = Shader::new(&scene, &accel);
+        let rays = rays_per_pixel(&shader, &scene.camera, scene.samples);
         (scene, frame, counts, rays)
     }
 
     #[test]
     fn rays_per_pixel_add_up_to_the_full_render() {
-        let (_, _, counts, rays) = small_paper_traced();
-        assert_eq!(rays.len(), 64 * 48);
-        assert!(
-            rays.iter().all(|&r| r >= 1),
-            "every pixel traces its primary ray"
-        );
-        let sum: u64 = rays.iter().map(|&r| u64::from(r)).sum();
-        assert_eq!(sum, counts.total());
-        // Mirrors and lit surfaces cost more than the sky: the weights vary.
-        assert!(rays.iter().max() > rays.iter().min());
+        for samples in [1, 4] {
+            let (_, _, counts, rays) = small_paper_traced(samples);
+            assert_eq!(rays.len(), 64 * 48);
+            assert!(
+                rays.iter().all(|&r| r >= samples),
+                "every pixel traces its primary rays"
+            );
+            let sum: u64 = rays.iter().map(|&r| u64::from(r)).sum();
+            assert_eq!(sum, counts.total(), "at {samples} samples a pixel");
+            // Mirrors and lit surfaces cost more than the sky: the weights vary.
+            assert!(rays.iter().max() > rays.iter().min());
+        }
     }
 
     #[test]
     fn the_oracle_weighs_changed_samples_by_their_rays() {
-        let (scene, frame, _, rays) = small_paper_traced();
+        let (scene, frame, _, rays) = small_paper_traced(1);
         let all: u64 = rays.iter().map(|&r| u64::from(r)).sum();
         let mut oracle = Oracle::new((16, 8));
         // The first frame shows every sample for the first time.
@@ -279,7 +287,7 @@ mod tests {
 
     #[test]
     fn off_the_lattice_the_oracle_keeps_a_still_cameras_pixels() {
-        let (scene, frame, _, rays) = small_paper_traced();
+        let (scene, frame, _, rays) = small_paper_traced(1);
         let perspective = crate::camera::Camera {
             projection: crate::camera::Projection::Perspective,
             ..scene.camera.clone()
@@ -302,7 +310,7 @@ mod tests {
     #[test]
     fn the_timed_region_oracle_traces_exactly_the_changed_regions_groups() {
         use crate::render::SampleGroup;
-        let (scene, frame, _, rays) = small_paper_traced();
+        let (scene, frame, _, rays) = small_paper_traced(1);
         let mut oracle = Oracle::new((16, 8));
         oracle.add(&scene.camera, &frame, &rays);
         // Frame 0: the whole frame.

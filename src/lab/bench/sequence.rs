@@ -458,11 +458,11 @@ fn check_sequence(
                 all_exact &= same;
                 if let Some(oracle) = &mut oracle {
                     let (shader, camera) = check.posed_shader(frame);
-                    let pixel_rays = rays_per_pixel(&shader, &camera);
+                    let pixel_rays = rays_per_pixel(&shader, &camera, scene.samples);
                     let (samples, region_samples) = oracle.add(&camera, &full, &pixel_rays);
                     row.oracle_samples = Some(samples);
                     row.oracle_region_samples = Some(region_samples);
-                    let table = crate::camera::RayTable::new(&camera);
+                    let table = crate::camera::RayTable::with_samples(&camera, scene.samples);
                     let groups = oracle.region_groups(camera.width);
                     let start = Instant::now();
                     std::hint::black_box(crate::render::trace_groups(&shader, &table, &groups));
