@@ -134,7 +134,7 @@ struct RsvpKnobArgs {
     filter: Option<retrace::reuse::rsvp::Filter>,
     /// RSVP: buffer samples per viewport pixel (per side) the pyramid level
     /// is chosen for, at least (0.01 to 8; with --spp N, per sub-pixel
-    /// shift) [default: 1; 0.71 with --spp above 1].
+    /// shift) [default: 0.71].
     #[arg(long)]
     oversample: Option<f64>,
     /// RSVP: pyramid levels added to the chosen one (negative: coarser;
