@@ -3,7 +3,8 @@
 
 use super::table::{cells, numeric, TABLE_HEADER};
 use super::{
-    profile_file, rays_plot_file, time_plot_file, BenchRow, ErrorSummary, ExperimentResult,
+    accuracy_plot_file, has_reference, profile_file, rays_plot_file, time_plot_file, BenchRow,
+    ErrorSummary, ExperimentResult,
 };
 
 /// What the run was: printed at the top of report.md.
@@ -72,8 +73,17 @@ pub fn report_markdown(run: &RunInfo, results: &[ExperimentResult]) -> String {
     );
     for result in results {
         let info = &result.row.info;
+        let accuracy = if has_reference(&result.profile) {
+            format!(
+                " ![{} PSNR against the reference]({})",
+                info.id,
+                accuracy_plot_file(&info.id)
+            )
+        } else {
+            String::new()
+        };
         md.push_str(&format!(
-            "\n### {} — {} ({}, {}x{})\n\n{}\n\n![{} time per frame]({}) ![{} rays per frame]({})\n\n\
+            "\n### {} — {} ({}, {}x{})\n\n{}\n\n![{} time per frame]({}) ![{} rays per frame]({}){}\n\n\
              Per-frame numbers: [{}]({}).\n",
             info.id,
             info.what,
@@ -85,6 +95,7 @@ pub fn report_markdown(run: &RunInfo, results: &[ExperimentResult]) -> String {
             time_plot_file(&info.id),
             info.id,
             rays_plot_file(&info.id),
+            accuracy,
             profile_file(&info.id),
             profile_file(&info.id),
         ));

@@ -262,6 +262,16 @@ pub fn rays_plot_file(id: &str) -> String {
     format!("{}-rays.png", file_stem(id))
 }
 
+pub fn accuracy_plot_file(id: &str) -> String {
+    format!("{}-accuracy.png", file_stem(id))
+}
+
+/// Whether the experiment was measured against a converged reference
+/// (then it has an accuracy chart).
+pub fn has_reference(profile: &[FrameProfile]) -> bool {
+    profile.iter().any(|p| p.full_reference_psnr_db.is_some())
+}
+
 /// Triangles in `scene`'s meshes (spheres and planes are analytic).
 pub fn triangles(scene: &crate::scene::Scene) -> u64 {
     scene
@@ -283,10 +293,11 @@ pub struct ChartSpec {
     pub lines: Vec<(String, Vec<(f64, f64)>)>,
 }
 
-/// An experiment's two charts: time per frame, both sides; rays per frame
-/// by kind on the accelerated side against all rays of the full render,
-/// with the oracle's samples (what had to be traced at the least).
-pub fn charts(result: &ExperimentResult) -> [ChartSpec; 2] {
+/// An experiment's charts: time per frame, both sides; rays per frame by
+/// kind on the accelerated side against all rays of the full render, with
+/// the oracle's samples (what had to be traced at the least); and, where
+/// measured, both sides' PSNR against the converged reference.
+pub fn charts(result: &ExperimentResult) -> Vec<ChartSpec> {
     let info = &result.row.info;
     let line = |label: &str, value: &dyn Fn(&FrameProfile) -> Option<f64>| {
         (
@@ -335,7 +346,24 @@ pub fn charts(result: &ExperimentResult) -> [ChartSpec; 2] {
         y_label: "rays".to_string(),
         lines: ray_lines,
     };
-    [time, rays]
+    let mut charts = vec![time, rays];
+    if has_reference(&result.profile) {
+        charts.push(ChartSpec {
+            file: accuracy_plot_file(&info.id),
+            title: format!(
+                "{}: worst view's PSNR against the converged reference",
+                info.id
+            ),
+            y_label: "dB".to_string(),
+            lines: vec![
+                line("full render", &|p| p.full_reference_psnr_db),
+                line(&format!("accelerated ({})", info.technique), &|p| {
+                    p.accelerated_reference_psnr_db
+                }),
+            ],
+        });
+    }
+    charts
 }
 
 /// Writes the bench folder: bench.csv, bench.json, each experiment's
@@ -544,6 +572,32 @@ mod tests {
     }
 
     #[test]
+    fn a_run_against_the_reference_charts_both_sides_psnr() {
+        let profile: Vec<FrameProfile> = (0..41)
+            .map(|frame| FrameProfile {
+                frame,
+                full_reference_psnr_db: (frame % 20 == 0).then_some(27.0),
+                accelerated_reference_psnr_db: (frame % 20 == 0).then_some(29.5),
+                ..FrameProfile::default()
+            })
+            .collect();
+        let result = ExperimentResult {
+            row: row("E2 in", None),
+            profile,
+        };
+        let charts = charts(&result);
+        let accuracy = charts
+            .iter()
+            .find(|c| c.file == "e2-in-accuracy.png")
+            .expect("an accuracy chart");
+        let points: Vec<&Vec<(f64, f64)>> = accuracy.lines.iter().map(|(_, p)| p).collect();
+        assert_eq!(*points[0], vec![(0.0, 27.0), (20.0, 27.0), (40.0, 27.0)]);
+        assert_eq!(*points[1], vec![(0.0, 29.5), (20.0, 29.5), (40.0, 29.5)]);
+        let md = report_markdown(&RunInfo::default(), &[result]);
+        assert!(md.contains("](e2-in-accuracy.png)"), "{md}");
+    }
+
+    #[test]
     fn thousands_separates_groups() {
         assert_eq!(thousands(0), "0");
         assert_eq!(thousands(999), "999");
@@ -561,6 +615,7 @@ mod tests {
         assert!(md.contains("](e1-time.png)"));
         assert!(md.contains("](e1-rays.png)"));
         assert!(md.contains("](e1-frames.csv)"));
+        assert!(!md.contains("accuracy.png"), "no reference measured");
         assert!(md.contains("| E1 (Panimation) |"));
         assert!(md.contains("## The oracle"));
     }
