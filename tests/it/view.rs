@@ -873,3 +873,44 @@ fn a_resized_window_shows_more_at_the_same_angle_per_pixel() {
     let (code, err) = viewer.wait_exit();
     assert_eq!(code, Some(0), "{err}");
 }
+
+#[test]
+fn the_window_refines_an_idle_picture_and_shows_its_samples_a_pixel() {
+    if !window_tools() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path();
+    paper_on_lattice(path, "scene.toml", 0.0, -9.375);
+    retrace_ok(
+        &args(
+            &["render", "scene.toml"],
+            &["--spp", "16", "-o", "open16.png"],
+        ),
+        path,
+    );
+    let x = Xvfb::start();
+    let mut viewer = Viewer::open(&x, path, "scene.toml", "16");
+    let line = viewer.wait_for("the converged picture", |l| {
+        l.starts_with("picture 1:") && field(l, "mode") == "refine" && field(l, "spp") == "16"
+    });
+    // The title says how many samples a pixel the shown picture has.
+    assert!(line.contains("| 16 spp |"), "{line}");
+    let rungs: Vec<&str> = viewer
+        .seen
+        .iter()
+        .filter(|l| l.starts_with("picture 1:"))
+        .map(|l| field(l, "spp"))
+        .collect();
+    assert_eq!(rungs.first(), Some(&"1"), "{:?}", viewer.seen);
+    let window = x.run("xdotool", &["search", "--sync", "--name", "^retrace view"]);
+    let window = window.lines().next().unwrap().to_string();
+    assert!(
+        x.screenshot(&window, (320, 240)) == png(&path.join("open16.png")),
+        "the converged window differs from a 16-spp render"
+    );
+    x.run("xdotool", &["windowfocus", "--sync", &window]);
+    x.run("xdotool", &["key", "q"]);
+    let (code, err) = viewer.wait_exit();
+    assert_eq!(code, Some(0), "{err}");
+}
