@@ -95,7 +95,8 @@ pub(crate) fn view(args: ViewArgs) -> Result<()> {
             };
             let rows = run_script(&thread, &viewer, &lines, &mut next_save, &mut save)
                 .map_err(anyhow::Error::msg)?;
-            say_script(&name, &rows, thread.abandoned().len());
+            let waited: Vec<f64> = thread.abandoned().iter().map(|a| a.waited_ms).collect();
+            say_script(&name, &rows, &waited);
             if let Some(path) = &args.stats {
                 save_text(path, &stats_csv(&rows))?;
             }
@@ -125,7 +126,9 @@ pub(crate) fn view(args: ViewArgs) -> Result<()> {
 }
 
 /// A script's run in a few lines: the pictures' times.
-fn say_script(name: &str, rows: &[EventStats], abandoned: usize) {
+/// `waited`: for each refinement abandoned, ms from the input to giving
+/// it up.
+fn say_script(name: &str, rows: &[EventStats], waited: &[f64]) {
     let times: Vec<f64> = rows.iter().filter_map(|r| r.ms_to_picture).collect();
     let traced: u64 = rows.iter().filter_map(|r| r.samples_traced).sum();
     say!(
@@ -136,12 +139,15 @@ fn say_script(name: &str, rows: &[EventStats], abandoned: usize) {
         traced
     );
     let converged: Vec<f64> = rows.iter().filter_map(|r| r.ms_to_converged).collect();
-    if !converged.is_empty() || abandoned > 0 {
+    if !converged.is_empty() || !waited.is_empty() {
         say!(
             "refinement: {} commands with a converged picture, ms to converged: median {:.1}; \
-             {abandoned} refinements abandoned for newer input",
+             {} refinements abandoned for newer input, which waited ms: median {:.1}, max {:.1}",
             converged.len(),
             median(&converged),
+            waited.len(),
+            median(waited),
+            waited.iter().copied().fold(0.0, f64::max)
         );
     }
 }

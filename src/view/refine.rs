@@ -1,6 +1,7 @@
 //! Refinement in idle time: once the frame loop's picture is shown and
 //! nothing new is asked, the same view is traced again at more samples a
-//! pixel, in bands of rows, so that new input stops it within a band.
+//! pixel, in bands of sample groups, so that new input stops it within a
+//! band.
 //!
 //! Promises: a refined picture at N samples a pixel is the render of the
 //! view at N samples a pixel (the camera's image as `retrace render
@@ -11,7 +12,7 @@
 
 use std::time::Instant;
 
-use crate::render::{trace_groups, Frame, PrimaryRays, SampleGroup, GROUP_HEIGHT};
+use crate::render::{image_groups, trace_groups, Frame, PrimaryRays};
 use crate::shade::{RayCounts, Shader};
 
 /// The samples a pixel refinement climbs to by default.
@@ -22,9 +23,9 @@ pub const DEFAULT_REFINE_SPP: u32 = 16;
 /// long as all the steps before it together.
 pub const LADDER_STEP: u32 = 4;
 
-/// A band of rows is sized to take about this long, so that input waits
-/// at most about this long for the render thread.
-pub const BAND_MS: f64 = 4.0;
+/// A band is sized to take about this long, so that input waits at most
+/// about this long for the render thread.
+pub const BAND_MS: f64 = 3.0;
 
 /// The samples a pixel of each refined picture after one at `scene_spp`,
 /// climbing by [`LADDER_STEP`] to `top` (empty when `top` is no more than
@@ -44,8 +45,8 @@ pub fn ladder(scene_spp: u32, top: u32) -> Vec<u32> {
 
 /// Traces every pixel of a `width` x `height` image from `source` (pixel
 /// (x, y) from its cell (x, y), as [`crate::render::render_image`] does),
-/// a band of whole group rows at a time, asking `stop` before each band:
-/// None as soon as it says so.
+/// a band of sample groups at a time (in rows, left to right), asking
+/// `stop` before each band: None as soon as it says so.
 pub fn trace_in_bands(
     shader: &Shader,
     source: &dyn PrimaryRays,
@@ -55,33 +56,46 @@ pub fn trace_in_bands(
 ) -> Option<(Frame, RayCounts)> {
     let mut frame = Frame::new(width, height);
     let mut counts = RayCounts::default();
-    let mut rows = GROUP_HEIGHT;
-    let mut row = 0;
-    while row < height {
+    let groups = image_groups(width, height);
+    // Bands of whole groups, sized by the pace of the bands before (at 16
+    // samples a pixel one row of groups of a 640-wide image takes longer
+    // than a band should).
+    let mut size = MIN_BAND_GROUPS;
+    let mut pace: Option<f64> = None;
+    let mut done = 0;
+    while done < groups.len() {
         if stop() {
             return None;
         }
-        let end = (row + rows).min(height);
+        let band = &groups[done..(done + size).min(groups.len())];
         let start = Instant::now();
-        let groups = SampleGroup::covering(0..i64::from(width), i64::from(row)..i64::from(end));
-        let (colors, band_counts) = trace_groups(shader, source, &groups);
+        let (colors, band_counts) = trace_groups(shader, source, band);
         counts += band_counts;
-        for (group, lanes) in groups.iter().zip(&colors) {
-            for ((col, y), color) in group.lane_samples().into_iter().zip(lanes) {
-                if col < i64::from(width) && y < i64::from(height) {
-                    frame.pixels[y as usize * width as usize + col as usize] = *color;
+        for (group, lanes) in band.iter().zip(&colors) {
+            for ((col, row), color) in group.lane_samples().into_iter().zip(lanes) {
+                if col < i64::from(width) && row < i64::from(height) {
+                    frame.pixels[row as usize * width as usize + col as usize] = *color;
                 }
             }
         }
-        // The next band as long as the last rows' pace allows, in whole
-        // group rows.
-        let ms_per_row = start.elapsed().as_secs_f64() * 1e3 / f64::from(end - row);
-        let fit = (BAND_MS / ms_per_row.max(1e-6)) as u32;
-        rows = (fit / GROUP_HEIGHT * GROUP_HEIGHT).clamp(GROUP_HEIGHT, height.max(GROUP_HEIGHT));
-        row = end;
+        // The pace of the bands so far, smoothed (a band slowed by other
+        // work on the machine should not halve the next one), and bands
+        // growing at most twofold, so one fast band cannot make a long one.
+        let ms_per_group = start.elapsed().as_secs_f64() * 1e3 / band.len() as f64;
+        pace = match pace {
+            None => ms_per_group,
+            Some(pace) => 0.75 * pace + 0.25 * ms_per_group,
+        }
+        .into();
+        let fit = (BAND_MS / pace.unwrap_or(ms_per_group).max(1e-6)) as usize;
+        size = fit.min(2 * size).max(MIN_BAND_GROUPS);
+        done += band.len();
     }
     Some((frame, counts))
 }
+
+/// A band has at least this many groups: enough to share among threads.
+const MIN_BAND_GROUPS: usize = 64;
 
 #[cfg(test)]
 mod tests {
@@ -108,7 +122,7 @@ mod tests {
 
     #[test]
     fn bands_give_the_render_of_the_whole_image_and_stop_when_told() {
-        // 90 rows: the last band is cut by the image's edge.
+        // 122 x 90: groups cut by the image's right and bottom edges.
         let overrides = SceneOverrides {
             width: Some(122),
             height: Some(90),
@@ -128,6 +142,6 @@ mod tests {
             asked.get() > 1
         });
         assert!(stopped.is_none());
-        assert_eq!(asked.get(), 2, "stopped at the second band");
+        assert_eq!(asked.get(), 2, "stopped before the second band");
     }
 }

@@ -104,14 +104,18 @@ pub struct Abandoned {
     /// The samples a pixel of the rung it was tracing.
     pub samples: u32,
     pub at: Instant,
+    /// Milliseconds from the newer request to giving up: the band it
+    /// waited for.
+    pub waited_ms: f64,
 }
 
 #[derive(Default)]
 struct Inbox {
     /// The latest request not yet started.
     request: Option<(u64, ViewState)>,
-    /// The generation of the newest request made.
+    /// The generation of the newest request made, and when.
     newest: u64,
+    newest_at: Option<Instant>,
     quit: bool,
 }
 
@@ -226,6 +230,7 @@ impl RenderThread {
         let mut inbox = lock(&self.shared.inbox);
         inbox.request = Some((generation, state));
         inbox.newest = inbox.newest.max(generation);
+        inbox.newest_at = Some(Instant::now());
         drop(inbox);
         self.shared.asked.notify_one();
     }
@@ -476,12 +481,15 @@ fn publish_locked(shared: &Shared, notify: &Notify, inbox: &Inbox, picture: Pict
 }
 
 fn abandon(shared: &Shared, generation: u64, samples: u32) {
+    let at = Instant::now();
+    let asked = lock(&shared.inbox).newest_at.unwrap_or(at);
     let mut outbox = lock(&shared.outbox);
     if outbox.keep_log {
         outbox.abandoned.push(Abandoned {
             generation,
             samples,
-            at: Instant::now(),
+            at,
+            waited_ms: at.saturating_duration_since(asked).as_secs_f64() * 1e3,
         });
     }
 }
