@@ -23,7 +23,7 @@ pub(crate) struct ViewArgs {
     #[command(flatten)]
     backend: BackendArg,
     /// Run the input of this script instead of opening a window (drag DX
-    /// DY, wheel N [X Y], key K, play N, wait, save PATH; see the guide),
+    /// DY, wheel N [X Y], key K, play N, wait, wait-converged, sleep MS, save PATH; see the guide),
     /// through the same render thread, without a display.
     #[arg(long)]
     script: Option<PathBuf>,
@@ -139,17 +139,19 @@ fn say_script(name: &str, rows: &[EventStats], waited: &[f64]) {
         traced
     );
     let converged: Vec<f64> = rows.iter().filter_map(|r| r.ms_to_converged).collect();
-    if !converged.is_empty() || !waited.is_empty() {
-        say!(
-            "refinement: {} commands with a converged picture, ms to converged: median {:.1}; \
-             {} refinements abandoned for newer input, which waited ms: median {:.1}, max {:.1}",
-            converged.len(),
-            median(&converged),
-            waited.len(),
+    let abandoned = match waited.len() {
+        0 => "none abandoned".to_string(),
+        n => format!(
+            "{n} abandoned for newer input, which waited for them ms: median {:.1}, max {:.1}",
             median(waited),
             waited.iter().copied().fold(0.0, f64::max)
-        );
-    }
+        ),
+    };
+    say!(
+        "refinement: {} commands with a converged picture, ms to converged: median {:.1}; {abandoned}",
+        converged.len(),
+        median(&converged),
+    );
 }
 
 fn median(values: &[f64]) -> f64 {

@@ -631,7 +631,7 @@ fn refine(serving: &Serving, animator: &mut Animator, generation: u64, state: &V
             };
             trace_in_bands(&shader, &rays, width, height, &stop)
         };
-        let Some((frame, counts)) = traced else {
+        let Some((frame, _)) = traced else {
             return abandon(shared, generation, spp);
         };
         let picture = Picture {
@@ -642,7 +642,8 @@ fn refine(serving: &Serving, animator: &mut Animator, generation: u64, state: &V
             traced: image::RgbImage::new(width, height),
             render_ms: start.elapsed().as_secs_f64() * 1e3,
             done: Instant::now(),
-            samples_traced: counts.primary,
+            // Every pixel, each through `spp` rays.
+            samples_traced: u64::from(width) * u64::from(height),
             pixels: u64::from(width) * u64::from(height),
             mode: REFINE_MODE,
             complete: true,
