@@ -23,8 +23,9 @@ pub(crate) struct ViewArgs {
     #[command(flatten)]
     backend: BackendArg,
     /// Run the input of this script instead of opening a window (drag DX
-    /// DY, wheel N [X Y], key K, play N, wait, wait-converged, sleep MS, save PATH; see the guide),
-    /// through the same render thread, without a display.
+    /// DY, wheel N [X Y], key K, play N, wait, wait-converged, sleep MS,
+    /// save PATH; see the guide), through the same render thread, without
+    /// a display.
     #[arg(long)]
     script: Option<PathBuf>,
     /// Statistics as CSV: with --script one row per command (ms from the
