@@ -7,8 +7,11 @@ use anyhow::{Context, Result};
 use clap::Args;
 
 use retrace::output::{save_image, save_text};
+use retrace::sampling::MAX_SAMPLES_PER_PIXEL;
+use retrace::view::refine::DEFAULT_REFINE_SPP;
 use retrace::view::script::{parse_script, run_script, stats_csv, EventStats};
 use retrace::view::window::{run_window, Hooks};
+use retrace::view::worker::REFINE_MODE;
 use retrace::view::{next_save_path, Picture, RenderThread, Viewer};
 
 use super::{check_writable, ensure_parent, load, scene_name, BackendArg, SceneArgs};
@@ -20,8 +23,9 @@ pub(crate) struct ViewArgs {
     #[command(flatten)]
     backend: BackendArg,
     /// Run the input of this script instead of opening a window (drag DX
-    /// DY, wheel N [X Y], key K, play N, wait, save PATH; see the guide),
-    /// through the same render thread, without a display.
+    /// DY, wheel N [X Y], key K, play N, wait, wait-converged, sleep MS,
+    /// save PATH; see the guide), through the same render thread, without
+    /// a display.
     #[arg(long)]
     script: Option<PathBuf>,
     /// Statistics as CSV: with --script one row per command (ms from the
@@ -36,6 +40,12 @@ pub(crate) struct ViewArgs {
     /// and times): for tests and scripts that drive the window.
     #[arg(long)]
     print_pictures: bool,
+    /// In idle time, refine the picture to this many samples a pixel (the
+    /// scene's samples times 4, times 16, ... up to it); the scene's
+    /// samples a pixel or fewer: no refinement.
+    #[arg(long, default_value_t = DEFAULT_REFINE_SPP,
+          value_parser = clap::value_parser!(u32).range(1..=i64::from(MAX_SAMPLES_PER_PIXEL)))]
+    refine_spp: u32,
 }
 
 pub(crate) fn view(args: ViewArgs) -> Result<()> {
@@ -67,9 +77,15 @@ pub(crate) fn view(args: ViewArgs) -> Result<()> {
         Some((path, text)) => {
             let viewer = Viewer::new(&scene);
             let lines = parse_script(&text, path, viewer.size())?;
-            let thread =
-                RenderThread::spawn(scene, args.backend.backend, grid, true, Box::new(|| {}))
-                    .map_err(anyhow::Error::msg)?;
+            let thread = RenderThread::spawn(
+                scene,
+                args.backend.backend,
+                grid,
+                true,
+                args.refine_spp,
+                Box::new(|| {}),
+            )
+            .map_err(anyhow::Error::msg)?;
             let save_dir = args.save_dir.clone();
             let mut next_save = move || next_save_path(&save_dir);
             let mut save = |path: &Path, image: &image::RgbImage| -> Result<(), String> {
@@ -80,7 +96,8 @@ pub(crate) fn view(args: ViewArgs) -> Result<()> {
             };
             let rows = run_script(&thread, &viewer, &lines, &mut next_save, &mut save)
                 .map_err(anyhow::Error::msg)?;
-            say_script(&name, &rows);
+            let waited: Vec<f64> = thread.abandoned().iter().map(|a| a.waited_ms).collect();
+            say_script(&name, &rows, &waited);
             if let Some(path) = &args.stats {
                 save_text(path, &stats_csv(&rows))?;
             }
@@ -92,8 +109,15 @@ pub(crate) fn view(args: ViewArgs) -> Result<()> {
                 save_dir: args.save_dir.clone(),
                 rows: Vec::new(),
             };
-            run_window(scene, &name, args.backend.backend, grid, &mut hooks)
-                .map_err(anyhow::Error::msg)?;
+            run_window(
+                scene,
+                &name,
+                args.backend.backend,
+                grid,
+                args.refine_spp,
+                &mut hooks,
+            )
+            .map_err(anyhow::Error::msg)?;
             if let Some(path) = &args.stats {
                 save_text(path, &stats_csv(&hooks.rows))?;
             }
@@ -103,7 +127,9 @@ pub(crate) fn view(args: ViewArgs) -> Result<()> {
 }
 
 /// A script's run in a few lines: the pictures' times.
-fn say_script(name: &str, rows: &[EventStats]) {
+/// `waited`: for each refinement abandoned, ms from the input to giving
+/// it up.
+fn say_script(name: &str, rows: &[EventStats], waited: &[f64]) {
     let times: Vec<f64> = rows.iter().filter_map(|r| r.ms_to_picture).collect();
     let traced: u64 = rows.iter().filter_map(|r| r.samples_traced).sum();
     say!(
@@ -112,6 +138,20 @@ fn say_script(name: &str, rows: &[EventStats]) {
         median(&times),
         times.iter().copied().fold(0.0, f64::max),
         traced
+    );
+    let converged: Vec<f64> = rows.iter().filter_map(|r| r.ms_to_converged).collect();
+    let abandoned = match waited.len() {
+        0 => "none abandoned".to_string(),
+        n => format!(
+            "{n} abandoned for newer input, which waited for them ms: median {:.1}, max {:.1}",
+            median(waited),
+            waited.iter().copied().fold(0.0, f64::max)
+        ),
+    };
+    say!(
+        "refinement: {} commands with a converged picture, ms to converged: median {:.1}; {abandoned}",
+        converged.len(),
+        median(&converged),
     );
 }
 
@@ -137,7 +177,7 @@ impl Hooks for WindowHooks {
         if self.print {
             say!(
                 "{}picture {}: size {width}x{height} frame {} yaw {:.6} pitch {:.6} zoom notches {} reuse {} mode {} \
-                 render {:.2} ms latency {:.2} ms traced {} | {title}",
+                 spp {} render {:.2} ms latency {:.2} ms traced {} | {title}",
                 if picture.complete { "" } else { "coarse " },
                 picture.generation,
                 state.frame,
@@ -146,12 +186,26 @@ impl Hooks for WindowHooks {
                 state.notches,
                 if state.reuse { "on" } else { "off" },
                 picture.mode,
+                picture.samples,
                 picture.render_ms,
                 latency_ms,
                 picture.samples_traced
             );
         }
         if !picture.complete {
+            return;
+        }
+        if picture.mode == REFINE_MODE {
+            // The row of the request it refines.
+            if let Some(row) = self
+                .rows
+                .last_mut()
+                .filter(|r| r.event == format!("picture {}", picture.generation))
+            {
+                if picture.converged {
+                    row.ms_to_converged = Some(latency_ms);
+                }
+            }
             return;
         }
         self.rows.push(EventStats {
@@ -162,6 +216,7 @@ impl Hooks for WindowHooks {
             mode: Some(picture.mode),
             ms_to_first_picture: Some(first_ms),
             ms_to_picture: Some(latency_ms),
+            ms_to_converged: picture.converged.then_some(latency_ms),
             render_ms: Some(picture.render_ms),
             samples_traced: Some(picture.samples_traced),
             pixels: picture.pixels,

@@ -7,6 +7,7 @@
 //! moving object OSTC's; the window ([`window`]) or a script ([`script`])
 //! shows or saves what it finishes.
 
+pub mod refine;
 pub mod script;
 pub mod state;
 pub mod window;

@@ -11,9 +11,14 @@
 //!                 s [ ] q Escape (space plays only in a window: use play)
 //! resize W H      the window resized to W x H pixels
 //! play N          the timeline's next N frames, each once the last is shown
-//! wait            until the picture shows every command so far
-//! save PATH       the picture of every command so far as PNG (or TGA): with
-//!                 the overlay on (key t), painted black where it traced
+//! wait            until the frame loop's picture shows every command so far
+//! wait-converged  until that picture is refined to the top of the ladder
+//!                 (--refine-spp) and the render thread is idle
+//! sleep MS        nothing for MS milliseconds (the thread refines meanwhile)
+//! save PATH       the picture of every command so far as PNG (or TGA): the
+//!                 frame loop's, or right after wait-converged the converged
+//!                 one; with the overlay on (key t), painted black where it
+//!                 traced
 //! ```
 //!
 //! Commands are sent as fast as a hand could send them: a picture may
@@ -26,7 +31,7 @@ use std::time::Instant;
 use glam::DVec2;
 
 use super::state::{Effect, Input, Key, ViewState, Viewer};
-use super::worker::{Finished, RenderThread};
+use super::worker::{Finished, RenderThread, REFINE_MODE};
 
 /// One command of a script.
 #[derive(Clone, Debug, PartialEq)]
@@ -34,6 +39,8 @@ pub enum Command {
     Input(Input),
     Play(u32),
     Wait,
+    WaitConverged,
+    Sleep(u32),
     Save(PathBuf),
 }
 
@@ -142,10 +149,18 @@ fn parse_command(content: &str, size: (u32, u32)) -> Result<Command, String> {
         ["play", ..] => Err("play takes N (frames)".to_string()),
         ["wait"] => Ok(Command::Wait),
         ["wait", ..] => Err("wait takes nothing".to_string()),
+        ["wait-converged"] => Ok(Command::WaitConverged),
+        ["wait-converged", ..] => Err("wait-converged takes nothing".to_string()),
+        ["sleep", ms] => ms
+            .parse::<u32>()
+            .map(Command::Sleep)
+            .map_err(|_| format!("sleep: MS '{ms}' is not a whole number of milliseconds")),
+        ["sleep", ..] => Err("sleep takes MS (milliseconds)".to_string()),
         ["save", path] => Ok(Command::Save(PathBuf::from(path))),
         ["save", ..] => Err("save takes one PATH (no spaces)".to_string()),
         [other, ..] => Err(format!(
-            "unknown command '{other}' (drag, wheel, key, resize, play, wait, save)"
+            "unknown command '{other}' (drag, wheel, key, resize, play, wait, \
+             wait-converged, sleep, save)"
         )),
         [] => unreachable!("blank lines are skipped"),
     }
@@ -166,6 +181,9 @@ pub struct EventStats {
     pub ms_to_first_picture: Option<f64>,
     /// From the command to its complete picture, ms.
     pub ms_to_picture: Option<f64>,
+    /// From the command to the converged picture showing it (refined to
+    /// the top of the ladder), ms; None if none came before the end.
+    pub ms_to_converged: Option<f64>,
     /// The frame loop's time for that picture, ms.
     pub render_ms: Option<f64>,
     pub samples_traced: Option<u64>,
@@ -187,6 +205,9 @@ pub fn run_script(
 ) -> Result<Vec<EventStats>, String> {
     let mut state = ViewState::default();
     let mut overlay = false;
+    // Whether the last command was wait-converged: a save then writes
+    // the converged picture.
+    let mut converged = false;
     let mut generation = 1;
     // (line, text, generation, state, sent)
     let mut sent: Vec<(usize, String, u64, ViewState, Instant)> = Vec::new();
@@ -209,15 +230,27 @@ pub fn run_script(
         ));
         thread.request(*generation, state.clone());
     };
+    let picture = |generation: u64, converged: bool| {
+        if converged {
+            thread.wait_converged(generation)
+        } else {
+            thread.wait_for(generation)
+        }
+    };
     for line in lines {
+        let was_converged = std::mem::take(&mut converged);
         match &line.command {
             Command::Input(input) => match viewer.apply(&mut state, *input) {
                 Effect::Changed => ask(&state, line, line.text.clone(), &mut generation),
-                Effect::Nothing | Effect::TogglePlay => {}
-                Effect::ToggleOverlay => overlay = !overlay,
+                Effect::Nothing | Effect::TogglePlay => converged = was_converged,
+                Effect::ToggleOverlay => {
+                    overlay = !overlay;
+                    converged = was_converged;
+                }
                 Effect::Save => {
-                    let picture = thread.wait_for(generation)?;
+                    let picture = picture(generation, was_converged)?;
                     save(&next_save(), picture.shown(overlay))?;
+                    converged = was_converged;
                 }
                 Effect::Quit => break,
             },
@@ -234,9 +267,18 @@ pub fn run_script(
             Command::Wait => {
                 thread.wait_for(generation)?;
             }
+            Command::WaitConverged => {
+                thread.wait_converged(generation)?;
+                converged = true;
+            }
+            Command::Sleep(ms) => {
+                std::thread::sleep(std::time::Duration::from_millis(u64::from(*ms)));
+                converged = was_converged;
+            }
             Command::Save(path) => {
-                let picture = thread.wait_for(generation)?;
+                let picture = picture(generation, was_converged)?;
                 save(path, picture.shown(overlay))?;
+                converged = was_converged;
             }
         }
     }
@@ -248,7 +290,10 @@ pub fn run_script(
             let first = log.iter().find(|f| f.generation >= generation);
             let answer = log
                 .iter()
-                .find(|f| f.generation >= generation && f.complete);
+                .find(|f| f.generation >= generation && f.complete && f.mode != REFINE_MODE);
+            let converged = log
+                .iter()
+                .find(|f| f.generation >= generation && f.converged);
             let since = |f: &Finished| f.done.duration_since(at).as_secs_f64() * 1e3;
             let (width, height) = viewer.size_of(&state);
             EventStats {
@@ -259,6 +304,7 @@ pub fn run_script(
                 mode: answer.map(|f| f.mode),
                 ms_to_first_picture: first.map(since),
                 ms_to_picture: answer.map(since),
+                ms_to_converged: converged.map(since),
                 render_ms: answer.map(|f| f.render_ms),
                 samples_traced: answer.map(|f| f.samples_traced),
                 pixels: u64::from(width) * u64::from(height),
@@ -269,12 +315,14 @@ pub fn run_script(
 
 /// The statistics as CSV, one row per command.
 pub fn stats_csv(rows: &[EventStats]) -> String {
-    let mut csv =
-        String::from("line,event,frame,reuse,mode,ms_to_picture,render_ms,samples_traced,pixels,ms_to_first_picture\n");
+    let mut csv = String::from(
+        "line,event,frame,reuse,mode,ms_to_picture,render_ms,samples_traced,pixels,\
+         ms_to_first_picture,ms_to_converged\n",
+    );
     let opt = |v: Option<f64>| v.map_or(String::new(), |v| format!("{v:.3}"));
     for row in rows {
         csv.push_str(&format!(
-            "{},\"{}\",{},{},{},{},{},{},{},{}\n",
+            "{},\"{}\",{},{},{},{},{},{},{},{},{}\n",
             row.line,
             row.event.replace('"', "\"\""),
             row.frame,
@@ -284,7 +332,8 @@ pub fn stats_csv(rows: &[EventStats]) -> String {
             opt(row.render_ms),
             row.samples_traced.map_or(String::new(), |v| v.to_string()),
             row.pixels,
-            opt(row.ms_to_first_picture)
+            opt(row.ms_to_first_picture),
+            opt(row.ms_to_converged)
         ));
     }
     csv
@@ -297,7 +346,7 @@ mod tests {
     #[test]
     fn parses_every_command_and_names_the_line_of_a_bad_one() {
         let text = "# a pan\ndrag -23.04 0\nwheel 2 100 50 # in\nwheel -1\nkey m\nkey Left\n\
-                    play 3\nwait\nsave out/a.png\n";
+                    play 3\nwait\nwait-converged\nsleep 20\nsave out/a.png\n";
         let lines = parse_script(text, Path::new("s.txt"), (640, 480)).unwrap();
         let commands: Vec<&Command> = lines.iter().map(|l| &l.command).collect();
         assert_eq!(
@@ -316,6 +365,8 @@ mod tests {
                 &Command::Input(Input::Key(Key::Left)),
                 &Command::Play(3),
                 &Command::Wait,
+                &Command::WaitConverged,
+                &Command::Sleep(20),
                 &Command::Save(PathBuf::from("out/a.png")),
             ]
         );
@@ -331,6 +382,8 @@ mod tests {
             ("drag inf 0", "not a number"),
             ("resize 0 10", "W '0' is not a number of pixels"),
             ("resize 10", "resize takes W H"),
+            ("wait-converged 2", "wait-converged takes nothing"),
+            ("sleep -1", "MS '-1' is not a whole number"),
         ] {
             let err = parse_script(&format!("wait\n{bad}\n"), Path::new("s.txt"), (640, 480))
                 .unwrap_err();

@@ -153,6 +153,7 @@ pub enum Effect {
 pub struct Viewer {
     camera: Camera,
     animation: Option<Animation>,
+    samples: u32,
 }
 
 impl Viewer {
@@ -160,7 +161,13 @@ impl Viewer {
         Viewer {
             camera: scene.camera.clone(),
             animation: scene.animation.clone(),
+            samples: scene.samples.count(),
         }
+    }
+
+    /// The scene's samples a pixel: the frame loop's pictures'.
+    pub fn samples(&self) -> u32 {
+        self.samples
     }
 
     /// Frames in the timeline (1 without one).

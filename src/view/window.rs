@@ -27,7 +27,8 @@ use super::worker::{Picture, RenderThread};
 pub trait Hooks {
     /// A picture was presented for the first time; `latency_ms` from the
     /// input it answers (or the opening) to its presentation, `first_ms`
-    /// to the first picture shown for that input (a coarse one, or this).
+    /// to the first picture shown for that input (a coarse one, or the
+    /// complete one). Refined pictures of the same input follow it.
     fn presented(&mut self, picture: &Picture, latency_ms: f64, first_ms: f64, title: &str);
     /// `s` was pressed: save `image` (the picture as shown); returns where
     /// it went.
@@ -38,12 +39,14 @@ pub trait Hooks {
 struct Wake;
 
 /// Opens the window on `scene` (its title starting `retrace view: NAME`)
-/// and runs until it is closed, `q` or Escape.
+/// and runs until it is closed, `q` or Escape; idle, pictures are refined
+/// up to `refine_spp` samples a pixel.
 pub fn run_window(
     scene: Scene,
     name: &str,
     backend: BackendKind,
     grid_resolution: Option<[u32; 3]>,
+    refine_spp: u32,
     hooks: &mut dyn Hooks,
 ) -> Result<(), String> {
     let event_loop = open_display()?;
@@ -52,7 +55,7 @@ pub fn run_window(
     let notify = Box::new(move || {
         let _ = proxy.send_event(Wake);
     });
-    let thread = RenderThread::spawn(scene, backend, grid_resolution, false, notify)?;
+    let thread = RenderThread::spawn(scene, backend, grid_resolution, false, refine_spp, notify)?;
     let mut app = App {
         name: name.to_string(),
         viewer,
@@ -66,8 +69,9 @@ pub fn run_window(
         dragging: false,
         playing: None,
         overlay: false,
-        presented: (0, false),
+        presented: (0, false, 0),
         first_shown: None,
+        answered: None,
         surface_size: (0, 0),
         hooks,
         error: None,
@@ -139,11 +143,14 @@ struct App<'h> {
     playing: Option<Instant>,
     /// Showing the picture painted where it traced.
     overlay: bool,
-    /// The request of the picture last presented, and whether it was
-    /// complete.
-    presented: (u64, bool),
+    /// The request of the picture last presented, whether it was
+    /// complete, and its samples a pixel.
+    presented: (u64, bool, u32),
     /// The request whose coarse picture was presented, and its latency.
     first_shown: Option<(u64, f64)>,
+    /// The request last answered by a complete picture, and when it was
+    /// made (its refined pictures are timed from then).
+    answered: Option<(u64, Instant)>,
     /// The window's drawing buffer, pixels.
     surface_size: (u32, u32),
     hooks: &'h mut dyn Hooks,
@@ -201,7 +208,8 @@ impl App<'_> {
         let mut title = format!("retrace view: {}", self.name);
         if let Some(p) = picture {
             title.push_str(&format!(
-                " | {:.1} ms | {:.1}% traced | reuse {} ({})",
+                " | {} spp | {:.1} ms | {:.1}% traced | reuse {} ({})",
+                p.samples,
                 p.render_ms,
                 100.0 * p.traced_share(),
                 if p.state.reuse { "on" } else { "off" },
@@ -254,20 +262,27 @@ impl App<'_> {
         if let Err(err) = buffer.present() {
             return self.fail(event_loop, format!("cannot draw the window: {err}"));
         }
-        let key = (picture.generation, picture.complete);
+        let key = (picture.generation, picture.complete, picture.samples);
         if key > self.presented {
             self.presented = key;
             let now = Instant::now();
-            let since = self
-                .asked
-                .iter()
-                .find(|(g, _)| *g <= picture.generation)
-                .map_or(0.0, |(_, at)| now.duration_since(*at).as_secs_f64() * 1e3);
+            let asked_at = match self.answered {
+                Some((g, at)) if g == picture.generation => Some(at),
+                _ => self
+                    .asked
+                    .iter()
+                    .find(|(g, _)| *g <= picture.generation)
+                    .map(|(_, at)| *at),
+            };
+            let since = asked_at.map_or(0.0, |at| now.duration_since(at).as_secs_f64() * 1e3);
             let first = match self.first_shown {
                 Some((g, ms)) if g == picture.generation => ms,
                 _ => since,
             };
             if picture.complete {
+                if let Some(at) = asked_at {
+                    self.answered = Some((picture.generation, at));
+                }
                 self.asked.retain(|(g, _)| *g > picture.generation);
             } else {
                 self.first_shown = Some((picture.generation, since));

@@ -12,18 +12,29 @@
 //! its buffers from nothing: its first picture is preceded by a coarse
 //! one (a sixteenth of the samples, traced afresh, marked not complete),
 //! and the full picture then shows the latest request.
+//!
+//! With nothing new asked after a complete picture, the thread refines it
+//! ([`super::refine`]): the same view traced afresh at more samples a
+//! pixel, rung by rung of a ladder, each rung published as it finishes
+//! (mode `refine`); a new request abandons the refinement within a band
+//! of rows, and no refined picture is published once a newer request is
+//! waiting. After the last rung (the picture is converged) the thread
+//! sleeps until the next request.
 
 use std::sync::{Arc, Condvar, Mutex, MutexGuard, PoisonError};
 use std::thread::JoinHandle;
 use std::time::Instant;
 
 use crate::accel::{Accelerator, BackendKind};
-use crate::camera::{Camera, Viewport};
+use crate::camera::{Camera, RayTable, Viewport};
 use crate::frame_loop::{Animator, Options, Techniques};
-use crate::reuse::rsvp::RsvpKnobs;
+use crate::reuse::rsvp::{RsvpKnobs, ViewportRays};
+use crate::sampling::PixelSamples;
 use crate::scene::Scene;
+use crate::shade::Shader;
 use crate::timeline::ViewportTrack;
 
+use super::refine::{ladder, trace_in_bands};
 use super::state::{ViewState, Viewer};
 
 /// One finished picture and what it cost.
@@ -42,10 +53,15 @@ pub struct Picture {
     pub samples_traced: u64,
     pub pixels: u64,
     /// The frame loop's word for how it was made (pan, rsvp, full, ...),
-    /// or `coarse`.
+    /// or `coarse`, or `refine`.
     pub mode: &'static str,
     /// False for a coarse picture shown while the full one is traced.
     pub complete: bool,
+    /// Samples a pixel (of the coarse picture's pixels for a coarse one).
+    pub samples: u32,
+    /// The last picture of its request: refined to the top of the ladder
+    /// (or the frame loop's, with refinement off).
+    pub converged: bool,
 }
 
 impl Picture {
@@ -74,20 +90,44 @@ pub struct Finished {
     pub samples_traced: u64,
     pub mode: &'static str,
     pub complete: bool,
+    pub samples: u32,
+    pub converged: bool,
+    /// The newest request made when it was published.
+    pub newest_asked: u64,
+}
+
+/// A refinement given up because a newer request came.
+#[derive(Clone, Copy, Debug)]
+pub struct Abandoned {
+    /// The request it refined.
+    pub generation: u64,
+    /// The samples a pixel of the rung it was tracing.
+    pub samples: u32,
+    pub at: Instant,
+    /// Milliseconds from the newer request to giving up: the band it
+    /// waited for.
+    pub waited_ms: f64,
 }
 
 #[derive(Default)]
 struct Inbox {
     /// The latest request not yet started.
     request: Option<(u64, ViewState)>,
+    /// The generation of the newest request made, and when.
+    newest: u64,
+    newest_at: Option<Instant>,
     quit: bool,
 }
 
 #[derive(Default)]
 struct Outbox {
+    /// The picture shown.
     latest: Option<Arc<Picture>>,
+    /// The frame loop's latest complete picture (at the scene's samples).
+    frame_loop: Option<Arc<Picture>>,
     /// Every picture finished, in order, when a log is kept (scripts).
     log: Vec<Finished>,
+    abandoned: Vec<Abandoned>,
     keep_log: bool,
     /// Why the thread stopped, if it failed.
     failure: Option<String>,
@@ -119,11 +159,14 @@ impl RenderThread {
     /// Starts the thread on `scene` with `backend`: it builds the
     /// accelerator there (an error building it is returned here) and then
     /// waits for requests. `log`: keep every finished picture's timing.
+    /// `refine_spp`: refine complete pictures in idle time up to this many
+    /// samples a pixel (no more than the scene's: no refinement).
     pub fn spawn(
         scene: Scene,
         backend: BackendKind,
         grid_resolution: Option<[u32; 3]>,
         log: bool,
+        refine_spp: u32,
         notify: Notify,
     ) -> Result<RenderThread, String> {
         let shared = Arc::new(Shared {
@@ -155,7 +198,8 @@ impl RenderThread {
                                 }
                             };
                         let _ = ready_tx.send(Ok(()));
-                        serve(&shared, &scene, accel, &notify);
+                        let rungs = ladder(scene.samples.count(), refine_spp);
+                        serve(&shared, &scene, accel, &rungs, &notify);
                     })
                 }))
                 .err()
@@ -183,7 +227,11 @@ impl RenderThread {
 
     /// Asks for a picture of `state`, replacing any request not started yet.
     pub fn request(&self, generation: u64, state: ViewState) {
-        lock(&self.shared.inbox).request = Some((generation, state));
+        let mut inbox = lock(&self.shared.inbox);
+        inbox.request = Some((generation, state));
+        inbox.newest = inbox.newest.max(generation);
+        inbox.newest_at = Some(Instant::now());
+        drop(inbox);
         self.shared.asked.notify_one();
     }
 
@@ -197,16 +245,37 @@ impl RenderThread {
         lock(&self.shared.outbox).failure.clone()
     }
 
-    /// Waits for a complete picture answering request `generation` or a
-    /// later one.
+    /// Waits for the frame loop's complete picture answering request
+    /// `generation` or a later one (at the scene's samples a pixel, even
+    /// if a refined one is already shown).
     pub fn wait_for(&self, generation: u64) -> Result<Arc<Picture>, String> {
-        let mut outbox = lock(&self.shared.outbox);
-        loop {
-            if let Some(picture) = outbox
+        self.wait_until(|outbox| {
+            outbox
+                .frame_loop
+                .as_ref()
+                .filter(|p| p.generation >= generation)
+        })
+    }
+
+    /// Waits for the converged picture answering request `generation` or
+    /// a later one: refined to the top of the ladder, or the frame loop's
+    /// with refinement off.
+    pub fn wait_converged(&self, generation: u64) -> Result<Arc<Picture>, String> {
+        self.wait_until(|outbox| {
+            outbox
                 .latest
                 .as_ref()
-                .filter(|p| p.generation >= generation && p.complete)
-            {
+                .filter(|p| p.generation >= generation && p.converged)
+        })
+    }
+
+    fn wait_until(
+        &self,
+        found: impl Fn(&Outbox) -> Option<&Arc<Picture>>,
+    ) -> Result<Arc<Picture>, String> {
+        let mut outbox = lock(&self.shared.outbox);
+        loop {
+            if let Some(picture) = found(&outbox) {
                 return Ok(Arc::clone(picture));
             }
             if outbox.stopped {
@@ -226,6 +295,12 @@ impl RenderThread {
     /// The pictures finished so far (with a log kept).
     pub fn log(&self) -> Vec<Finished> {
         lock(&self.shared.outbox).log.clone()
+    }
+
+    /// The refinements abandoned for newer requests so far (with a log
+    /// kept).
+    pub fn abandoned(&self) -> Vec<Abandoned> {
+        lock(&self.shared.outbox).abandoned.clone()
     }
 }
 
@@ -355,7 +430,32 @@ fn newer_request(shared: &Shared) -> Option<(u64, ViewState)> {
     lock(&shared.inbox).request.take()
 }
 
+/// Whether a request (or the word to quit) is waiting.
+fn asked_meanwhile(shared: &Shared) -> bool {
+    let inbox = lock(&shared.inbox);
+    inbox.request.is_some() || inbox.quit
+}
+
 fn publish(shared: &Shared, notify: &Notify, picture: Picture) {
+    let inbox = lock(&shared.inbox);
+    publish_locked(shared, notify, &inbox, picture);
+}
+
+/// Publishes a refined picture unless a request (or the word to quit) is
+/// waiting: then it answers an old state, and is dropped. Returns whether
+/// it was published.
+fn publish_refined(shared: &Shared, notify: &Notify, picture: Picture) -> bool {
+    // The inbox stays locked while publishing, so no request can come
+    // between the look and the publishing.
+    let inbox = lock(&shared.inbox);
+    if inbox.request.is_some() || inbox.quit {
+        return false;
+    }
+    publish_locked(shared, notify, &inbox, picture);
+    true
+}
+
+fn publish_locked(shared: &Shared, notify: &Notify, inbox: &Inbox, picture: Picture) {
     let mut outbox = lock(&shared.outbox);
     if outbox.keep_log {
         outbox.log.push(Finished {
@@ -365,35 +465,80 @@ fn publish(shared: &Shared, notify: &Notify, picture: Picture) {
             samples_traced: picture.samples_traced,
             mode: picture.mode,
             complete: picture.complete,
+            samples: picture.samples,
+            converged: picture.converged,
+            newest_asked: inbox.newest,
         });
     }
-    outbox.latest = Some(Arc::new(picture));
+    let picture = Arc::new(picture);
+    if picture.complete && picture.mode != REFINE_MODE {
+        outbox.frame_loop = Some(Arc::clone(&picture));
+    }
+    outbox.latest = Some(picture);
     drop(outbox);
     shared.finished.notify_all();
     notify();
 }
 
+fn abandon(shared: &Shared, generation: u64, samples: u32) {
+    let at = Instant::now();
+    let asked = lock(&shared.inbox).newest_at.unwrap_or(at);
+    let mut outbox = lock(&shared.outbox);
+    if outbox.keep_log {
+        outbox.abandoned.push(Abandoned {
+            generation,
+            samples,
+            at,
+            waited_ms: at.saturating_duration_since(asked).as_secs_f64() * 1e3,
+        });
+    }
+}
+
+/// The mode of a refined picture.
+pub const REFINE_MODE: &str = "refine";
+
 /// The render loop: waits for a request, renders the latest, repeats
 /// until told to quit. Each window size has its own scenes and animators.
-fn serve(shared: &Shared, scene: &Scene, mut accel: Accelerator, notify: &Notify) {
+fn serve(shared: &Shared, scene: &Scene, mut accel: Accelerator, rungs: &[u32], notify: &Notify) {
     let viewer = Viewer::new(scene);
     let mut pending = next_request(shared);
     while let Some(request) = pending {
         let scenes = Scenes::new(scene, &viewer, viewer.size_of(&request.1));
-        pending = serve_size(shared, &viewer, &scenes, &mut accel, notify, request);
+        let serving = Serving {
+            shared,
+            viewer: &viewer,
+            scenes: &scenes,
+            rungs,
+            notify,
+        };
+        pending = serve_size(&serving, &mut accel, request);
     }
+}
+
+/// What the render loop serves one window size with.
+struct Serving<'a> {
+    shared: &'a Shared,
+    viewer: &'a Viewer,
+    scenes: &'a Scenes,
+    /// The refinement ladder's samples a pixel (empty: no refinement).
+    rungs: &'a [u32],
+    notify: &'a Notify,
 }
 
 /// Renders requests of one window size; returns the first request of
 /// another size (None: quit).
 fn serve_size(
-    shared: &Shared,
-    viewer: &Viewer,
-    scenes: &Scenes,
+    serving: &Serving,
     accel: &mut Accelerator,
-    notify: &Notify,
     first: (u64, ViewState),
 ) -> Option<(u64, ViewState)> {
+    let Serving {
+        shared,
+        viewer,
+        scenes,
+        rungs,
+        notify,
+    } = *serving;
     let options = |kind: AnimatorKind, scene: &Scene| Options {
         techniques: if kind.reuse {
             Techniques::AUTO
@@ -444,8 +589,70 @@ fn serve_size(
             ));
         }
         let (_, animator) = current.as_mut().expect("an animator for the state");
-        let picture = render(animator, viewer, generation, state);
+        let mut picture = render(animator, viewer, generation, state.clone());
+        picture.converged = rungs.is_empty();
         publish(shared, notify, picture);
+        refine(serving, animator, generation, &state);
+    }
+}
+
+/// Refines the picture of `state` up the ladder while nothing new is
+/// asked: each rung traced afresh in bands, published when done; a
+/// request waiting abandons it.
+fn refine(serving: &Serving, animator: &mut Animator, generation: u64, state: &ViewState) {
+    let Serving {
+        shared,
+        viewer,
+        rungs,
+        notify,
+        ..
+    } = *serving;
+    if rungs.is_empty() {
+        return;
+    }
+    let view = viewer.view(state);
+    let camera_view = Viewer::is_camera_view(state);
+    let (width, height) = (view.pose.camera.width, view.pose.camera.height);
+    let (scene, accel) = animator.posed_scene(state.frame);
+    let shader = Shader::new(scene, accel);
+    let stop = || asked_meanwhile(shared);
+    for (rung, &spp) in rungs.iter().enumerate() {
+        let start = Instant::now();
+        let samples = PixelSamples::new(spp).expect("the ladder's counts are checked");
+        // The camera's image as a render of the camera traces it; a
+        // viewport through its own rays, the frame loop's reference.
+        let traced = if camera_view {
+            let table = RayTable::with_samples(&view.pose.camera, samples);
+            trace_in_bands(&shader, &table, width, height, &stop)
+        } else {
+            let rays = ViewportRays {
+                pose: &view.pose,
+                samples,
+            };
+            trace_in_bands(&shader, &rays, width, height, &stop)
+        };
+        let Some((frame, _)) = traced else {
+            return abandon(shared, generation, spp);
+        };
+        let picture = Picture {
+            generation,
+            state: state.clone(),
+            image: frame.to_rgb8(),
+            // Every pixel traced afresh.
+            traced: image::RgbImage::new(width, height),
+            render_ms: start.elapsed().as_secs_f64() * 1e3,
+            done: Instant::now(),
+            // Every pixel, each through `spp` rays.
+            samples_traced: u64::from(width) * u64::from(height),
+            pixels: u64::from(width) * u64::from(height),
+            mode: REFINE_MODE,
+            complete: true,
+            samples: spp,
+            converged: rung + 1 == rungs.len(),
+        };
+        if !publish_refined(shared, notify, picture) {
+            return abandon(shared, generation, spp);
+        }
     }
 }
 
@@ -467,6 +674,8 @@ fn render(animator: &mut Animator, viewer: &Viewer, generation: u64, state: View
         traced: output.traced_image.expect("traced images asked for"),
         image: output.image,
         complete: true,
+        samples: viewer.samples(),
+        converged: false,
         state,
     }
 }
@@ -507,6 +716,8 @@ fn render_coarse(
         ),
         image: magnify(&output.image),
         complete: false,
+        samples: viewer.samples(),
+        converged: false,
         state,
     }
 }

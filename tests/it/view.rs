@@ -103,7 +103,7 @@ fn a_scripted_drag_equals_a_render_of_the_turned_camera() {
         .lines()
         .next()
         .unwrap()
-        .ends_with(",ms_to_first_picture"));
+        .ends_with(",ms_to_first_picture,ms_to_converged"));
     let ms = |row: &Vec<&str>, column: usize| row[column].parse::<f64>().unwrap();
     assert!(ms(&rows[0], 9) < ms(&rows[0], 5), "{stats}");
     for row in &rows[1..] {
@@ -183,6 +183,228 @@ fn a_bad_script_names_its_line_and_renders_nothing() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("bad.txt:2: wheel: N 'in'"), "{err}");
     assert!(!err.contains("panicked"), "{err}");
+}
+
+#[test]
+fn a_converged_picture_equals_a_render_at_the_top_samples_a_pixel() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path();
+    paper_on_lattice(path, "scene.toml", 0.0, -9.375);
+    paper_on_lattice(path, "turned.toml", 24.0 * STEP, -9.375 + 8.0 * STEP);
+    std::fs::write(
+        path.join("refine.txt"),
+        "drag -10 3\ndrag -14 5\nsave first.png\nwait-converged\nsave converged.png\n",
+    )
+    .unwrap();
+    let out = retrace_ok(
+        &args(
+            &["view", "scene.toml"],
+            &["--script", "refine.txt", "--stats", "stats.csv"],
+        ),
+        path,
+    );
+    retrace_ok(
+        &args(
+            &["render", "turned.toml"],
+            &["--spp", "16", "-o", "turned16.png"],
+        ),
+        path,
+    );
+    retrace_ok(
+        &args(&["render", "turned.toml"], &["-o", "turned1.png"]),
+        path,
+    );
+    let converged = png(&path.join("converged.png"));
+    assert!(
+        converged == png(&path.join("turned16.png")),
+        "the converged view differs from a 16-spp render of the turned camera"
+    );
+    // The frame loop's picture first, at the scene's one sample a pixel.
+    let first = png(&path.join("first.png"));
+    assert!(first == png(&path.join("turned1.png")));
+    assert!(converged != first);
+    let said = String::from_utf8_lossy(&out.stdout);
+    assert!(said.contains("refinement: "), "{said}");
+    // The last drag's row: converged after its complete picture.
+    let stats = std::fs::read_to_string(path.join("stats.csv")).unwrap();
+    assert!(stats.lines().next().unwrap().ends_with(",ms_to_converged"));
+    let last: Vec<&str> = stats.lines().last().unwrap().split(',').collect();
+    let ms = |column: usize| last[column].parse::<f64>().unwrap();
+    assert!(ms(10) > ms(5), "{stats}");
+}
+
+#[test]
+fn a_converged_zoomed_view_equals_the_direct_render_of_its_viewport() {
+    use retrace::accel::{Accelerator, BackendKind};
+    use retrace::reuse::rsvp::render_direct_sampled;
+    use retrace::sampling::PixelSamples;
+    use retrace::scene::{paper_scene, SceneOverrides};
+    use retrace::shade::Shader;
+    use retrace::view::script::{parse_script, run_script};
+    use retrace::view::{RenderThread, Viewer as View};
+
+    let overrides = SceneOverrides {
+        width: Some(160),
+        height: Some(120),
+        ..SceneOverrides::default()
+    };
+    let scene = paper_scene(&overrides).unwrap();
+    let view = View::new(&scene);
+    let text = "wheel 3 40 30\nwait-converged\nsave zoomed\n";
+    let lines = parse_script(text, Path::new("zoom.txt"), view.size()).unwrap();
+    let thread = RenderThread::spawn(
+        scene.clone(),
+        BackendKind::default(),
+        None,
+        true,
+        16,
+        Box::new(|| {}),
+    )
+    .unwrap();
+    let mut saved = Vec::new();
+    run_script(
+        &thread,
+        &view,
+        &lines,
+        &mut || unreachable!("no key s"),
+        &mut |_, image| {
+            saved.push(image.clone());
+            Ok(())
+        },
+    )
+    .unwrap();
+    let shown = thread.latest().unwrap();
+    assert_eq!((shown.mode, shown.samples), ("refine", 16));
+    assert!(!View::is_camera_view(&shown.state));
+    // The frame loop's truth for the viewport: its own rays, at 16 spp.
+    let accel = Accelerator::build_with(BackendKind::default(), &scene.objects, None).unwrap();
+    let shader = Shader::new(&scene, &accel);
+    let pose = view.view(&shown.state).pose;
+    let (direct, _) = render_direct_sampled(&shader, &pose, PixelSamples::new(16).unwrap());
+    assert!(saved == [direct.to_rgb8()]);
+}
+
+#[test]
+fn input_during_refinement_abandons_it_and_no_stale_picture_follows() {
+    use retrace::accel::BackendKind;
+    use retrace::scene::{paper_scene, SceneOverrides};
+    use retrace::view::script::{parse_script, run_script};
+    use retrace::view::{RenderThread, Viewer as View};
+
+    let overrides = SceneOverrides {
+        width: Some(320),
+        height: Some(240),
+        ..SceneOverrides::default()
+    };
+    let scene = paper_scene(&overrides).unwrap();
+    let view = View::new(&scene);
+    // Each drag is sent as soon as the frame loop's picture of the last
+    // is shown: while its refinement runs.
+    let text = format!("{}wait-converged\n", "wait\ndrag -4 0\n".repeat(6));
+    let lines = parse_script(&text, Path::new("drags.txt"), view.size()).unwrap();
+    let thread = RenderThread::spawn(
+        scene,
+        BackendKind::default(),
+        None,
+        true,
+        16,
+        Box::new(|| {}),
+    )
+    .unwrap();
+    let rows = run_script(
+        &thread,
+        &view,
+        &lines,
+        &mut || unreachable!("no key s"),
+        &mut |_, _| unreachable!("no save"),
+    )
+    .unwrap();
+    assert_eq!(rows.len(), 7);
+    let log = thread.log();
+    let abandoned = thread.abandoned();
+    let described = || {
+        log.iter()
+            .map(|f| {
+                format!(
+                    "{} {} {} spp (newest asked {})",
+                    f.generation, f.mode, f.samples, f.newest_asked
+                )
+            })
+            .collect::<Vec<_>>()
+            .join("\n")
+    };
+    // A refined picture only ever shows the newest request: none was
+    // published once a newer one had come.
+    for f in log.iter().filter(|f| f.mode == "refine") {
+        assert_eq!(f.generation, f.newest_asked, "{}", described());
+    }
+    // Refinements were given up for the drags (each drag while one ran;
+    // a loaded machine may let some finish a rung first, not all six).
+    assert!(!abandoned.is_empty(), "{}", described());
+    for a in &abandoned {
+        assert!(a.generation < 7 && a.samples > 1, "{a:?}");
+        assert!(!log
+            .iter()
+            .any(|f| f.generation == a.generation && f.mode == "refine" && f.done > a.at));
+    }
+    // The last drag's view, refined rung by rung to 16 spp.
+    let last: Vec<(&str, u32, bool)> = log
+        .iter()
+        .filter(|f| f.generation == 7)
+        .map(|f| (f.mode, f.samples, f.converged))
+        .collect();
+    assert_eq!(
+        last,
+        [
+            ("pan", 1, false),
+            ("refine", 4, false),
+            ("refine", 16, true)
+        ],
+        "{}",
+        described()
+    );
+}
+
+/// CPU time the process `pid` has used, in clock ticks (user + system).
+fn cpu_ticks(pid: u32) -> u64 {
+    let stat = std::fs::read_to_string(format!("/proc/{pid}/stat")).unwrap();
+    // The fields after the command's name (in parentheses, which may hold
+    // spaces): utime and stime are the 14th and 15th of the line.
+    let after = &stat[stat.rfind(')').unwrap() + 2..];
+    let fields: Vec<&str> = after.split_whitespace().collect();
+    fields[11].parse::<u64>().unwrap() + fields[12].parse::<u64>().unwrap()
+}
+
+#[test]
+fn once_converged_the_viewer_uses_no_cpu() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(
+        dir.path().join("idle.txt"),
+        "wait-converged\nsave converged.png\nsleep 1500\n",
+    )
+    .unwrap();
+    let mut child = Command::new(env!("CARGO_BIN_EXE_retrace"))
+        .args(args(&["view"], &["--script", "idle.txt"]))
+        .current_dir(dir.path())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let mut lines = BufReader::new(child.stdout.take().unwrap()).lines();
+    let saved = lines.next().unwrap().unwrap();
+    assert!(saved.starts_with("saved "), "{saved}");
+    // Let the pool's threads finish spinning down, then watch for 500 ms.
+    std::thread::sleep(Duration::from_millis(100));
+    let before = cpu_ticks(child.id());
+    std::thread::sleep(Duration::from_millis(500));
+    let after = cpu_ticks(child.id());
+    assert!(child.wait().unwrap().success());
+    // Ticks are 10 ms on Linux: at most 2 over the 500 ms (rounding).
+    assert!(
+        after - before <= 2,
+        "{} ticks of CPU in 500 ms after converging",
+        after - before
+    );
 }
 
 #[test]
@@ -313,11 +535,19 @@ struct Viewer {
 }
 
 impl Viewer {
-    fn open(x: &Xvfb, dir: &Path, scene: &str) -> Viewer {
+    /// The window on `scene`, refining idle pictures up to `refine_spp`
+    /// samples a pixel ("1": the frame loop's pictures only).
+    fn open(x: &Xvfb, dir: &Path, scene: &str, refine_spp: &str) -> Viewer {
         let mut child = Command::new(env!("CARGO_BIN_EXE_retrace"))
             .args(args(
                 &["view", scene],
-                &["--print-pictures", "--save-dir", "saved"],
+                &[
+                    "--print-pictures",
+                    "--save-dir",
+                    "saved",
+                    "--refine-spp",
+                    refine_spp,
+                ],
             ))
             .current_dir(dir)
             .env("DISPLAY", &x.display)
@@ -415,7 +645,7 @@ fn the_window_pans_exactly_zooms_about_the_cursor_and_quits_on_q() {
         path,
     );
     let x = Xvfb::start();
-    let mut viewer = Viewer::open(&x, path, "scene.toml");
+    let mut viewer = Viewer::open(&x, path, "scene.toml", "1");
     viewer.wait_for("first picture", |l| l.starts_with("picture 1:"));
     let window = x.run("xdotool", &["search", "--sync", "--name", "^retrace view"]);
     let window = window.lines().next().unwrap().to_string();
@@ -516,7 +746,10 @@ fn the_window_pans_exactly_zooms_about_the_cursor_and_quits_on_q() {
     );
     std::fs::write(path.join("same.txt"), script).unwrap();
     retrace_ok(
-        &args(&["view", "scene.toml"], &["--script", "same.txt"]),
+        &args(
+            &["view", "scene.toml"],
+            &["--script", "same.txt", "--refine-spp", "1"],
+        ),
         path,
     );
     assert!(
@@ -591,7 +824,7 @@ fn a_resized_window_shows_more_at_the_same_angle_per_pixel() {
         path,
     );
     let x = Xvfb::start();
-    let mut viewer = Viewer::open(&x, path, "scene.toml");
+    let mut viewer = Viewer::open(&x, path, "scene.toml", "1");
     viewer.wait_for("first picture", |l| l.starts_with("picture 1:"));
     let window = x.run("xdotool", &["search", "--sync", "--name", "^retrace view"]);
     let window = window.lines().next().unwrap().to_string();
@@ -632,6 +865,47 @@ fn a_resized_window_shows_more_at_the_same_angle_per_pixel() {
     });
     assert_eq!(field(&line, "mode"), "pan", "{line}");
     assert_eq!(field(&line, "size"), "640x360", "{line}");
+    x.run("xdotool", &["windowfocus", "--sync", &window]);
+    x.run("xdotool", &["key", "q"]);
+    let (code, err) = viewer.wait_exit();
+    assert_eq!(code, Some(0), "{err}");
+}
+
+#[test]
+fn the_window_refines_an_idle_picture_and_shows_its_samples_a_pixel() {
+    if !window_tools() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path();
+    paper_on_lattice(path, "scene.toml", 0.0, -9.375);
+    retrace_ok(
+        &args(
+            &["render", "scene.toml"],
+            &["--spp", "16", "-o", "open16.png"],
+        ),
+        path,
+    );
+    let x = Xvfb::start();
+    let mut viewer = Viewer::open(&x, path, "scene.toml", "16");
+    let line = viewer.wait_for("the converged picture", |l| {
+        l.starts_with("picture 1:") && field(l, "mode") == "refine" && field(l, "spp") == "16"
+    });
+    // The title says how many samples a pixel the shown picture has.
+    assert!(line.contains("| 16 spp |"), "{line}");
+    let rungs: Vec<&str> = viewer
+        .seen
+        .iter()
+        .filter(|l| l.starts_with("picture 1:"))
+        .map(|l| field(l, "spp"))
+        .collect();
+    assert_eq!(rungs.first(), Some(&"1"), "{:?}", viewer.seen);
+    let window = x.run("xdotool", &["search", "--sync", "--name", "^retrace view"]);
+    let window = window.lines().next().unwrap().to_string();
+    assert!(
+        x.screenshot(&window, (320, 240)) == png(&path.join("open16.png")),
+        "the converged window differs from a 16-spp render"
+    );
     x.run("xdotool", &["windowfocus", "--sync", &window]);
     x.run("xdotool", &["key", "q"]);
     let (code, err) = viewer.wait_exit();
