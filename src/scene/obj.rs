@@ -362,6 +362,17 @@ fn checked_mtl_text(
                 ));
             }
             None => {
+                // A cut-out must make both backends skip hits on clear
+                // texels (an Embree filter function, a test in the grid's
+                // traversal), which no texture reaches yet.
+                if let (Some(name), "map_d") = (&current, keyword) {
+                    problems.push(format!(
+                        "{}:{}: map_d: cut-out (alpha) maps are not supported: ignored; \
+                         material '{name}' is drawn whole",
+                        path.display(),
+                        number + 1
+                    ));
+                }
                 if let (Some(name), "map_Kd" | "map_Ks") = (&current, keyword) {
                     texture_lines.insert(
                         (name.clone(), keyword.to_string()),

@@ -145,6 +145,27 @@ fn a_missing_or_corrupt_map_ks_warns_naming_the_mtl_line_and_uses_ks() {
 }
 
 #[test]
+fn map_d_is_ignored_with_a_warning_naming_the_mtl_line() {
+    let dir = quad_folder("newmtl m\nKd 0 1 0\n");
+    let (plain, _) = render(dir.path(), &[]);
+    black_white(&dir.path().join("bw.png"));
+    std::fs::write(
+        dir.path().join("q.mtl"),
+        "newmtl m\nKd 0 1 0\nmap_d bw.png\n",
+    )
+    .unwrap();
+    let (image, said) = render(dir.path(), &[]);
+    assert!(
+        said.contains(
+            "q.mtl:3: map_d: cut-out (alpha) maps are not supported: ignored; \
+             material 'm' is drawn whole"
+        ),
+        "{said}"
+    );
+    assert!(image == plain);
+}
+
+#[test]
 fn a_name_differing_in_case_is_found_with_a_warning() {
     let dir = quad_folder("newmtl m\nKd 1 1 1\nmap_Kd Red_Blue.PNG\n");
     red_blue(&dir.path().join("red_blue.png"));
