@@ -23,7 +23,7 @@ use crate::geometry::normals::{apply_crease_normals, DEFAULT_CREASE_ANGLE_DEG};
 use crate::geometry::Light;
 use crate::geometry::{Aabb, Object, Placement, Plane, Shape, TriangleMesh, WORLD_LIMIT};
 use crate::texture::load::{TextureCache, TextureProblem};
-use crate::texture::path::{mtl_file_name, resolve};
+use crate::texture::path::{mtl_file_name, resolve, shown};
 use crate::texture::TextureRef;
 
 /// One material's worth of an OBJ file.
@@ -362,9 +362,9 @@ fn checked_mtl_text(
                 ));
             }
             None => {
-                // A cut-out must make both backends skip hits on clear
+                // A cut-out would need both backends to skip hits on clear
                 // texels (an Embree filter function, a test in the grid's
-                // traversal), which no texture reaches yet.
+                // traversal); neither reads textures.
                 if let (Some(name), "map_d") = (&current, keyword) {
                     problems.push(format!(
                         "{}:{}: map_d: cut-out (alpha) maps are not supported: ignored; \
@@ -424,12 +424,7 @@ fn load_mtl_texture(
     let Some(found) = resolve(folder, &name) else {
         problems.push(format!(
             "{here}: no file '{name}' (looked in {}); {fallback}",
-            if folder.as_os_str().is_empty() {
-                Path::new(".")
-            } else {
-                folder
-            }
-            .display()
+            shown(folder)
         ));
         return Ok(None);
     };

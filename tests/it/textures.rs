@@ -371,7 +371,7 @@ fn a_scene_materials_specular_texture_masks_its_highlight() {
     .unwrap();
     let (image, said) = render(dir.path(), &[]);
     assert!(
-        said.contains("s.toml:19: material.t.specular_texture: no file 'none.png'"),
+        said.contains("s.toml:19: material.t.specular_texture: no file 'none.png' (looked in .)"),
         "{said}"
     );
     let (left, right) = halves(&image);

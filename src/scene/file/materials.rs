@@ -14,7 +14,8 @@ use super::Ctx;
 use crate::scene::glass::{Glass, DEFAULT_IOR};
 use crate::scene::{Checker, Material, SceneError};
 use crate::texture::load::TextureProblem;
-use crate::texture::{path::resolve, TextureRef};
+use crate::texture::path::{resolve, shown};
+use crate::texture::TextureRef;
 
 /// The texture `written` names in field `field` (`texture`,
 /// `specular_texture`) of material `name`, relative to the file that
@@ -43,12 +44,7 @@ fn texture(
             "{}: no file '{}' (looked in {}); the material renders without it",
             here(),
             written.get_ref(),
-            if folder.as_os_str().is_empty() {
-                Path::new(".")
-            } else {
-                folder
-            }
-            .display()
+            shown(folder)
         ));
         return Ok(None);
     };
