@@ -304,7 +304,7 @@ impl<'a> WorldShape<'a> {
 }
 
 impl WorldShape<'_> {
-    /// The diffuse colour `map` gives at `hit` on a mesh with texture
+    /// The colour `map` (diffuse or specular) gives at `hit` on a mesh with texture
     /// coordinates (`None` elsewhere), filtered over the footprint of a ray
     /// cone `width` wide at the hit (Ray Tracing Gems ch. 20): the triangle's
     /// texel-to-world area ratio and the ray's slant to it set the mip level.
@@ -466,7 +466,7 @@ impl<'a> Shader<'a> {
                         .then_some(m.shininess as u32)
                 })
                 .collect(),
-            textured: scene.materials.iter().any(|m| m.diffuse_map.is_some()),
+            textured: scene.materials.iter().any(Material::textured),
             primary_spread: sample_spread(scene),
             any_glass: scene
                 .objects
@@ -548,6 +548,9 @@ impl<'a> Shader<'a> {
         let mut lanes_hit = HitLanes::default();
         // The cones leaving each hit, followed only where textures are.
         let mut next_cones = RayCones::default();
+        // What each lane's specular map gives; white (a multiplication
+        // that changes no bits) without one.
+        let mut specular_texels = [Vec3::ONE; PACKET_WIDTH];
         for lane in lanes(hit_mask) {
             let Some(hit) = &hits[lane] else { continue };
             let object = &self.objects[hit.object as usize];
@@ -563,6 +566,11 @@ impl<'a> Shader<'a> {
                 if let Some(map) = &object.material.diffuse_map {
                     if let Some(texel) = object.shape.texel(map, ray, hit, width) {
                         albedo *= texel;
+                    }
+                }
+                if let Some(map) = &object.material.specular_map {
+                    if let Some(texel) = object.shape.texel(map, ray, hit, width) {
+                        specular_texels[lane] = texel;
                     }
                 }
             }
@@ -621,6 +629,7 @@ impl<'a> Shader<'a> {
                 specular.set(
                     lane,
                     scene.materials[material].specular
+                        * specular_texels[lane]
                         * phong(
                             r_dot_v[lane],
                             scene.materials[material].shininess,

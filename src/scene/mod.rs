@@ -76,6 +76,9 @@ pub struct Material {
     /// An image the diffuse colour is multiplied by, on meshes with
     /// texture coordinates (MTL `map_Kd`, a scene's `texture`).
     pub diffuse_map: Option<TextureRef>,
+    /// An image the specular colour is multiplied by, likewise (MTL
+    /// `map_Ks`, a scene's `specular_texture`).
+    pub specular_map: Option<TextureRef>,
     /// Transparent materials only: how light goes through.
     pub glass: Option<Glass>,
 }
@@ -94,6 +97,11 @@ impl Material {
         NEGLIGIBLE_HIGHLIGHT.powf(1.0 / self.shininess.max(1e-3))
     }
 
+    /// Whether any image maps onto the material.
+    pub fn textured(&self) -> bool {
+        self.diffuse_map.is_some() || self.specular_map.is_some()
+    }
+
     pub fn matte(name: &str, diffuse: Vec3) -> Material {
         Material {
             name: name.to_string(),
@@ -103,6 +111,7 @@ impl Material {
             shininess: 1.0,
             reflectivity: 0.0,
             diffuse_map: None,
+            specular_map: None,
             glass: None,
         }
     }

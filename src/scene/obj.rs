@@ -23,7 +23,7 @@ use crate::geometry::normals::{apply_crease_normals, DEFAULT_CREASE_ANGLE_DEG};
 use crate::geometry::Light;
 use crate::geometry::{Aabb, Object, Placement, Plane, Shape, TriangleMesh, WORLD_LIMIT};
 use crate::texture::load::{TextureCache, TextureProblem};
-use crate::texture::path::{mtl_file_name, resolve};
+use crate::texture::path::{mtl_file_name, resolve, shown};
 use crate::texture::TextureRef;
 
 /// One material's worth of an OBJ file.
@@ -288,7 +288,7 @@ fn checked_mtl_text(
     path: &Path,
     bytes: &[u8],
     problems: &mut Vec<String>,
-    texture_lines: &mut HashMap<String, TextureLine>,
+    texture_lines: &mut HashMap<(String, String), TextureLine>,
 ) -> (String, HashSet<String>) {
     let text = decode_lossily(path, bytes, problems);
     let mut kept = String::with_capacity(text.len());
@@ -362,12 +362,24 @@ fn checked_mtl_text(
                 ));
             }
             None => {
-                if let (Some(name), "map_Kd") = (&current, keyword) {
+                // A cut-out would need both backends to skip hits on clear
+                // texels (an Embree filter function, a test in the grid's
+                // traversal); neither reads textures.
+                if let (Some(name), "map_d") = (&current, keyword) {
+                    problems.push(format!(
+                        "{}:{}: map_d: cut-out (alpha) maps are not supported: ignored; \
+                         material '{name}' is drawn whole",
+                        path.display(),
+                        number + 1
+                    ));
+                }
+                if let (Some(name), "map_Kd" | "map_Ks") = (&current, keyword) {
                     texture_lines.insert(
-                        name.clone(),
+                        (name.clone(), keyword.to_string()),
                         TextureLine {
                             mtl: path.to_path_buf(),
                             line: number + 1,
+                            keyword: keyword.to_string(),
                         },
                     );
                 }
@@ -379,17 +391,18 @@ fn checked_mtl_text(
     (kept, broken)
 }
 
-/// Where a material's `map_Kd` was written.
+/// Where a material's texture map (`map_Kd`, `map_Ks`) was written.
 #[derive(Clone, Debug)]
 struct TextureLine {
     mtl: PathBuf,
     line: usize,
+    keyword: String,
 }
 
-/// The texture of a material's `map_Kd` (`arguments`, written at `at`):
-/// `None`, with a warning naming the MTL file and line, when the file is
-/// missing or not a readable image; an error past the texture memory
-/// limit.
+/// The texture of a material's `map_Kd` or `map_Ks` (`arguments`, written
+/// at `at`): `None`, with a warning naming the MTL file and line, when the
+/// file is missing or not a readable image (the material keeps its `Kd`,
+/// or `Ks`); an error past the texture memory limit.
 fn load_mtl_texture(
     material: &str,
     arguments: &str,
@@ -397,8 +410,9 @@ fn load_mtl_texture(
     textures: &mut TextureCache,
     problems: &mut Vec<String>,
 ) -> Result<Option<TextureRef>, SceneError> {
-    let here = format!("{}:{}: map_Kd", at.mtl.display(), at.line);
-    let fallback = format!("material '{material}' uses its Kd");
+    let here = format!("{}:{}: {}", at.mtl.display(), at.line, at.keyword);
+    let colour = at.keyword.strip_prefix("map_").unwrap_or("Kd");
+    let fallback = format!("material '{material}' uses its {colour}");
     let (name, options) = mtl_file_name(arguments);
     if !options.is_empty() {
         problems.push(format!(
@@ -410,7 +424,7 @@ fn load_mtl_texture(
     let Some(found) = resolve(folder, &name) else {
         problems.push(format!(
             "{here}: no file '{name}' (looked in {}); {fallback}",
-            folder.display()
+            shown(folder)
         ));
         return Ok(None);
     };
@@ -428,23 +442,32 @@ fn load_mtl_texture(
         }
         Err(TextureProblem::OverBudget(why)) => Err(SceneError::new(&at.mtl, why)
             .at_line(at.line)
-            .field("map_Kd")),
+            .field(at.keyword.clone())),
     }
 }
 
 /// The material of an MTL entry (whose numbers [`checked_mtl_text`] has
-/// made sure are finite), with its diffuse texture.
-fn material_from_mtl(m: &tobj::Material, diffuse_map: Option<TextureRef>) -> Material {
+/// made sure are finite), with its diffuse and specular textures.
+fn material_from_mtl(
+    m: &tobj::Material,
+    diffuse_map: Option<TextureRef>,
+    specular_map: Option<TextureRef>,
+) -> Material {
     let rgb =
         |c: Option<[f32; 3]>, default: f32| c.map(Vec3::from_array).unwrap_or(Vec3::splat(default));
     let specular = rgb(m.specular, 0.0);
+    // A specular map with no `Ks` shows the image's own colours.
+    let mapped_specular = match (&specular_map, m.specular) {
+        (Some(_), None) => Vec3::ONE,
+        _ => specular,
+    };
     // illum 3, 5 and 7 are the MTL modes with ray-traced reflection.
     let reflective = matches!(m.illumination_model, Some(3 | 5 | 7));
     Material {
         name: m.name.clone(),
         diffuse: rgb(m.diffuse, 0.7).clamp(Vec3::ZERO, Vec3::ONE),
         checker: None,
-        specular: specular.clamp(Vec3::ZERO, Vec3::ONE),
+        specular: mapped_specular.clamp(Vec3::ZERO, Vec3::ONE),
         shininess: m.shininess.unwrap_or(32.0).clamp(0.0, 10_000.0),
         reflectivity: if reflective {
             specular.max_element().clamp(0.0, 1.0)
@@ -452,6 +475,7 @@ fn material_from_mtl(m: &tobj::Material, diffuse_map: Option<TextureRef>) -> Mat
             0.0
         },
         diffuse_map,
+        specular_map,
         glass: super::glass::glass_from_mtl(m),
     }
 }
@@ -539,13 +563,18 @@ pub fn load_obj_mesh_with(path: &Path, textures: &mut TextureCache) -> Result<Ob
             converted.push(None);
             continue;
         }
-        let diffuse_map = match (&m.diffuse_texture, texture_lines.get(&m.name)) {
-            (Some(arguments), Some(at)) => {
-                load_mtl_texture(&m.name, arguments, at, textures, &mut problems)?
+        let mut map = |arguments: &Option<String>, keyword: &str| {
+            let at = texture_lines.get(&(m.name.clone(), keyword.to_string()));
+            match (arguments, at) {
+                (Some(arguments), Some(at)) => {
+                    load_mtl_texture(&m.name, arguments, at, textures, &mut problems)
+                }
+                _ => Ok(None),
             }
-            _ => None,
         };
-        converted.push(Some(material_from_mtl(m, diffuse_map)));
+        let diffuse_map = map(&m.diffuse_texture, "map_Kd")?;
+        let specular_map = map(&m.specular_texture, "map_Ks")?;
+        converted.push(Some(material_from_mtl(m, diffuse_map, specular_map)));
     }
 
     let mut dropped_degenerate = 0;
@@ -587,11 +616,11 @@ pub fn load_obj_mesh_with(path: &Path, textures: &mut TextureCache) -> Result<Ob
         let material = m
             .material_id
             .and_then(|id| converted.get(id).cloned().flatten());
-        if let Some(textured) = material.as_ref().filter(|m| m.diffuse_map.is_some()) {
+        if let Some(textured) = material.as_ref().filter(|m| m.textured()) {
             if texcoords.is_empty() && untextured.insert(textured.name.clone()) {
                 problems.push(format!(
                     "{}: faces with material '{}' have no texture coordinates (vt): its \
-                     texture is not shown on them",
+                     textures are not shown on them",
                     path.display(),
                     textured.name
                 ));

@@ -69,6 +69,16 @@ pub struct Resolved {
     pub case_differs: bool,
 }
 
+/// `folder` as a message shows where it looked: `.` for the current
+/// folder (a file named without a folder), which would show as nothing.
+pub fn shown(folder: &Path) -> std::path::Display<'_> {
+    if folder.as_os_str().is_empty() {
+        Path::new(".").display()
+    } else {
+        folder.display()
+    }
+}
+
 /// The file `written` names, relative to `folder` unless absolute; `None`
 /// when there is none, even ignoring case.
 pub fn resolve(folder: &Path, written: &str) -> Option<Resolved> {

@@ -1,13 +1,16 @@
 //! Glass: Whitted refraction with exact Fresnel weighting, read from scene
 //! files and MTL libraries; refracted rays counted and recorded by OSTC, so
-//! a moving glass ball stays bit-exact; shadows through glass opaque.
+//! a moving glass ball stays bit-exact; shadows through glass opaque;
+//! total internal reflection in a prism.
 
 use std::path::Path;
 
 use glam::Vec3;
+use retrace::accel::Intersector;
 use retrace::accel::{Accelerator, BackendKind};
-use retrace::render::render_frame;
-use retrace::scene::{parse_scene_str, SceneOverrides};
+use retrace::render::{render_frame, Frame};
+use retrace::scene::{load_scene, parse_scene_str, SceneOverrides};
+use retrace::shade::Surface;
 
 use crate::common::{retrace, retrace_ok};
 
@@ -241,4 +244,69 @@ fn bad_glass_values_in_a_material_library_are_warnings_naming_the_line() {
     assert!((glass.transparency - 0.8).abs() < 1e-6);
     assert_eq!(glass.ior, 1.33);
     assert_eq!(glass.filter, Vec3::new(0.5, 1.0, 1.0));
+}
+
+/// `scenes/glass-prism.toml`: looking into the prism's front face, every
+/// ray meets the hypotenuse inside beyond the critical angle and is
+/// reflected whole down through the bottom face to the red and white
+/// floor beneath. Were the hypotenuse to let light through (TIR broken, or
+/// the prism's index 1), the face would show the blue wall and sky behind.
+#[test]
+fn the_prism_reflects_totally_at_its_hypotenuse() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/glass-prism.toml");
+    let (width, height) = (160, 120);
+    let scene = load_scene(&path, &small(width, height)).unwrap();
+    assert!(scene.warnings.is_empty(), "{:?}", scene.warnings);
+    let prism = scene
+        .objects
+        .iter()
+        .position(|o| o.name == "prism")
+        .unwrap();
+    let glass = scene.materials[scene.objects[prism].material]
+        .glass
+        .expect("the MTL's glass");
+    assert_eq!((glass.ior, glass.transparency), (1.5, 1.0));
+    let mut unbent = scene.clone();
+    let material = unbent.objects[prism].material;
+    unbent.materials[material].glass.as_mut().unwrap().ior = 1.0;
+    // Blue well above red: the wall (0.1, 0.2, 0.8) or the sky, not the
+    // floor's white or red squares.
+    let bluish = |frame: &Frame, i: usize| frame.pixels[i].z > frame.pixels[i].x + 0.2;
+    for backend in [BackendKind::Embree, BackendKind::Grid] {
+        let accel = Accelerator::build(backend, &scene.objects).unwrap();
+        // Pixels whose centre and 8 neighbours' centres meet the front
+        // face (its normal +z) first, in its upper three quarters: a ray
+        // entering lower, bent down, meets the bottom face first (and
+        // reflects totally there), then leaves through the hypotenuse.
+        let on_front_face = |x: u32, y: u32| {
+            let ray = scene.camera.primary_ray(x, y).unwrap();
+            accel.intersect(&ray).is_some_and(|hit| {
+                let surface = Surface::from_hit(&scene, &ray, &hit);
+                hit.object as usize == prism
+                    && surface.geometric_normal.z > 0.99
+                    && surface.point.y > 0.85
+            })
+        };
+        let face: Vec<usize> = (1..height - 1)
+            .flat_map(|y| (1..width - 1).map(move |x| (x, y)))
+            .filter(|&(x, y)| (0..9).all(|k| on_front_face(x + k % 3 - 1, y + k / 3 - 1)))
+            .map(|(x, y)| (y * width + x) as usize)
+            .collect();
+        assert!(face.len() > 800, "{backend:?}: {} pixels", face.len());
+        let (frame, rays) = render_frame(&scene, &accel);
+        let (seen_through, _) = render_frame(&unbent, &accel);
+        let count = |f: &Frame| face.iter().filter(|&&i| bluish(f, i)).count();
+        assert_eq!(
+            count(&frame),
+            0,
+            "{backend:?}: light through the hypotenuse"
+        );
+        assert!(
+            count(&seen_through) > face.len() / 2,
+            "{backend:?}: at index 1 only {} of {} pixels show the wall",
+            count(&seen_through),
+            face.len()
+        );
+        assert!(rays.refraction > 0, "{rays:?}");
+    }
 }

@@ -1,5 +1,5 @@
-//! Texture maps end to end: MTL `map_Kd` and a scene's `texture` as
-//! their authors write them, every bad input a warning (or, past the
+//! Texture maps end to end: MTL `map_Kd` and `map_Ks`, and a scene's
+//! `texture` and `specular_texture`, as their authors write them, every bad input a warning (or, past the
 //! memory limit, an error) naming its file and line, both backends alike,
 //! reuse bit-exact on textured scenes, and Debian's textured spider.
 
@@ -88,6 +88,81 @@ fn map_kd_written_with_backslashes_shows_its_texture_times_kd() {
     let (image, _) = render(dir.path(), &[]);
     let (left, _) = halves(&image);
     assert!((150..200).contains(&left[0]), "{left:?}");
+}
+
+/// A texture whose left half is black and right half white.
+fn black_white(path: &Path) {
+    image::GrayImage::from_fn(8, 8, |x, _| image::Luma([if x < 4 { 0 } else { 255 }]))
+        .save(path)
+        .unwrap();
+}
+
+/// A black quad with a broad white highlight (the light is at the eye)
+/// over the whole of it, its specular colour multiplied by `map_Ks`.
+const SHINY: &str = "newmtl m\nKd 0 0 0\nKs 1 1 1\nNs 4\n";
+
+#[test]
+fn map_ks_shows_highlights_only_where_the_map_is_white_on_both_backends() {
+    let dir = quad_folder(SHINY);
+    black_white(&dir.path().join("bw.png"));
+    for backend in ["embree", "grid"] {
+        let flags = ["--backend", backend];
+        // Without the map, the highlight spans both halves.
+        std::fs::write(dir.path().join("q.mtl"), SHINY).unwrap();
+        let (plain, said) = render(dir.path(), &flags);
+        assert!(!said.contains("warning"), "{said}");
+        let (left, right) = halves(&plain);
+        assert!(left[0] > 150 && right[0] > 150, "{left:?} {right:?}");
+        std::fs::write(dir.path().join("q.mtl"), format!("{SHINY}map_Ks bw.png\n")).unwrap();
+        let (mapped, said) = render(dir.path(), &flags);
+        assert!(!said.contains("warning"), "{said}");
+        let (left, right) = halves(&mapped);
+        assert_eq!(left, [0, 0, 0], "{backend}: a highlight on the black half");
+        assert_eq!(right, halves(&plain).1, "{backend}: the white half dimmed");
+        // The map takes Ks's place where the MTL gives no Ks.
+        let no_ks = SHINY.replace("Ks 1 1 1\n", "");
+        std::fs::write(dir.path().join("q.mtl"), format!("{no_ks}map_Ks bw.png\n")).unwrap();
+        let (image, _) = render(dir.path(), &flags);
+        assert!(image == mapped, "{backend}: map_Ks without Ks");
+    }
+}
+
+#[test]
+fn a_missing_or_corrupt_map_ks_warns_naming_the_mtl_line_and_uses_ks() {
+    let dir = quad_folder(SHINY);
+    let (plain, _) = render(dir.path(), &[]);
+    std::fs::write(dir.path().join("garbage.png"), b"not a PNG").unwrap();
+    for (file, needle) in [
+        ("missing.png", "q.mtl:5: map_Ks: no file 'missing.png'"),
+        ("garbage.png", "q.mtl:5: map_Ks: "),
+    ] {
+        std::fs::write(dir.path().join("q.mtl"), format!("{SHINY}map_Ks {file}\n")).unwrap();
+        let (image, said) = render(dir.path(), &[]);
+        assert!(said.contains(needle), "{file}: {said}");
+        assert!(said.contains("material 'm' uses its Ks"), "{file}: {said}");
+        assert!(image == plain, "{file}: not the Ks highlight");
+    }
+}
+
+#[test]
+fn map_d_is_ignored_with_a_warning_naming_the_mtl_line() {
+    let dir = quad_folder("newmtl m\nKd 0 1 0\n");
+    let (plain, _) = render(dir.path(), &[]);
+    black_white(&dir.path().join("bw.png"));
+    std::fs::write(
+        dir.path().join("q.mtl"),
+        "newmtl m\nKd 0 1 0\nmap_d bw.png\n",
+    )
+    .unwrap();
+    let (image, said) = render(dir.path(), &[]);
+    assert!(
+        said.contains(
+            "q.mtl:3: map_d: cut-out (alpha) maps are not supported: ignored; \
+             material 'm' is drawn whole"
+        ),
+        "{said}"
+    );
+    assert!(image == plain);
 }
 
 #[test]
@@ -268,6 +343,39 @@ fn a_scene_materials_texture_is_read_relative_to_its_file_and_warns_when_missing
         left == right && left[0] == left[1] && left[1] == left[2],
         "{left:?}"
     );
+}
+
+#[test]
+fn a_scene_materials_specular_texture_masks_its_highlight() {
+    let dir = quad_folder("newmtl m\nKd 0 1 0\n");
+    black_white(&dir.path().join("bw.png"));
+    let scene = |fields: &str| {
+        format!(
+            "{SCENE}material = \"t\"\n[material.t]\ndiffuse = [0, 0, 0]\nshininess = 4\n{fields}"
+        )
+    };
+    std::fs::write(
+        dir.path().join("s.toml"),
+        scene("specular_texture = \"bw.png\"\n"),
+    )
+    .unwrap();
+    let (image, said) = render(dir.path(), &[]);
+    assert!(!said.contains("warning"), "{said}");
+    let (left, right) = halves(&image);
+    assert_eq!(left, [0, 0, 0]);
+    assert!(right[0] > 150 && right[0] == right[2], "{right:?}");
+    std::fs::write(
+        dir.path().join("s.toml"),
+        scene("specular = [1, 1, 1]\nspecular_texture = \"none.png\"\n"),
+    )
+    .unwrap();
+    let (image, said) = render(dir.path(), &[]);
+    assert!(
+        said.contains("s.toml:19: material.t.specular_texture: no file 'none.png' (looked in .)"),
+        "{said}"
+    );
+    let (left, right) = halves(&image);
+    assert!(left[0] > 150 && right[0] > 150, "{left:?} {right:?}");
 }
 
 fn textured_scene() -> PathBuf {

@@ -234,8 +234,13 @@ pub(super) struct MaterialDef {
     #[serde(default)]
     pub(super) texture: Option<Spanned<String>>,
     pub(super) checker: Option<CheckerDef>,
+    /// Black when not given; white under a `specular_texture`.
     #[serde(default)]
-    pub(super) specular: [f32; 3],
+    pub(super) specular: Option<[f32; 3]>,
+    /// An image file, relative to the scene file, the specular colour is
+    /// multiplied by.
+    #[serde(default)]
+    pub(super) specular_texture: Option<Spanned<String>>,
     #[serde(default = "default_shininess")]
     pub(super) shininess: f32,
     #[serde(default)]

@@ -14,18 +14,21 @@ use super::Ctx;
 use crate::scene::glass::{Glass, DEFAULT_IOR};
 use crate::scene::{Checker, Material, SceneError};
 use crate::texture::load::TextureProblem;
-use crate::texture::{path::resolve, TextureRef};
+use crate::texture::path::{resolve, shown};
+use crate::texture::TextureRef;
 
-/// The texture `written` names for material `name`, relative to the file
-/// that names it. A file that is missing or not a readable image is a
+/// The texture `written` names in field `field` (`texture`,
+/// `specular_texture`) of material `name`, relative to the file that
+/// names it. A file that is missing or not a readable image is a
 /// warning (the material renders untextured); one past the texture memory
 /// limit an error.
 fn texture(
     ctx: &Ctx,
     name: &str,
+    field: &str,
     written: &Spanned<String>,
 ) -> Result<Option<TextureRef>, SceneError> {
-    let field = format!("material.{name}.texture");
+    let field = format!("material.{name}.{field}");
     let here = || {
         let (file, line) = ctx
             .source
@@ -41,7 +44,7 @@ fn texture(
             "{}: no file '{}' (looked in {}); the material renders without it",
             here(),
             written.get_ref(),
-            folder.display()
+            shown(folder)
         ));
         return Ok(None);
     };
@@ -111,9 +114,14 @@ pub(super) fn convert_material(
     }
     let diffuse_map = match &m.texture {
         None => None,
-        Some(written) => texture(ctx, name, written)?,
+        Some(written) => texture(ctx, name, "texture", written)?,
+    };
+    let specular_map = match &m.specular_texture {
+        None => None,
+        Some(written) => texture(ctx, name, "specular_texture", written)?,
     };
     let untextured_grey = if diffuse_map.is_some() { 1.0 } else { 0.7 };
+    let unmapped_specular = if specular_map.is_some() { 1.0 } else { 0.0 };
     let filter = match m.transmission_filter {
         Some(filter) => colour(filter).map_err(err("transmission_filter"))?,
         None => glam::Vec3::ONE,
@@ -125,7 +133,8 @@ pub(super) fn convert_material(
         diffuse: colour(m.diffuse.unwrap_or([untextured_grey; 3])).map_err(err("diffuse"))?,
         diffuse_map,
         checker,
-        specular: colour(m.specular).map_err(err("specular"))?,
+        specular: colour(m.specular.unwrap_or([unmapped_specular; 3])).map_err(err("specular"))?,
+        specular_map,
         shininess: m.shininess,
         reflectivity: m.reflectivity,
         glass,

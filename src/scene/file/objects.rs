@@ -59,11 +59,11 @@ pub(super) fn convert_objects(
                 Shape::Mesh(mesh) => mesh.texcoords.is_empty(),
                 _ => true,
             };
-            if untextured && materials[object.material].diffuse_map.is_some() {
+            if untextured && materials[object.material].textured() {
                 let at = ctx.error(def.span(), format!("object[{i}]"), "");
                 warnings.push(format!(
                     "{}:{}: object[{i}]: '{}' has no texture coordinates: material '{}' \
-                     shows its diffuse colour without its texture",
+                     shows its colours without its textures",
                     at.file.display(),
                     at.line.unwrap_or(0),
                     object.name,
