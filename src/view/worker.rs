@@ -17,8 +17,8 @@
 //! ([`super::refine`]): the same view traced afresh at more samples a
 //! pixel, rung by rung of a ladder, each rung published as it finishes
 //! (mode `refine`); a new request abandons the refinement within a band
-//! of rows, and no refined picture is published once a newer request is
-//! waiting. After the last rung (the picture is converged) the thread
+//! of sample groups, and no refined picture is published once a newer
+//! request is waiting. After the last rung (the picture is converged) the thread
 //! sleeps until the next request.
 
 use std::sync::{Arc, Condvar, Mutex, MutexGuard, PoisonError};
