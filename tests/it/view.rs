@@ -28,6 +28,26 @@ fn paper_on_lattice(dir: &Path, name: &str, yaw: f64, pitch: f64) {
     std::fs::write(dir.join(name), text).unwrap();
 }
 
+/// The pitch that puts the paper scene's image on the pan lattice.
+const ON_LATTICE_PITCH: f64 = -9.375;
+
+/// Writes `scene.toml`, the paper scene on the lattice, and `turned.toml`,
+/// the same camera after a drag of 24 pixels left and 8 down: the view
+/// turned 24 pixels right and 8 up (yaw 7.5, pitch -6.875, both on the
+/// lattice's groups).
+fn scene_and_turned(dir: &Path) {
+    paper_on_lattice(dir, "scene.toml", 0.0, ON_LATTICE_PITCH);
+    paper_on_lattice(
+        dir,
+        "turned.toml",
+        24.0 * STEP,
+        ON_LATTICE_PITCH + 8.0 * STEP,
+    );
+}
+
+/// Script lines making the drag [`scene_and_turned`] turns by, in two moves.
+const TURNING_DRAG: &str = "drag -10 3\ndrag -14 5\n";
+
 const SMALL: [&str; 4] = ["--width", "320", "--height", "240"];
 /// Degrees a pixel at 320 pixels over 100 degrees.
 const STEP: f64 = 0.3125;
@@ -54,13 +74,10 @@ fn psnr(a: &image::RgbImage, b: &image::RgbImage) -> f64 {
 fn a_scripted_drag_equals_a_render_of_the_turned_camera() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path();
-    paper_on_lattice(path, "scene.toml", 0.0, -9.375);
-    // Dragged 24 pixels left and 8 down, the view turns 24 pixels right
-    // and 8 up: yaw 7.5, pitch -6.875 (both on the lattice's groups).
-    paper_on_lattice(path, "turned.toml", 24.0 * STEP, -9.375 + 8.0 * STEP);
+    scene_and_turned(path);
     std::fs::write(
         path.join("drag.txt"),
-        "save open.png\ndrag -10 3\ndrag -14 5\nsave dragged.png\n",
+        format!("save open.png\n{TURNING_DRAG}save dragged.png\n"),
     )
     .unwrap();
     let out = retrace_ok(
@@ -120,7 +137,7 @@ fn a_scripted_drag_equals_a_render_of_the_turned_camera() {
 fn a_scripted_zoom_magnifies_about_the_cursor() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path();
-    paper_on_lattice(path, "scene.toml", 0.0, -9.375);
+    paper_on_lattice(path, "scene.toml", 0.0, ON_LATTICE_PITCH);
     // Four notches in (1.1^4 = 1.4641) about (80, 60), then back out.
     std::fs::write(
         path.join("zoom.txt"),
@@ -189,11 +206,10 @@ fn a_bad_script_names_its_line_and_renders_nothing() {
 fn a_converged_picture_equals_a_render_at_the_top_samples_a_pixel() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path();
-    paper_on_lattice(path, "scene.toml", 0.0, -9.375);
-    paper_on_lattice(path, "turned.toml", 24.0 * STEP, -9.375 + 8.0 * STEP);
+    scene_and_turned(path);
     std::fs::write(
         path.join("refine.txt"),
-        "drag -10 3\ndrag -14 5\nsave first.png\nwait-converged\nsave converged.png\n",
+        format!("{TURNING_DRAG}save first.png\nwait-converged\nsave converged.png\n"),
     )
     .unwrap();
     let out = retrace_ok(
@@ -637,8 +653,7 @@ fn the_window_pans_exactly_zooms_about_the_cursor_and_quits_on_q() {
     }
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path();
-    paper_on_lattice(path, "scene.toml", 0.0, -9.375);
-    paper_on_lattice(path, "turned.toml", 24.0 * STEP, -9.375 + 8.0 * STEP);
+    scene_and_turned(path);
     retrace_ok(&args(&["render", "scene.toml"], &["-o", "open.png"]), path);
     retrace_ok(
         &args(&["render", "turned.toml"], &["-o", "turned.png"]),
@@ -804,7 +819,7 @@ fn a_resized_window_shows_more_at_the_same_angle_per_pixel() {
     }
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path();
-    paper_on_lattice(path, "scene.toml", 0.0, -9.375);
+    paper_on_lattice(path, "scene.toml", 0.0, ON_LATTICE_PITCH);
     // Twice as wide keeps 0.3125 degrees a pixel: 200 degrees across
     // (doubling is exact in floating point, so the fields of view agree
     // to the bit).
@@ -878,7 +893,7 @@ fn the_window_refines_an_idle_picture_and_shows_its_samples_a_pixel() {
     }
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path();
-    paper_on_lattice(path, "scene.toml", 0.0, -9.375);
+    paper_on_lattice(path, "scene.toml", 0.0, ON_LATTICE_PITCH);
     retrace_ok(
         &args(
             &["render", "scene.toml"],
