@@ -65,6 +65,7 @@ impl SampleBuffer {
                     let BandScratch {
                         view_samples,
                         coords,
+                        reads,
                     } = scratch;
                     let mut cache = TileCache::new();
                     let mut colors: [SampleCode; (PATCH * PATCH) as usize] = [0; _];
@@ -104,7 +105,7 @@ impl SampleBuffer {
                         match bounds {
                             Some(bounds) => {
                                 let view = self.view(level, &bounds, view_samples);
-                                gather_patch(&view, filter, coords, colors);
+                                gather_patch(&view, filter, coords, reads, colors);
                             }
                             None => {
                                 for (slot, c) in colors.iter_mut().zip(coords.iter()) {
@@ -188,6 +189,34 @@ struct BandScratch {
     view_samples: Vec<SampleCode>,
     /// A patch's pixels' lattice coordinates.
     coords: Vec<DVec2>,
+    /// What [`gather_patch`] works out for a patch's pixels.
+    reads: Box<PatchReads>,
+}
+
+/// Pixels a patch holds at most.
+const PATCH_PIXELS: usize = (PATCH * PATCH) as usize;
+
+/// Each pixel's reads in a patch: kept from patch to patch, as zeroing
+/// them afresh for every patch costs more than some filters' blends.
+struct PatchReads {
+    /// Where the pixel's filter starts in the view.
+    index: [u32; PATCH_PIXELS],
+    /// The pixel's bilinear weights across and down.
+    wx: [f32; PATCH_PIXELS],
+    wy: [f32; PATCH_PIXELS],
+    /// Bilinear: every pixel's two top and two bottom samples.
+    pairs: [[SampleCode; 2 * PATCH_PIXELS]; 2],
+}
+
+impl Default for PatchReads {
+    fn default() -> Self {
+        PatchReads {
+            index: [0; PATCH_PIXELS],
+            wx: [0.0; PATCH_PIXELS],
+            wy: [0.0; PATCH_PIXELS],
+            pairs: [[0; 2 * PATCH_PIXELS]; 2],
+        }
+    }
 }
 
 /// The box of the samples `filter` reads for the pixels at `coords`
@@ -234,18 +263,33 @@ fn grid_pixels_box(filter: Filter, coords: &[DVec2], cols: usize) -> Option<Samp
 
 /// Filters one patch's pixels (`coords`: their lattice coordinates at the
 /// view's level, NaN for no ray) from `view`, which holds every sample
-/// they read, into `out` (`coords`' length).
-fn gather_patch(view: &SampleView, filter: Filter, coords: &[DVec2], out: &mut [SampleCode]) {
+/// they read, into `out` (`coords`' length), working in `reads`.
+fn gather_patch(
+    view: &SampleView,
+    filter: Filter,
+    coords: &[DVec2],
+    reads: &mut PatchReads,
+    out: &mut [SampleCode],
+) {
     let wd = view.width;
     let samples = view.samples;
     // View index and weights of every pixel first, in straight-line f64
     // code (exact: whole numbers and multiples of 2^-16) that vectorises;
     // NaN pixels get index 0 and are blacked out last.
-    const N: usize = (PATCH * PATCH) as usize;
-    let (mut index, mut wx, mut wy) = ([0u32; N], [0f32; N], [0f32; N]);
+    let PatchReads {
+        index,
+        wx,
+        wy,
+        pairs,
+    } = reads;
     let (c0f, r0f, wdf) = (view.col as f64, view.row as f64, wd as f64);
     let mut has_nan = false;
-    for (((c, k), fx), fy) in coords.iter().zip(&mut index).zip(&mut wx).zip(&mut wy) {
+    for (((c, k), fx), fy) in coords
+        .iter()
+        .zip(index.iter_mut())
+        .zip(wx.iter_mut())
+        .zip(wy.iter_mut())
+    {
         has_nan |= c.x.is_nan();
         let (ox, x) = filter_split(filter, c.x);
         let (oy, y) = filter_split(filter, c.y);
@@ -275,13 +319,12 @@ fn gather_patch(view: &SampleView, filter: Filter, coords: &[DVec2], out: &mut [
         Filter::Bilinear => {
             // Every pixel's pairs of samples first, each pair one copy,
             // then the blends, which so vectorise.
-            let mut pairs = [[0; 2 * N]; 2];
             for (i, &k) in index.iter().enumerate() {
                 let k = k as usize;
                 pairs[0][2 * i..2 * i + 2].copy_from_slice(&samples[k..k + 2]);
                 pairs[1][2 * i..2 * i + 2].copy_from_slice(&samples[k + wd..k + wd + 2]);
             }
-            let [top, bottom] = &pairs;
+            let [top, bottom] = &*pairs;
             let (top, bottom) = (&top[..2 * n], &bottom[..2 * n]);
             let out = &mut out[..n];
             for i in 0..n {
