@@ -6,14 +6,15 @@
 //! above the first is a flat grey: a cone that comes out too narrow reads
 //! the stripes where the pixel covers many of them (moiré), one too wide
 //! greys out stripes the pixel resolves. Each check renders one sample a
-//! pixel and scores it against the converged image (many samples a
-//! pixel, each with its own narrower cone) inside the ball's outline.
+//! pixel and scores it against the converged image inside the ball's
+//! outline: 64 samples a pixel reading the full-size texture (bilinear),
+//! so the yardstick owes nothing to ray cones.
 
 use std::path::Path;
 
 use retrace::accel::{Accelerator, BackendKind};
-use retrace::sampling::PixelSamples;
 use retrace::scene::{parse_scene_str, SceneOverrides};
+use retrace::texture::TextureFilter;
 
 /// The ball: an analytic sphere, or `scenes/textured/sphere.obj` (the
 /// same unit sphere as a smooth-shaded mesh of 2,208 triangles).
@@ -64,12 +65,20 @@ fn folder() -> tempfile::TempDir {
     dir
 }
 
-/// The image of `text` at `spp` samples a pixel, as 8-bit grey.
-fn render(dir: &Path, text: &str, spp: u32, backend: BackendKind) -> Vec<f64> {
-    let mut scene =
-        parse_scene_str(text, &dir.join("s.toml"), &SceneOverrides::default()).unwrap();
+/// The image of `text`, as 8-bit grey: at one sample a pixel, filtered
+/// by ray cones, or `converged`.
+fn render(dir: &Path, text: &str, converged: bool, backend: BackendKind) -> Vec<f64> {
+    let overrides = SceneOverrides {
+        spp: Some(if converged { 64 } else { 1 }),
+        texture_filter: Some(if converged {
+            TextureFilter::Bilinear
+        } else {
+            TextureFilter::Trilinear
+        }),
+        ..SceneOverrides::default()
+    };
+    let scene = parse_scene_str(text, &dir.join("s.toml"), &overrides).unwrap();
     assert!(scene.warnings.is_empty(), "{:?}", scene.warnings);
-    scene.samples = PixelSamples::new(spp).unwrap();
     let accel = Accelerator::build(backend, &scene.objects).unwrap();
     let (frame, _) = retrace::render::render_frame(&scene, &accel);
     frame
@@ -84,9 +93,7 @@ fn outlines(dir: &Path, backend: BackendKind) -> (Vec<bool>, Vec<bool>) {
     let text = scene_text(Ball::Sphere, "diffuse = [1, 0, 0]")
         .replace("texture = \"stripes.png\"", "diffuse = [0, 1, 0]")
         .replace("background = [0.3, 0.3, 0.3]", "background = [0, 0, 0]");
-    let mut scene =
-        parse_scene_str(&text, &dir.join("s.toml"), &SceneOverrides::default()).unwrap();
-    scene.samples = PixelSamples::new(1).unwrap();
+    let scene = parse_scene_str(&text, &dir.join("s.toml"), &SceneOverrides::default()).unwrap();
     let accel = Accelerator::build(backend, &scene.objects).unwrap();
     let image = retrace::render::render_frame(&scene, &accel).0.to_rgb8();
     let ball = image.pixels().map(|p| p.0[0] > 100).collect();
@@ -123,8 +130,8 @@ on_every_backend! {
         let mut scores = Vec::new();
         for shape in [Ball::Sphere, Ball::Mesh] {
             let text = scene_text(shape, MIRROR);
-            let one = render(dir.path(), &text, 1, backend);
-            let converged = render(dir.path(), &text, 36, backend);
+            let one = render(dir.path(), &text, false, backend);
+            let converged = render(dir.path(), &text, true, backend);
             scores.push((stripe_contrast(&one, &ball), error(&one, &converged, &ball)));
         }
         let [(sphere_contrast, sphere_error), (mesh_contrast, mesh_error)] = scores[..] else {
@@ -148,8 +155,8 @@ on_every_backend! {
         let (ball, floor) = outlines(dir.path(), backend);
         for shape in [Ball::Sphere, Ball::Mesh] {
             let text = scene_text(shape, GLASS);
-            let one = render(dir.path(), &text, 1, backend);
-            let converged = render(dir.path(), &text, 36, backend);
+            let one = render(dir.path(), &text, false, backend);
+            let converged = render(dir.path(), &text, true, backend);
             // The floor seen directly is the yardstick: its cones are the
             // camera's own, with nothing bent on the way.
             let direct = error(&one, &converged, &floor);
