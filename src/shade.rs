@@ -436,7 +436,8 @@ fn refracted_spread(spread: f32, width: f32, radius: f32, eta: f32) -> f32 {
 /// Ray cones (Akenine-Möller et al., Ray Tracing Gems ch. 20) lane by
 /// lane: the cone's width where each ray starts and the angle it spreads
 /// at. A pure function of the ray's path from the eye: the camera's pixel
-/// angle, the distances travelled and the mirrors met.
+/// angle, the distances travelled, and the curvature and index ratio of
+/// the mirrors and glass met.
 #[derive(Clone, Copy, Default)]
 struct RayCones {
     width: Lanes,

@@ -137,6 +137,7 @@ on_every_backend! {
         let [(sphere_contrast, sphere_error), (mesh_contrast, mesh_error)] = scores[..] else {
             unreachable!()
         };
+        eprintln!("mirror: contrast and error, sphere {:?}, mesh {:?}", scores[0], scores[1]);
         // Taken as flat, the mesh mirror reads the stripes' finest level
         // where each pixel covers several: a moiré of about twice the
         // contrast, and well off the converged image.
@@ -162,6 +163,7 @@ on_every_backend! {
             let direct = error(&one, &converged, &floor);
             let through = error(&one, &converged, &ball);
             let name = if shape == Ball::Sphere { "sphere" } else { "mesh" };
+            eprintln!("glass {name}: through {through:.2}, directly {direct:.2}");
             assert!(
                 through < direct,
                 "{name}: through the glass {through:.2}, the floor directly {direct:.2}"
