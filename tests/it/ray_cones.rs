@@ -171,3 +171,29 @@ on_every_backend! {
         }
     }
 }
+
+/// The chrome mesh ball and the glass ball of `scenes/textured-curved.toml`
+/// moving (so the mesh is an instance, its curvature worked out through
+/// its transform), seen from a still camera: OSTC's frames equal full
+/// renders bit for bit.
+#[test]
+fn moving_curved_mirrors_and_glass_over_textures_reuse_bit_exactly() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/textured-curved.toml");
+    let text = std::fs::read_to_string(&path).unwrap();
+    let timeline = "[animation]\nframes = 3\n\
+        [[animation.object]]\nobject = \"chrome ball\"\nframe = 0\ntranslate = [0, 0, 0]\n\
+        [[animation.object]]\nobject = \"chrome ball\"\nframe = 3\ntranslate = [0.4, 0.2, 0]\n\
+        [[animation.object]]\nobject = \"glass ball\"\nframe = 0\ntranslate = [0, 0, 0]\n\
+        [[animation.object]]\nobject = \"glass ball\"\nframe = 3\ntranslate = [-0.3, 0, 0.2]\n";
+    let overrides = SceneOverrides {
+        width: Some(96),
+        height: Some(64),
+        ..SceneOverrides::default()
+    };
+    let scene = parse_scene_str(&format!("{text}\n{timeline}"), &path, &overrides).unwrap();
+    crate::common::run_exact_reusing(
+        &scene,
+        BackendKind::Embree,
+        retrace::frame_loop::Techniques::parse("ostc").unwrap(),
+    );
+}
