@@ -19,6 +19,7 @@ mod normals;
 mod obj_input;
 mod ostc;
 mod output_folders;
+mod ray_cones;
 mod render;
 mod rsvp;
 mod scene_errors;
