@@ -66,9 +66,16 @@ pub(crate) fn view(args: ViewArgs) -> Result<()> {
     };
     let scene = load(&args.scene)?;
     if !scene.viewports.is_empty() {
+        let names: Vec<&str> = scene
+            .viewports
+            .iter()
+            .map(|t| t.viewport.name.as_str())
+            .collect();
         eprintln!(
-            "note: the view shows the scene's camera; its viewports are not shown (`retrace \
-             animate` renders them)"
+            "note: the view opens on the scene's viewport {} as `retrace animate` renders it; \
+             `v` shows the next ({}), then the camera's image",
+            names[0],
+            names.join(", ")
         );
     }
     let name = scene_name(&args.scene);
@@ -105,6 +112,7 @@ pub(crate) fn view(args: ViewArgs) -> Result<()> {
         }
         None => {
             let mut hooks = WindowHooks {
+                viewer: Viewer::new(&scene),
                 print: args.print_pictures,
                 save_dir: args.save_dir.clone(),
                 rows: Vec::new(),
@@ -165,6 +173,7 @@ fn median(values: &[f64]) -> f64 {
 }
 
 struct WindowHooks {
+    viewer: Viewer,
     print: bool,
     save_dir: PathBuf,
     rows: Vec<EventStats>,
@@ -173,13 +182,15 @@ struct WindowHooks {
 impl Hooks for WindowHooks {
     fn presented(&mut self, picture: &Picture, latency_ms: f64, first_ms: f64, title: &str) {
         let state = &picture.state;
+        let shown = self.viewer.shown_name(state);
         let (width, height) = (picture.image.width(), picture.image.height());
         if self.print {
             say!(
-                "{}picture {}: size {width}x{height} frame {} yaw {:.6} pitch {:.6} zoom notches {} reuse {} mode {} \
+                "{}picture {}: size {width}x{height} shows {} frame {} yaw {:.6} pitch {:.6} zoom notches {} reuse {} mode {} \
                  spp {} render {:.2} ms latency {:.2} ms traced {} | {title}",
                 if picture.complete { "" } else { "coarse " },
                 picture.generation,
+                shown.replace(' ', "_"),
                 state.frame,
                 state.yaw.to_degrees(),
                 state.pitch.to_degrees(),

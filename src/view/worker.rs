@@ -323,18 +323,32 @@ fn panic_text(panic: &(dyn std::any::Any + Send)) -> String {
     format!("the render thread failed: {text}")
 }
 
+/// The kinds of view an animator serves: the camera's image, the
+/// viewer's viewport, or one of the scene's viewports (by index).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum ViewKind {
+    Camera,
+    Viewport,
+    Scene(usize),
+}
+
 /// Which animator serves a state: its kept samples are for one kind of
 /// view and one reuse mode.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 struct AnimatorKind {
-    viewport: bool,
+    view: ViewKind,
     reuse: bool,
 }
 
 impl AnimatorKind {
     fn of(state: &ViewState) -> AnimatorKind {
+        let view = match state.scene_viewport {
+            Some(index) => ViewKind::Scene(index),
+            None if Viewer::is_camera_view(state) => ViewKind::Camera,
+            None => ViewKind::Viewport,
+        };
         AnimatorKind {
-            viewport: !Viewer::is_camera_view(state),
+            view,
             reuse: state.reuse,
         }
     }
@@ -345,14 +359,18 @@ impl AnimatorKind {
 pub const COARSE_FACTOR: u32 = 4;
 
 /// The scenes the frame loop serves at one window size: the camera's
-/// image and the viewer's viewport, full and coarse.
+/// image and the viewer's viewport, full and coarse, and each of the
+/// scene's viewports.
 struct Scenes {
     size: (u32, u32),
-    coarse_size: (u32, u32),
     camera: Scene,
     viewport: Scene,
     coarse_camera: Scene,
     coarse_viewport: Scene,
+    /// The scene as loaded with only its viewport k: the frame loop then
+    /// renders and poses it as `retrace animate` does (its sample buffer
+    /// on the scene camera's lattice, whatever the window's size).
+    scene_viewports: Vec<Scene>,
 }
 
 impl Scenes {
@@ -388,22 +406,34 @@ impl Scenes {
         };
         let (camera, viewport) = at(full);
         let (coarse_camera, coarse_viewport) = at(coarse);
+        let scene_viewports = scene
+            .viewports
+            .iter()
+            .map(|track| Scene {
+                viewports: vec![track.clone()],
+                ..scene.clone()
+            })
+            .collect();
         Scenes {
             size,
-            coarse_size,
             camera,
             viewport,
             coarse_camera,
             coarse_viewport,
+            scene_viewports,
         }
     }
 
+    /// The scene an animator of `kind` renders. A scene viewport's coarse
+    /// picture is its own viewport at fewer pixels, traced directly: the
+    /// same scene.
     fn of(&self, kind: AnimatorKind, coarse: bool) -> &Scene {
-        match (kind.viewport, coarse) {
-            (false, false) => &self.camera,
-            (true, false) => &self.viewport,
-            (false, true) => &self.coarse_camera,
-            (true, true) => &self.coarse_viewport,
+        match (kind.view, coarse) {
+            (ViewKind::Camera, false) => &self.camera,
+            (ViewKind::Viewport, false) => &self.viewport,
+            (ViewKind::Camera, true) => &self.coarse_camera,
+            (ViewKind::Viewport, true) => &self.coarse_viewport,
+            (ViewKind::Scene(index), _) => &self.scene_viewports[index],
         }
     }
 }
@@ -571,7 +601,7 @@ fn serve_size(
                 ..options(kind, coarse_scene)
             };
             let mut coarse = Animator::interactive(coarse_scene, accel, coarse_options);
-            let picture = render_coarse(&mut coarse, viewer, scenes, generation, state.clone());
+            let picture = render_coarse(&mut coarse, viewer, generation, state.clone());
             drop(coarse);
             publish(shared, notify, picture);
             // Input that came meanwhile is what the full picture shows.
@@ -685,17 +715,16 @@ fn render(animator: &mut Animator, viewer: &Viewer, generation: u64, state: View
 fn render_coarse(
     animator: &mut Animator,
     viewer: &Viewer,
-    scenes: &Scenes,
     generation: u64,
     state: ViewState,
 ) -> Picture {
     let start = Instant::now();
-    let view = viewer.coarse_view(&state, scenes.coarse_size);
+    let view = viewer.coarse_view(&state, COARSE_FACTOR);
     let output = animator
         .render_views(state.frame, vec![view])
         .pop()
         .expect("one view, one picture");
-    let (width, height) = scenes.size;
+    let (width, height) = viewer.picture_size(&state);
     let magnify = |image: &image::RgbImage| {
         image::RgbImage::from_fn(width, height, |x, y| {
             *image.get_pixel(x / COARSE_FACTOR, y / COARSE_FACTOR)
@@ -779,7 +808,7 @@ mod tests {
             };
             let coarse_scene = scenes.of(kind, true);
             let mut coarse = Animator::interactive(coarse_scene, &mut accel, options(coarse_scene));
-            let rough = render_coarse(&mut coarse, &viewer, &scenes, 1, state.clone());
+            let rough = render_coarse(&mut coarse, &viewer, 1, state.clone());
             drop(coarse);
             let full_scene = scenes.of(kind, false);
             let mut full = Animator::interactive(full_scene, &mut accel, options(full_scene));
