@@ -11,7 +11,7 @@ use retrace::sampling::MAX_SAMPLES_PER_PIXEL;
 use retrace::view::refine::DEFAULT_REFINE_SPP;
 use retrace::view::script::{parse_script, run_script, stats_csv, EventStats};
 use retrace::view::window::{run_window, Hooks};
-use retrace::view::worker::REFINE_MODE;
+use retrace::view::worker::{Abandoned, REFINE_MODE};
 use retrace::view::{next_save_path, Picture, RenderThread, Viewer};
 
 use super::{check_writable, ensure_parent, load, scene_name, BackendArg, SceneArgs};
@@ -103,8 +103,7 @@ pub(crate) fn view(args: ViewArgs) -> Result<()> {
             };
             let rows = run_script(&thread, &viewer, &lines, &mut next_save, &mut save)
                 .map_err(anyhow::Error::msg)?;
-            let waited: Vec<f64> = thread.abandoned().iter().map(|a| a.waited_ms).collect();
-            say_script(&name, &rows, &waited);
+            say_script(&name, &rows, &thread.abandoned());
             if let Some(path) = &args.stats {
                 save_text(path, &stats_csv(&rows))?;
             }
@@ -134,10 +133,9 @@ pub(crate) fn view(args: ViewArgs) -> Result<()> {
     }
 }
 
-/// A script's run in a few lines: the pictures' times.
-/// `waited`: for each refinement abandoned, ms from the input to giving
-/// it up.
-fn say_script(name: &str, rows: &[EventStats], waited: &[f64]) {
+/// A script's run in a few lines: the pictures' times, and the pictures
+/// given up for newer input.
+fn say_script(name: &str, rows: &[EventStats], abandoned: &[Abandoned]) {
     let times: Vec<f64> = rows.iter().filter_map(|r| r.ms_to_picture).collect();
     let traced: u64 = rows.iter().filter_map(|r| r.samples_traced).sum();
     say!(
@@ -148,19 +146,32 @@ fn say_script(name: &str, rows: &[EventStats], waited: &[f64]) {
         traced
     );
     let converged: Vec<f64> = rows.iter().filter_map(|r| r.ms_to_converged).collect();
-    let abandoned = match waited.len() {
-        0 => "none abandoned".to_string(),
-        n => format!(
-            "{n} abandoned for newer input, which waited for them ms: median {:.1}, max {:.1}",
-            median(waited),
-            waited.iter().copied().fold(0.0, f64::max)
-        ),
+    // For each kind of picture given up: how many, and ms from the newer
+    // input to giving up.
+    let given_up = |frame_loop: bool| {
+        let waited: Vec<f64> = abandoned
+            .iter()
+            .filter(|a| a.frame_loop == frame_loop)
+            .map(|a| a.waited_ms)
+            .collect();
+        match waited.len() {
+            0 => "none abandoned".to_string(),
+            n => format!(
+                "{n} abandoned for newer input, which waited for them ms: median {:.1}, max {:.1}",
+                median(&waited),
+                waited.iter().copied().fold(0.0, f64::max)
+            ),
+        }
     };
     say!(
-        "refinement: {} commands with a converged picture, ms to converged: median {:.1}; {abandoned}",
+        "refinement: {} commands with a converged picture, ms to converged: median {:.1}; {}",
         converged.len(),
         median(&converged),
+        given_up(false)
     );
+    if abandoned.iter().any(|a| a.frame_loop) {
+        say!("pictures traced from nothing: {}", given_up(true));
+    }
 }
 
 fn median(values: &[f64]) -> f64 {

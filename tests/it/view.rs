@@ -381,6 +381,114 @@ fn input_during_refinement_abandons_it_and_no_stale_picture_follows() {
     );
 }
 
+#[test]
+fn input_during_a_full_render_abandons_it_and_the_next_picture_is_exact() {
+    use retrace::accel::BackendKind;
+    use retrace::scene::{load_scene, SceneOverrides};
+    use retrace::view::script::{parse_script, run_script};
+    use retrace::view::{RenderThread, Viewer as View};
+
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path();
+    paper_on_lattice(path, "scene.toml", 0.0, ON_LATTICE_PITCH);
+    // Four turning drags, then two more with reuse on again.
+    paper_on_lattice(
+        path,
+        "off.toml",
+        96.0 * STEP,
+        ON_LATTICE_PITCH + 32.0 * STEP,
+    );
+    paper_on_lattice(path, "on.toml", 72.0 * STEP, ON_LATTICE_PITCH + 24.0 * STEP);
+    let overrides = SceneOverrides {
+        width: Some(320),
+        height: Some(240),
+        ..SceneOverrides::default()
+    };
+    let scene = load_scene(&path.join("scene.toml"), &overrides).unwrap();
+    let view = View::new(&scene);
+    // Reuse off: every picture is traced in full. The second drag of each
+    // pair comes while the first's picture is traced (a few ms into it);
+    // with reuse on again, a drag comes while the new buffer is filled.
+    let text = format!(
+        "key m\nwait\n{}save off\nkey m\nsleep 2\ndrag 10 -3\nsleep 2\ndrag 14 -5\nwait\nsave on\n",
+        "drag -10 3\nsleep 2\ndrag -14 5\nwait\n".repeat(4)
+    );
+    let lines = parse_script(&text, Path::new("full.txt"), view.size()).unwrap();
+    // No refinement: every picture is the frame loop's.
+    let thread = RenderThread::spawn(
+        scene,
+        BackendKind::default(),
+        None,
+        true,
+        1,
+        Box::new(|| {}),
+    )
+    .unwrap();
+    let mut saved = Vec::new();
+    let rows = run_script(
+        &thread,
+        &view,
+        &lines,
+        &mut || unreachable!("no key s"),
+        &mut |path, image| {
+            saved.push((path.to_path_buf(), image.clone()));
+            Ok(())
+        },
+    )
+    .unwrap();
+    assert_eq!(rows.len(), 13);
+    let log = thread.log();
+    let abandoned = thread.abandoned();
+    let described = || {
+        let pictures = log.iter().map(|f| {
+            format!(
+                "{} {} (newest asked {})",
+                f.generation, f.mode, f.newest_asked
+            )
+        });
+        let given_up = abandoned
+            .iter()
+            .map(|a| format!("{} abandoned", a.generation));
+        pictures.chain(given_up).collect::<Vec<_>>().join("\n")
+    };
+    // Full pictures were given up for the second drag of a pair (a loaded
+    // machine may start one late, after both drags, not all four), and
+    // no complete picture of a request given up was shown (a coarse one
+    // may have come before).
+    let full: Vec<_> = abandoned.iter().filter(|a| a.frame_loop).collect();
+    assert!(!full.is_empty(), "{}", described());
+    for a in &full {
+        assert!(
+            !log.iter()
+                .any(|f| f.generation == a.generation && f.complete),
+            "{}",
+            described()
+        );
+    }
+    // Each pair's second drag has its own full picture.
+    for pair in 0..4 {
+        let second = 4 + 2 * pair;
+        assert!(
+            log.iter()
+                .any(|f| f.generation == second && f.mode == "full" && f.complete),
+            "{}",
+            described()
+        );
+    }
+    retrace_ok(
+        &args(&["render", "off.toml"], &["-o", "off_render.png"]),
+        path,
+    );
+    retrace_ok(
+        &args(&["render", "on.toml"], &["-o", "on_render.png"]),
+        path,
+    );
+    let names: Vec<String> = saved.iter().map(|(p, _)| p.display().to_string()).collect();
+    assert_eq!(names, ["off", "on"]);
+    assert!(saved[0].1 == png(&path.join("off_render.png")));
+    assert!(saved[1].1 == png(&path.join("on_render.png")));
+}
+
 /// The paper scene with a bouncing ball, a panning camera and two
 /// viewports, one of them zooming, turning and shifting along the
 /// timeline (E4 in small).
