@@ -11,7 +11,7 @@ use retrace::sampling::MAX_SAMPLES_PER_PIXEL;
 use retrace::view::refine::DEFAULT_REFINE_SPP;
 use retrace::view::script::{parse_script, run_script, stats_csv, EventStats};
 use retrace::view::window::{run_window, Hooks};
-use retrace::view::worker::REFINE_MODE;
+use retrace::view::worker::{Abandoned, REFINE_MODE};
 use retrace::view::{next_save_path, Picture, RenderThread, Viewer};
 
 use super::{check_writable, ensure_parent, load, scene_name, BackendArg, SceneArgs};
@@ -66,9 +66,16 @@ pub(crate) fn view(args: ViewArgs) -> Result<()> {
     };
     let scene = load(&args.scene)?;
     if !scene.viewports.is_empty() {
+        let names: Vec<&str> = scene
+            .viewports
+            .iter()
+            .map(|t| t.viewport.name.as_str())
+            .collect();
         eprintln!(
-            "note: the view shows the scene's camera; its viewports are not shown (`retrace \
-             animate` renders them)"
+            "note: the view opens on the scene's viewport {} as `retrace animate` renders it; \
+             `v` shows the next ({}), then the camera's image",
+            names[0],
+            names.join(", ")
         );
     }
     let name = scene_name(&args.scene);
@@ -96,8 +103,7 @@ pub(crate) fn view(args: ViewArgs) -> Result<()> {
             };
             let rows = run_script(&thread, &viewer, &lines, &mut next_save, &mut save)
                 .map_err(anyhow::Error::msg)?;
-            let waited: Vec<f64> = thread.abandoned().iter().map(|a| a.waited_ms).collect();
-            say_script(&name, &rows, &waited);
+            say_script(&name, &rows, &thread.abandoned());
             if let Some(path) = &args.stats {
                 save_text(path, &stats_csv(&rows))?;
             }
@@ -105,6 +111,7 @@ pub(crate) fn view(args: ViewArgs) -> Result<()> {
         }
         None => {
             let mut hooks = WindowHooks {
+                viewer: Viewer::new(&scene),
                 print: args.print_pictures,
                 save_dir: args.save_dir.clone(),
                 rows: Vec::new(),
@@ -126,10 +133,9 @@ pub(crate) fn view(args: ViewArgs) -> Result<()> {
     }
 }
 
-/// A script's run in a few lines: the pictures' times.
-/// `waited`: for each refinement abandoned, ms from the input to giving
-/// it up.
-fn say_script(name: &str, rows: &[EventStats], waited: &[f64]) {
+/// A script's run in a few lines: the pictures' times, and the pictures
+/// given up for newer input.
+fn say_script(name: &str, rows: &[EventStats], abandoned: &[Abandoned]) {
     let times: Vec<f64> = rows.iter().filter_map(|r| r.ms_to_picture).collect();
     let traced: u64 = rows.iter().filter_map(|r| r.samples_traced).sum();
     say!(
@@ -140,19 +146,32 @@ fn say_script(name: &str, rows: &[EventStats], waited: &[f64]) {
         traced
     );
     let converged: Vec<f64> = rows.iter().filter_map(|r| r.ms_to_converged).collect();
-    let abandoned = match waited.len() {
-        0 => "none abandoned".to_string(),
-        n => format!(
-            "{n} abandoned for newer input, which waited for them ms: median {:.1}, max {:.1}",
-            median(waited),
-            waited.iter().copied().fold(0.0, f64::max)
-        ),
+    // For each kind of picture given up: how many, and ms from the newer
+    // input to giving up.
+    let given_up = |frame_loop: bool| {
+        let waited: Vec<f64> = abandoned
+            .iter()
+            .filter(|a| a.frame_loop == frame_loop)
+            .map(|a| a.waited_ms)
+            .collect();
+        match waited.len() {
+            0 => "none abandoned".to_string(),
+            n => format!(
+                "{n} abandoned for newer input, which waited for them ms: median {:.1}, max {:.1}",
+                median(&waited),
+                waited.iter().copied().fold(0.0, f64::max)
+            ),
+        }
     };
     say!(
-        "refinement: {} commands with a converged picture, ms to converged: median {:.1}; {abandoned}",
+        "refinement: {} commands with a converged picture, ms to converged: median {:.1}; {}",
         converged.len(),
         median(&converged),
+        given_up(false)
     );
+    if abandoned.iter().any(|a| a.frame_loop) {
+        say!("pictures traced from nothing: {}", given_up(true));
+    }
 }
 
 fn median(values: &[f64]) -> f64 {
@@ -165,6 +184,7 @@ fn median(values: &[f64]) -> f64 {
 }
 
 struct WindowHooks {
+    viewer: Viewer,
     print: bool,
     save_dir: PathBuf,
     rows: Vec<EventStats>,
@@ -173,13 +193,15 @@ struct WindowHooks {
 impl Hooks for WindowHooks {
     fn presented(&mut self, picture: &Picture, latency_ms: f64, first_ms: f64, title: &str) {
         let state = &picture.state;
+        let shown = self.viewer.shown_name(state);
         let (width, height) = (picture.image.width(), picture.image.height());
         if self.print {
             say!(
-                "{}picture {}: size {width}x{height} frame {} yaw {:.6} pitch {:.6} zoom notches {} reuse {} mode {} \
+                "{}picture {}: size {width}x{height} shows {} frame {} yaw {:.6} pitch {:.6} zoom notches {} reuse {} mode {} \
                  spp {} render {:.2} ms latency {:.2} ms traced {} | {title}",
                 if picture.complete { "" } else { "coarse " },
                 picture.generation,
+                shown.replace(' ', "_"),
                 state.frame,
                 state.yaw.to_degrees(),
                 state.pitch.to_degrees(),

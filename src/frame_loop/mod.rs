@@ -19,6 +19,7 @@
 //!   buffer samples equal a fresh trace, its viewports are measured
 //!   against their own rays.
 
+mod abandon;
 mod changes;
 mod options;
 mod stats;
@@ -28,11 +29,12 @@ pub use options::{Options, OstcSettings, Technique, Techniques};
 pub use stats::{FrameStats, FullReason, Reason, Restart};
 
 use std::collections::HashMap;
+use std::sync::atomic::AtomicBool;
 use std::time::Instant;
 
 use glam::Affine3A;
 
-use crate::accel::Accelerator;
+use crate::accel::{Accelerator, Intersector};
 use crate::camera::{Camera, Projection, ViewTransform, ViewportPose};
 use crate::geometry::Placement;
 use crate::render::{render_view_sampled, Frame};
@@ -45,6 +47,7 @@ use crate::sampling::PixelSamples;
 use crate::scene::Scene;
 use crate::shade::{RayCounts, Shader};
 use crate::timeline::Animation;
+use abandon::Abandonable;
 use changes::{build_ostc, invalidate, Invalidation, ScenePose};
 
 /// The most memory a pan buffer may take. A narrow equal-angle view keeps
@@ -244,7 +247,7 @@ impl<'a> Animator<'a> {
     pub fn render_full(&mut self, frame: u32, index: usize) -> (Frame, RayCounts) {
         self.pose(frame);
         let view = self.views(frame).swap_remove(index);
-        self.render_view_in_full(&self.scene, self.accel, &view)
+        self.render_view_in_full(&self.scene, &*self.accel, &view)
     }
 
     /// As [`Animator::render_full`], from a scene and an accelerator built
@@ -269,7 +272,7 @@ impl<'a> Animator<'a> {
     fn render_view_in_full(
         &self,
         scene: &Scene,
-        accel: &Accelerator,
+        accel: &dyn Intersector,
         view: &View,
     ) -> (Frame, RayCounts) {
         let shader = Shader::new(scene, accel);
@@ -471,6 +474,22 @@ impl<'a> Animator<'a> {
     /// [`Animator::views`] gives: the camera's image, or one per viewport)
     /// rather than the timeline's: for an [`Animator::interactive`] one.
     pub fn render_views(&mut self, frame: u32, views: Vec<View>) -> Vec<ViewOutput> {
+        self.render_views_until(frame, views, None)
+            .expect("nothing to stop it")
+    }
+
+    /// As [`Animator::render_views`]; a frame traced from nothing (in
+    /// full, or into a new store) gives up as soon as `stop` is set, and
+    /// is None: the store it was filling is dropped with it (the next
+    /// frame starts one afresh), so nothing half-traced is ever kept or
+    /// shown. A frame from a kept store runs to the end (it is quick, and
+    /// its store is worth keeping).
+    pub fn render_views_until(
+        &mut self,
+        frame: u32,
+        views: Vec<View>,
+        stop: Option<&AtomicBool>,
+    ) -> Option<Vec<ViewOutput>> {
         debug_assert!(
             self.interactive || views == self.views(frame),
             "views other than the timeline's need an interactive animator"
@@ -479,7 +498,7 @@ impl<'a> Animator<'a> {
         self.pose(frame);
         if let Some(reason) = self.full_reason(frame, &views) {
             self.kept = None;
-            return self.render_in_full(frame, views, reason);
+            return self.render_in_full(frame, views, reason, stop);
         }
         let pose = ScenePose::of(&self.scene, self.animation());
         let poses: Vec<ViewportPose> = views.iter().map(|v| v.pose.clone()).collect();
@@ -502,13 +521,24 @@ impl<'a> Animator<'a> {
         }
         let setup_ms = start.elapsed().as_secs_f64() * 1e3 - changed.ms;
         let kept = self.kept.as_mut().expect("store just ensured");
-        let shader = Shader::new(&self.scene, self.accel);
+        let gate = stop
+            .filter(|_| restart.is_some())
+            .map(|stop| Abandonable::new(&*self.accel, stop));
+        let intersector: &dyn Intersector = match &gate {
+            Some(gate) => gate,
+            None => &*self.accel,
+        };
+        let shader = Shader::new(&self.scene, intersector);
         let wanted = Wanted {
             linear: self.options.linear,
         };
         let frames = kept
             .store
             .render(&shader, &poses, kept.ostc.as_ref(), wanted);
+        if gate.as_ref().is_some_and(Abandonable::tripped) {
+            self.kept = None;
+            return None;
+        }
         let (walked, record_ms) = kept.ostc.as_ref().map_or((0, 0.0), Ostc::take_counters);
         // Recording ran on every worker thread: its share of the elapsed
         // time. Frame-wide figures are shared out over the views.
@@ -555,22 +585,32 @@ impl<'a> Animator<'a> {
                 traced_image,
             });
         }
-        outputs
+        Some(outputs)
     }
 
     /// Renders every view of `frame` from scratch (see
-    /// [`Animator::render_full`]), for the `reason` given.
+    /// [`Animator::render_full`]), for the `reason` given; None if `stop`
+    /// was set before it finished.
     fn render_in_full(
         &mut self,
         frame: u32,
         views: Vec<View>,
         reason: Option<FullReason>,
-    ) -> Vec<ViewOutput> {
+        stop: Option<&AtomicBool>,
+    ) -> Option<Vec<ViewOutput>> {
         let mut outputs = Vec::with_capacity(views.len());
         self.pose(frame);
         for view in views {
             let start = Instant::now();
-            let (image, rays) = self.render_view_in_full(&self.scene, self.accel, &view);
+            let gate = stop.map(|stop| Abandonable::new(&*self.accel, stop));
+            let intersector: &dyn Intersector = match &gate {
+                Some(gate) => gate,
+                None => &*self.accel,
+            };
+            let (image, rays) = self.render_view_in_full(&self.scene, intersector, &view);
+            if gate.as_ref().is_some_and(Abandonable::tripped) {
+                return None;
+            }
             let trace_ms = start.elapsed().as_secs_f64() * 1e3;
             let rgb = image.to_rgb8();
             let total_ms = start.elapsed().as_secs_f64() * 1e3;
@@ -599,7 +639,7 @@ impl<'a> Animator<'a> {
                 traced_image,
             });
         }
-        outputs
+        Some(outputs)
     }
 }
 

@@ -8,7 +8,7 @@
 //! wheel N [X Y]   N wheel notches (positive: zoom in) about window point
 //!                 X Y (default: the centre)
 //! key K           a key as the window takes it: Left Right Up Down , . m t
-//!                 s [ ] q Escape (space plays only in a window: use play)
+//!                 s v [ ] q Escape (space plays only in a window: use play)
 //! resize W H      the window resized to W x H pixels
 //! play N          the timeline's next N frames, each once the last is shown
 //! wait            until the frame loop's picture shows every command so far
@@ -129,7 +129,7 @@ fn parse_command(content: &str, size: (u32, u32)) -> Result<Command, String> {
         ["key", name] => Key::parse(name)
             .map(|k| Command::Input(Input::Key(k)))
             .ok_or_else(|| {
-                format!("key: unknown key '{name}' (Left Right Up Down , . m t s [ ] q Escape)")
+                format!("key: unknown key '{name}' (Left Right Up Down , . m t s v [ ] q Escape)")
             }),
         ["key", ..] => Err("key takes one key".to_string()),
         ["resize", w, h] => {
@@ -203,7 +203,7 @@ pub fn run_script(
     next_save: &mut dyn FnMut() -> PathBuf,
     save: &mut dyn FnMut(&Path, &image::RgbImage) -> Result<(), String>,
 ) -> Result<Vec<EventStats>, String> {
-    let mut state = ViewState::default();
+    let mut state = viewer.opening();
     let mut overlay = false;
     // Whether the last command was wait-converged: a save then writes
     // the converged picture.

@@ -8,6 +8,14 @@
 //! state in a window and in a script. With the transform at identity the
 //! view is the camera's own image, so a drag of an equal-angle camera is a
 //! Panimation pan, exact; zoomed or rotated it is an RSVP viewport.
+//!
+//! A scene's own `[[viewport]]`s can be shown instead (`v` cycles through
+//! them and back to the camera's image; a scene that has them opens on the
+//! first, as `retrace animate` outputs it): viewport k at frame f is the
+//! timeline's pose of it, as `retrace animate` renders it. The user's
+//! drag, wheel and turn on it compose with its (keyed) transform, in the
+//! viewport's own pixels; `v` starts the next view unadjusted, and the
+//! user's own view of the camera is kept while scene viewports are shown.
 
 use std::f64::consts::FRAC_PI_2;
 
@@ -16,7 +24,7 @@ use glam::{DMat2, DVec2};
 use crate::camera::{Camera, Projection, ViewTransform, Viewport, ViewportPose};
 use crate::frame_loop::View;
 use crate::scene::Scene;
-use crate::timeline::Animation;
+use crate::timeline::{Animation, ViewportTrack};
 
 /// One wheel notch magnifies by this much.
 pub const ZOOM_STEP: f64 = 1.1;
@@ -52,6 +60,68 @@ pub struct ViewState {
     pub reuse: bool,
     /// The window's size in pixels (None: the scene camera's).
     pub size: Option<(u32, u32)>,
+    /// The scene's viewport shown (its index among the scene's
+    /// `[[viewport]]`s), or None: the user's own view of the camera (the
+    /// fields above).
+    pub scene_viewport: Option<usize>,
+    /// The user's zoom, turn and shift on top of the scene viewport shown
+    /// (identity: the viewport as `retrace animate` renders it).
+    pub on_viewport: Adjust,
+}
+
+/// A zoom, turn and shift in a picture's own pixels, about its centre.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Adjust {
+    /// Magnification [`ZOOM_STEP`]^`notches`.
+    pub notches: i32,
+    /// Radians, counter-clockwise as seen.
+    pub rotate: f64,
+    /// What the centre shows, in pixels of the unadjusted picture.
+    pub translate: DVec2,
+}
+
+impl Adjust {
+    fn transform(&self) -> ViewTransform {
+        ViewTransform {
+            zoom: ZOOM_STEP.powi(self.notches),
+            rotate: self.rotate,
+            shear: [0.0, 0.0],
+            translate: self.translate.to_array(),
+        }
+    }
+
+    /// `base` seen through this adjustment: the picture `base` makes,
+    /// zoomed, turned and shifted. Rotations and uniform zooms commute, so
+    /// the product is again a zoom, a turn and `base`'s shear; the shift
+    /// is carried back through `base` into its unzoomed pixels.
+    pub fn compose(&self, base: &ViewTransform) -> ViewTransform {
+        if *self == Adjust::default() {
+            return *base;
+        }
+        let own = self.transform();
+        let shift = base.matrix().inverse() * self.translate;
+        ViewTransform {
+            zoom: own.zoom * base.zoom,
+            rotate: own.rotate + base.rotate,
+            shear: base.shear,
+            translate: [base.translate[0] + shift.x, base.translate[1] + shift.y],
+        }
+    }
+
+    /// Dragged by `delta` pixels: the point under the cursor stays there.
+    fn drag(&mut self, delta: DVec2) {
+        self.translate -= self.transform().matrix().inverse() * delta;
+    }
+
+    /// Zoomed to `notches` about `at` in a picture of `size` pixels: the
+    /// point under it stays there.
+    fn zoom_about(&mut self, notches: i32, at: DVec2, size: (u32, u32)) {
+        let before = self.transform().matrix().inverse();
+        self.notches = notches;
+        let after = self.transform().matrix().inverse();
+        let centre = DVec2::new(f64::from(size.0), f64::from(size.1)) * 0.5;
+        self.translate += (before - after) * (at - centre);
+    }
 }
 
 impl Default for ViewState {
@@ -65,6 +135,8 @@ impl Default for ViewState {
             translate: DVec2::ZERO,
             reuse: true,
             size: None,
+            scene_viewport: None,
+            on_viewport: Adjust::default(),
         }
     }
 }
@@ -88,6 +160,8 @@ pub enum Key {
     T,
     /// Save the picture.
     S,
+    /// Show the scene's next viewport (after the last: the camera's image).
+    V,
     /// Turn the view counter-clockwise (`[`) or clockwise (`]`).
     RotateLeft,
     RotateRight,
@@ -109,6 +183,7 @@ impl Key {
             "m" => Key::M,
             "t" => Key::T,
             "s" => Key::S,
+            "v" => Key::V,
             "[" => Key::RotateLeft,
             "]" => Key::RotateRight,
             "q" | "Escape" | "escape" => Key::Quit,
@@ -154,6 +229,7 @@ pub struct Viewer {
     camera: Camera,
     animation: Option<Animation>,
     samples: u32,
+    viewports: Vec<ViewportTrack>,
 }
 
 impl Viewer {
@@ -162,6 +238,53 @@ impl Viewer {
             camera: scene.camera.clone(),
             animation: scene.animation.clone(),
             samples: scene.samples.count(),
+            viewports: scene.viewports.clone(),
+        }
+    }
+
+    /// The state a viewer opens on: the scene's first viewport where it
+    /// has any (what `retrace animate` outputs), else the camera's image.
+    pub fn opening(&self) -> ViewState {
+        ViewState {
+            scene_viewport: (!self.viewports.is_empty()).then_some(0),
+            ..ViewState::default()
+        }
+    }
+
+    /// The scene's viewports.
+    pub fn scene_viewports(&self) -> &[ViewportTrack] {
+        &self.viewports
+    }
+
+    /// What `state` shows, in words: `camera`, or the scene viewport's
+    /// name and place (`viewport zoom 1/2`), `adjusted` when the user's
+    /// input is on it.
+    pub fn shown_name(&self, state: &ViewState) -> String {
+        match state.scene_viewport {
+            None => "camera".to_string(),
+            Some(k) => format!(
+                "viewport {} {}/{}{}",
+                self.viewports[k].viewport.name,
+                k + 1,
+                self.viewports.len(),
+                if state.on_viewport == Adjust::default() {
+                    ""
+                } else {
+                    " adjusted"
+                }
+            ),
+        }
+    }
+
+    /// The picture's size in pixels: the scene viewport's own, or the
+    /// window's.
+    pub fn picture_size(&self, state: &ViewState) -> (u32, u32) {
+        match state.scene_viewport {
+            Some(k) => {
+                let viewport = &self.viewports[k].viewport;
+                (viewport.width, viewport.height)
+            }
+            None => self.size_of(state),
         }
     }
 
@@ -227,9 +350,39 @@ impl Viewer {
     }
 
     /// Whether `state` shows the camera's own image (no zoom, turn or
-    /// translation): else an RSVP viewport.
+    /// translation): else an RSVP viewport (the viewer's or the scene's).
     pub fn is_camera_view(state: &ViewState) -> bool {
-        state.notches == 0 && state.rotate == 0.0 && state.translate == DVec2::ZERO
+        state.scene_viewport.is_none()
+            && state.notches == 0
+            && state.rotate == 0.0
+            && state.translate == DVec2::ZERO
+    }
+
+    /// The timeline's camera at `frame`, as the frame loop poses the
+    /// scene's viewports from it (not turned by the user, not resized).
+    fn timeline_camera(&self, frame: u32) -> Camera {
+        match &self.animation {
+            Some(animation) => animation.camera_at(&self.camera, frame),
+            None => self.camera.clone(),
+        }
+    }
+
+    /// Scene viewport `index` at the state's frame, as the frame loop
+    /// poses it, with the user's adjustment composed on top.
+    fn scene_view(&self, state: &ViewState, index: usize) -> View {
+        let track = &self.viewports[index];
+        let pose = track.pose_at(&self.timeline_camera(state.frame), state.frame);
+        let pose = match state.on_viewport == Adjust::default() {
+            true => pose,
+            false => {
+                let transform = state.on_viewport.compose(&pose.transform);
+                ViewportPose::new(pose.camera, transform)
+            }
+        };
+        View {
+            name: track.viewport.name.clone(),
+            pose,
+        }
     }
 
     /// The viewport the viewer shows when zoomed or turned, `size` pixels.
@@ -249,10 +402,7 @@ impl Viewer {
 
     /// The timeline's camera at the state's frame, turned by the user.
     pub fn camera(&self, state: &ViewState) -> Camera {
-        let mut camera = match &self.animation {
-            Some(animation) => animation.camera_at(&self.camera, state.frame),
-            None => self.camera.clone(),
-        };
+        let mut camera = self.timeline_camera(state.frame);
         if self.turns() {
             camera.yaw += state.yaw;
             camera.pitch += state.pitch;
@@ -263,9 +413,12 @@ impl Viewer {
         }
     }
 
-    /// The one view of `state`: the camera's image, or the viewer's
-    /// viewport.
+    /// The one view of `state`: the camera's image, the viewer's
+    /// viewport, or the scene's viewport.
     pub fn view(&self, state: &ViewState) -> View {
+        if let Some(index) = state.scene_viewport {
+            return self.scene_view(state, index);
+        }
         let camera = self.camera(state);
         if Self::is_camera_view(state) {
             return View {
@@ -279,22 +432,20 @@ impl Viewer {
         }
     }
 
-    /// The view of `state` at `size` pixels over the same field: a coarse
-    /// picture of what [`Viewer::view`] shows.
-    pub fn coarse_view(&self, state: &ViewState, size: (u32, u32)) -> View {
-        let mut camera = self.camera(state);
-        let scale = f64::from(size.0) / f64::from(camera.width);
-        camera.width = size.0;
-        camera.height = size.1;
-        let mut transform = Self::transform(state);
-        transform.translate = (state.translate * scale).to_array();
-        let name = if Self::is_camera_view(state) {
-            String::new()
-        } else {
-            VIEWPORT_NAME.to_string()
-        };
+    /// The view of `state` in `factor` times fewer pixels each way (sides
+    /// rounded up) over the same field: a coarse picture of what
+    /// [`Viewer::view`] shows.
+    pub fn coarse_view(&self, state: &ViewState, factor: u32) -> View {
+        let view = self.view(state);
+        let mut camera = view.pose.camera;
+        let width = camera.width.div_ceil(factor);
+        let scale = f64::from(width) / f64::from(camera.width);
+        camera.width = width;
+        camera.height = camera.height.div_ceil(factor);
+        let mut transform = view.pose.transform;
+        transform.translate = transform.translate.map(|t| t * scale);
         View {
-            name,
+            name: view.name,
             pose: ViewportPose::new(camera, transform),
         }
     }
@@ -302,6 +453,14 @@ impl Viewer {
     /// Whether `state` can be shown: its camera valid (an equal-angle
     /// view within the poles) and its transform too.
     pub fn check(&self, state: &ViewState) -> Result<(), String> {
+        if let Some(index) = state.scene_viewport {
+            let camera = self.timeline_camera(state.frame);
+            let transform = self.scene_view(state, index).pose.transform;
+            return self.viewports[index]
+                .viewport
+                .validate_transform(&camera, &transform)
+                .map_err(|e| format!("{}: {}", e.field, e.message));
+        }
         let camera = self.camera(state);
         camera.validate().map_err(|e| e.to_string())?;
         let base = Camera {
@@ -321,6 +480,12 @@ impl Viewer {
         let mut next = state.clone();
         match input {
             Input::Drag(delta) => self.drag(&mut next, delta),
+            Input::Wheel { notches, at } if state.scene_viewport.is_some() => {
+                let notches =
+                    (state.on_viewport.notches + notches).clamp(-MAX_NOTCHES, MAX_NOTCHES);
+                let size = self.picture_size(state);
+                next.on_viewport.zoom_about(notches, at, size);
+            }
             Input::Wheel { notches, at } => {
                 let notches = (state.notches + notches).clamp(-MAX_NOTCHES, MAX_NOTCHES);
                 self.zoom_about(&mut next, notches, at);
@@ -340,12 +505,24 @@ impl Viewer {
                 }
                 Key::M => next.reuse = !state.reuse,
                 Key::T => return Effect::ToggleOverlay,
+                Key::V => {
+                    let count = self.viewports.len();
+                    next.scene_viewport = match state.scene_viewport {
+                        None => (count > 0).then_some(0),
+                        Some(k) => (k + 1 < count).then_some(k + 1),
+                    };
+                    next.on_viewport = Adjust::default();
+                }
                 Key::RotateLeft | Key::RotateRight => {
                     let sign = if key == Key::RotateLeft { 1.0 } else { -1.0 };
                     // Whole steps from zero, so turning back is exactly 0.
-                    let steps = (state.rotate / ROTATE_STEP).round() + sign;
-                    next.rotate = steps * ROTATE_STEP;
-                    self.settle(&mut next);
+                    let turn = |rotate: f64| ((rotate / ROTATE_STEP).round() + sign) * ROTATE_STEP;
+                    if state.scene_viewport.is_some() {
+                        next.on_viewport.rotate = turn(state.on_viewport.rotate);
+                    } else {
+                        next.rotate = turn(state.rotate);
+                        self.settle(&mut next);
+                    }
                 }
                 Key::Space => return Effect::TogglePlay,
                 Key::S => return Effect::Save,
@@ -367,6 +544,9 @@ impl Viewer {
     /// Drags the picture by `delta` window pixels: the point under the
     /// cursor stays under it.
     fn drag(&self, state: &mut ViewState, delta: DVec2) {
+        if state.scene_viewport.is_some() {
+            return state.on_viewport.drag(delta);
+        }
         let base = Self::transform(state).matrix().inverse() * delta;
         if self.turns() {
             let step = self.camera.angle_step();
@@ -495,6 +675,66 @@ mod tests {
         let zoom = ZOOM_STEP.powi(7);
         viewer.apply(&mut zoomed, Input::Drag(DVec2::new(10.0, 0.0)));
         assert!((zoomed.translate.x + 10.0 / zoom).abs() < 1e-12);
+    }
+
+    #[test]
+    fn input_on_a_scene_viewport_composes_with_its_keyed_transform() {
+        let text = "include = \"paper.toml\"\n[animation]\nframes = 3\n\
+                    [[viewport]]\nname = \"a\"\nwidth = 120\nheight = 80\nrotate = 10.0\n\
+                    shear = [0.2, 0.0]\n[[viewport]]\nname = \"b\"\nwidth = 60\nheight = 40\n\
+                    [[animation.viewport]]\nframe = 2\nzoom = 2.0\ntranslate = [5.0, -3.0]\n";
+        let scene = crate::scene::parse_scene_str(
+            text,
+            std::path::Path::new("scenes/v.toml"),
+            &SceneOverrides::default(),
+        )
+        .unwrap();
+        let viewer = Viewer::new(&scene);
+        let mut state = viewer.opening();
+        assert_eq!(state.scene_viewport, Some(0));
+        assert_eq!(viewer.picture_size(&state), (120, 80));
+        viewer.apply(&mut state, Input::Key(Key::Period));
+        viewer.apply(&mut state, Input::Key(Key::Period));
+        // Unadjusted: the timeline's pose, as the frame loop makes it.
+        let camera = viewer.timeline_camera(2);
+        let keyed = scene.viewports[0].pose_at(&camera, 2);
+        assert_eq!(viewer.view(&state).pose, keyed);
+        // A wheel keeps the point under the cursor, a drag moves it with
+        // the cursor, a turn is about the centre; the keyed shear stays.
+        let looks = |state: &ViewState, p: DVec2| viewer.view(state).pose.direction(p).unwrap();
+        let at = DVec2::new(30.0, 20.0);
+        let before = looks(&state, at);
+        viewer.apply(&mut state, Input::Wheel { notches: 3, at });
+        assert!((looks(&state, at) - before).length() < 1e-9);
+        let delta = DVec2::new(7.0, -4.0);
+        viewer.apply(&mut state, Input::Key(Key::RotateRight));
+        let before = looks(&state, at);
+        viewer.apply(&mut state, Input::Drag(delta));
+        assert!((looks(&state, at + delta) - before).length() < 1e-9);
+        let centre = DVec2::new(60.0, 40.0);
+        let before = looks(&state, centre);
+        viewer.apply(&mut state, Input::Key(Key::RotateLeft));
+        assert!((looks(&state, centre) - before).length() < 1e-9);
+        assert_eq!(viewer.view(&state).pose.transform.shear, [0.2, 0.0]);
+        assert!(viewer.shown_name(&state).ends_with("a 1/2 adjusted"));
+        // The user's own view of the camera is untouched; `v` goes on
+        // unadjusted, then to the camera's image, then round again.
+        assert!(state.notches == 0 && state.translate == DVec2::ZERO);
+        viewer.apply(&mut state, Input::Key(Key::V));
+        assert_eq!(state.scene_viewport, Some(1));
+        assert_eq!(
+            viewer.view(&state).pose,
+            scene.viewports[1].pose_at(&camera, 2)
+        );
+        viewer.apply(&mut state, Input::Key(Key::V));
+        assert!(Viewer::is_camera_view(&state));
+        assert_eq!(viewer.shown_name(&state), "camera");
+        viewer.apply(&mut state, Input::Key(Key::V));
+        assert_eq!(state.scene_viewport, Some(0));
+        // A scene without viewports: `v` does nothing.
+        let paper = paper();
+        let mut plain = paper.opening();
+        assert_eq!(paper.apply(&mut plain, Input::Key(Key::V)), Effect::Nothing);
     }
 
     #[test]

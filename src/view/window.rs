@@ -56,11 +56,12 @@ pub fn run_window(
         let _ = proxy.send_event(Wake);
     });
     let thread = RenderThread::spawn(scene, backend, grid_resolution, false, refine_spp, notify)?;
+    let state = viewer.opening();
     let mut app = App {
         name: name.to_string(),
         viewer,
         thread,
-        state: ViewState::default(),
+        state,
         generation: 0,
         asked: Vec::new(),
         window: None,
@@ -206,6 +207,12 @@ impl App<'_> {
 
     fn title(&self, picture: Option<&Picture>) -> String {
         let mut title = format!("retrace view: {}", self.name);
+        if !self.viewer.scene_viewports().is_empty() {
+            // Which view is shown (`v` cycles): the picture's, or the one
+            // asked for before any picture.
+            let state = picture.map_or(&self.state, |p| &p.state);
+            title.push_str(&format!(" | {}", self.viewer.shown_name(state)));
+        }
         if let Some(p) = picture {
             title.push_str(&format!(
                 " | {} spp | {:.1} ms | {:.1}% traced | reuse {} ({})",

@@ -13,6 +13,23 @@
 //! one (a sixteenth of the samples, traced afresh, marked not complete),
 //! and the full picture then shows the latest request.
 //!
+//! A picture the frame loop traces from nothing (in full: reuse off; or
+//! into a new buffer: the first of an animator, or after the eye moved) is
+//! given up when a newer request comes ([`Animator::render_views_until`]:
+//! within a packet of rays); the frame loop then drops the buffer it was
+//! filling, so the next picture is traced afresh and exact, and nothing of
+//! the stale one is published. So that input faster than pictures cannot
+//! starve the window of pictures, a request gives up the picture under way
+//! only while the oldest request not yet answered has waited less than
+//! the last picture traced from nothing took (its patience): past that,
+//! the picture under way is finished. The last input of a burst shorter
+//! than a picture is then answered about one picture after it (without
+//! giving up: up to two), and input faster than pictures for longer still
+//! gets a picture at least every two or so. Giving up throws away the
+//! work done, so the first inputs of a burst wait longer than they would
+//! have. Pictures from kept buffers (pans, zooms, OSTC) are quick and run
+//! to the end, keeping their buffers.
+//!
 //! With nothing new asked after a complete picture, the thread refines it
 //! ([`super::refine`]): the same view traced afresh at more samples a
 //! pixel, rung by rung of a ladder, each rung published as it finishes
@@ -21,14 +38,17 @@
 //! request is waiting. After the last rung (the picture is converged) the thread
 //! sleeps until the next request.
 
+use std::collections::VecDeque;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Condvar, Mutex, MutexGuard, PoisonError};
 use std::thread::JoinHandle;
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 use crate::accel::{Accelerator, BackendKind};
 use crate::camera::{Camera, RayTable, Viewport};
-use crate::frame_loop::{Animator, Options, Techniques};
+use crate::frame_loop::{Animator, Options, Reason, Techniques};
 use crate::reuse::rsvp::{RsvpKnobs, ViewportRays};
+use crate::reuse::FrameMode;
 use crate::sampling::PixelSamples;
 use crate::scene::Scene;
 use crate::shade::Shader;
@@ -62,6 +82,9 @@ pub struct Picture {
     /// The last picture of its request: refined to the top of the ladder
     /// (or the frame loop's, with refinement off).
     pub converged: bool,
+    /// The frame loop traced it from nothing (in full, or into a new
+    /// buffer).
+    pub traced_afresh: bool,
 }
 
 impl Picture {
@@ -96,16 +119,19 @@ pub struct Finished {
     pub newest_asked: u64,
 }
 
-/// A refinement given up because a newer request came.
+/// A picture given up because a newer request came: a refinement, or
+/// the frame loop's picture traced from nothing.
 #[derive(Clone, Copy, Debug)]
 pub struct Abandoned {
-    /// The request it refined.
+    /// The request it answered.
     pub generation: u64,
-    /// The samples a pixel of the rung it was tracing.
+    /// The samples a pixel of the rung it was tracing, or the scene's.
     pub samples: u32,
+    /// The frame loop's picture (else a refinement).
+    pub frame_loop: bool,
     pub at: Instant,
-    /// Milliseconds from the newer request to giving up: the band it
-    /// waited for.
+    /// Milliseconds from the newer request to giving up: the band (or
+    /// packets) it waited for.
     pub waited_ms: f64,
 }
 
@@ -116,8 +142,18 @@ struct Inbox {
     /// The generation of the newest request made, and when.
     newest: u64,
     newest_at: Option<Instant>,
+    /// Requests not yet answered by a complete picture of the frame loop,
+    /// oldest first, and when each was made.
+    unanswered: VecDeque<(u64, Instant)>,
+    /// What the last picture traced from nothing took: while the oldest
+    /// unanswered request has waited less, a newer one gives up the
+    /// picture under way.
+    patience: Duration,
     quit: bool,
 }
+
+/// The patience before any picture was traced from nothing.
+const FIRST_PATIENCE: Duration = Duration::from_millis(200);
 
 #[derive(Default)]
 struct Outbox {
@@ -136,6 +172,10 @@ struct Outbox {
 
 struct Shared {
     inbox: Mutex<Inbox>,
+    /// Whether a request that may give up the picture under way (or the
+    /// word to quit) waits in the inbox: what a picture traced from
+    /// nothing looks at, without a lock.
+    preempt: AtomicBool,
     asked: Condvar,
     outbox: Mutex<Outbox>,
     finished: Condvar,
@@ -170,7 +210,11 @@ impl RenderThread {
         notify: Notify,
     ) -> Result<RenderThread, String> {
         let shared = Arc::new(Shared {
-            inbox: Mutex::new(Inbox::default()),
+            inbox: Mutex::new(Inbox {
+                patience: FIRST_PATIENCE,
+                ..Inbox::default()
+            }),
+            preempt: AtomicBool::new(false),
             asked: Condvar::new(),
             outbox: Mutex::new(Outbox {
                 keep_log: log,
@@ -227,10 +271,16 @@ impl RenderThread {
 
     /// Asks for a picture of `state`, replacing any request not started yet.
     pub fn request(&self, generation: u64, state: ViewState) {
+        let now = Instant::now();
         let mut inbox = lock(&self.shared.inbox);
         inbox.request = Some((generation, state));
         inbox.newest = inbox.newest.max(generation);
-        inbox.newest_at = Some(Instant::now());
+        inbox.newest_at = Some(now);
+        inbox.unanswered.push_back((generation, now));
+        let oldest = inbox.unanswered.front().map_or(now, |&(_, at)| at);
+        if now.duration_since(oldest) < inbox.patience {
+            self.shared.preempt.store(true, Ordering::Relaxed);
+        }
         drop(inbox);
         self.shared.asked.notify_one();
     }
@@ -307,6 +357,7 @@ impl RenderThread {
 impl Drop for RenderThread {
     fn drop(&mut self) {
         lock(&self.shared.inbox).quit = true;
+        self.shared.preempt.store(true, Ordering::Relaxed);
         self.shared.asked.notify_all();
         if let Some(handle) = self.handle.take() {
             let _ = handle.join();
@@ -323,18 +374,32 @@ fn panic_text(panic: &(dyn std::any::Any + Send)) -> String {
     format!("the render thread failed: {text}")
 }
 
+/// The kinds of view an animator serves: the camera's image, the
+/// viewer's viewport, or one of the scene's viewports (by index).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum ViewKind {
+    Camera,
+    Viewport,
+    Scene(usize),
+}
+
 /// Which animator serves a state: its kept samples are for one kind of
 /// view and one reuse mode.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 struct AnimatorKind {
-    viewport: bool,
+    view: ViewKind,
     reuse: bool,
 }
 
 impl AnimatorKind {
     fn of(state: &ViewState) -> AnimatorKind {
+        let view = match state.scene_viewport {
+            Some(index) => ViewKind::Scene(index),
+            None if Viewer::is_camera_view(state) => ViewKind::Camera,
+            None => ViewKind::Viewport,
+        };
         AnimatorKind {
-            viewport: !Viewer::is_camera_view(state),
+            view,
             reuse: state.reuse,
         }
     }
@@ -345,14 +410,18 @@ impl AnimatorKind {
 pub const COARSE_FACTOR: u32 = 4;
 
 /// The scenes the frame loop serves at one window size: the camera's
-/// image and the viewer's viewport, full and coarse.
+/// image and the viewer's viewport, full and coarse, and each of the
+/// scene's viewports.
 struct Scenes {
     size: (u32, u32),
-    coarse_size: (u32, u32),
     camera: Scene,
     viewport: Scene,
     coarse_camera: Scene,
     coarse_viewport: Scene,
+    /// The scene as loaded with only its viewport k: the frame loop then
+    /// renders and poses it as `retrace animate` does (its sample buffer
+    /// on the scene camera's lattice, whatever the window's size).
+    scene_viewports: Vec<Scene>,
 }
 
 impl Scenes {
@@ -388,22 +457,34 @@ impl Scenes {
         };
         let (camera, viewport) = at(full);
         let (coarse_camera, coarse_viewport) = at(coarse);
+        let scene_viewports = scene
+            .viewports
+            .iter()
+            .map(|track| Scene {
+                viewports: vec![track.clone()],
+                ..scene.clone()
+            })
+            .collect();
         Scenes {
             size,
-            coarse_size,
             camera,
             viewport,
             coarse_camera,
             coarse_viewport,
+            scene_viewports,
         }
     }
 
+    /// The scene an animator of `kind` renders. A scene viewport's coarse
+    /// picture is its own viewport at fewer pixels, traced directly: the
+    /// same scene.
     fn of(&self, kind: AnimatorKind, coarse: bool) -> &Scene {
-        match (kind.viewport, coarse) {
-            (false, false) => &self.camera,
-            (true, false) => &self.viewport,
-            (false, true) => &self.coarse_camera,
-            (true, true) => &self.coarse_viewport,
+        match (kind.view, coarse) {
+            (ViewKind::Camera, false) => &self.camera,
+            (ViewKind::Viewport, false) => &self.viewport,
+            (ViewKind::Camera, true) => &self.coarse_camera,
+            (ViewKind::Viewport, true) => &self.coarse_viewport,
+            (ViewKind::Scene(index), _) => &self.scene_viewports[index],
         }
     }
 }
@@ -416,6 +497,7 @@ fn next_request(shared: &Shared) -> Option<(u64, ViewState)> {
             return None;
         }
         if let Some(request) = inbox.request.take() {
+            shared.preempt.store(false, Ordering::Relaxed);
             return Some(request);
         }
         inbox = shared
@@ -427,7 +509,12 @@ fn next_request(shared: &Shared) -> Option<(u64, ViewState)> {
 
 /// A request that came in meanwhile, without waiting.
 fn newer_request(shared: &Shared) -> Option<(u64, ViewState)> {
-    lock(&shared.inbox).request.take()
+    let mut inbox = lock(&shared.inbox);
+    let request = inbox.request.take();
+    if request.is_some() {
+        shared.preempt.store(false, Ordering::Relaxed);
+    }
+    request
 }
 
 /// Whether a request (or the word to quit) is waiting.
@@ -437,8 +524,8 @@ fn asked_meanwhile(shared: &Shared) -> bool {
 }
 
 fn publish(shared: &Shared, notify: &Notify, picture: Picture) {
-    let inbox = lock(&shared.inbox);
-    publish_locked(shared, notify, &inbox, picture);
+    let mut inbox = lock(&shared.inbox);
+    publish_locked(shared, notify, &mut inbox, picture);
 }
 
 /// Publishes a refined picture unless a request (or the word to quit) is
@@ -447,15 +534,27 @@ fn publish(shared: &Shared, notify: &Notify, picture: Picture) {
 fn publish_refined(shared: &Shared, notify: &Notify, picture: Picture) -> bool {
     // The inbox stays locked while publishing, so no request can come
     // between the look and the publishing.
-    let inbox = lock(&shared.inbox);
+    let mut inbox = lock(&shared.inbox);
     if inbox.request.is_some() || inbox.quit {
         return false;
     }
-    publish_locked(shared, notify, &inbox, picture);
+    publish_locked(shared, notify, &mut inbox, picture);
     true
 }
 
-fn publish_locked(shared: &Shared, notify: &Notify, inbox: &Inbox, picture: Picture) {
+fn publish_locked(shared: &Shared, notify: &Notify, inbox: &mut Inbox, picture: Picture) {
+    if picture.complete && picture.mode != REFINE_MODE {
+        while inbox
+            .unanswered
+            .front()
+            .is_some_and(|&(generation, _)| generation <= picture.generation)
+        {
+            inbox.unanswered.pop_front();
+        }
+        if picture.traced_afresh {
+            inbox.patience = Duration::from_secs_f64(picture.render_ms / 1e3);
+        }
+    }
     let mut outbox = lock(&shared.outbox);
     if outbox.keep_log {
         outbox.log.push(Finished {
@@ -480,7 +579,7 @@ fn publish_locked(shared: &Shared, notify: &Notify, inbox: &Inbox, picture: Pict
     notify();
 }
 
-fn abandon(shared: &Shared, generation: u64, samples: u32) {
+fn abandon(shared: &Shared, generation: u64, samples: u32, frame_loop: bool) {
     let at = Instant::now();
     let asked = lock(&shared.inbox).newest_at.unwrap_or(at);
     let mut outbox = lock(&shared.outbox);
@@ -488,6 +587,7 @@ fn abandon(shared: &Shared, generation: u64, samples: u32) {
         outbox.abandoned.push(Abandoned {
             generation,
             samples,
+            frame_loop,
             at,
             waited_ms: at.saturating_duration_since(asked).as_secs_f64() * 1e3,
         });
@@ -571,7 +671,7 @@ fn serve_size(
                 ..options(kind, coarse_scene)
             };
             let mut coarse = Animator::interactive(coarse_scene, accel, coarse_options);
-            let picture = render_coarse(&mut coarse, viewer, scenes, generation, state.clone());
+            let picture = render_coarse(&mut coarse, viewer, generation, state.clone());
             drop(coarse);
             publish(shared, notify, picture);
             // Input that came meanwhile is what the full picture shows.
@@ -589,7 +689,17 @@ fn serve_size(
             ));
         }
         let (_, animator) = current.as_mut().expect("an animator for the state");
-        let mut picture = render(animator, viewer, generation, state.clone());
+        let Some(mut picture) = render(
+            animator,
+            viewer,
+            generation,
+            state.clone(),
+            Some(&shared.preempt),
+        ) else {
+            // A newer request is waiting: it is served next, afresh.
+            abandon(shared, generation, viewer.samples(), true);
+            continue;
+        };
         picture.converged = rungs.is_empty();
         publish(shared, notify, picture);
         refine(serving, animator, generation, &state);
@@ -632,7 +742,7 @@ fn refine(serving: &Serving, animator: &mut Animator, generation: u64, state: &V
             trace_in_bands(&shader, &rays, width, height, &stop)
         };
         let Some((frame, _)) = traced else {
-            return abandon(shared, generation, spp);
+            return abandon(shared, generation, spp, false);
         };
         let picture = Picture {
             generation,
@@ -649,22 +759,30 @@ fn refine(serving: &Serving, animator: &mut Animator, generation: u64, state: &V
             complete: true,
             samples: spp,
             converged: rung + 1 == rungs.len(),
+            traced_afresh: true,
         };
         if !publish_refined(shared, notify, picture) {
-            return abandon(shared, generation, spp);
+            return abandon(shared, generation, spp, false);
         }
     }
 }
 
-/// The frame loop's picture of `state`.
-fn render(animator: &mut Animator, viewer: &Viewer, generation: u64, state: ViewState) -> Picture {
+/// The frame loop's picture of `state`; None if `stop` (a newer request
+/// waiting) made it give up (a picture traced from nothing).
+fn render(
+    animator: &mut Animator,
+    viewer: &Viewer,
+    generation: u64,
+    state: ViewState,
+    stop: Option<&AtomicBool>,
+) -> Option<Picture> {
     let start = Instant::now();
     let view = viewer.view(&state);
     let output = animator
-        .render_views(state.frame, vec![view])
+        .render_views_until(state.frame, vec![view], stop)?
         .pop()
         .expect("one view, one picture");
-    Picture {
+    Some(Picture {
         generation,
         render_ms: start.elapsed().as_secs_f64() * 1e3,
         done: Instant::now(),
@@ -676,8 +794,10 @@ fn render(animator: &mut Animator, viewer: &Viewer, generation: u64, state: View
         complete: true,
         samples: viewer.samples(),
         converged: false,
+        traced_afresh: output.stats.mode == FrameMode::Full
+            || matches!(output.stats.reason, Some(Reason::Restart(_))),
         state,
-    }
+    })
 }
 
 /// A picture of `state` traced at the coarse size and magnified to the
@@ -685,17 +805,16 @@ fn render(animator: &mut Animator, viewer: &Viewer, generation: u64, state: View
 fn render_coarse(
     animator: &mut Animator,
     viewer: &Viewer,
-    scenes: &Scenes,
     generation: u64,
     state: ViewState,
 ) -> Picture {
     let start = Instant::now();
-    let view = viewer.coarse_view(&state, scenes.coarse_size);
+    let view = viewer.coarse_view(&state, COARSE_FACTOR);
     let output = animator
         .render_views(state.frame, vec![view])
         .pop()
         .expect("one view, one picture");
-    let (width, height) = scenes.size;
+    let (width, height) = viewer.picture_size(&state);
     let magnify = |image: &image::RgbImage| {
         image::RgbImage::from_fn(width, height, |x, y| {
             *image.get_pixel(x / COARSE_FACTOR, y / COARSE_FACTOR)
@@ -718,6 +837,7 @@ fn render_coarse(
         complete: false,
         samples: viewer.samples(),
         converged: false,
+        traced_afresh: true,
         state,
     }
 }
@@ -779,11 +899,11 @@ mod tests {
             };
             let coarse_scene = scenes.of(kind, true);
             let mut coarse = Animator::interactive(coarse_scene, &mut accel, options(coarse_scene));
-            let rough = render_coarse(&mut coarse, &viewer, &scenes, 1, state.clone());
+            let rough = render_coarse(&mut coarse, &viewer, 1, state.clone());
             drop(coarse);
             let full_scene = scenes.of(kind, false);
             let mut full = Animator::interactive(full_scene, &mut accel, options(full_scene));
-            let exact = render(&mut full, &viewer, 1, state.clone());
+            let exact = render(&mut full, &viewer, 1, state.clone(), None).unwrap();
             assert!(!rough.complete && exact.complete);
             assert_eq!(rough.image.dimensions(), exact.image.dimensions());
             // A sixteenth of the samples (snapped to whole sample groups).

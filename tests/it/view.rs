@@ -381,6 +381,245 @@ fn input_during_refinement_abandons_it_and_no_stale_picture_follows() {
     );
 }
 
+#[test]
+fn input_during_a_full_render_abandons_it_and_the_next_picture_is_exact() {
+    use retrace::accel::BackendKind;
+    use retrace::scene::{load_scene, SceneOverrides};
+    use retrace::view::script::{parse_script, run_script};
+    use retrace::view::{RenderThread, Viewer as View};
+
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path();
+    paper_on_lattice(path, "scene.toml", 0.0, ON_LATTICE_PITCH);
+    // Four turning drags, then two more with reuse on again.
+    paper_on_lattice(
+        path,
+        "off.toml",
+        96.0 * STEP,
+        ON_LATTICE_PITCH + 32.0 * STEP,
+    );
+    paper_on_lattice(path, "on.toml", 72.0 * STEP, ON_LATTICE_PITCH + 24.0 * STEP);
+    let overrides = SceneOverrides {
+        width: Some(320),
+        height: Some(240),
+        ..SceneOverrides::default()
+    };
+    let scene = load_scene(&path.join("scene.toml"), &overrides).unwrap();
+    let view = View::new(&scene);
+    // Reuse off: every picture is traced in full. The second drag of each
+    // pair comes while the first's picture is traced (a few ms into it);
+    // with reuse on again, a drag comes while the new buffer is filled.
+    let text = format!(
+        "key m\nwait\n{}save off\nkey m\nsleep 2\ndrag 10 -3\nsleep 2\ndrag 14 -5\nwait\nsave on\n",
+        "drag -10 3\nsleep 2\ndrag -14 5\nwait\n".repeat(4)
+    );
+    let lines = parse_script(&text, Path::new("full.txt"), view.size()).unwrap();
+    // No refinement: every picture is the frame loop's.
+    let thread = RenderThread::spawn(
+        scene,
+        BackendKind::default(),
+        None,
+        true,
+        1,
+        Box::new(|| {}),
+    )
+    .unwrap();
+    let mut saved = Vec::new();
+    let rows = run_script(
+        &thread,
+        &view,
+        &lines,
+        &mut || unreachable!("no key s"),
+        &mut |path, image| {
+            saved.push((path.to_path_buf(), image.clone()));
+            Ok(())
+        },
+    )
+    .unwrap();
+    assert_eq!(rows.len(), 13);
+    let log = thread.log();
+    let abandoned = thread.abandoned();
+    let described = || {
+        let pictures = log.iter().map(|f| {
+            format!(
+                "{} {} (newest asked {})",
+                f.generation, f.mode, f.newest_asked
+            )
+        });
+        let given_up = abandoned
+            .iter()
+            .map(|a| format!("{} abandoned", a.generation));
+        pictures.chain(given_up).collect::<Vec<_>>().join("\n")
+    };
+    // Full pictures were given up for the second drag of a pair (a loaded
+    // machine may start one late, after both drags, not all four), and
+    // no complete picture of a request given up was shown (a coarse one
+    // may have come before).
+    let full: Vec<_> = abandoned.iter().filter(|a| a.frame_loop).collect();
+    assert!(!full.is_empty(), "{}", described());
+    for a in &full {
+        assert!(
+            !log.iter()
+                .any(|f| f.generation == a.generation && f.complete),
+            "{}",
+            described()
+        );
+    }
+    // Each pair's second drag has its own full picture.
+    for pair in 0..4 {
+        let second = 4 + 2 * pair;
+        assert!(
+            log.iter()
+                .any(|f| f.generation == second && f.mode == "full" && f.complete),
+            "{}",
+            described()
+        );
+    }
+    retrace_ok(
+        &args(&["render", "off.toml"], &["-o", "off_render.png"]),
+        path,
+    );
+    retrace_ok(
+        &args(&["render", "on.toml"], &["-o", "on_render.png"]),
+        path,
+    );
+    let names: Vec<String> = saved.iter().map(|(p, _)| p.display().to_string()).collect();
+    assert_eq!(names, ["off", "on"]);
+    assert!(saved[0].1 == png(&path.join("off_render.png")));
+    assert!(saved[1].1 == png(&path.join("on_render.png")));
+}
+
+/// The paper scene with a bouncing ball, a panning camera and two
+/// viewports, one of them zooming, turning and shifting along the
+/// timeline (E4 in small).
+const SCENE_VIEWPORTS: &str = r#"include = "paper.toml"
+
+[material.bouncer]
+diffuse = [0.95, 0.75, 0.1]
+
+[[object]]
+type = "sphere"
+name = "ball"
+center = [-2.6, 0.5, 3.0]
+radius = 0.5
+material = "bouncer"
+
+[[viewport]]
+name = "wide"
+width = 96
+height = 64
+
+[[viewport]]
+name = "zoom"
+width = 120
+height = 80
+fov = 90.0
+rotate = 10.0
+
+[animation]
+frames = 4
+
+[[animation.camera]]
+frame = 0
+yaw = 0.0
+
+[[animation.camera]]
+frame = 4
+yaw = 14.4
+
+[[animation.viewport]]
+viewport = "zoom"
+frame = 0
+zoom = 1.0
+
+[[animation.viewport]]
+viewport = "zoom"
+frame = 3
+zoom = 2.0
+rotate = 25.0
+translate = [12.0, -6.0]
+
+[[animation.bounce]]
+object = "ball"
+height = 2.0
+period = 4
+"#;
+
+#[test]
+fn a_scene_viewport_shows_what_animate_writes_and_refines_to_its_direct_render() {
+    use retrace::accel::{Accelerator, BackendKind};
+    use retrace::frame_loop::{Animator, Options, Techniques};
+    use retrace::sampling::PixelSamples;
+    use retrace::scene::{load_scene, SceneOverrides};
+
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path();
+    paper_on_lattice(path, "paper.toml", 0.0, -9.0);
+    std::fs::write(path.join("vp.toml"), SCENE_VIEWPORTS).unwrap();
+    retrace_ok(
+        &args(&["animate", "vp.toml"], &["-o", "anim/frame_####.png"]),
+        path,
+    );
+    // Opens on the first viewport; `v` the second, played to frame 3 and
+    // refined there; `v` the camera's image; `v` the first again.
+    std::fs::write(
+        path.join("vp.txt"),
+        "save wide_0.png\nkey v\nsave zoom_0.png\nplay 1\nsave zoom_1.png\nplay 2\n\
+         save zoom_3.png\nwait-converged\nsave zoom_3_converged.png\nkey v\nsave camera_3.png\n\
+         key v\nsave wide_3.png\n",
+    )
+    .unwrap();
+    let out = retrace_ok(
+        &args(
+            &["view", "vp.toml"],
+            &["--script", "vp.txt", "--stats", "stats.csv"],
+        ),
+        path,
+    );
+    let said = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        said.contains("opens on the scene's viewport wide"),
+        "{said}"
+    );
+    // Bit for bit what animate wrote: the same frame loop, the same samples.
+    for (shown, written) in [
+        ("wide_0", "frame_0000_wide"),
+        ("zoom_0", "frame_0000_zoom"),
+        ("zoom_1", "frame_0001_zoom"),
+        ("zoom_3", "frame_0003_zoom"),
+        ("wide_3", "frame_0003_wide"),
+    ] {
+        let shown_image = png(&path.join(format!("{shown}.png")));
+        let written_image = png(&path.join(format!("anim/{written}.png")));
+        assert!(
+            shown_image == written_image,
+            "{shown} differs from animate's {written}"
+        );
+    }
+    // The zoom moved along the timeline, and the camera is another view.
+    assert!(png(&path.join("zoom_0.png")) != png(&path.join("zoom_3.png")));
+    assert_eq!(png(&path.join("camera_3.png")).dimensions(), (320, 240));
+    // Played frames of a viewport come from its sample buffer (RSVP).
+    let stats = std::fs::read_to_string(path.join("stats.csv")).unwrap();
+    let play: Vec<&str> = stats.lines().filter(|l| l.contains("play frame")).collect();
+    assert_eq!(play.len(), 3, "{stats}");
+    assert!(play.iter().all(|l| l.contains(",rsvp")), "{stats}");
+    // Refined: the direct render of the viewport at frame 3, 16 spp, as
+    // the frame loop of `retrace animate` poses it.
+    let overrides = SceneOverrides {
+        width: Some(320),
+        height: Some(240),
+        ..SceneOverrides::default()
+    };
+    let scene = load_scene(&path.join("vp.toml"), &overrides).unwrap();
+    let mut accel = Accelerator::build_with(BackendKind::default(), &scene.objects, None).unwrap();
+    let mut animator = Animator::new(&scene, &mut accel, Options::new(Techniques::FULL, 0..4));
+    let (direct, _) = animator.render_view_sampled(3, 1, PixelSamples::new(16).unwrap());
+    let converged = png(&path.join("zoom_3_converged.png"));
+    assert!(converged == direct.to_rgb8());
+    assert!(converged != png(&path.join("zoom_3.png")));
+}
+
 /// CPU time the process `pid` has used, in clock ticks (user + system).
 fn cpu_ticks(pid: u32) -> u64 {
     let stat = std::fs::read_to_string(format!("/proc/{pid}/stat")).unwrap();
