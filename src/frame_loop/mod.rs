@@ -96,6 +96,12 @@ struct Kept {
     pose: ScenePose,
 }
 
+/// An animator's kept samples and bookkeeping, taken out of it
+/// ([`Animator::into_kept`]) for a later animator of the same scene and
+/// options to go on from ([`Animator::resume`]): an interactive viewer
+/// switching between kinds of view, one animator at a time.
+pub struct KeptSamples(Kept);
+
 /// Renders the frames of one animation, reusing what it may.
 pub struct Animator<'a> {
     /// The scene as loaded.
@@ -149,6 +155,22 @@ impl<'a> Animator<'a> {
 
     pub fn options(&self) -> &Options {
         &self.options
+    }
+
+    /// What this animator keeps for its next frame (None when it keeps
+    /// nothing: reuse off, or nothing rendered yet).
+    pub fn into_kept(self) -> Option<KeptSamples> {
+        self.kept.map(KeptSamples)
+    }
+
+    /// Goes on from `kept`, which an animator of this scene with these
+    /// options kept. Its samples stay exact: the next frame checks them
+    /// against the views and the scene's pose as it checks its own (a
+    /// store unfit for the views starts afresh; objects that moved since
+    /// re-trace through OSTC), and the first pose places every animated
+    /// object in the accelerator.
+    pub fn resume(&mut self, kept: KeptSamples) {
+        self.kept = Some(kept.0);
     }
 
     pub fn animation(&self) -> Option<&'a Animation> {

@@ -46,7 +46,7 @@ use std::time::{Duration, Instant};
 
 use crate::accel::{Accelerator, BackendKind};
 use crate::camera::{Camera, RayTable, Viewport};
-use crate::frame_loop::{Animator, Options, Reason, Techniques};
+use crate::frame_loop::{Animator, KeptSamples, Options, Reason, Techniques};
 use crate::reuse::rsvp::{RsvpKnobs, ViewportRays};
 use crate::reuse::FrameMode;
 use crate::sampling::PixelSamples;
@@ -652,6 +652,9 @@ fn serve_size(
         ..Options::new(Techniques::FULL, 0..1)
     };
     let mut current: Option<(AnimatorKind, Animator)> = None;
+    // What the animators of the other kinds of view kept, so switching
+    // back (zooming out to zoom 1 and in again) goes on from their samples.
+    let mut stashed: Vec<(AnimatorKind, KeptSamples)> = Vec::new();
     let mut request = Some(first);
     loop {
         let (mut generation, mut state) = request.take().or_else(|| next_request(shared))?;
@@ -661,7 +664,21 @@ fn serve_size(
         let mut kind = AnimatorKind::of(&state);
         if current.as_ref().map(|(k, _)| *k) != Some(kind) {
             // The old animator lets go of the accelerator first.
-            drop(current.take());
+            if let Some((old_kind, old)) = current.take() {
+                if let Some(kept) = old.into_kept() {
+                    stashed.retain(|(k, _)| *k != old_kind);
+                    stashed.push((old_kind, kept));
+                }
+            }
+            if let Some(at) = stashed.iter().position(|(k, _)| *k == kind) {
+                let (_, kept) = stashed.swap_remove(at);
+                let scene = scenes.of(kind, false);
+                let mut animator = Animator::interactive(scene, accel, options(kind, scene));
+                animator.resume(kept);
+                current = Some((kind, animator));
+            }
+        }
+        if current.as_ref().map(|(k, _)| *k) != Some(kind) {
             // A new animator starts its buffers from nothing (a full
             // trace, or several for a viewport's levels): show a coarse
             // picture, traced afresh, first.

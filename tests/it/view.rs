@@ -192,6 +192,43 @@ fn a_scripted_zoom_magnifies_about_the_cursor() {
 }
 
 #[test]
+fn zooming_in_again_goes_on_from_the_samples_kept_before() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path();
+    paper_on_lattice(path, "scene.toml", 0.0, ON_LATTICE_PITCH);
+    // In, out to the camera's image, and in again to the same viewport.
+    std::fs::write(
+        path.join("zoom.txt"),
+        "save open.png\nwheel 2 80 60\nsave in.png\nwheel -2 80 60\nsave out.png\n\
+         wheel 2 80 60\nsave in_again.png\nwheel -2 80 60\nsave out_again.png\n",
+    )
+    .unwrap();
+    retrace_ok(
+        &args(
+            &["view", "scene.toml"],
+            &["--script", "zoom.txt", "--stats", "stats.csv"],
+        ),
+        path,
+    );
+    let stats = std::fs::read_to_string(path.join("stats.csv")).unwrap();
+    let rows: Vec<Vec<&str>> = stats
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').collect())
+        .collect();
+    let traced = |row: &Vec<&str>| row[7].parse::<u64>().unwrap();
+    assert_eq!(rows.len(), 5, "{stats}");
+    // The first zoom in and out start their buffers (the viewport's, then
+    // the camera's kept one goes on); the second pair traces nothing.
+    assert!(traced(&rows[1]) > 320 * 240 / 2, "{stats}");
+    assert_eq!((traced(&rows[3]), traced(&rows[4])), (0, 0), "{stats}");
+    // And the pictures are what they were: exact where the first were.
+    assert!(png(&path.join("in_again.png")) == png(&path.join("in.png")));
+    assert!(png(&path.join("out.png")) == png(&path.join("open.png")));
+    assert!(png(&path.join("out_again.png")) == png(&path.join("open.png")));
+}
+
+#[test]
 fn a_bad_script_names_its_line_and_renders_nothing() {
     let dir = tempfile::tempdir().unwrap();
     std::fs::write(dir.path().join("bad.txt"), "drag 1 2\nwheel in\n").unwrap();
