@@ -437,41 +437,57 @@ impl SampleBuffer {
         let mapped = self.map(pose, knobs);
         let map = PixelMap::new(pose);
         let (w, h) = (pose.camera.width, pose.camera.height);
-        let mut coords = Vec::new();
-        for (index, patch) in mapped.patches.iter().enumerate() {
-            let (x0, y0) = (
-                (index % mapped.patches_x) as u32 * PATCH,
-                (index / mapped.patches_x) as u32 * PATCH,
-            );
-            let (cols, rows) = ((w - x0).min(PATCH), (h - y0).min(PATCH));
-            let level = patch.level;
-            let size = (cols as usize, rows as usize);
-            let grid = patch.grid.as_ref();
-            let slots = nan_filled(&mut coords, size.0 * size.1);
-            self.patch_coords(pose, &map, level, grid, (x0, y0), size.0, slots);
-            let last_row = self.lattice.last_row(level.y);
-            for (k, c) in coords.iter().enumerate() {
-                if c.x.is_nan() {
-                    continue;
+        // Patch by patch on every thread. Neighbouring pixels read the
+        // same groups, so each read first asks the group the last read
+        // found: most pixels then search the fresh list not at all.
+        let painted: Vec<Vec<(u32, u32)>> = (0..mapped.patches.len())
+            .into_par_iter()
+            .map_init(Vec::new, |coords, index| {
+                let patch = &mapped.patches[index];
+                let (x0, y0) = (
+                    (index % mapped.patches_x) as u32 * PATCH,
+                    (index / mapped.patches_x) as u32 * PATCH,
+                );
+                let (cols, rows) = ((w - x0).min(PATCH), (h - y0).min(PATCH));
+                let level = patch.level;
+                let size = (cols as usize, rows as usize);
+                let grid = patch.grid.as_ref();
+                let slots = nan_filled(coords, size.0 * size.1);
+                self.patch_coords(pose, &map, level, grid, (x0, y0), size.0, slots);
+                let last_row = self.lattice.last_row(level.y);
+                let mut last: Option<((Level, i64, i64), bool)> = None;
+                let mut is_fresh = |key: (Level, i64, i64)| match last {
+                    Some((k, fresh)) if k == key => fresh,
+                    _ => {
+                        let fresh = self
+                            .fresh
+                            .binary_search_by_key(&key, |&(l, g)| (l, g.row, g.col))
+                            .is_ok();
+                        last = Some((key, fresh));
+                        fresh
+                    }
+                };
+                let mut marks = Vec::new();
+                for (k, c) in coords.iter().enumerate() {
+                    if c.x.is_nan() {
+                        continue;
+                    }
+                    let fresh =
+                        filter_reads(knobs.filter, (c.x, c.y), last_row).any(|(col, row)| {
+                            let (owner, col, row) = self.lattice.owner(level, col, row);
+                            let group = SampleGroup::containing(col, row);
+                            let col = wrap(group.col, self.lattice.slot_columns(owner));
+                            is_fresh((owner, group.row, col))
+                        });
+                    if fresh {
+                        marks.push((x0 + (k % size.0) as u32, y0 + (k / size.0) as u32));
+                    }
                 }
-                let fresh = filter_reads(knobs.filter, (c.x, c.y), last_row).any(|(col, row)| {
-                    let (owner, col, row) = self.lattice.owner(level, col, row);
-                    let group = SampleGroup::containing(col, row);
-                    let group = SampleGroup {
-                        col: wrap(group.col, self.lattice.slot_columns(owner)),
-                        row: group.row,
-                    };
-                    self.fresh
-                        .binary_search_by_key(&(owner, group.row, group.col), |&(l, g)| {
-                            (l, g.row, g.col)
-                        })
-                        .is_ok()
-                });
-                if fresh {
-                    let (x, y) = (x0 + (k % size.0) as u32, y0 + (k / size.0) as u32);
-                    out.put_pixel(x, y, image::Rgb([0, 0, 0]));
-                }
-            }
+                marks
+            })
+            .collect();
+        for (x, y) in painted.into_iter().flatten() {
+            out.put_pixel(x, y, image::Rgb([0, 0, 0]));
         }
         out
     }
