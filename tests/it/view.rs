@@ -60,6 +60,18 @@ fn args<'a>(head: &[&'a str], tail: &[&'a str]) -> Vec<&'a str> {
         .collect()
 }
 
+/// A viewer's `--stats` CSV: its text, and its rows after the header,
+/// split at commas.
+fn stats_rows(csv: &Path) -> (String, Vec<Vec<String>>) {
+    let text = std::fs::read_to_string(csv).unwrap();
+    let rows = text
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').map(str::to_owned).collect())
+        .collect();
+    (text, rows)
+}
+
 fn png(path: &Path) -> image::RgbImage {
     image::open(path)
         .unwrap_or_else(|e| panic!("{}: {e}", path.display()))
@@ -105,12 +117,7 @@ fn a_scripted_drag_equals_a_render_of_the_turned_camera() {
     assert!(dragged != png(&path.join("open.png")));
     // One row per command that asked for a picture: the opening, both
     // drags; the drags were panned, tracing only what came into view.
-    let stats = std::fs::read_to_string(path.join("stats.csv")).unwrap();
-    let rows: Vec<Vec<&str>> = stats
-        .lines()
-        .skip(1)
-        .map(|l| l.split(',').collect())
-        .collect();
+    let (stats, rows) = stats_rows(&path.join("stats.csv"));
     assert_eq!(rows.len(), 3, "{stats}");
     assert!(stats.starts_with("line,event,frame,reuse,mode,ms_to_picture,"));
     assert_eq!(rows[0][1], "\"open\"");
@@ -121,7 +128,7 @@ fn a_scripted_drag_equals_a_render_of_the_turned_camera() {
         .next()
         .unwrap()
         .ends_with(",ms_to_first_picture,ms_to_converged"));
-    let ms = |row: &Vec<&str>, column: usize| row[column].parse::<f64>().unwrap();
+    let ms = |row: &Vec<String>, column: usize| row[column].parse::<f64>().unwrap();
     assert!(ms(&rows[0], 9) < ms(&rows[0], 5), "{stats}");
     for row in &rows[1..] {
         assert_eq!(ms(row, 9), ms(row, 5), "{stats}");
@@ -210,13 +217,8 @@ fn zooming_in_again_goes_on_from_the_samples_kept_before() {
         ),
         path,
     );
-    let stats = std::fs::read_to_string(path.join("stats.csv")).unwrap();
-    let rows: Vec<Vec<&str>> = stats
-        .lines()
-        .skip(1)
-        .map(|l| l.split(',').collect())
-        .collect();
-    let traced = |row: &Vec<&str>| row[7].parse::<u64>().unwrap();
+    let (stats, rows) = stats_rows(&path.join("stats.csv"));
+    let traced = |row: &Vec<String>| row[7].parse::<u64>().unwrap();
     assert_eq!(rows.len(), 5, "{stats}");
     // The first zoom in and out start their buffers (the viewport's, then
     // the camera's kept one goes on); the second pair traces nothing.
