@@ -267,9 +267,21 @@ impl<'a> Animator<'a> {
     /// pan lattice when the timeline pans it (so a snapped pan compares
     /// exactly), through the camera's own rays otherwise.
     pub fn render_full(&mut self, frame: u32, index: usize) -> (Frame, RayCounts) {
+        self.render_full_sampled(frame, index, self.scene.samples)
+    }
+
+    /// As [`Animator::render_full`] at `samples` a pixel rather than the
+    /// scene's: a converged reference of the view an exact frame shows (a
+    /// snapped pan's view, not the keyed camera's).
+    pub fn render_full_sampled(
+        &mut self,
+        frame: u32,
+        index: usize,
+        samples: PixelSamples,
+    ) -> (Frame, RayCounts) {
         self.pose(frame);
         let view = self.views(frame).swap_remove(index);
-        self.render_view_in_full(&self.scene, &*self.accel, &view)
+        self.render_view_in_full(&self.scene, &*self.accel, &view, samples)
     }
 
     /// As [`Animator::render_full`], from a scene and an accelerator built
@@ -287,18 +299,19 @@ impl<'a> Animator<'a> {
         }
         let accel = Accelerator::build(self.accel.kind(), &scene.objects)?;
         let view = self.views(frame).swap_remove(index);
-        Ok(self.render_view_in_full(&scene, &accel, &view))
+        Ok(self.render_view_in_full(&scene, &accel, &view, self.scene.samples))
     }
 
-    /// `view` of `scene` (posed) traced in full through `accel`.
+    /// `view` of `scene` (posed) traced in full through `accel` at
+    /// `samples` a pixel.
     fn render_view_in_full(
         &self,
         scene: &Scene,
         accel: &dyn Intersector,
         view: &View,
+        samples: PixelSamples,
     ) -> (Frame, RayCounts) {
         let shader = Shader::new(scene, accel);
-        let samples = self.scene.samples;
         if self.has_viewports() {
             return render_direct_sampled(&shader, &view.pose, samples);
         }
@@ -629,7 +642,8 @@ impl<'a> Animator<'a> {
                 Some(gate) => gate,
                 None => &*self.accel,
             };
-            let (image, rays) = self.render_view_in_full(&self.scene, intersector, &view);
+            let (image, rays) =
+                self.render_view_in_full(&self.scene, intersector, &view, self.scene.samples);
             if gate.as_ref().is_some_and(Abandonable::tripped) {
                 return None;
             }

@@ -85,7 +85,7 @@ impl EqualAngleLattice {
     /// `samples` sub-samples.
     pub fn for_camera_sampled(camera: &Camera, samples: PixelSamples) -> EqualAngleLattice {
         let columns_per_turn = Self::columns_per_turn_for(camera);
-        let step = TAU / columns_per_turn as f64;
+        let step = Self::step_for(camera);
         let rows = Self::rows_at(step);
         EqualAngleLattice {
             position: camera.position,
@@ -171,6 +171,12 @@ impl EqualAngleLattice {
         // A sine and cosine per column, and per row from pole to pole.
         let tables = 16.0 * 1.5 * columns;
         columns * rows as f64 * per_sample + tables
+    }
+
+    /// The angle between neighbouring samples of `camera`'s lattice,
+    /// radians: the unit a snapped view's offset is measured in.
+    pub fn step_for(camera: &Camera) -> f64 {
+        TAU / Self::columns_per_turn_for(camera) as f64
     }
 
     /// Columns per turn for a camera's angle per pixel, rounded to whole

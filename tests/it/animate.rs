@@ -831,6 +831,57 @@ fn pans_by_whole_samples_equal_the_cameras_own_rays() {
     }
 }
 
+/// The worst PSNR on the `--verify` line of `heading` that names `side`.
+fn verified_worst_psnr(said: &str, heading: &str, side: &str) -> f64 {
+    let line = said
+        .lines()
+        .find(|l| l.starts_with(heading) && l.contains(side))
+        .unwrap_or_else(|| panic!("no {side} line: {said}"));
+    line.split("PSNR worst ")
+        .nth(1)
+        .and_then(|rest| rest.split(' ').next())
+        .unwrap()
+        .parse()
+        .unwrap()
+}
+
+/// A snapped pan is an exact render of the camera moved onto the lattice:
+/// `--verify` scores it against that view's reference, as close to it as
+/// the keyed camera's full render is to its own, and against the keyed
+/// camera's reference on a line of its own.
+#[test]
+fn verify_scores_a_snapped_pan_against_the_view_it_shows() {
+    let dir = pan_case("");
+    let out = retrace(
+        &[
+            "animate",
+            "pan.toml",
+            "--width",
+            "64",
+            "--height",
+            "48",
+            "--spp",
+            "4",
+            "-o",
+            "out/f_###.png",
+            "--verify",
+        ],
+        dir.path(),
+    );
+    assert!(out.status.success(), "{}", stderr(&out));
+    let said = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        said.contains("of the view snapped onto the lattice, at most 0."),
+        "{said}"
+    );
+    let heading = "verify (against a 64-spp reference, frames 0, 5): ";
+    let full = verified_worst_psnr(&said, heading, "full render at 4 spp:");
+    let shown = verified_worst_psnr(&said, heading, "output (its snapped view):");
+    let keyed = verified_worst_psnr(&said, heading, "output (keyed camera):");
+    assert!(shown >= full - 0.25, "{said}");
+    assert!(keyed < shown - 1.0, "{said}");
+}
+
 /// Resampled output under --verify: the full render and the output, each
 /// against the same converged reference, one line each; exact output that
 /// is its camera's own rays has nothing to add.
@@ -857,18 +908,8 @@ fn verify_measures_resampled_output_and_full_render_against_a_reference() {
     let said = String::from_utf8_lossy(&out.stdout);
     let heading = "verify v (against a 64-spp reference, frames 0, 5): ";
     for side in ["full render at 4 spp:", "accelerated output:"] {
-        let line = said
-            .lines()
-            .find(|l| l.starts_with(heading) && l.contains(side))
-            .unwrap_or_else(|| panic!("no {side} line: {said}"));
-        let worst: f64 = line
-            .split("PSNR worst ")
-            .nth(1)
-            .and_then(|rest| rest.split(' ').next())
-            .unwrap()
-            .parse()
-            .unwrap();
-        assert!(worst.is_finite() && worst > 5.0, "{line}");
+        let worst = verified_worst_psnr(&said, heading, side);
+        assert!(worst.is_finite() && worst > 5.0, "{said}");
     }
 
     // A still camera's own image: exact and its own rays.

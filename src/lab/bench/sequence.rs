@@ -106,11 +106,22 @@ pub fn reference_samples(run: PixelSamples) -> PixelSamples {
     PixelSamples::new(count).expect("the reference counts are within the limits")
 }
 
-/// Converged references of a scene's views, by frame and view: runs of
-/// the same scene, samples and frames at other knobs (the tradeoff's
-/// settings) share them, as a reference costs as much as 64 frames.
+/// Converged references of a scene's views, by frame, view and whether
+/// the view is the one a snapped pan shows: runs of the same scene,
+/// samples and frames at other knobs (the tradeoff's settings) share
+/// them, as a reference costs as much as 64 frames.
 #[derive(Default)]
-pub struct References(std::collections::HashMap<(u32, usize), Frame>);
+pub struct References(std::collections::HashMap<(u32, usize, ViewShown), Frame>);
+
+/// Which view of a frame a reference is of.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+enum ViewShown {
+    /// The camera (or viewport) as keyed.
+    Keyed,
+    /// The view an exact frame shows: a pan's camera snapped onto the
+    /// lattice.
+    Snapped,
+}
 
 /// Both sides of a sequence against a converged reference of the same
 /// views: what antialiasing at the run's samples costs (the full render)
@@ -123,8 +134,14 @@ pub struct ReferenceErrors {
     pub frames: Vec<u32>,
     /// The full render at the run's samples against the reference.
     pub full: ErrorSummary,
-    /// The accelerated output against the reference.
+    /// The accelerated output against the reference of the view it shows:
+    /// for a snapped pan, the camera moved onto the lattice, of which each
+    /// frame is an exact render.
     pub accelerated: ErrorSummary,
+    /// Snapped pans only: the accelerated output against the keyed
+    /// camera's reference, what the registration of up to half a sample
+    /// costs on top.
+    pub accelerated_vs_keyed: Option<ErrorSummary>,
 }
 
 impl ErrorSummary {
@@ -212,7 +229,10 @@ pub struct SequenceBench {
     pub buffer_check: Option<(u64, u64)>,
     /// With [`Measure::oracle`], for the camera's image.
     pub oracle: Option<OracleSpeedups>,
-    pub max_yaw_error_deg: f64,
+    /// Snapped pans: the largest angle in yaw or pitch between a frame's
+    /// view and its keyed camera, in degrees and in samples (at most half).
+    pub largest_snap_deg: f64,
+    pub largest_snap_samples: f64,
     pub rounds: usize,
     pub threads: usize,
     /// Why accelerated frames were rendered in full, where reuse could not
@@ -270,7 +290,7 @@ pub fn bench_sequence(
     let mut fast_frame_ms = vec![Vec::new(); profile.len()];
     // Counts are the same every round: the last round's are kept.
     let (mut samples_traced, mut bookkeeping_ms, mut pixels_per_frame) = (0, 0.0, 0);
-    let mut max_yaw_error: f64 = 0.0;
+    let mut largest_snap_deg: f64 = 0.0;
     let mut full_reasons: Vec<String> = Vec::new();
     for _ in 0..rounds {
         let mut full = Animator::new(scene, accel, full_options.clone());
@@ -322,7 +342,9 @@ pub fn bench_sequence(
                 row.bookkeeping_ms += stats.bookkeeping_ms;
                 row.accelerated_trace_ms += stats.trace_ms;
                 row.accelerated_copy_ms += stats.copy_ms;
-                max_yaw_error = max_yaw_error.max(stats.yaw_error_deg.abs());
+                largest_snap_deg = largest_snap_deg
+                    .max(stats.yaw_error_deg.abs())
+                    .max(stats.pitch_error_deg.abs());
                 if let Some(reason) = stats.refusal().map(|r| r.to_string()) {
                     if !full_reasons.contains(&reason) {
                         full_reasons.push(reason);
@@ -383,7 +405,9 @@ pub fn bench_sequence(
         reference: checked.reference,
         buffer_check: checked.buffer_check,
         oracle,
-        max_yaw_error_deg: max_yaw_error,
+        largest_snap_deg,
+        largest_snap_samples: largest_snap_deg.to_radians()
+            / crate::reuse::pan::EqualAngleLattice::step_for(&scene.camera),
         rounds,
         threads: rayon::current_num_threads(),
         full_reasons,
@@ -439,6 +463,7 @@ fn check_sequence(
     let reference_count = reference_samples(scene.samples);
     let (mut reference_frames, mut full_vs_reference, mut fast_vs_reference) =
         (Vec::new(), Vec::new(), Vec::new());
+    let mut snapped_vs_keyed = Vec::new();
     for (row, frame) in profile.iter_mut().zip(frames.clone()) {
         if (frame - frames.start) % 10 == 0 {
             plain_ms.push((frame, plain_render_ms(&mut check, frame)));
@@ -479,12 +504,25 @@ fn check_sequence(
                 errors.push(error);
             }
             if let (true, Some(truth)) = (referenced, &truth) {
-                let reference = references
+                let keyed = references
                     .0
-                    .entry((frame, index))
+                    .entry((frame, index, ViewShown::Keyed))
                     .or_insert_with(|| check.render_view_sampled(frame, index, reference_count).0);
-                let full = image_error(truth, reference).expect("a view's frames");
-                let fast = image_error(image, reference).expect("a view's frames");
+                let full = image_error(truth, keyed).expect("a view's frames");
+                let snapped = exact
+                    && (output.stats.yaw_error_deg != 0.0 || output.stats.pitch_error_deg != 0.0);
+                let fast = if snapped {
+                    snapped_vs_keyed.push(image_error(image, keyed).expect("a view's frames"));
+                    let shown = references
+                        .0
+                        .entry((frame, index, ViewShown::Snapped))
+                        .or_insert_with(|| {
+                            check.render_full_sampled(frame, index, reference_count).0
+                        });
+                    image_error(image, shown).expect("a view's frames")
+                } else {
+                    image_error(image, keyed).expect("a view's frames")
+                };
                 full_worst = full_worst.min(full.psnr_db);
                 fast_worst = fast_worst.min(fast.psnr_db);
                 full_vs_reference.push(full);
@@ -521,6 +559,8 @@ fn check_sequence(
                 frames: reference_frames,
                 full: summary(&full_vs_reference),
                 accelerated: summary(&fast_vs_reference),
+                accelerated_vs_keyed: (!snapped_vs_keyed.is_empty())
+                    .then(|| summary(&snapped_vs_keyed)),
             }
         }),
         buffer_check,
@@ -564,15 +604,21 @@ mod tests {
 
     /// One of the shipped experiments at 32x24 (viewports too) and 4 spp.
     fn small(file: &str) -> Scene {
+        sized(file, 32, 24)
+    }
+
+    /// One of the shipped experiments at `width` x `height` (viewports
+    /// too) and 4 spp.
+    fn sized(file: &str, width: u32, height: u32) -> Scene {
         let overrides = SceneOverrides {
-            width: Some(32),
-            height: Some(24),
+            width: Some(width),
+            height: Some(height),
             spp: Some(4),
             ..SceneOverrides::default()
         };
         let mut scene = builtin_scene(file, &overrides).unwrap();
         for track in &mut scene.viewports {
-            (track.viewport.width, track.viewport.height) = (32, 24);
+            (track.viewport.width, track.viewport.height) = (width, height);
         }
         scene
     }
@@ -612,6 +658,29 @@ mod tests {
             .map(|p| p.frame)
             .collect();
         assert_eq!(measured, reference.frames);
+    }
+
+    /// A snapped pan's frames are exact renders of the camera moved onto
+    /// the lattice: against that view's reference they are as close as
+    /// the keyed camera's full render is to its own; against the keyed
+    /// camera's reference the shift of up to half a sample shows.
+    #[test]
+    fn a_snapped_pan_is_measured_against_the_view_it_shows() {
+        let bench = reference_errors(&sized("paper-pan.toml", 128, 96), 0..3);
+        assert_eq!(bench.exact, Some(true));
+        let snap = bench.largest_snap_samples;
+        assert!(snap > 0.0 && snap <= 0.5 + 1e-9, "{snap}");
+        let reference = bench.reference.expect("asked for");
+        let keyed = reference.accelerated_vs_keyed.expect("the pan snaps");
+        let (full, shown) = (reference.full, reference.accelerated);
+        assert!(
+            shown.worst_psnr_db >= full.worst_psnr_db - 0.25,
+            "{shown:?} against {full:?}"
+        );
+        assert!(
+            keyed.mean_psnr_db < shown.mean_psnr_db - 1.0,
+            "{keyed:?} against {shown:?}"
+        );
     }
 
     /// A resampled viewport is measured against the same reference as the

@@ -146,9 +146,22 @@ fn reference_errors(row: &BenchRow) -> String {
             e.differing_share * 100.0
         )
     };
+    let shown = if row.accelerated_vs_keyed_reference.is_some() {
+        " (against the reference of the snapped view it shows)"
+    } else {
+        ""
+    };
+    let keyed = row
+        .accelerated_vs_keyed_reference
+        .map_or_else(String::new, |k| {
+            format!(
+                " Against the keyed camera's reference, the snapped output scores {}.",
+                figures(k)
+            )
+        });
     format!(
         " Against a {samples}-spp reference of frames {}: the full render at {} spp: {}; \
-         the accelerated output: {}.",
+         the accelerated output{shown}: {}.{keyed}",
         frames.join(", "),
         row.samples_per_pixel,
         figures(full),
@@ -231,8 +244,11 @@ as a share of a full frame's time; `none` where the experiment runs no OSTC.
 measured, of the full render at the run's samples and of the accelerated output against the \
 converged reference of the same views, rendered on an untimed pass for every 20th frame and \
 the last. The first is what the run's samples a pixel cost in accuracy, the second that plus \
-what reuse adds; exact output equals its full render, so the two differ only where the \
-output is resampled or snapped to a lattice. Mean and largest absolute error and the share of \
+what reuse adds. A snapped pan's frames are exact renders of the camera moved onto the \
+pan lattice (by at most half a sample in yaw and pitch), so they are measured against the \
+reference of that view; the exactness column gives the largest snap and the output's \
+PSNR against the keyed camera's reference besides. Exact output equals its full render, \
+so the two columns differ only where the output is resampled or snapped. Mean and largest absolute error and the share of \
 pixels differing by more than one 8-bit step are in bench.csv and below.
 - **exactness / error**: `bit-exact`: every accelerated frame equals its full render bit for \
 bit (checked on an untimed pass). Viewports are resampled from the sample buffer, so their \

@@ -85,8 +85,15 @@ pub struct BenchRow {
     pub reference_frames: Vec<u32>,
     /// The full render at `samples_per_pixel` against the reference.
     pub full_vs_reference: Option<ErrorSummary>,
-    /// The accelerated output against the same reference.
+    /// The accelerated output against the reference of the view it shows
+    /// (for a snapped pan, the camera moved onto the lattice).
     pub accelerated_vs_reference: Option<ErrorSummary>,
+    /// Snapped pans: the accelerated output against the keyed camera's
+    /// reference.
+    pub accelerated_vs_keyed_reference: Option<ErrorSummary>,
+    /// Snapped pans: the largest yaw or pitch between a frame's view and
+    /// its keyed camera, in samples.
+    pub largest_snap_samples: f64,
     /// The exactness or error result, in words.
     pub exactness: String,
 }
@@ -168,7 +175,15 @@ impl ExperimentResult {
             Some(db) => format!("PSNR {db:.1} dB worst"),
             None => "error not measured".to_string(),
         };
+        let keyed = bench
+            .reference
+            .as_ref()
+            .and_then(|r| r.accelerated_vs_keyed);
         let (exact, exactness) = match (bench.exact, bench.buffer_check) {
+            (Some(true), _) if bench.largest_snap_samples > 0.0 => (
+                Some(true),
+                snapped_exactness(bench.largest_snap_samples, keyed.as_ref()),
+            ),
             (Some(true), _) => (Some(true), "bit-exact".to_string()),
             (Some(false), _) => {
                 let differing = bench
@@ -220,6 +235,8 @@ impl ExperimentResult {
                 .map_or_else(Vec::new, |r| r.frames.clone()),
             full_vs_reference: bench.reference.as_ref().map(|r| r.full),
             accelerated_vs_reference: bench.reference.as_ref().map(|r| r.accelerated),
+            accelerated_vs_keyed_reference: keyed,
+            largest_snap_samples: bench.largest_snap_samples,
             exactness,
         };
         ExperimentResult {
@@ -227,6 +244,19 @@ impl ExperimentResult {
             profile: bench.profile,
         }
     }
+}
+
+/// A snapped pan's exactness: bit-exact renders of views up to
+/// `largest_snap` samples off the keyed camera, and what that shift costs
+/// against the keyed camera's reference where one was rendered.
+fn snapped_exactness(largest_snap: f64, keyed: Option<&ErrorSummary>) -> String {
+    let keyed = keyed.map_or_else(String::new, |k| {
+        format!(
+            "; {:.1} / {:.1} dB vs the keyed camera's ref",
+            k.worst_psnr_db, k.mean_psnr_db
+        )
+    });
+    format!("bit-exact of views snapped by <= {largest_snap:.2} samples{keyed}")
 }
 
 /// Where the accelerated side's time went, as shares of its tracing,
@@ -449,6 +479,8 @@ mod tests {
             reference_frames: Vec::new(),
             full_vs_reference: None,
             accelerated_vs_reference: None,
+            accelerated_vs_keyed_reference: None,
+            largest_snap_samples: 0.0,
             exactness: "bit-exact".to_string(),
         }
     }

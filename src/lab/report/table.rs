@@ -159,7 +159,7 @@ fn opt<T: ToString>(value: Option<T>) -> String {
 }
 
 /// The columns of `bench.csv`.
-pub const ROW_COLUMNS: [&str; 41] = [
+pub const ROW_COLUMNS: [&str; 47] = [
     "experiment",
     "what",
     "technique",
@@ -199,6 +199,12 @@ pub const ROW_COLUMNS: [&str; 41] = [
     "accelerated_ref_max_abs",
     "accelerated_ref_mean_abs",
     "accelerated_ref_differing_share",
+    "largest_snap_samples",
+    "accelerated_keyed_ref_worst_psnr_db",
+    "accelerated_keyed_ref_mean_psnr_db",
+    "accelerated_keyed_ref_max_abs",
+    "accelerated_keyed_ref_mean_abs",
+    "accelerated_keyed_ref_differing_share",
     "exactness",
     "profile",
 ];
@@ -258,6 +264,8 @@ pub fn rows_csv(rows: &[BenchRow]) -> String {
         ];
         fields.extend(summary_fields(row.full_vs_reference.as_ref()));
         fields.extend(summary_fields(row.accelerated_vs_reference.as_ref()));
+        fields.push(row.largest_snap_samples.to_string());
+        fields.extend(summary_fields(row.accelerated_vs_keyed_reference.as_ref()));
         fields.extend([row.exactness.clone(), profile_file(&info.id)]);
         let fields: Vec<String> = fields.iter().map(|f| csv_field(f)).collect();
         out.push_str(&fields.join(","));
