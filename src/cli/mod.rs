@@ -180,10 +180,12 @@ impl RsvpKnobArgs {
 
 #[derive(Args)]
 struct OstcArgs {
-    /// OSTC: the screen is cut into N x N regions (the paper's 16: 40x30
-    /// pixels at 640x480); finer regions re-trace less but take more
-    /// memory for their bits [default: 160, 4x4 pixels at 640x480].
-    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=256))]
+    /// OSTC: the screen is cut into N x N regions, each a whole number of
+    /// 4x2-pixel sample groups (the paper's 16: 40x30 pixels at 640x480);
+    /// finer regions re-trace less but take more memory for their bits
+    /// [default: one group a region for the camera's image (240 at
+    /// 640x480); 160, 4x4 pixels at 640x480, with viewports].
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=4096))]
     regions: Option<u32>,
     /// OSTC: about this many voxels in the grid over the moving objects'
     /// swept volume [default: 1].
@@ -197,7 +199,8 @@ impl OstcArgs {
         retrace::frame_loop::OstcSettings {
             regions: self
                 .regions
-                .map_or(default.regions, retrace::reuse::regions::RegionGrid),
+                .map(retrace::reuse::regions::RegionGrid)
+                .or(default.regions),
             voxels: self.ostc_voxels.unwrap_or(default.voxels),
         }
     }

@@ -468,8 +468,7 @@ impl<'a> Animator<'a> {
         let size = self
             .options
             .ostc
-            .regions
-            .region_size(camera.width, camera.height);
+            .region_size(camera.width, camera.height, self.has_viewports());
         let built = build_ostc(
             self.base,
             animation,

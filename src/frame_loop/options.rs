@@ -96,16 +96,34 @@ impl Techniques {
 /// OSTC settings (`--regions`, `--ostc-voxels`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct OstcSettings {
-    pub regions: RegionGrid,
+    /// The grid asked for; None: the one measured fastest for the store
+    /// that keeps the samples (see [`OstcSettings::region_size`]).
+    pub regions: Option<RegionGrid>,
     pub voxels: u32,
 }
 
 impl Default for OstcSettings {
     fn default() -> Self {
         OstcSettings {
-            regions: RegionGrid::default(),
+            regions: None,
             voxels: DEFAULT_VOXELS,
         }
+    }
+}
+
+impl OstcSettings {
+    /// Region width and height in samples for a `width` x `height` screen:
+    /// the grid asked for, else one sample group a region for the camera's
+    /// image and [`RegionGrid::PYRAMID`] for RSVP's buffer (`viewports`).
+    pub fn region_size(&self, width: u32, height: u32, viewports: bool) -> (i64, i64) {
+        let grid = self.regions.unwrap_or_else(|| {
+            if viewports {
+                RegionGrid::PYRAMID
+            } else {
+                RegionGrid::one_group(width, height)
+            }
+        });
+        grid.region_size(width, height)
     }
 }
 

@@ -208,14 +208,17 @@ const ERRORS_NOT_ORACLE: Measure = Measure {
 fn ostc_settings() -> Vec<(&'static str, String, OstcSettings)> {
     let default = OstcSettings::default();
     let mut settings = Vec::new();
-    for n in [8, 16, 32, 64, RegionGrid::default().0] {
-        let regions = RegionGrid(n);
+    for n in [8, 16, 32, 64, RegionGrid::PYRAMID.0] {
         settings.push((
             "OSTC region grid",
             format!("{n}x{n}"),
-            OstcSettings { regions, ..default },
+            OstcSettings {
+                regions: Some(RegionGrid(n)),
+                ..default
+            },
         ));
     }
+    settings.push(("OSTC region grid", "one group a region".to_string(), default));
     let mut voxel_counts = vec![64, DEFAULT_VOXELS, 4096, 32_768];
     voxel_counts.sort_unstable();
     voxel_counts.dedup();
@@ -610,9 +613,9 @@ mod tests {
     #[test]
     fn every_ostc_setting_is_in_its_group_and_runs_once() {
         let settings = ostc_settings();
-        assert_eq!(settings.len(), 9);
+        assert_eq!(settings.len(), 10);
         // The default is both a region grid and a voxel grid setting.
-        assert_eq!(unique_ostc_settings().len(), 8);
+        assert_eq!(unique_ostc_settings().len(), 9);
         let rsvp = rsvp_knob_settings();
         assert_eq!(rsvp[0], RsvpKnobs::default());
         assert!(rsvp.iter().any(|k| k.filter == Filter::Nearest));

@@ -16,22 +16,36 @@ use crate::render::{SampleGroup, GROUP_HEIGHT, GROUP_WIDTH};
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct RegionGrid(pub u32);
 
-/// Much finer than the paper's grid. The regions a moving object dirties
-/// hold its reflections and shadows too, whose samples cost more than the
-/// average, so coarse regions cap the saving early: each finer grid
-/// re-traces fewer rays. Since a region is dirtied only by recorded ray
-/// segments that meet the object, finer regions cost little more to keep,
-/// down to 4x4 samples (160x160 at 640x480); regions of one group are no
-/// faster.
-impl Default for RegionGrid {
-    fn default() -> Self {
-        RegionGrid(160)
-    }
-}
-
 impl RegionGrid {
     /// The paper's 16x16 grid (40x30 samples at 640x480).
     pub const PAPER: RegionGrid = RegionGrid(16);
+
+    /// The grid for RSVP's sample pyramid unless asked otherwise: 4x4
+    /// samples at 640x480. Its regions are erased level by level, and a
+    /// viewport traces only the nulls it reads, so finer regions save
+    /// little tracing and cost bookkeeping: regions of one group made E4
+    /// 3.78x against 4.00x with these (`retrace bench --only E4`, two runs
+    /// each, alternated).
+    pub const PYRAMID: RegionGrid = RegionGrid(160);
+
+    /// The grid whose regions are one sample group each on a `width` x
+    /// `height` screen: the finest there is, and the camera image's
+    /// default. The regions a moving object dirties hold its reflections
+    /// and shadows too, whose samples cost more than the average, and a
+    /// region is dirtied only by recorded ray segments that meet the
+    /// object, so every finer grid re-traces less for little more
+    /// bookkeeping: the bouncing ball (E3) ran 12.3x with one group a
+    /// region against 11.0x with 4x4 samples at 640x480, 11.2x against
+    /// 9.3x at `--spp 4`, and 13.5x with 4x4 against 10.3x with 8x6 at
+    /// 1280x960.
+    pub fn one_group(width: u32, height: u32) -> RegionGrid {
+        RegionGrid(
+            width
+                .div_ceil(GROUP_WIDTH)
+                .max(height.div_ceil(GROUP_HEIGHT))
+                .max(1),
+        )
+    }
 
     /// Region width and height in samples for a `width` x `height` image,
     /// rounded to whole sample groups (at least one).

@@ -183,7 +183,7 @@ fn ostc_too_big_for_memory_is_refused_and_frames_stay_exact() {
     // 40x60 regions of one group each: 38 words a voxel; 16M voxels, 10 GB.
     let options = Options {
         ostc: OstcSettings {
-            regions: retrace::reuse::regions::RegionGrid(256),
+            regions: Some(retrace::reuse::regions::RegionGrid(256)),
             voxels: 16_777_216,
         },
         ..Options::new(Techniques::AUTO, 0..3)
@@ -368,7 +368,7 @@ proptest! {
         }
         let options = Options {
             ostc: retrace::frame_loop::OstcSettings {
-                regions: retrace::reuse::regions::RegionGrid(regions),
+                regions: Some(retrace::reuse::regions::RegionGrid(regions)),
                 ..Default::default()
             },
             ..Options::new(Techniques::AUTO, 0..5)

@@ -450,10 +450,11 @@ fn check_sequence(
     );
     let exact = check.is_exact();
     let moves = scene.animation.as_ref().is_some_and(|a| a.moves_scene());
-    let region_size = options
-        .ostc
-        .regions
-        .region_size(scene.camera.width, scene.camera.height);
+    let region_size = options.ostc.region_size(
+        scene.camera.width,
+        scene.camera.height,
+        check.has_viewports(),
+    );
     let mut oracle = (measure.oracle && !check.has_viewports()).then(|| Oracle::new(region_size));
     let mut oracle_ms = 0.0;
     let mut buffer_check: Option<(u64, u64)> = None;
