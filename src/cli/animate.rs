@@ -458,11 +458,10 @@ pub(crate) fn animate(args: AnimateArgs) -> Result<()> {
             }
         });
     }
-    let region_size = args.ostc.settings().region_size(
-        scene.camera.width,
-        scene.camera.height,
-        has_viewports,
-    );
+    let region_size =
+        args.ostc
+            .settings()
+            .region_size(scene.camera.width, scene.camera.height, has_viewports);
     let mut failed_frames = Vec::new();
     let mut against_reference = ReferenceCheck::new(scene.samples);
     let mut previous_reference: Option<retrace::render::Frame> = None;

@@ -218,7 +218,11 @@ fn ostc_settings() -> Vec<(&'static str, String, OstcSettings)> {
             },
         ));
     }
-    settings.push(("OSTC region grid", "one group a region".to_string(), default));
+    settings.push((
+        "OSTC region grid",
+        "one group a region".to_string(),
+        default,
+    ));
     let mut voxel_counts = vec![64, DEFAULT_VOXELS, 4096, 32_768];
     voxel_counts.sort_unstable();
     voxel_counts.dedup();
