@@ -645,6 +645,6 @@ mod tests {
         assert_eq!(of("paper-all.toml").skipped(), ["pan"]);
         assert_eq!(of("paper.toml").skipped(), ["pan", "RSVP", "OSTC"]);
         assert_eq!(scenes.frame_count(), 100);
-        assert_eq!(bounce.progress_steps(10), 3 * 10 * 8);
+        assert_eq!(bounce.progress_steps(10), 3 * 10 * 9);
     }
 }
