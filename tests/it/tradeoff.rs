@@ -53,7 +53,7 @@ fn a_short_sweep_reports_every_knob_with_exact_ones_at_zero_error() {
         ("RSVP filter", 3),
         ("RSVP oversampling", 5),
         ("RSVP level bias", 3),
-        ("OSTC region grid", 5),
+        ("OSTC region grid", 6),
         ("OSTC voxel grid", 4),
     ] {
         assert_eq!(settings(knob).len(), count, "{knob} in {rows:?}");
