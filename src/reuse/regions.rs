@@ -23,9 +23,8 @@ impl RegionGrid {
     /// The grid for RSVP's sample pyramid unless asked otherwise: 4x4
     /// samples at 640x480. Its regions are erased level by level, and a
     /// viewport traces only the nulls it reads, so finer regions save
-    /// little tracing and cost bookkeeping: regions of one group made E4
-    /// 3.78x against 4.00x with these (`retrace bench --only E4`, two runs
-    /// each, alternated).
+    /// little tracing and cost bookkeeping (docs/RESULTS.md, "OSTC: one
+    /// group a region").
     pub const PYRAMID: RegionGrid = RegionGrid(160);
 
     /// The grid whose regions are one sample group each on a `width` x
@@ -34,10 +33,7 @@ impl RegionGrid {
     /// and shadows too, whose samples cost more than the average, and a
     /// region is dirtied only by recorded ray segments that meet the
     /// object, so every finer grid re-traces less for little more
-    /// bookkeeping: the bouncing ball (E3) ran 12.3x with one group a
-    /// region against 11.0x with 4x4 samples at 640x480, 11.2x against
-    /// 9.3x at `--spp 4`, and 13.5x with 4x4 against 10.3x with 8x6 at
-    /// 1280x960.
+    /// bookkeeping.
     pub fn one_group(width: u32, height: u32) -> RegionGrid {
         RegionGrid(
             width
