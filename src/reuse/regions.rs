@@ -197,6 +197,15 @@ mod tests {
     }
 
     #[test]
+    fn one_group_regions_are_one_group_at_any_size() {
+        let group = (i64::from(GROUP_WIDTH), i64::from(GROUP_HEIGHT));
+        for (width, height) in [(640, 480), (1280, 960), (64, 48), (30, 7), (7, 300), (1, 1)] {
+            let grid = RegionGrid::one_group(width, height);
+            assert_eq!(grid.region_size(width, height), group, "{width}x{height}");
+        }
+    }
+
+    #[test]
     fn paper_regions_are_40_by_30_and_tile_the_buffer() {
         assert_eq!(RegionGrid(16).region_size(640, 480), (40, 30));
         assert_eq!(RegionGrid(32).region_size(640, 480), (20, 16));
