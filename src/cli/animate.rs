@@ -503,9 +503,7 @@ pub(crate) fn animate(args: AnimateArgs) -> Result<()> {
                 let sampled = last || (frame - range.start()) % REFERENCE_EVERY == 0;
                 // Exact output off its camera's own rays is a snapped pan:
                 // approximate against the camera's view, so measured too.
-                let approximate = !animator.is_exact()
-                    || output.stats.yaw_error_deg != 0.0
-                    || output.stats.pitch_error_deg != 0.0;
+                let approximate = !animator.is_exact() || output.stats.off_keyed_view();
                 if sampled && approximate {
                     against_reference.add(&mut animator, frame, index, &output)?;
                 }
@@ -657,8 +655,7 @@ impl ReferenceCheck {
         // A snapped pan's frame is an exact render of the camera moved onto
         // the lattice: measured against that view's reference, and against
         // the keyed camera's besides.
-        let snapped = animator.is_exact()
-            && (output.stats.yaw_error_deg != 0.0 || output.stats.pitch_error_deg != 0.0);
+        let snapped = animator.is_exact() && output.stats.off_keyed_view();
         let (output_error, snapped_vs_keyed) = if snapped {
             let (shown, _) = animator.render_full_sampled(frame, index, self.reference);
             (
@@ -844,7 +841,7 @@ fn say_verified(
     // lattice, or resampled); without one the two checks agree.
     let off_own_rays = stats
         .iter()
-        .any(|s| s.yaw_error_deg != 0.0 || s.pitch_error_deg != 0.0);
+        .any(retrace::frame_loop::FrameStats::off_keyed_view);
     if animator.is_exact() {
         let largest_snap_deg = stats
             .iter()

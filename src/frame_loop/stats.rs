@@ -168,6 +168,12 @@ impl FrameStats {
         }
     }
 
+    /// Whether the frame shows a view other than its keyed camera's: a
+    /// pan snapped onto the lattice or resampled at the true angle.
+    pub fn off_keyed_view(&self) -> bool {
+        self.yaw_error_deg != 0.0 || self.pitch_error_deg != 0.0
+    }
+
     pub(super) fn count_rays(&mut self, rays: RayCounts) {
         self.primary_rays = rays.primary;
         self.shadow_rays = rays.shadow;

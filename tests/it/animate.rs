@@ -831,6 +831,29 @@ fn pans_by_whole_samples_equal_the_cameras_own_rays() {
     }
 }
 
+/// `retrace animate pan.toml --verify` of [`pan_case`] `dir` at `width` x
+/// `height` and 4 samples a pixel, which must succeed: what it printed.
+fn verify_pan_at_4_spp(dir: &tempfile::TempDir, width: &str, height: &str) -> String {
+    let out = retrace(
+        &[
+            "animate",
+            "pan.toml",
+            "--width",
+            width,
+            "--height",
+            height,
+            "--spp",
+            "4",
+            "-o",
+            "out/f_###.png",
+            "--verify",
+        ],
+        dir.path(),
+    );
+    assert!(out.status.success(), "{}", stderr(&out));
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
 /// The worst PSNR on the `--verify` line of `heading` that names `side`.
 fn verified_worst_psnr(said: &str, heading: &str, side: &str) -> f64 {
     let line = said
@@ -851,25 +874,7 @@ fn verified_worst_psnr(said: &str, heading: &str, side: &str) -> f64 {
 /// camera's reference on a line of its own.
 #[test]
 fn verify_scores_a_snapped_pan_against_the_view_it_shows() {
-    let dir = pan_case("");
-    let out = retrace(
-        &[
-            "animate",
-            "pan.toml",
-            "--width",
-            "64",
-            "--height",
-            "48",
-            "--spp",
-            "4",
-            "-o",
-            "out/f_###.png",
-            "--verify",
-        ],
-        dir.path(),
-    );
-    assert!(out.status.success(), "{}", stderr(&out));
-    let said = String::from_utf8_lossy(&out.stdout);
+    let said = verify_pan_at_4_spp(&pan_case(""), "64", "48");
     assert!(
         said.contains("of the view snapped onto the lattice, at most 0."),
         "{said}"
@@ -888,24 +893,7 @@ fn verify_scores_a_snapped_pan_against_the_view_it_shows() {
 #[test]
 fn verify_measures_resampled_output_and_full_render_against_a_reference() {
     let dir = pan_case("[[viewport]]\nname = \"v\"\nwidth = 16\nheight = 12\n");
-    let out = retrace(
-        &[
-            "animate",
-            "pan.toml",
-            "--width",
-            "32",
-            "--height",
-            "24",
-            "--spp",
-            "4",
-            "-o",
-            "out/f_###.png",
-            "--verify",
-        ],
-        dir.path(),
-    );
-    assert!(out.status.success(), "{}", stderr(&out));
-    let said = String::from_utf8_lossy(&out.stdout);
+    let said = verify_pan_at_4_spp(&dir, "32", "24");
     let heading = "verify v (against a 64-spp reference, frames 0, 5): ";
     for side in ["full render at 4 spp:", "accelerated output:"] {
         let worst = verified_worst_psnr(&said, heading, side);

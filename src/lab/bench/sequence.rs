@@ -510,8 +510,7 @@ fn check_sequence(
                     .entry((frame, index, ViewShown::Keyed))
                     .or_insert_with(|| check.render_view_sampled(frame, index, reference_count).0);
                 let full = image_error(truth, keyed).expect("a view's frames");
-                let snapped = exact
-                    && (output.stats.yaw_error_deg != 0.0 || output.stats.pitch_error_deg != 0.0);
+                let snapped = exact && output.stats.off_keyed_view();
                 let fast = if snapped {
                     snapped_vs_keyed.push(image_error(image, keyed).expect("a view's frames"));
                     let shown = references
