@@ -90,13 +90,94 @@ pub trait PrimaryRays: Sync {
         PixelSamples::ONE
     }
 
-    /// The rays of sub-sample `index` of every cell of `group`: a packet of
-    /// the same sub-sample of eight neighbouring cells, so packets stay
-    /// coherent and a cell's sub-samples are traced the same way in every
-    /// frame.
-    fn sample_group(&self, group: SampleGroup, index: u32) -> (RayPacket, LaneMask) {
+    /// The ray of sub-sample `index` of cell (col, row).
+    fn sample(&self, col: i64, row: i64, index: u32) -> Option<Ray> {
         debug_assert_eq!(index, 0, "a source of one sample a cell");
-        self.primary_group(group)
+        self.primary(col, row)
+    }
+
+    /// The rays of sub-sample `index` of every cell of `group`: a packet of
+    /// the same sub-sample of eight neighbouring cells (counts that are not
+    /// squares; see [`PrimaryRays::strata_group`] for the others).
+    fn sample_group(&self, group: SampleGroup, index: u32) -> (RayPacket, LaneMask) {
+        let mut rays = [Ray::INACTIVE; PACKET_WIDTH];
+        let mut mask: LaneMask = 0;
+        for (lane, (col, row)) in group.lane_samples().into_iter().enumerate() {
+            if let Some(ray) = self.sample(col, row, index) {
+                rays[lane] = ray;
+                mask |= 1 << lane;
+            }
+        }
+        (rays, mask)
+    }
+
+    /// With a square count n x n, the rays of `strata`, a group of the
+    /// lattice of strata (n times as dense along each axis, see
+    /// [`Strata`]): eight neighbouring strata, so a packet stays within two
+    /// cells at 4 samples a cell and within one from 16.
+    fn strata_group(&self, strata: SampleGroup) -> (RayPacket, LaneMask) {
+        let side = i64::from(self.samples().grid_side());
+        let mut rays = [Ray::INACTIVE; PACKET_WIDTH];
+        let mut mask: LaneMask = 0;
+        for (lane, (col, row)) in strata.lane_samples().into_iter().enumerate() {
+            let (cell, index) = stratum_cell(col, row, side);
+            if let Some(ray) = self.sample(cell.0, cell.1, index) {
+                rays[lane] = ray;
+                mask |= 1 << lane;
+            }
+        }
+        (rays, mask)
+    }
+}
+
+/// The cell holding stratum (col, row) of a lattice of strata `side` times
+/// as dense, and the stratum's sub-sample index in it (sub-sample k lies in
+/// the cell's grid square (k % side, k / side): [`PixelSamples`]).
+#[inline(always)]
+pub fn stratum_cell(col: i64, row: i64, side: i64) -> ((i64, i64), u32) {
+    let cell = (col.div_euclid(side), row.div_euclid(side));
+    let index = row.rem_euclid(side) * side + col.rem_euclid(side);
+    (cell, index as u32)
+}
+
+/// A lattice's strata as a lattice of their own: with a square count of
+/// n x n sub-samples a cell, cell (col, row) here is sub-sample
+/// ((row % n) * n + col % n) of the source's cell (col / n, row / n), one
+/// sample each. Tracing a source's groups and tracing its strata's groups
+/// make the same packets ([`trace_group`]), so a store may keep strata and
+/// re-trace a group of them (two pixels at 4 samples a pixel) where it
+/// would otherwise re-trace a group of whole cells.
+pub struct Strata<'a, P: ?Sized> {
+    pub source: &'a P,
+    side: i64,
+}
+
+impl<'a, P: PrimaryRays + ?Sized> Strata<'a, P> {
+    /// The strata of `source`, whose count must be a square above one.
+    pub fn new(source: &'a P) -> Strata<'a, P> {
+        let side = source.samples().grid_side();
+        assert!(side > 1, "strata of a source with a square count above one");
+        Strata {
+            source,
+            side: i64::from(side),
+        }
+    }
+
+    /// Strata along each side of a source cell.
+    pub fn side(&self) -> u32 {
+        self.side as u32
+    }
+}
+
+impl<P: PrimaryRays + ?Sized> PrimaryRays for Strata<'_, P> {
+    #[inline(always)]
+    fn primary(&self, col: i64, row: i64) -> Option<Ray> {
+        let (cell, index) = stratum_cell(col, row, self.side);
+        self.source.sample(cell.0, cell.1, index)
+    }
+
+    fn primary_group(&self, group: SampleGroup) -> (RayPacket, LaneMask) {
+        self.source.strata_group(group)
     }
 }
 
@@ -157,28 +238,24 @@ impl PrimaryRays for RayTable {
         RayTable::samples(self)
     }
 
-    fn sample_group(&self, group: SampleGroup, index: u32) -> (RayPacket, LaneMask) {
+    #[inline(always)]
+    fn sample(&self, col: i64, row: i64, index: u32) -> Option<Ray> {
         let (width, height) = self.size();
-        let mut rays = [Ray::INACTIVE; PACKET_WIDTH];
-        let mut mask: LaneMask = 0;
-        for (lane, (col, row)) in group.lane_samples().into_iter().enumerate() {
-            let inside =
-                (0..i64::from(width)).contains(&col) && (0..i64::from(height)).contains(&row);
-            if let Some(ray) = inside
-                .then(|| self.sample_ray(col as u32, row as u32, index))
-                .flatten()
-            {
-                rays[lane] = ray;
-                mask |= 1 << lane;
-            }
+        let inside = (0..i64::from(width)).contains(&col) && (0..i64::from(height)).contains(&row);
+        if !inside {
+            return None;
         }
-        (rays, mask)
+        self.sample_ray(col as u32, row as u32, index)
     }
 }
 
 /// Traces one group: each cell's colour, the mean of its sub-samples'
 /// (summed in index order, so the same bits every time); lanes without a
 /// ray come back black.
+///
+/// With a square count n x n the packets are the n x n groups of the
+/// group's strata ([`Strata`]): a packet holds neighbouring rays, and a
+/// store keeping strata traces exactly these packets.
 pub fn trace_group(
     shader: &Shader,
     source: &dyn PrimaryRays,
@@ -186,25 +263,69 @@ pub fn trace_group(
     counts: &mut RayCounts,
     mut observer: Option<&mut dyn RayObserver>,
 ) -> [Vec3; PACKET_WIDTH] {
-    let count = source.samples().count();
+    let samples = source.samples();
+    let count = samples.count();
     if count == 1 {
         let (rays, mask) = source.primary_group(group);
         return shader.shade(&rays, mask, 0, counts, observer);
     }
-    let mut sum = [Vec3::ZERO; PACKET_WIDTH];
-    for index in 0..count {
-        let (rays, mask) = source.sample_group(group, index);
-        let watching: Option<&mut dyn RayObserver> = match observer {
-            Some(ref mut o) => Some(&mut **o),
-            None => None,
-        };
-        let colors = shader.shade(&rays, mask, 0, counts, watching);
-        for (total, color) in sum.iter_mut().zip(colors) {
-            *total += color;
+    let side = samples.grid_side();
+    if side == 0 {
+        let mut sum = [Vec3::ZERO; PACKET_WIDTH];
+        for index in 0..count {
+            let (rays, mask) = source.sample_group(group, index);
+            let watching: Option<&mut dyn RayObserver> = match observer {
+                Some(ref mut o) => Some(&mut **o),
+                None => None,
+            };
+            let colors = shader.shade(&rays, mask, 0, counts, watching);
+            for (total, color) in sum.iter_mut().zip(colors) {
+                *total += color;
+            }
+        }
+        return sum.map(|total| total * (1.0 / count as f32));
+    }
+    // Each cell's sub-sample colours, cell-major, to be summed in index
+    // order whatever packet traced them.
+    let mut strata = vec![Vec3::ZERO; PACKET_WIDTH * count as usize];
+    let side = i64::from(side);
+    let (first_col, first_row) = (group.col * side, group.row * side);
+    let (gw, gh) = (i64::from(GROUP_WIDTH), i64::from(GROUP_HEIGHT));
+    for packet_row in 0..side {
+        for packet_col in 0..side {
+            let packet = SampleGroup {
+                col: first_col + packet_col * gw,
+                row: first_row + packet_row * gh,
+            };
+            let (rays, mask) = source.strata_group(packet);
+            let watching: Option<&mut dyn RayObserver> = match observer {
+                Some(ref mut o) => Some(&mut **o),
+                None => None,
+            };
+            let colors = shader.shade(&rays, mask, 0, counts, watching);
+            for (lane, (col, row)) in packet.lane_samples().into_iter().enumerate() {
+                let ((cell_col, cell_row), index) = stratum_cell(col, row, side);
+                let cell = (cell_row - group.row) * gw + (cell_col - group.col);
+                strata[cell as usize * count as usize + index as usize] = colors[lane];
+            }
         }
     }
     let scale = 1.0 / count as f32;
-    sum.map(|total| total * scale)
+    std::array::from_fn(|cell| {
+        let colors = &strata[cell * count as usize..(cell + 1) * count as usize];
+        box_filter(colors.iter().copied(), scale)
+    })
+}
+
+/// A cell's colour from its sub-samples' in index order: the box filter
+/// every path uses, so a cell resolved from kept strata equals a traced one
+/// bit for bit.
+pub fn box_filter(colors: impl IntoIterator<Item = Vec3>, scale: f32) -> Vec3 {
+    let mut total = Vec3::ZERO;
+    for color in colors {
+        total += color;
+    }
+    total * scale
 }
 
 /// Traces `groups` in parallel; colours come back in the order given.
@@ -384,6 +505,79 @@ pub fn render_image(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Records the primary packets traced.
+    struct Primaries(Vec<(RayPacket, LaneMask)>);
+
+    impl RayObserver for Primaries {
+        fn traced(
+            &mut self,
+            kind: crate::shade::RayKind,
+            rays: &RayPacket,
+            mask: LaneMask,
+            _: &[f32; PACKET_WIDTH],
+        ) {
+            if kind == crate::shade::RayKind::Primary {
+                self.0.push((*rays, mask));
+            }
+        }
+    }
+
+    #[test]
+    fn square_counts_trace_packets_of_neighbouring_strata() {
+        let scene = crate::scene::paper_scene(&crate::scene::SceneOverrides {
+            width: Some(16),
+            height: Some(8),
+            ..Default::default()
+        })
+        .unwrap();
+        let accel =
+            crate::accel::Accelerator::build(crate::accel::BackendKind::Grid, &scene.objects)
+                .unwrap();
+        let shader = Shader::new(&scene, &accel);
+        for (count, cells_a_packet) in [(4, 2), (16, 1)] {
+            let samples = PixelSamples::new(count).unwrap();
+            let table = RayTable::with_samples(&scene.camera, samples);
+            let group = SampleGroup { col: 4, row: 2 };
+            let mut seen = Primaries(Vec::new());
+            let mut counts = RayCounts::default();
+            let colors = trace_group(&shader, &table, group, &mut counts, Some(&mut seen));
+            assert_eq!(
+                seen.0.len(),
+                count as usize,
+                "{count}: one packet per 8 rays"
+            );
+            // Which cell each ray of a packet is a sub-sample of.
+            let cell_of = |ray: &Ray| {
+                group.lane_samples().into_iter().position(|(col, row)| {
+                    (0..count).any(|k| table.sample(col, row, k).unwrap().dir == ray.dir)
+                })
+            };
+            for (rays, mask) in &seen.0 {
+                assert_eq!(*mask, 0xff);
+                let mut cells: Vec<_> = rays.iter().map(|r| cell_of(r).unwrap()).collect();
+                cells.sort_unstable();
+                cells.dedup();
+                assert_eq!(cells.len(), cells_a_packet, "{count}: cells {cells:?}");
+            }
+            // And a cell is still the box filter of its sub-samples.
+            let strata = Strata::new(&table);
+            let side = i64::from(strata.side());
+            for (lane, (col, row)) in group.lane_samples().into_iter().enumerate() {
+                let sub: Vec<Vec3> = (0..count as i64)
+                    .map(|k| {
+                        let stratum = (col * side + k % side, row * side + k / side);
+                        let (rays, mask) =
+                            strata.primary_group(SampleGroup::containing(stratum.0, stratum.1));
+                        let colors = shader.shade(&rays, mask, 0, &mut counts, None);
+                        let g = SampleGroup::containing(stratum.0, stratum.1);
+                        colors[((stratum.1 - g.row) * 4 + stratum.0 - g.col) as usize]
+                    })
+                    .collect();
+                assert_eq!(colors[lane], box_filter(sub, 1.0 / count as f32));
+            }
+        }
+    }
 
     #[test]
     fn groups_align_and_cover() {

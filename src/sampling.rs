@@ -62,6 +62,12 @@ impl PixelSamples {
         self.count
     }
 
+    /// The side n of the n x n grid of a square count (1 for one sample);
+    /// 0 for the other counts.
+    pub fn grid_side(self) -> u32 {
+        self.grid
+    }
+
     /// The x offset within its cell, in [0, 1), of sub-sample `index` of
     /// the cells of column `col`.
     #[inline]

@@ -463,12 +463,15 @@ impl<'a> Animator<'a> {
         if !self.options.techniques.ostc {
             return None;
         }
-        // Regions are cut from the scene camera's screen, whatever views it.
+        // Regions are cut from the scene camera's screen, whatever views it,
+        // in the samples of the store's lattice.
         let camera = &self.base.camera;
-        let size = self
-            .options
-            .ostc
-            .region_size(camera.width, camera.height, self.has_viewports());
+        let side = store.lattice_side();
+        let size = self.options.ostc.region_size(
+            camera.width * side,
+            camera.height * side,
+            self.has_viewports(),
+        );
         let built = build_ostc(
             self.base,
             animation,

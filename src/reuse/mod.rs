@@ -152,6 +152,13 @@ pub trait SampleStore {
     /// Why the store cannot serve `views`, if it cannot.
     fn unfit(&self, views: &[ViewportPose]) -> Option<Unfit>;
 
+    /// Samples of the store's lattice along each axis of a camera pixel
+    /// (a still camera keeping strata: the side of their grid), so regions
+    /// can be sized in the lattice's own samples.
+    fn lattice_side(&self) -> u32 {
+        1
+    }
+
     /// OSTC regions of `size` samples laid over everything the store can
     /// keep.
     fn regions(&self, size: (i64, i64)) -> RegionLayout;

@@ -26,9 +26,10 @@ use rayon::prelude::*;
 use crate::camera::ViewportPose;
 use crate::camera::{Camera, Projection};
 use crate::color::srgb_table;
-use crate::ray::{LaneMask, Ray, RayPacket, PACKET_WIDTH};
+use crate::ray::{LaneMask, Ray, PACKET_WIDTH};
 use crate::render::{
-    trace_group, trace_groups, Frame, PrimaryRays, SampleGroup, GROUP_HEIGHT, GROUP_WIDTH,
+    box_filter, stratum_cell, trace_group, trace_groups, Frame, PrimaryRays, SampleGroup, Strata,
+    GROUP_HEIGHT, GROUP_WIDTH,
 };
 use crate::reuse::ostc::Ostc;
 use crate::reuse::regions::{RegionLayout, RegionSet};
@@ -266,17 +267,10 @@ impl PrimaryRays for EqualAngleLattice {
         self.samples
     }
 
-    fn sample_group(&self, group: SampleGroup, index: u32) -> (RayPacket, LaneMask) {
-        let mut rays = [Ray::INACTIVE; PACKET_WIDTH];
-        let mut mask: LaneMask = 0;
-        let origin = self.position.as_vec3();
-        for (lane, (col, row)) in group.lane_samples().into_iter().enumerate() {
-            if let Some(d) = self.sample_direction(col, row, index) {
-                rays[lane] = Ray::new(origin, d.as_vec3());
-                mask |= 1 << lane;
-            }
-        }
-        (rays, mask)
+    #[inline(always)]
+    fn sample(&self, col: i64, row: i64, index: u32) -> Option<Ray> {
+        self.sample_direction(col, row, index)
+            .map(|d| Ray::new(self.position.as_vec3(), d.as_vec3()))
     }
 }
 
@@ -422,6 +416,78 @@ pub fn cells_traced(rays: &RayCounts, samples: PixelSamples) -> u64 {
     rays.primary / u64::from(samples.count())
 }
 
+/// Traces one group of cells afresh, its rays recorded into `ostc` when
+/// given. With strata kept (`strata`), only its groups of strata not kept
+/// are traced, and every cell of the group is resolved from its strata as
+/// [`trace_group`] resolves a traced cell, so the bits are the same.
+fn trace_cells<L: Lattice>(
+    shader: &Shader,
+    lattice: &L,
+    group: SampleGroup,
+    ostc: Option<&Ostc>,
+    strata: Option<&BandStrata>,
+) -> TracedCells {
+    let mut rays = RayCounts::default();
+    let Some(kept) = strata else {
+        let mut marker = ostc.map(|o| o.marker(group));
+        let observer = marker.as_mut().map(|m| m as &mut dyn RayObserver);
+        let colors = trace_group(shader, lattice, group, &mut rays, observer);
+        return TracedCells {
+            colors,
+            rays,
+            strata: Vec::new(),
+            fresh: LaneMask::MAX,
+        };
+    };
+    let source = Strata::new(lattice);
+    let side = kept.side;
+    let (gw, gh) = (i64::from(GROUP_WIDTH), i64::from(GROUP_HEIGHT));
+    let mut fresh_strata = Vec::new();
+    let mut fresh: LaneMask = 0;
+    for packet_row in 0..side {
+        for packet_col in 0..side {
+            let stratum_group = SampleGroup {
+                col: group.col * side + packet_col * gw,
+                row: group.row * side + packet_row * gh,
+            };
+            if kept.traced[kept.group_index(stratum_group)] {
+                continue;
+            }
+            let mut marker = ostc.map(|o| o.marker(stratum_group));
+            let observer = marker.as_mut().map(|m| m as &mut dyn RayObserver);
+            let colors = trace_group(shader, &source, stratum_group, &mut rays, observer);
+            for (col, row) in stratum_group.lane_samples() {
+                let (cell, _) = stratum_cell(col, row, side);
+                let lane = (cell.1 - group.row) * gw + (cell.0 - group.col);
+                fresh |= 1 << lane;
+            }
+            fresh_strata.push((stratum_group, colors));
+        }
+    }
+    let stratum = |col: i64, row: i64| -> Vec3 {
+        let traced = SampleGroup::containing(col, row);
+        match fresh_strata.iter().find(|(g, _)| *g == traced) {
+            Some((g, colors)) => colors[((row - g.row) * gw + (col - g.col)) as usize],
+            None => Vec3::from(kept.colors[kept.stratum_index(col, row)]),
+        }
+    };
+    let count = side * side;
+    let scale = 1.0 / count as f32;
+    let lanes = group.lane_samples();
+    let colors = std::array::from_fn(|lane| {
+        let (col, row) = lanes[lane];
+        let strata =
+            (0..count).map(|index| stratum(col * side + index % side, row * side + index / side));
+        box_filter(strata, scale)
+    });
+    TracedCells {
+        colors,
+        rays,
+        strata: fresh_strata,
+        fresh,
+    }
+}
+
 /// Every sample traced so far on one lattice, in a band of rows.
 pub struct LatticeBuffer<L: Lattice = EqualAngleLattice> {
     lattice: L,
@@ -436,7 +502,27 @@ pub struct LatticeBuffer<L: Lattice = EqualAngleLattice> {
     /// The same samples as 8-bit sRGB, converted once when traced, so a
     /// frame's output image is a byte copy.
     bytes: Vec<[u8; 3]>,
-    /// One flag per 4x2 group: traced yet?
+    /// One flag per 4x2 group: traced yet (with strata kept: every
+    /// stratum of the group)?
+    traced: Vec<bool>,
+    /// With a square count above one, the cells' strata, which the cells
+    /// are resolved from (None for other counts, and where they would not
+    /// fit in [`STRATA_LIMIT_BYTES`]).
+    strata: Option<KeptStrata>,
+}
+
+/// The most memory a buffer's strata may take: past it a buffer keeps
+/// whole cells, which is as exact and re-traces by groups of cells.
+pub const STRATA_LIMIT_BYTES: f64 = 256.0 * 1024.0 * 1024.0;
+
+/// A buffer's strata ([`Strata`]): as traced, so OSTC can erase and
+/// re-trace a group of strata (two cells at 4 samples a cell) where
+/// without them it re-traces a group of cells.
+struct KeptStrata {
+    side: i64,
+    /// Linear colours, row-major over the strata of the buffer's rows.
+    colors: Vec<[f32; 3]>,
+    /// One flag per group of strata: traced yet?
     traced: Vec<bool>,
 }
 
@@ -449,6 +535,40 @@ struct Band<'a> {
     bytes: &'a mut [[u8; 3]],
     /// The row's group flags.
     traced: &'a mut [bool],
+    strata: Option<BandStrata<'a>>,
+}
+
+/// The strata of a band's rows.
+struct BandStrata<'a> {
+    side: i64,
+    /// The band's first row of strata.
+    first_row: i64,
+    /// Strata in a row of the turn.
+    turn: usize,
+    colors: &'a mut [[f32; 3]],
+    traced: &'a mut [bool],
+}
+
+impl BandStrata<'_> {
+    fn group_index(&self, group: SampleGroup) -> usize {
+        let per_row = self.turn / GROUP_WIDTH as usize;
+        let row = ((group.row - self.first_row) / i64::from(GROUP_HEIGHT)) as usize;
+        row * per_row + (group.col / i64::from(GROUP_WIDTH)) as usize
+    }
+
+    fn stratum_index(&self, col: i64, row: i64) -> usize {
+        (row - self.first_row) as usize * self.turn + col as usize
+    }
+}
+
+/// What tracing one group of cells gave.
+struct TracedCells {
+    colors: [Vec3; PACKET_WIDTH],
+    rays: RayCounts,
+    /// With strata kept: the groups of strata traced, and their colours.
+    strata: Vec<(SampleGroup, [Vec3; PACKET_WIDTH])>,
+    /// The lanes (cells) whose samples were traced afresh.
+    fresh: LaneMask,
 }
 
 /// What one frame of a pan cost.
@@ -498,6 +618,15 @@ impl<L: Lattice> LatticeBuffer<L> {
         let row_count = ((end - first_row + gh - 1).div_euclid(gh) * gh).max(0);
         let samples = (lattice.period() * row_count) as usize;
         let groups = samples / (GROUP_WIDTH * GROUP_HEIGHT) as usize;
+        let side = i64::from(lattice.samples().grid_side());
+        let strata_count = samples * (side * side) as usize;
+        let strata = (side > 1
+            && (strata_count * std::mem::size_of::<[f32; 3]>()) as f64 <= STRATA_LIMIT_BYTES)
+            .then(|| KeptStrata {
+                side,
+                colors: vec![[0.0; 3]; strata_count],
+                traced: vec![false; groups * (side * side) as usize],
+            });
         LatticeBuffer {
             lattice,
             first_row,
@@ -505,7 +634,15 @@ impl<L: Lattice> LatticeBuffer<L> {
             colors: vec![[0.0; 3]; samples],
             bytes: vec![[0; 3]; samples],
             traced: vec![false; groups],
+            strata,
         }
+    }
+
+    /// Samples of the buffer's own lattice along each side of a cell: the
+    /// side of the strata's grid when it keeps strata, else 1. OSTC's
+    /// regions are laid over the kept samples ([`LatticeBuffer::regions`]).
+    pub fn lattice_side(&self) -> u32 {
+        self.strata.as_ref().map_or(1, |strata| strata.side as u32)
     }
 
     pub fn lattice(&self) -> &L {
@@ -558,23 +695,52 @@ impl<L: Lattice> LatticeBuffer<L> {
     }
 
     /// Regions of `size` samples tiling the whole buffer (a whole turn by
-    /// the buffer's rows), for OSTC.
+    /// the buffer's rows), for OSTC: samples of its own lattice, strata
+    /// when it keeps them.
     pub fn regions(&self, size: (i64, i64)) -> RegionLayout {
-        RegionLayout::new(size, self.lattice.period(), self.first_row, self.row_count)
+        let side = i64::from(self.lattice_side());
+        RegionLayout::new(
+            size,
+            self.lattice.period() * side,
+            self.first_row * side,
+            self.row_count * side,
+        )
     }
 
     /// Nulls every sample of `regions` (of `layout`, from
-    /// [`LatticeBuffer::regions`]); returns how many samples had been traced.
+    /// [`LatticeBuffer::regions`]); returns how many cells' worth of
+    /// samples had been traced (a stratum counting as its share of a cell).
     pub fn erase(&mut self, layout: &RegionLayout, regions: &RegionSet) -> u64 {
+        let group_samples = u64::from(GROUP_WIDTH * GROUP_HEIGHT);
+        let Some(strata) = self.strata.as_mut() else {
+            let mut nulled = 0;
+            for region in regions.iter() {
+                for group in layout.groups(region) {
+                    let index = self.group_index(group);
+                    nulled += u64::from(std::mem::replace(&mut self.traced[index], false))
+                        * group_samples;
+                }
+            }
+            return nulled;
+        };
+        let side = strata.side;
+        let per_row = self.lattice.period() * side / i64::from(GROUP_WIDTH);
         let mut nulled = 0;
+        let mut cell_groups = Vec::new();
         for region in regions.iter() {
             for group in layout.groups(region) {
-                let index = self.group_index(group);
-                nulled += u64::from(std::mem::replace(&mut self.traced[index], false))
-                    * u64::from(GROUP_WIDTH * GROUP_HEIGHT);
+                let row = (group.row - self.first_row * side) / i64::from(GROUP_HEIGHT);
+                let index = (row * per_row + group.col / i64::from(GROUP_WIDTH)) as usize;
+                nulled +=
+                    u64::from(std::mem::replace(&mut strata.traced[index], false)) * group_samples;
+                cell_groups.push(SampleGroup::containing(group.col / side, group.row / side));
             }
         }
-        nulled
+        for group in cell_groups {
+            let index = self.group_index(group);
+            self.traced[index] = false;
+        }
+        nulled / (side * side) as u64
     }
 
     /// Traces the window's groups not traced before (their rays recorded
@@ -595,39 +761,60 @@ impl<L: Lattice> LatticeBuffer<L> {
         // into a list first and keeping it on one thread would fault in
         // megabytes of fresh pages on a first frame, one at a time.
         let (lattice, bands) = self.bands_of(&missing);
-        let (rays, fresh_pixels) = bands
+        let (rays, fresh_pixels, strata_traced) = bands
             .into_par_iter()
             .map(|band| {
-                let traced: Vec<([Vec3; PACKET_WIDTH], RayCounts)> = band
+                let traced: Vec<TracedCells> = band
                     .groups
                     .par_iter()
                     .with_min_len(16)
-                    .map(|&group| {
-                        let mut rays = RayCounts::default();
-                        let mut marker = ostc.map(|o| o.marker(group));
-                        let observer = marker.as_mut().map(|m| m as &mut dyn RayObserver);
-                        let colors = trace_group(shader, lattice, group, &mut rays, observer);
-                        (colors, rays)
-                    })
+                    .map(|&group| trace_cells(shader, lattice, group, ostc, band.strata.as_ref()))
                     .collect();
                 let (mut rays, mut fresh) = (RayCounts::default(), 0u64);
-                for (group, (colors, group_rays)) in band.groups.iter().zip(traced) {
-                    rays += group_rays;
+                let mut strata_traced = Vec::new();
+                let mut band = band;
+                for (group, traced) in band.groups.iter().zip(traced) {
+                    rays += traced.rays;
                     band.traced[(group.col / i64::from(GROUP_WIDTH)) as usize] = true;
                     for (lane, (col, row)) in group.lane_samples().into_iter().enumerate() {
                         let sample = (row - band.first_row) as usize * band.turn + col as usize;
-                        band.colors[sample] = colors[lane].to_array();
-                        band.bytes[sample] = colors[lane].to_array().map(|c| srgb.encode(c));
-                        fresh += window_positions(lattice, window, col, row).count() as u64;
+                        let color = traced.colors[lane].to_array();
+                        band.colors[sample] = color;
+                        band.bytes[sample] = color.map(|c| srgb.encode(c));
+                        if traced.fresh & (1 << lane) != 0 {
+                            fresh += window_positions(lattice, window, col, row).count() as u64;
+                        }
+                    }
+                    if let Some(strata) = band.strata.as_mut() {
+                        for (stratum_group, colors) in &traced.strata {
+                            let index = strata.group_index(*stratum_group);
+                            strata.traced[index] = true;
+                            for (lane, (col, row)) in
+                                stratum_group.lane_samples().into_iter().enumerate()
+                            {
+                                let at = strata.stratum_index(col, row);
+                                strata.colors[at] = colors[lane].to_array();
+                            }
+                            strata_traced.push(*stratum_group);
+                        }
                     }
                 }
-                (rays, fresh)
+                (rays, fresh, strata_traced)
             })
             .reduce(
-                || (RayCounts::default(), 0),
-                |(a, m), (b, n)| (a + b, m + n),
+                || (RayCounts::default(), 0, Vec::new()),
+                |(a, m, mut x), (b, n, y)| {
+                    x.extend(y);
+                    (a + b, m + n, x)
+                },
             );
-        (fresh_pixels, rays, missing)
+        // With strata kept, what a frame traced is groups of strata.
+        let traced = if self.strata.is_some() {
+            strata_traced
+        } else {
+            missing
+        };
+        (fresh_pixels, rays, traced)
     }
 
     /// `groups` (sorted by row, columns within one turn) cut by group row,
@@ -641,15 +828,42 @@ impl<L: Lattice> LatticeBuffer<L> {
         let mut colors = self.colors.chunks_mut(band_samples).enumerate();
         let mut bytes = self.bytes.chunks_mut(band_samples);
         let mut flags = self.traced.chunks_mut(per_row);
+        let first_row = self.first_row;
+        // A band's strata: its rows times the side, its groups' strata
+        // groups likewise.
+        let mut strata = self.strata.as_mut().map(|strata| {
+            let side = strata.side as usize;
+            let turn = turn * side;
+            let colors = strata
+                .colors
+                .chunks_mut(turn * GROUP_HEIGHT as usize * side);
+            let traced = strata.traced.chunks_mut(per_row * side * side);
+            (strata.side, turn, colors.zip(traced))
+        });
         let mut bands = Vec::new();
         for run in groups.chunk_by(|a, b| a.row == b.row) {
             let index = ((run[0].row - self.first_row) / gh) as usize;
             // Bands come in order: skip to this run's.
-            let (colors, bytes, traced) = loop {
+            let (colors, bytes, traced, band_strata) = loop {
                 let (at, colors) = colors.next().expect("group rows inside the buffer");
                 let (bytes, traced) = (bytes.next(), flags.next());
+                let band_strata = strata.as_mut().map(|(side, turn, chunks)| {
+                    let (colors, traced) = chunks.next().expect("as many");
+                    BandStrata {
+                        side: *side,
+                        first_row: (first_row + at as i64 * gh) * *side,
+                        turn: *turn,
+                        colors,
+                        traced,
+                    }
+                });
                 if at == index {
-                    break (colors, bytes.expect("as many"), traced.expect("as many"));
+                    break (
+                        colors,
+                        bytes.expect("as many"),
+                        traced.expect("as many"),
+                        band_strata,
+                    );
                 }
             };
             bands.push(Band {
@@ -659,21 +873,25 @@ impl<L: Lattice> LatticeBuffer<L> {
                 colors,
                 bytes,
                 traced,
+                strata: band_strata,
             });
         }
         (&self.lattice, bands)
     }
 
-    /// Paints black, in `image` (a view of `window`), every sample of
-    /// `groups`: what a frame re-traced, like the paper's figure 4.
+    /// Paints black, in `image` (a view of `window`), every cell with a
+    /// sample in `groups` (of the buffer's own lattice: strata when it
+    /// keeps them): what a frame re-traced, like the paper's figure 4.
     pub fn paint_groups(
         &self,
         window: &Window,
         groups: &[SampleGroup],
         image: &mut image::RgbImage,
     ) {
+        let side = i64::from(self.lattice_side());
         for group in groups {
             for (col, row) in group.lane_samples() {
+                let (col, row) = (col.div_euclid(side), row.div_euclid(side));
                 for (x, y) in window_positions(&self.lattice, window, col, row) {
                     if x < image.width() as usize && y < image.height() as usize {
                         image.put_pixel(x as u32, y as u32, image::Rgb([0, 0, 0]));
@@ -914,6 +1132,10 @@ impl SampleStore for PanStore {
         let window = lattice.window(camera);
         let moved = (window.col, window.row) != (self.window.col, self.window.row);
         (moved && !self.pans).then_some(Unfit::MovedPanOff)
+    }
+
+    fn lattice_side(&self) -> u32 {
+        self.buffer.lattice_side()
     }
 
     fn regions(&self, size: (i64, i64)) -> RegionLayout {

@@ -2,9 +2,9 @@
 //! still, keeps its samples so OSTC can re-trace only what moving objects
 //! and lights change.
 //!
-//! Promises: the samples are the camera's own pixels, traced in exactly
-//! the 4x2 groups a full render of the camera uses, so a frame equals a
-//! full render bit for bit.
+//! Promises: the samples are the camera's own pixels (or their strata),
+//! traced in exactly the packets a full render of the camera uses, so a
+//! frame equals a full render bit for bit.
 
 use crate::camera::{RayTable, ViewportPose};
 use crate::render::{SampleGroup, GROUP_HEIGHT, GROUP_WIDTH};
@@ -77,6 +77,10 @@ impl SampleStore for StillStore {
         let camera = &views.first()?.camera;
         let own = self.buffer.lattice().camera();
         (own != camera).then_some(Unfit::CameraMoved(own.projection))
+    }
+
+    fn lattice_side(&self) -> u32 {
+        self.buffer.lattice_side()
     }
 
     fn regions(&self, size: (i64, i64)) -> RegionLayout {

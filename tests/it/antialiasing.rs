@@ -62,6 +62,43 @@ on_every_backend! {
         let stats = crate::common::run_exact_reusing_with(&scene, backend, options);
         assert!(stats.iter().all(|s| s.mode.as_str() == "ostc"));
     }
+
+    // Strata of 3 x 3 straddle groups of cells, of 4 x 4 split a cell in
+    // two groups; 2 and 8 sub-samples are not squares: no strata kept.
+    moving_objects_equal_full_renders_with_strata_of_every_shape(backend) {
+        for count in [2, 8, 9, 16] {
+            let mut scene = shipped("paper-bounce.toml", 24, 16);
+            scene.samples = PixelSamples::new(count).unwrap();
+            let options = Options::new(Techniques::AUTO, 2..5);
+            let stats = crate::common::run_exact_reusing_with(&scene, backend, options);
+            assert!(stats.iter().all(|s| s.mode.as_str() == "ostc"), "{count} a pixel");
+        }
+    }
+}
+
+/// With four sub-samples a pixel, OSTC erases and re-traces groups of
+/// strata (two pixels each), not groups of whole pixels (eight, the finest
+/// regions at one sample a pixel): a moving ball then re-traces fewer
+/// pixels at four samples a pixel than at one, though each of its pixels
+/// changes where any of four sub-samples does rather than one.
+#[test]
+fn antialiased_ostc_re_traces_groups_of_strata() {
+    let traced = |count: u32| -> u64 {
+        let mut scene = shipped("paper-bounce.toml", 160, 120);
+        scene.samples = PixelSamples::new(count).unwrap();
+        let options = Options::new(Techniques::AUTO, 0..6);
+        let stats = crate::common::run_exact_reusing_with(
+            &scene,
+            retrace::accel::BackendKind::Embree,
+            options,
+        );
+        stats[1..].iter().map(|s| s.samples_traced).sum()
+    };
+    let (one, four) = (traced(1), traced(4));
+    assert!(
+        four < one,
+        "pixels re-traced at 4 samples a pixel: {four}, at 1: {one}"
+    );
 }
 
 /// A converged reference: 256 stratified sub-samples a pixel.

@@ -77,7 +77,13 @@ fn measured<T>(f: impl FnOnce() -> T) -> (T, usize) {
         AllocationRegistry::set_global_tracker(PeakTracker).expect("one tracker");
         AllocationRegistry::enable_tracking();
     });
-    let mut token = AllocationGroupToken::register().expect("an allocation group");
+    // Registering races between threads (tracking-allocator 0.4 refuses an
+    // id when a later one was handed out first); a refused call only used
+    // up an id, so asking again is safe.
+    let mut token = std::iter::repeat_with(AllocationGroupToken::register)
+        .flatten()
+        .next()
+        .expect("an allocation group");
     let id = token.id().as_usize().get();
     let guard = token.enter();
     let out = f();

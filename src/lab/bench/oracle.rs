@@ -143,18 +143,23 @@ impl Oracle {
         (self.samples - before.0, self.region_samples - before.1)
     }
 
-    /// The sample groups (of a `width` pixels wide frame) holding a pixel
-    /// of the last frame's regions that had to be traced: what the region
-    /// oracle traces when timed.
-    pub(super) fn region_groups(&self, width: u32) -> Vec<crate::render::SampleGroup> {
+    /// The sample groups (of a `width` pixels wide frame, of its strata
+    /// `side` to a pixel's side when above one) holding a pixel of the last
+    /// frame's regions that had to be traced: what the region oracle traces
+    /// when timed.
+    pub(super) fn region_groups(&self, width: u32, side: u32) -> Vec<crate::render::SampleGroup> {
         let width = i64::from(width.max(1));
+        let side = i64::from(side.max(1));
         let mut groups: Vec<_> = self
             .region_pixels
             .iter()
             .enumerate()
             .filter(|&(_, &dirty)| dirty)
-            .map(|(i, _)| {
-                crate::render::SampleGroup::containing(i as i64 % width, i as i64 / width)
+            .flat_map(|(i, _)| {
+                let (x, y) = (i as i64 % width * side, i as i64 / width * side);
+                (0..side * side).map(move |stratum| {
+                    crate::render::SampleGroup::containing(x + stratum % side, y + stratum / side)
+                })
             })
             .collect();
         groups.sort_unstable_by_key(|g| (g.row, g.col));
@@ -178,6 +183,8 @@ pub fn rays_per_pixel(
     struct Counter<'a> {
         counts: [u32; PACKET_WIDTH],
         group: SampleGroup,
+        /// Lanes are strata, `side` to a pixel's side (1: pixels).
+        side: i64,
         width: i64,
         height: i64,
         sink: &'a [AtomicU32],
@@ -192,6 +199,7 @@ pub fn rays_per_pixel(
     impl Drop for Counter<'_> {
         fn drop(&mut self) {
             for (lane, (x, y)) in self.group.lane_samples().into_iter().enumerate() {
+                let (x, y) = (x / self.side, y / self.side);
                 if x < self.width && y < self.height {
                     self.sink[(y * self.width + x) as usize]
                         .fetch_add(self.counts[lane], Ordering::Relaxed);
@@ -203,16 +211,27 @@ pub fn rays_per_pixel(
     let (width, height) = (i64::from(camera.width), i64::from(camera.height));
     let sink: Vec<AtomicU32> = (0..width * height).map(|_| AtomicU32::new(0)).collect();
     let table = crate::camera::RayTable::with_samples(camera, samples);
-    let groups = SampleGroup::covering(0..width, 0..height);
-    trace_groups_observed(shader, &table, &groups, |group| {
+    // A packet's lanes are one cell's each only with one sample a cell, or
+    // counts that are not squares; with square counts they are strata.
+    let side = i64::from(samples.grid_side());
+    let counter = |group| {
         Some(Counter {
             counts: [0; PACKET_WIDTH],
             group,
+            side: side.max(1),
             width,
             height,
             sink: &sink,
         })
-    });
+    };
+    if side > 1 {
+        let strata = crate::render::Strata::new(&table);
+        let groups = SampleGroup::covering(0..width * side, 0..height * side);
+        trace_groups_observed(shader, &strata, &groups, counter);
+    } else {
+        let groups = SampleGroup::covering(0..width, 0..height);
+        trace_groups_observed(shader, &table, &groups, counter);
+    }
     sink.into_iter().map(AtomicU32::into_inner).collect()
 }
 
@@ -315,17 +334,17 @@ mod tests {
         oracle.add(&scene.camera, &frame, &rays);
         // Frame 0: the whole frame.
         assert_eq!(
-            oracle.region_groups(64),
+            oracle.region_groups(64, 1),
             SampleGroup::covering(0..64, 0..48)
         );
         oracle.add(&scene.camera, &frame, &rays);
-        assert!(oracle.region_groups(64).is_empty());
+        assert!(oracle.region_groups(64, 1).is_empty());
         // Pixel (37, 20) lies in the region of columns 32..48, rows 16..24
         // (the window starts on the lattice's region grid here).
         let mut changed = frame.clone();
         changed.pixels[20 * 64 + 37] += glam::Vec3::splat(0.25);
         oracle.add(&scene.camera, &changed, &rays);
-        let groups = oracle.region_groups(64);
+        let groups = oracle.region_groups(64, 1);
         let region: Vec<(i64, i64)> = groups.iter().map(|g| (g.col, g.row)).collect();
         let lattice = crate::reuse::pan::EqualAngleLattice::for_camera(&scene.camera);
         let window = lattice.window(&scene.camera);

@@ -450,11 +450,16 @@ fn check_sequence(
     );
     let exact = check.is_exact();
     let moves = scene.animation.as_ref().is_some_and(|a| a.moves_scene());
-    let region_size = options.ostc.region_size(
-        scene.camera.width,
-        scene.camera.height,
+    // OSTC's regions are of a store's strata when the count is a square
+    // above one (`LatticeBuffer`); the oracle's, of the pixels they cover.
+    let side = scene.samples.grid_side().max(1);
+    let (strata_wide, strata_high) = options.ostc.region_size(
+        scene.camera.width * side,
+        scene.camera.height * side,
         check.has_viewports(),
     );
+    let side_i = i64::from(side);
+    let region_size = ((strata_wide / side_i).max(1), (strata_high / side_i).max(1));
     let mut oracle = (measure.oracle && !check.has_viewports()).then(|| Oracle::new(region_size));
     let mut oracle_ms = 0.0;
     let mut buffer_check: Option<(u64, u64)> = None;
@@ -489,9 +494,16 @@ fn check_sequence(
                     row.oracle_samples = Some(samples);
                     row.oracle_region_samples = Some(region_samples);
                     let table = crate::camera::RayTable::with_samples(&camera, scene.samples);
-                    let groups = oracle.region_groups(camera.width);
+                    let groups = oracle.region_groups(camera.width, side);
                     let start = Instant::now();
-                    std::hint::black_box(crate::render::trace_groups(&shader, &table, &groups));
+                    if side > 1 {
+                        let strata = crate::render::Strata::new(&table);
+                        std::hint::black_box(crate::render::trace_groups(
+                            &shader, &strata, &groups,
+                        ));
+                    } else {
+                        std::hint::black_box(crate::render::trace_groups(&shader, &table, &groups));
+                    }
                     oracle_ms += start.elapsed().as_secs_f64() * 1e3;
                 }
             }

@@ -7,8 +7,8 @@ use glam::{DVec2, DVec3};
 
 use super::{fast_atan2, SampleLattice};
 use crate::camera::{Projection, ViewportPose};
-use crate::ray::{LaneMask, Ray, RayPacket, PACKET_WIDTH};
-use crate::render::{render_image, Frame, PrimaryRays, SampleGroup};
+use crate::ray::Ray;
+use crate::render::{render_image, Frame, PrimaryRays};
 use crate::sampling::PixelSamples;
 use crate::shade::{RayCounts, Shader};
 
@@ -51,18 +51,10 @@ impl PrimaryRays for ViewportRays<'_> {
         self.samples
     }
 
-    fn sample_group(&self, group: SampleGroup, index: u32) -> (RayPacket, LaneMask) {
-        let mut rays = [Ray::INACTIVE; PACKET_WIDTH];
-        let mut mask: LaneMask = 0;
-        for (lane, (col, row)) in group.lane_samples().into_iter().enumerate() {
-            let x = col as f64 + self.samples.x(col, index);
-            let y = row as f64 + self.samples.y(row, index);
-            if let Some(ray) = self.ray_at(col, row, x, y) {
-                rays[lane] = ray;
-                mask |= 1 << lane;
-            }
-        }
-        (rays, mask)
+    fn sample(&self, col: i64, row: i64, index: u32) -> Option<Ray> {
+        let x = col as f64 + self.samples.x(col, index);
+        let y = row as f64 + self.samples.y(row, index);
+        self.ray_at(col, row, x, y)
     }
 }
 
