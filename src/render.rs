@@ -135,6 +135,13 @@ pub trait PrimaryRays: Sync {
 /// the cell's grid square (k % side, k / side): [`PixelSamples`]).
 #[inline(always)]
 pub fn stratum_cell(col: i64, row: i64, side: i64) -> ((i64, i64), u32) {
+    if side & (side - 1) == 0 {
+        // 4 and 16 sub-samples: shifts and masks, not divisions, on every
+        // ray of a full render.
+        let (shift, mask) = (side.trailing_zeros(), side - 1);
+        let index = (row & mask) * side + (col & mask);
+        return ((col >> shift, row >> shift), index as u32);
+    }
     let cell = (col.div_euclid(side), row.div_euclid(side));
     let index = row.rem_euclid(side) * side + col.rem_euclid(side);
     (cell, index as u32)
@@ -285,17 +292,25 @@ pub fn trace_group(
         }
         return sum.map(|total| total * (1.0 / count as f32));
     }
-    // Each cell's sub-sample colours, cell-major, to be summed in index
-    // order whatever packet traced them.
-    let mut strata = vec![Vec3::ZERO; PACKET_WIDTH * count as usize];
+    // Packets go row by row, and their lanes too. Where the side divides
+    // the group's width (4 and 16 sub-samples) a cell's strata rows lie
+    // whole in one packet, so every cell meets its sub-samples in index
+    // order and sums them as they come; otherwise they are kept, cell-major,
+    // and summed in index order at the end.
     let side = i64::from(side);
-    let (first_col, first_row) = (group.col * side, group.row * side);
+    let in_order = i64::from(GROUP_WIDTH) % side == 0;
+    let mut sum = [Vec3::ZERO; PACKET_WIDTH];
+    let mut strata = if in_order {
+        Vec::new()
+    } else {
+        vec![Vec3::ZERO; PACKET_WIDTH * count as usize]
+    };
     let (gw, gh) = (i64::from(GROUP_WIDTH), i64::from(GROUP_HEIGHT));
     for packet_row in 0..side {
         for packet_col in 0..side {
             let packet = SampleGroup {
-                col: first_col + packet_col * gw,
-                row: first_row + packet_row * gh,
+                col: group.col * side + packet_col * gw,
+                row: group.row * side + packet_row * gh,
             };
             let (rays, mask) = source.strata_group(packet);
             let watching: Option<&mut dyn RayObserver> = match observer {
@@ -303,14 +318,24 @@ pub fn trace_group(
                 None => None,
             };
             let colors = shader.shade(&rays, mask, 0, counts, watching);
-            for (lane, (col, row)) in packet.lane_samples().into_iter().enumerate() {
+            for (lane, color) in colors.into_iter().enumerate() {
+                let lane = lane as i64;
+                // The stratum's place in the group's block of strata.
+                let (col, row) = (packet_col * gw + lane % gw, packet_row * gh + lane / gw);
                 let ((cell_col, cell_row), index) = stratum_cell(col, row, side);
-                let cell = (cell_row - group.row) * gw + (cell_col - group.col);
-                strata[cell as usize * count as usize + index as usize] = colors[lane];
+                let cell = (cell_row * gw + cell_col) as usize;
+                if in_order {
+                    sum[cell] += color;
+                } else {
+                    strata[cell * count as usize + index as usize] = color;
+                }
             }
         }
     }
     let scale = 1.0 / count as f32;
+    if in_order {
+        return sum.map(|total| total * scale);
+    }
     std::array::from_fn(|cell| {
         let colors = &strata[cell * count as usize..(cell + 1) * count as usize];
         box_filter(colors.iter().copied(), scale)
