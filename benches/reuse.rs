@@ -26,7 +26,7 @@ fn pan_shift(c: &mut Criterion) {
     let shader = Shader::new(&scene, &accel);
     let lattice = EqualAngleLattice::for_camera(&scene.camera);
     let window = lattice.window(&scene.camera);
-    let mut buffer = LatticeBuffer::new(lattice, window.row..window.row + 480);
+    let mut buffer = LatticeBuffer::new(lattice, window.row..window.row + 480, false);
     buffer.frame(&shader, &window, false, None);
     let mut shifted = window;
     shifted.col += 23;

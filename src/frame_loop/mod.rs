@@ -437,8 +437,11 @@ impl<'a> Animator<'a> {
                 self.scene.samples,
             ));
         }
+        // Strata serve OSTC alone (it re-traces groups of them).
+        let keep_strata =
+            self.options.techniques.ostc && self.animation().is_some_and(|a| a.moves_scene());
         if !self.on_lattice(camera) {
-            return Box::new(StillStore::new(camera, self.scene.samples));
+            return Box::new(StillStore::new(camera, self.scene.samples, keep_strata));
         }
         let window = EqualAngleLattice::for_camera(camera).window(camera);
         let (mut low, mut high) = (window.row, window.row + i64::from(window.height));
@@ -452,6 +455,7 @@ impl<'a> Animator<'a> {
             self.options.fractional_pan,
             self.options.techniques.pan,
             self.scene.samples,
+            keep_strata,
         ))
     }
 

@@ -126,7 +126,9 @@ impl EqualAngleLattice {
     }
 
     /// The direction of sub-sample `index` of cell (col, row); None past a
-    /// pole.
+    /// pole. Inlined into the packet loops (a call per ray costs more than
+    /// the table lookups).
+    #[inline(always)]
     fn sample_direction(&self, col: i64, row: i64, index: u32) -> Option<DVec3> {
         if self.samples.count() == 1 {
             return self.direction(col, row);
@@ -163,8 +165,9 @@ impl EqualAngleLattice {
     }
 
     /// The bytes a pan buffer over `rows` rows of `camera`'s lattice takes,
-    /// with the lattice's tables: what [`LatticeBuffer::new`] would allocate,
-    /// known before allocating it.
+    /// with the lattice's tables: what [`LatticeBuffer::new`] would allocate
+    /// (strata aside, which [`STRATA_LIMIT_BYTES`] bounds), known before
+    /// allocating it.
     pub fn buffer_bytes(camera: &Camera, rows: i64) -> f64 {
         let columns = Self::columns_per_turn_for(camera) as f64;
         let per_sample =
@@ -610,8 +613,10 @@ impl PanFrameStats {
 }
 
 impl<L: Lattice> LatticeBuffer<L> {
-    /// A buffer for windows within rows `rows` of the lattice.
-    pub fn new(lattice: L, rows: std::ops::Range<i64>) -> LatticeBuffer<L> {
+    /// A buffer for windows within rows `rows` of the lattice, keeping a
+    /// square count's strata too when `keep_strata` is set (for OSTC, which
+    /// then re-traces groups of strata: a pan alone has no use for them).
+    pub fn new(lattice: L, rows: std::ops::Range<i64>, keep_strata: bool) -> LatticeBuffer<L> {
         let gh = i64::from(GROUP_HEIGHT);
         let first_row = rows.start.max(0).div_euclid(gh) * gh;
         let end = rows.end.min(lattice.rows());
@@ -620,7 +625,8 @@ impl<L: Lattice> LatticeBuffer<L> {
         let groups = samples / (GROUP_WIDTH * GROUP_HEIGHT) as usize;
         let side = i64::from(lattice.samples().grid_side());
         let strata_count = samples * (side * side) as usize;
-        let strata = (side > 1
+        let strata = (keep_strata
+            && side > 1
             && (strata_count * std::mem::size_of::<[f32; 3]>()) as f64 <= STRATA_LIMIT_BYTES)
             .then(|| KeptStrata {
                 side,
@@ -1085,11 +1091,12 @@ impl PanStore {
         fractional: FractionalPan,
         pans: bool,
         samples: PixelSamples,
+        keep_strata: bool,
     ) -> PanStore {
         let lattice = EqualAngleLattice::for_camera_sampled(camera, samples);
         let window = lattice.window(camera);
         PanStore {
-            buffer: LatticeBuffer::new(lattice, rows),
+            buffer: LatticeBuffer::new(lattice, rows, keep_strata),
             fractional,
             pans,
             window,

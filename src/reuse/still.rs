@@ -50,11 +50,17 @@ pub struct StillStore {
 }
 
 impl StillStore {
-    pub fn new(camera: &crate::camera::Camera, samples: PixelSamples) -> StillStore {
+    /// The samples of `camera`'s image, keeping a square count's strata
+    /// when `keep_strata` is set (see [`LatticeBuffer::new`]).
+    pub fn new(
+        camera: &crate::camera::Camera,
+        samples: PixelSamples,
+        keep_strata: bool,
+    ) -> StillStore {
         let table = RayTable::with_samples(camera, samples);
         let rows = table.rows();
         StillStore {
-            buffer: LatticeBuffer::new(table, 0..rows),
+            buffer: LatticeBuffer::new(table, 0..rows, keep_strata),
             traced: Vec::new(),
         }
     }

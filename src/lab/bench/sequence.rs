@@ -452,7 +452,11 @@ fn check_sequence(
     let moves = scene.animation.as_ref().is_some_and(|a| a.moves_scene());
     // OSTC's regions are of a store's strata when the count is a square
     // above one (`LatticeBuffer`); the oracle's, of the pixels they cover.
-    let side = scene.samples.grid_side().max(1);
+    let side = if moves && options.techniques.ostc {
+        scene.samples.grid_side().max(1)
+    } else {
+        1
+    };
     let (strata_wide, strata_high) = options.ostc.region_size(
         scene.camera.width * side,
         scene.camera.height * side,
