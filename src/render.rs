@@ -2,9 +2,11 @@
 //! groups" for the reuse algorithms. The one way samples get traced.
 //!
 //! Samples are traced in fixed groups of 4x2 (one 8-wide packet), aligned to
-//! multiples of 4 columns and 2 rows of the sample lattice. Embree does not
+//! multiples of 4 columns and 2 rows of the sample lattice; with several
+//! sub-samples a cell, a group is one packet per sub-sample index or, for
+//! square counts, one per group of its strata ([`Strata`]). Embree does not
 //! promise that a ray gives bit-identical results in a different packet, so
-//! a sample is always traced with the same seven neighbours: a partial
+//! a ray is always traced with the same seven neighbours: a partial
 //! re-trace then equals a full render bit for bit.
 
 use glam::Vec3;
