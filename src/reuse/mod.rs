@@ -14,6 +14,7 @@
 //! store's lattice, traced through [`crate::render`]); a sample erased is
 //! traced again before any view shows it.
 
+pub mod lattice_buffer;
 pub mod ostc;
 pub mod pan;
 pub mod regions;

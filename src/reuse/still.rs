@@ -8,8 +8,8 @@
 
 use crate::camera::{RayTable, ViewportPose};
 use crate::render::{SampleGroup, GROUP_HEIGHT, GROUP_WIDTH};
+use crate::reuse::lattice_buffer::{Lattice, LatticeBuffer, Window};
 use crate::reuse::ostc::Ostc;
-use crate::reuse::pan::{Lattice, LatticeBuffer, Window};
 use crate::reuse::regions::{RegionLayout, RegionSet};
 use crate::reuse::{FrameMode, SampleStore, StoreFrame, Unfit, Wanted};
 use crate::sampling::PixelSamples;
