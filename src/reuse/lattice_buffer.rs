@@ -302,6 +302,14 @@ struct KeptStrata {
     traced: Vec<bool>,
 }
 
+/// The flag index of `group` in a buffer whose rows start at `first_row`
+/// and run `turn` samples wide, group row by group row.
+fn group_index(group: SampleGroup, first_row: i64, turn: i64) -> usize {
+    let per_row = turn / i64::from(GROUP_WIDTH);
+    let group_row = (group.row - first_row) / i64::from(GROUP_HEIGHT);
+    (group_row * per_row + group.col / i64::from(GROUP_WIDTH)) as usize
+}
+
 /// One group row of a buffer's stores, and the groups to trace in it.
 struct Band<'a> {
     groups: &'a [SampleGroup],
@@ -327,9 +335,7 @@ struct BandStrata<'a> {
 
 impl BandStrata<'_> {
     fn group_index(&self, group: SampleGroup) -> usize {
-        let per_row = self.turn / GROUP_WIDTH as usize;
-        let row = ((group.row - self.first_row) / i64::from(GROUP_HEIGHT)) as usize;
-        row * per_row + (group.col / i64::from(GROUP_WIDTH)) as usize
+        group_index(group, self.first_row, self.turn as i64)
     }
 
     fn stratum_index(&self, col: i64, row: i64) -> usize {
@@ -434,9 +440,7 @@ impl<L: Lattice> LatticeBuffer<L> {
     }
 
     fn group_index(&self, group: SampleGroup) -> usize {
-        let per_row = self.lattice.period() / i64::from(GROUP_WIDTH);
-        let group_row = (group.row - self.first_row) / i64::from(GROUP_HEIGHT);
-        (group_row * per_row + group.col / i64::from(GROUP_WIDTH)) as usize
+        group_index(group, self.first_row, self.lattice.period())
     }
 
     /// The window's groups not traced yet, in the order of
@@ -509,13 +513,12 @@ impl<L: Lattice> LatticeBuffer<L> {
             return nulled;
         };
         let side = strata.side;
-        let per_row = self.lattice.period() * side / i64::from(GROUP_WIDTH);
+        let (first_row, turn) = (self.first_row * side, self.lattice.period() * side);
         let mut nulled = 0;
         let mut cell_groups = Vec::new();
         for region in regions.iter() {
             for group in layout.groups(region) {
-                let row = (group.row - self.first_row * side) / i64::from(GROUP_HEIGHT);
-                let index = (row * per_row + group.col / i64::from(GROUP_WIDTH)) as usize;
+                let index = group_index(group, first_row, turn);
                 nulled +=
                     u64::from(std::mem::replace(&mut strata.traced[index], false)) * group_samples;
                 cell_groups.push(SampleGroup::containing(group.col / side, group.row / side));

@@ -213,25 +213,26 @@ pub fn rays_per_pixel(
     let table = crate::camera::RayTable::with_samples(camera, samples);
     // A packet's lanes are one cell's each only with one sample a cell, or
     // counts that are not squares; with square counts they are strata.
-    let side = i64::from(samples.grid_side());
+    let side = i64::from(samples.grid_side()).max(1);
     let counter = |group| {
         Some(Counter {
             counts: [0; PACKET_WIDTH],
             group,
-            side: side.max(1),
+            side,
             width,
             height,
             sink: &sink,
         })
     };
-    if side > 1 {
-        let strata = crate::render::Strata::new(&table);
-        let groups = SampleGroup::covering(0..width * side, 0..height * side);
-        trace_groups_observed(shader, &strata, &groups, counter);
+    let strata;
+    let source: &dyn crate::render::PrimaryRays = if side > 1 {
+        strata = crate::render::Strata::new(&table);
+        &strata
     } else {
-        let groups = SampleGroup::covering(0..width, 0..height);
-        trace_groups_observed(shader, &table, &groups, counter);
-    }
+        &table
+    };
+    let groups = SampleGroup::covering(0..width * side, 0..height * side);
+    trace_groups_observed(shader, source, &groups, counter);
     sink.into_iter().map(AtomicU32::into_inner).collect()
 }
 

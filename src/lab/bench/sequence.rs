@@ -499,15 +499,15 @@ fn check_sequence(
                     row.oracle_region_samples = Some(region_samples);
                     let table = crate::camera::RayTable::with_samples(&camera, scene.samples);
                     let groups = oracle.region_groups(camera.width, side);
-                    let start = Instant::now();
-                    if side > 1 {
-                        let strata = crate::render::Strata::new(&table);
-                        std::hint::black_box(crate::render::trace_groups(
-                            &shader, &strata, &groups,
-                        ));
+                    let strata;
+                    let source: &dyn crate::render::PrimaryRays = if side > 1 {
+                        strata = crate::render::Strata::new(&table);
+                        &strata
                     } else {
-                        std::hint::black_box(crate::render::trace_groups(&shader, &table, &groups));
-                    }
+                        &table
+                    };
+                    let start = Instant::now();
+                    std::hint::black_box(crate::render::trace_groups(&shader, source, &groups));
                     oracle_ms += start.elapsed().as_secs_f64() * 1e3;
                 }
             }
