@@ -106,11 +106,16 @@ const HIT_POINT_RELATIVE_ERROR: f32 = 16.0 * f32::EPSILON;
 /// The distance is at least 16 ULPs of that magnitude, so the rounding of the
 /// final add (half an ULP) cannot bring the point back onto the surface.
 pub fn offset_origin(p: Vec3, normal: Vec3, scale: f32) -> Vec3 {
-    let magnitude = p.abs().max_element().max(scale);
+    p + normal * offset_distance(p.abs().max_element().max(scale))
+}
+
+/// How far [`offset_origin`] moves a point whose magnitude (with its
+/// `scale`) is `magnitude`.
+#[inline]
+pub fn offset_distance(magnitude: f32) -> f32 {
     // Never below the smallest normal float: keeps the offset meaningful for
     // a point exactly at the origin.
-    let distance = (magnitude * HIT_POINT_RELATIVE_ERROR).max(f32::MIN_POSITIVE * 64.0);
-    p + normal * distance
+    (magnitude * HIT_POINT_RELATIVE_ERROR).max(f32::MIN_POSITIVE * 64.0)
 }
 
 pub fn next_up(x: f32) -> f32 {

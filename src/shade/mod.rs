@@ -7,6 +7,7 @@
 //! repeats (the reuse algorithms) always trace the same groups of samples.
 
 mod cones;
+mod lanes;
 
 use glam::{Affine3A, Mat3A, Vec3};
 
@@ -16,10 +17,10 @@ use crate::geometry::{
     normal_matrix, plane_axes, transform_normal, Object, Placement, Shape, TriangleMesh,
 };
 use crate::ray::{lanes, offset_origin, Hit, LaneMask, Ray, RayPacket, PACKET_WIDTH};
-use crate::scene::glass::refract;
-use crate::scene::{Glass, Material, Scene};
+use crate::scene::{Material, Scene};
 use crate::texture::{cone_level_of_detail, Texture};
 use cones::{reflected_spread, refracted_spread, sample_spread, RayCones};
+use lanes::{lane_flags, lanes_where, AnalyticHits, HitLanes, Lanes, RayColumns, Vec3Lanes};
 
 /// Rays traced, by kind.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
@@ -261,15 +262,9 @@ impl<'a> WorldShape<'a> {
             } => {
                 let rough = ray.at(hit.t);
                 let point = rough - normal * normal.dot(rough - origin);
-                let local = point - origin;
                 let scale = origin_scale.max(ray.origin.abs().max_element());
-                (
-                    point,
-                    normal,
-                    normal,
-                    scale,
-                    Some((local.dot(u_axis), local.dot(v_axis))),
-                )
+                let uv = plane_uv(point, origin, u_axis, v_axis);
+                (point, normal, normal, scale, Some(uv))
             }
         };
         let facing = if normal.dot(ray.dir) > 0.0 { -1.0 } else { 1.0 };
@@ -306,6 +301,20 @@ impl<'a> WorldShape<'a> {
 }
 
 impl WorldShape<'_> {
+    /// `point`'s in-plane coordinates on a plane; None on other shapes.
+    #[inline]
+    fn plane_uv(&self, point: Vec3) -> Option<(f32, f32)> {
+        match *self {
+            WorldShape::Plane {
+                origin,
+                u_axis,
+                v_axis,
+                ..
+            } => Some(plane_uv(point, origin, u_axis, v_axis)),
+            _ => None,
+        }
+    }
+
     /// The colour `map` (diffuse or specular) gives at `hit` on a mesh with texture
     /// coordinates (`None` elsewhere), filtered over the footprint of a ray
     /// cone `width` wide at the hit (Ray Tracing Gems ch. 20): the triangle's
@@ -333,15 +342,24 @@ impl WorldShape<'_> {
     }
 }
 
+/// In-plane coordinates of `point` on a plane through `origin`.
 #[inline]
-fn albedo(material: &Material, surface: &Surface) -> Vec3 {
+fn plane_uv(point: Vec3, origin: Vec3, u_axis: Vec3, v_axis: Vec3) -> (f32, f32) {
+    let local = point - origin;
+    (local.dot(u_axis), local.dot(v_axis))
+}
+
+/// The material's colour at `point` (with its in-plane coordinates on a
+/// plane): its diffuse colour, or its checker's.
+#[inline]
+fn albedo(material: &Material, point: Vec3, plane_uv: Option<(f32, f32)>) -> Vec3 {
     let Some(checker) = &material.checker else {
         return material.diffuse;
     };
-    let parity = match surface.plane_uv {
+    let parity = match plane_uv {
         Some((u, v)) => (u / checker.scale).floor() as i64 + (v / checker.scale).floor() as i64,
         None => {
-            let p = surface.point / checker.scale;
+            let p = point / checker.scale;
             p.x.floor() as i64 + p.y.floor() as i64 + p.z.floor() as i64
         }
     };
@@ -522,13 +540,30 @@ impl<'a> Shader<'a> {
         // What each lane's specular map gives; white (a multiplication
         // that changes no bits) without one.
         let mut specular_texels = [Vec3::ONE; PACKET_WIDTH];
+        let columns = RayColumns::new(rays);
+        lanes_hit.direction = columns.direction;
+        // Hits on spheres and planes are reconstructed all lanes at once
+        // after this loop; those on meshes, and every hit where cones are
+        // followed, one by one here.
+        let mut analytic = AnalyticHits::default();
+        let mut analytic_mask: LaneMask = 0;
         for lane in lanes(hit_mask) {
             let Some(hit) = &hits[lane] else { continue };
             let object = &self.objects[hit.object as usize];
+            lanes_hit.material[lane] = object.material_index as u32;
+            lanes_hit.cutoff[lane] = object.highlight_cutoff;
+            lanes_hit.reflectivity[lane] = object.material.reflectivity;
+            if self.any_glass {
+                lanes_hit.glass[lane] = object.material.glass;
+            }
+            if !self.textured && analytic.add(lane, &object.shape, hit.t) {
+                analytic_mask |= 1 << lane;
+                continue;
+            }
             let surface = object
                 .shape
                 .surface(&rays[lane], hit, object.material_index);
-            let mut albedo = albedo(object.material, &surface);
+            let mut albedo = albedo(object.material, surface.point, surface.plane_uv);
             if self.textured {
                 let ray = &rays[lane];
                 let width = cones.width[lane] + cones.spread[lane] * hit.t * ray.dir.length();
@@ -554,12 +589,18 @@ impl<'a> Shader<'a> {
                     }
                 }
             }
-            lanes_hit.set(lane, &surface, albedo, rays[lane].dir);
-            lanes_hit.cutoff[lane] = object.highlight_cutoff;
-            lanes_hit.reflectivity[lane] = object.material.reflectivity;
-            if self.any_glass {
-                lanes_hit.glass[lane] = object.material.glass;
-                lanes_hit.front_face[lane] = surface.front_face;
+            lanes_hit.set(lane, &surface, albedo);
+            lanes_hit.front_face[lane] = surface.front_face;
+        }
+        if analytic_mask != 0 {
+            analytic.reconstruct(&columns, &lane_flags(analytic_mask), &mut lanes_hit);
+            for lane in lanes(analytic_mask) {
+                let Some(hit) = &hits[lane] else { continue };
+                let object = &self.objects[hit.object as usize];
+                let point = lanes_hit.point.get(lane);
+                let uv = object.shape.plane_uv(point);
+                let albedo = albedo(object.material, point, uv);
+                lanes_hit.albedo.set(lane, albedo);
             }
         }
         lanes_hit.normalize_directions();
@@ -757,8 +798,6 @@ impl GlassLanes {
     }
 }
 
-type Lanes = [f32; PACKET_WIDTH];
-
 /// `observer` lent for one call, its trait object's lifetime shortened to
 /// the loan (which `as_deref_mut` does not do).
 #[inline]
@@ -768,35 +807,6 @@ fn reborrow<'s>(observer: &'s mut Option<&mut dyn RayObserver>) -> Option<&'s mu
         None => None,
     }
 }
-
-/// The mask of lanes where `test` holds.
-#[inline]
-fn lanes_where(test: impl Fn(usize) -> bool) -> LaneMask {
-    (0..PACKET_WIDTH).fold(0, |acc, lane| acc | (u8::from(test(lane)) << lane))
-}
-
-/// Lane by lane, whether `mask` holds it. A bit test inside a lane loop
-/// keeps LLVM from vectorizing the loop; a flag per lane does not.
-#[inline]
-fn lane_flags(mask: LaneMask) -> [bool; PACKET_WIDTH] {
-    LANE_FLAGS[usize::from(mask)]
-}
-
-/// [`lane_flags`] of every mask, worked out at compile time: one load,
-/// where LLVM spreads a mask's bits over lanes with a dozen shuffles.
-const LANE_FLAGS: [[bool; PACKET_WIDTH]; 1 << PACKET_WIDTH] = {
-    let mut table = [[false; PACKET_WIDTH]; 1 << PACKET_WIDTH];
-    let mut mask = 0;
-    while mask < table.len() {
-        let mut lane = 0;
-        while lane < PACKET_WIDTH {
-            table[mask][lane] = mask & (1 << lane) != 0;
-            lane += 1;
-        }
-        mask += 1;
-    }
-    table
-};
 
 /// One light's contribution to every channel, added in the `keep` lanes.
 /// Out of line for the reason given at [`HitLanes::toward`].
@@ -882,260 +892,5 @@ fn accumulate(
         let term = power * (albedo[lane] * n_dot_l[lane] + specular[lane]);
         let sum = color[lane] + term;
         color[lane] = if keep[lane] { sum } else { color[lane] };
-    }
-}
-
-/// Eight vectors stored by coordinate, so arithmetic on all lanes at once
-/// vectorizes. Each operation is glam's, lane by lane, with the same
-/// operations in the same order (a dot product is `x*x' + y*y' + z*z'`, a
-/// normalization multiplies by `1 / sqrt(dot)`), so results are bit for bit
-/// those of [`Vec3`].
-#[derive(Clone, Copy, Default)]
-struct Vec3Lanes {
-    x: Lanes,
-    y: Lanes,
-    z: Lanes,
-}
-
-impl Vec3Lanes {
-    #[inline]
-    fn splat(v: Vec3) -> Vec3Lanes {
-        Vec3Lanes {
-            x: [v.x; PACKET_WIDTH],
-            y: [v.y; PACKET_WIDTH],
-            z: [v.z; PACKET_WIDTH],
-        }
-    }
-
-    #[inline]
-    fn get(&self, lane: usize) -> Vec3 {
-        Vec3::new(self.x[lane], self.y[lane], self.z[lane])
-    }
-
-    #[inline]
-    fn set(&mut self, lane: usize, v: Vec3) {
-        self.x[lane] = v.x;
-        self.y[lane] = v.y;
-        self.z[lane] = v.z;
-    }
-
-    #[inline]
-    fn vectors(&self) -> [Vec3; PACKET_WIDTH] {
-        std::array::from_fn(|lane| self.get(lane))
-    }
-
-    #[inline]
-    fn zip(&self, other: &Vec3Lanes, f: impl Fn(f32, f32) -> f32) -> Vec3Lanes {
-        Vec3Lanes {
-            x: std::array::from_fn(|i| f(self.x[i], other.x[i])),
-            y: std::array::from_fn(|i| f(self.y[i], other.y[i])),
-            z: std::array::from_fn(|i| f(self.z[i], other.z[i])),
-        }
-    }
-
-    #[inline]
-    fn sub(&self, other: &Vec3Lanes) -> Vec3Lanes {
-        self.zip(other, |a, b| a - b)
-    }
-
-    #[inline]
-    fn add(&self, other: &Vec3Lanes) -> Vec3Lanes {
-        self.zip(other, |a, b| a + b)
-    }
-
-    #[inline]
-    fn mul(&self, other: &Vec3Lanes) -> Vec3Lanes {
-        self.zip(other, |a, b| a * b)
-    }
-
-    /// `self` in the `pick` lanes, `other` elsewhere.
-    #[inline]
-    fn select(&self, pick: &[bool; PACKET_WIDTH], other: &Vec3Lanes) -> Vec3Lanes {
-        let choose = |a: &Lanes, b: &Lanes| -> Lanes {
-            std::array::from_fn(|i| if pick[i] { a[i] } else { b[i] })
-        };
-        Vec3Lanes {
-            x: choose(&self.x, &other.x),
-            y: choose(&self.y, &other.y),
-            z: choose(&self.z, &other.z),
-        }
-    }
-
-    #[inline]
-    fn neg(&self) -> Vec3Lanes {
-        Vec3Lanes {
-            x: self.x.map(|c| -c),
-            y: self.y.map(|c| -c),
-            z: self.z.map(|c| -c),
-        }
-    }
-
-    /// Each lane times its own scalar.
-    #[inline]
-    fn scale(&self, s: &Lanes) -> Vec3Lanes {
-        Vec3Lanes {
-            x: std::array::from_fn(|i| self.x[i] * s[i]),
-            y: std::array::from_fn(|i| self.y[i] * s[i]),
-            z: std::array::from_fn(|i| self.z[i] * s[i]),
-        }
-    }
-
-    #[inline]
-    fn dot(&self, other: &Vec3Lanes) -> Lanes {
-        std::array::from_fn(|i| {
-            (self.x[i] * other.x[i]) + (self.y[i] * other.y[i]) + (self.z[i] * other.z[i])
-        })
-    }
-
-    #[inline]
-    fn normalize(&self) -> Vec3Lanes {
-        let recip = self.dot(self).map(|d| 1.0 / d.sqrt());
-        self.scale(&recip)
-    }
-}
-
-/// `d` mirrored about `n`, lane by lane: `d - n * (2 (d.n))`.
-#[inline(always)]
-fn reflect_lanes(d: &Vec3Lanes, n: &Vec3Lanes) -> Vec3Lanes {
-    let twice = d.dot(n).map(|c| 2.0 * c);
-    d.sub(&n.scale(&twice))
-}
-
-/// What lighting and reflection need of each lane's hit, by coordinate.
-#[derive(Default)]
-struct HitLanes {
-    point: Vec3Lanes,
-    geometric_normal: Vec3Lanes,
-    shading_normal: Vec3Lanes,
-    spawn_point: Vec3Lanes,
-    shadow_point: Vec3Lanes,
-    albedo: Vec3Lanes,
-    /// The incoming ray's direction; unit once
-    /// [`HitLanes::normalize_directions`] has run.
-    direction: Vec3Lanes,
-    material: [u32; PACKET_WIDTH],
-    /// The material's highlight cutoff and reflectivity.
-    cutoff: Lanes,
-    reflectivity: Lanes,
-    /// Scenes with glass only: each lane's glass, if its material is
-    /// transparent, and whether the ray arrived on the front face.
-    glass: [Option<Glass>; PACKET_WIDTH],
-    front_face: [bool; PACKET_WIDTH],
-}
-
-impl HitLanes {
-    /// Toward a light at `light`: the facing term `n_s . (light - point)`
-    /// (the light is in front where it is positive; by the shading normal,
-    /// which is the geometric one except on smooth triangles, where a
-    /// light below a facet's plane still lights the curved surface it
-    /// stands for, and the shadow ray from the lifted shadow point decides),
-    /// the direction the
-    /// light falls from (from the points themselves: the spawn points sit
-    /// off the surface by an amount that grows with the distance from the
-    /// origin, 19 units at 1e7, enough to bend the cosines), and the shadow
-    /// rays' directions, from the shadow points to the light (so the
-    /// segment ends at t = 1).
-    ///
-    /// The lighting math is kept out of line (here, [`HitLanes::cosines`]
-    /// and [`add_light`]): inlined into `shade_lanes`, these lanes are left
-    /// to LLVM's SLP vectorizer, which shapes them anew whenever the code
-    /// around them changes, at times into split halves and shuffles.
-    #[inline(never)]
-    fn toward(&self, light: Vec3) -> (Lanes, Vec3Lanes, Vec3Lanes) {
-        let light = Vec3Lanes::splat(light);
-        let from_point = light.sub(&self.point);
-        let facing = self.shading_normal.dot(&from_point);
-        (facing, from_point, light.sub(&self.shadow_point))
-    }
-
-    /// Where mirror reflections leave: the incoming direction mirrored
-    /// about the shading normal, or about the geometric normal where an
-    /// interpolated normal would bend the reflection into the surface.
-    #[inline(never)]
-    fn mirror_directions(&self) -> Vec3Lanes {
-        let d = &self.direction;
-        let by_shading = reflect_lanes(d, &self.shading_normal);
-        let by_geometry = reflect_lanes(d, &self.geometric_normal);
-        let bent = by_shading.dot(&self.geometric_normal).map(|c| c <= 0.0);
-        by_geometry.select(&bent, &by_shading)
-    }
-
-    /// The glass lanes among `hit_mask`: Fresnel reflectance and the
-    /// refracted rays, bent by Snell's law about the shading normal (about
-    /// the geometric one where the shading normal would send the ray back
-    /// out on the side it came from), leaving from the far side of the
-    /// surface. Going in through the front face, the index ratio is
-    /// 1 / ior; coming out, ior.
-    fn glass_lanes(&self, hit_mask: LaneMask) -> GlassLanes {
-        let mut out = GlassLanes::default();
-        for lane in lanes(hit_mask) {
-            let Some(glass) = self.glass[lane] else {
-                continue;
-            };
-            let d = self.direction.get(lane);
-            let geometric = self.geometric_normal.get(lane);
-            let eta = if self.front_face[lane] {
-                1.0 / glass.ior
-            } else {
-                glass.ior
-            };
-            let (mut reflectance, mut bent) = refract(d, self.shading_normal.get(lane), eta);
-            if bent.is_some_and(|t| t.dot(geometric) >= 0.0) {
-                (reflectance, bent) = refract(d, geometric, eta);
-            }
-            out.lanes |= 1 << lane;
-            if reflectance > 0.0 {
-                out.reflecting |= 1 << lane;
-            }
-            if let Some(t) = bent {
-                out.refracting |= 1 << lane;
-                // The spawn point mirrored through the surface: as far
-                // below it as rays leaving the near side start above it.
-                let point = self.point.get(lane);
-                let through = point + (point - self.spawn_point.get(lane));
-                out.rays[lane] = Ray::new(through, t);
-            }
-            out.eta[lane] = eta;
-            out.transparency[lane] = glass.transparency;
-            out.reflectance[lane] = reflectance;
-            out.filter[lane] = if self.front_face[lane] {
-                glass.filter
-            } else {
-                Vec3::ONE
-            };
-        }
-        out
-    }
-
-    /// Makes every lane's direction unit length, all lanes at once rather
-    /// than one per hit. Lanes without a hit (zero) come out NaN; nothing
-    /// reads them.
-    #[inline(never)]
-    fn normalize_directions(&mut self) {
-        self.direction = self.direction.normalize();
-    }
-
-    /// Lambert's `n . l`, clamped at zero, and Phong's `r . v` for light
-    /// arriving along `to_light`.
-    #[inline(never)]
-    fn cosines(&self, to_light: &Vec3Lanes) -> (Lanes, Lanes) {
-        let n = &self.shading_normal;
-        let l = to_light.normalize();
-        let n_dot_l = n.dot(&l).map(|c| c.max(0.0));
-        let view = self.direction.neg();
-        let r_dot_v = reflect_lanes(&l.neg(), n).dot(&view);
-        (n_dot_l, r_dot_v)
-    }
-
-    #[inline]
-    fn set(&mut self, lane: usize, surface: &Surface, albedo: Vec3, direction: Vec3) {
-        self.point.set(lane, surface.point);
-        self.geometric_normal.set(lane, surface.geometric_normal);
-        self.shading_normal.set(lane, surface.shading_normal);
-        self.spawn_point.set(lane, surface.spawn_point);
-        self.shadow_point.set(lane, surface.shadow_point);
-        self.albedo.set(lane, albedo);
-        self.direction.set(lane, direction);
-        self.material[lane] = surface.material as u32;
     }
 }
