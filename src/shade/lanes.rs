@@ -444,7 +444,11 @@ mod tests {
     /// A sphere or a plane somewhere within `reach` of the origin, in world
     /// space or placed by a transform, and a point on it.
     fn shape_and_point(rng: &mut SplitMix64, reach: f32) -> (Object, Vec3) {
-        let anchor = Vec3::new(rng.range(-1.0, 1.0), rng.range(-1.0, 1.0), rng.range(-1.0, 1.0));
+        let anchor = Vec3::new(
+            rng.range(-1.0, 1.0),
+            rng.range(-1.0, 1.0),
+            rng.range(-1.0, 1.0),
+        );
         let anchor = anchor * reach;
         let placement = if rng.unit() < 0.3 {
             let turn = Quat::from_axis_angle(rng.direction(), rng.range(0.0, 3.0));
@@ -496,8 +500,9 @@ mod tests {
         let mut rng = SplitMix64(0x5eed);
         for round in 0..3000 {
             let reach = [1.0, 40.0, 1e4, 3e6][round % 4];
-            let lanes_of: Vec<(Object, Vec3)> =
-                (0..PACKET_WIDTH).map(|_| shape_and_point(&mut rng, reach)).collect();
+            let lanes_of: Vec<(Object, Vec3)> = (0..PACKET_WIDTH)
+                .map(|_| shape_and_point(&mut rng, reach))
+                .collect();
             let mut rays = [Ray::INACTIVE; PACKET_WIDTH];
             let mut hits = [Hit {
                 t: 0.0,
@@ -538,11 +543,23 @@ mod tests {
                         surface.shading_normal,
                         lanes_hit.shading_normal.get(lane),
                     ),
-                    ("spawn point", surface.spawn_point, lanes_hit.spawn_point.get(lane)),
-                    ("shadow point", surface.shadow_point, lanes_hit.shadow_point.get(lane)),
+                    (
+                        "spawn point",
+                        surface.spawn_point,
+                        lanes_hit.spawn_point.get(lane),
+                    ),
+                    (
+                        "shadow point",
+                        surface.shadow_point,
+                        lanes_hit.shadow_point.get(lane),
+                    ),
                 ];
                 for (what, one, packet) in pairs {
-                    assert_eq!(bits(one), bits(packet), "{what}, round {round}, lane {lane}");
+                    assert_eq!(
+                        bits(one),
+                        bits(packet),
+                        "{what}, round {round}, lane {lane}"
+                    );
                 }
                 assert_eq!(surface.front_face, lanes_hit.front_face[lane]);
             }

@@ -672,12 +672,13 @@ impl<'a> Shader<'a> {
             let h = &lanes_hit;
             // Scene numbers are finite (a `Scene` promise), so no NaN to exclude.
             let mirror_mask = hit_mask & lanes_where(|lane| h.reflectivity[lane] > 0.0);
-            let glass = if self.any_glass {
-                h.glass_lanes(hit_mask)
-            } else {
-                GlassLanes::default()
-            };
-            let reflect_mask = mirror_mask | glass.reflecting;
+            // Built only where there is glass: it is a packet of rays and
+            // more, which scenes without glass would fill for nothing.
+            let glass = self
+                .any_glass
+                .then(|| h.glass_lanes(hit_mask))
+                .filter(|glass| glass.lanes != 0);
+            let reflect_mask = mirror_mask | glass.as_ref().map_or(0, |glass| glass.reflecting);
             let mut mirrored = Vec3Lanes::default();
             if reflect_mask != 0 {
                 let directions = h.mirror_directions();
@@ -708,7 +709,7 @@ impl<'a> Shader<'a> {
                     &lane_flags(mirror_mask),
                 );
             }
-            if glass.lanes != 0 {
+            if let Some(glass) = glass {
                 let mut refracted_cones = next_cones;
                 if self.textured {
                     for lane in lanes(glass.refracting) {
