@@ -92,6 +92,16 @@ impl RsvpKnobs {
         }
     }
 
+    /// Buffer samples a viewport pixel covers at the levels these knobs
+    /// choose, give or take the rounding up to a level (a factor of up to
+    /// four): the oversampling squared, at least one, times four for each
+    /// level the box filter and a positive bias add. What a patch's box of
+    /// samples is weighed against when choosing how to work on it.
+    pub(super) fn samples_per_pixel(&self) -> f64 {
+        let finer = self.level_bias.max(0) + i32::from(self.filter == Filter::Box);
+        self.oversample.max(1.0).powi(2) * 4f64.powi(finer)
+    }
+
     /// The knobs set away from their defaults at `samples` a pixel, in
     /// words ("oversample 0.9, level bias -1"); None at the defaults.
     pub fn changes(&self, samples: crate::sampling::PixelSamples) -> Option<String> {

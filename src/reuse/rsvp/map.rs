@@ -347,7 +347,7 @@ impl SampleBuffer {
                 }
                 let reads = (count > 0).then(|| SampleBox::read_by(knobs.filter, lo, hi));
                 if let Some(reads) = reads {
-                    self.collect_missing(level, knobs.filter, reads, count, &mut missing, |f| {
+                    self.collect_missing(level, knobs, reads, count, &mut missing, |f| {
                         if !mapped {
                             self.patch_coords(
                                 pose,
@@ -364,11 +364,10 @@ impl SampleBuffer {
                         }
                     });
                 }
-                // A box with more than 16 samples a pixel (times the
-                // oversampling asked for) would copy far more than its
-                // pixels read.
+                // A box with 16 times more samples a pixel than the level
+                // was chosen for would copy far more than its pixels read.
                 let blocks = reads.filter(|b| {
-                    b.area() <= 16.0 * knobs.oversample.max(1.0).powi(2) * (cols * rows) as f64
+                    b.area() <= 16.0 * knobs.samples_per_pixel() * (cols * rows) as f64
                         && b.c1 - b.c0 < self.lattice.columns(level.x)
                 });
                 (
@@ -446,7 +445,8 @@ impl SampleBuffer {
     }
 
     /// Adds the untraced groups a patch's filter reads. A patch whose
-    /// samples are dense (a few per pixel) first checks every group of its
+    /// samples are dense (at most eight times as many a pixel as its level
+    /// was chosen for: [`RsvpKnobs::samples_per_pixel`]) first checks every group of its
     /// box at every owning level, a quick yes in the usual case that all
     /// were traced; otherwise it marks the samples its pixels read in a
     /// bitmap of the box and asks for the groups under each row's runs of
@@ -459,17 +459,19 @@ impl SampleBuffer {
     fn collect_missing(
         &self,
         level: Level,
-        filter: Filter,
+        knobs: &RsvpKnobs,
         reads: SampleBox,
         pixels: u32,
         missing: &mut Vec<u128>,
         for_each_pixel: impl FnOnce(&mut dyn FnMut((f64, f64))),
     ) {
         let SampleBox { c0, r0, c1, r1 } = reads;
+        let filter = knobs.filter;
         let last_row = self.lattice.last_row(level.y);
         let (r0, r1) = (r0.clamp(0, last_row), r1.clamp(0, last_row));
         let area = ((c1 - c0 + 1) as f64) * ((r1 - r0 + 1) as f64);
-        let dense = area <= 8.0 * f64::from(pixels) && c1 - c0 < self.lattice.columns(level.x);
+        let dense = area <= 8.0 * knobs.samples_per_pixel() * f64::from(pixels)
+            && c1 - c0 < self.lattice.columns(level.x);
         if dense && self.box_traced(level, (c0, c1), (r0, r1)) {
             return;
         }
@@ -966,6 +968,31 @@ mod tests {
                     "case {case}, {knobs:?}"
                 );
             }
+        }
+    }
+
+    /// At four samples a pixel the default box filter reads a level finer,
+    /// at twice the oversampling: boxes of 10-30 samples a pixel, which are
+    /// as dense as those knobs make them, and are read through assembled
+    /// blocks, not sample by sample.
+    #[test]
+    fn antialiased_defaults_read_through_assembled_blocks() {
+        let buffer = SampleBuffer::new(lattice());
+        let antialiased = RsvpKnobs::default_for(crate::sampling::PixelSamples::new(4).unwrap());
+        let knobs = RsvpKnobs {
+            oversample: antialiased.oversample * 2.0,
+            ..antialiased
+        };
+        for zoom in [1.0, 1.7, 3.1] {
+            let pose = ViewportPose::new(tilted_camera(), off_centre(zoom, 0.2, [0.0, 0.0]));
+            let mapped = buffer.map(&pose, &knobs);
+            let read_one_by_one = mapped.patches.iter().filter(|p| p.blocks.is_none()).count();
+            assert_eq!(
+                read_one_by_one,
+                0,
+                "zoom {zoom}: {read_one_by_one} of {} patches",
+                mapped.patches.len()
+            );
         }
     }
 
