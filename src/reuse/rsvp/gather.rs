@@ -346,7 +346,7 @@ fn gather_patch(
 mod tests {
     use super::*;
     use crate::reuse::rsvp::fixtures::*;
-    use crate::reuse::rsvp::RsvpKnobs;
+    use crate::reuse::rsvp::{RsvpKnobs, RsvpStore};
 
     #[test]
     fn a_grid_patch_box_from_its_corners_and_edges_holds_every_pixel() {
@@ -393,5 +393,26 @@ mod tests {
             }
         }
         assert!(checked > 3000, "{checked} patches");
+    }
+
+    /// At four samples a pixel the default box filter reads a level finer,
+    /// at twice the oversampling: boxes of 10-30 samples a pixel, which are
+    /// as dense as those knobs make them, and are read through assembled
+    /// blocks, not sample by sample.
+    #[test]
+    fn antialiased_defaults_read_through_assembled_blocks() {
+        let samples = crate::sampling::PixelSamples::new(4).unwrap();
+        let store = RsvpStore::new(lattice(), RsvpKnobs::default_for(samples), samples);
+        for zoom in [1.0, 1.7, 3.1] {
+            let pose = ViewportPose::new(tilted_camera(), off_centre(zoom, 0.2, [0.0, 0.0]));
+            let mapped = store.buffer.map(&pose, &store.knobs);
+            let read_one_by_one = mapped.patches.iter().filter(|p| p.blocks.is_none()).count();
+            assert_eq!(
+                read_one_by_one,
+                0,
+                "zoom {zoom}: {read_one_by_one} of {} patches",
+                mapped.patches.len()
+            );
+        }
     }
 }

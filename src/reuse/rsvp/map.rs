@@ -971,31 +971,6 @@ mod tests {
         }
     }
 
-    /// At four samples a pixel the default box filter reads a level finer,
-    /// at twice the oversampling: boxes of 10-30 samples a pixel, which are
-    /// as dense as those knobs make them, and are read through assembled
-    /// blocks, not sample by sample.
-    #[test]
-    fn antialiased_defaults_read_through_assembled_blocks() {
-        let buffer = SampleBuffer::new(lattice());
-        let antialiased = RsvpKnobs::default_for(crate::sampling::PixelSamples::new(4).unwrap());
-        let knobs = RsvpKnobs {
-            oversample: antialiased.oversample * 2.0,
-            ..antialiased
-        };
-        for zoom in [1.0, 1.7, 3.1] {
-            let pose = ViewportPose::new(tilted_camera(), off_centre(zoom, 0.2, [0.0, 0.0]));
-            let mapped = buffer.map(&pose, &knobs);
-            let read_one_by_one = mapped.patches.iter().filter(|p| p.blocks.is_none()).count();
-            assert_eq!(
-                read_one_by_one,
-                0,
-                "zoom {zoom}: {read_one_by_one} of {} patches",
-                mapped.patches.len()
-            );
-        }
-    }
-
     #[test]
     fn a_wide_perspective_viewport_needs_finer_levels_at_its_edges() {
         let lattice = lattice();
