@@ -299,6 +299,7 @@ impl HitLanes {
         self.spawn_point.set(lane, surface.spawn_point);
         self.shadow_point.set(lane, surface.shadow_point);
         self.albedo.set(lane, albedo);
+        self.front_face[lane] = surface.front_face;
     }
 }
 
@@ -530,31 +531,30 @@ mod tests {
             analytic.reconstruct(&RayColumns::new(&rays), &keep, &mut lanes_hit);
             for lane in 0..PACKET_WIDTH {
                 let surface = shapes[lane].surface(&rays[lane], &hits[lane], 0);
-                let bits = |v: Vec3| v.to_array().map(f32::to_bits);
-                let pairs = [
-                    ("point", surface.point, lanes_hit.point.get(lane)),
-                    (
-                        "geometric normal",
-                        surface.geometric_normal,
-                        lanes_hit.geometric_normal.get(lane),
-                    ),
-                    (
-                        "shading normal",
-                        surface.shading_normal,
-                        lanes_hit.shading_normal.get(lane),
-                    ),
-                    (
-                        "spawn point",
-                        surface.spawn_point,
-                        lanes_hit.spawn_point.get(lane),
-                    ),
-                    (
-                        "shadow point",
-                        surface.shadow_point,
-                        lanes_hit.shadow_point.get(lane),
-                    ),
+                let one = [
+                    surface.point,
+                    surface.geometric_normal,
+                    surface.shading_normal,
+                    surface.spawn_point,
+                    surface.shadow_point,
                 ];
-                for (what, one, packet) in pairs {
+                let packet = [
+                    &lanes_hit.point,
+                    &lanes_hit.geometric_normal,
+                    &lanes_hit.shading_normal,
+                    &lanes_hit.spawn_point,
+                    &lanes_hit.shadow_point,
+                ]
+                .map(|field| field.get(lane));
+                let names = [
+                    "point",
+                    "geometric normal",
+                    "shading normal",
+                    "spawn point",
+                    "shadow point",
+                ];
+                for ((what, one), packet) in names.iter().zip(one).zip(packet) {
+                    let bits = |v: Vec3| v.to_array().map(f32::to_bits);
                     assert_eq!(
                         bits(one),
                         bits(packet),

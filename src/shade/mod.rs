@@ -590,7 +590,6 @@ impl<'a> Shader<'a> {
                 }
             }
             lanes_hit.set(lane, &surface, albedo);
-            lanes_hit.front_face[lane] = surface.front_face;
         }
         if analytic_mask != 0 {
             analytic.reconstruct(&columns, &lane_flags(analytic_mask), &mut lanes_hit);

@@ -168,6 +168,21 @@ impl Oracle {
     }
 }
 
+/// `trace` given `table`'s rays as groups address them: its strata (a
+/// lattice `side` times as dense) when `side` is above one, its cells
+/// otherwise.
+pub(super) fn traced_as_groups<R>(
+    table: &crate::camera::RayTable,
+    side: i64,
+    trace: impl FnOnce(&dyn crate::render::PrimaryRays) -> R,
+) -> R {
+    if side > 1 {
+        trace(&crate::render::Strata::new(table))
+    } else {
+        trace(table)
+    }
+}
+
 /// Rays traced for each pixel of a full render through `camera` at
 /// `samples` a pixel (primary, shadow and reflection rays of all its
 /// sub-samples), counted on an untimed pass: what each pixel costs to trace.
@@ -224,15 +239,10 @@ pub fn rays_per_pixel(
             sink: &sink,
         })
     };
-    let strata;
-    let source: &dyn crate::render::PrimaryRays = if side > 1 {
-        strata = crate::render::Strata::new(&table);
-        &strata
-    } else {
-        &table
-    };
     let groups = SampleGroup::covering(0..width * side, 0..height * side);
-    trace_groups_observed(shader, source, &groups, counter);
+    traced_as_groups(&table, side, |source| {
+        trace_groups_observed(shader, source, &groups, counter)
+    });
     sink.into_iter().map(AtomicU32::into_inner).collect()
 }
 

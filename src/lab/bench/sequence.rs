@@ -18,7 +18,7 @@ use crate::sampling::{PixelSamples, REFERENCE_SAMPLES_PER_PIXEL};
 use crate::scene::Scene;
 use crate::shade::{RayCounts, Shader};
 
-use super::oracle::{rays_per_pixel, Oracle, OracleRays};
+use super::oracle::{rays_per_pixel, traced_as_groups, Oracle, OracleRays};
 use super::{median, set_frame_medians};
 
 /// One frame of an experiment, both sides: where the time and the rays go.
@@ -499,15 +499,10 @@ fn check_sequence(
                     row.oracle_region_samples = Some(region_samples);
                     let table = crate::camera::RayTable::with_samples(&camera, scene.samples);
                     let groups = oracle.region_groups(camera.width, side);
-                    let strata;
-                    let source: &dyn crate::render::PrimaryRays = if side > 1 {
-                        strata = crate::render::Strata::new(&table);
-                        &strata
-                    } else {
-                        &table
-                    };
                     let start = Instant::now();
-                    std::hint::black_box(crate::render::trace_groups(&shader, source, &groups));
+                    traced_as_groups(&table, side_i, |source| {
+                        std::hint::black_box(crate::render::trace_groups(&shader, source, &groups))
+                    });
                     oracle_ms += start.elapsed().as_secs_f64() * 1e3;
                 }
             }
