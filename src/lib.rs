@@ -16,6 +16,7 @@ pub mod geometry;
 pub mod lab;
 pub mod metrics;
 pub mod output;
+pub mod pool;
 pub mod ray;
 pub mod render;
 pub mod reuse;

@@ -37,6 +37,7 @@ use glam::Affine3A;
 use crate::accel::{Accelerator, Intersector};
 use crate::camera::{Camera, Projection, ViewTransform, ViewportPose};
 use crate::geometry::Placement;
+use crate::pool::with_workers_awake;
 use crate::render::{render_view_sampled, Frame};
 use crate::reuse::lattice_buffer::{cells_traced, render_window};
 use crate::reuse::ostc::Ostc;
@@ -527,6 +528,15 @@ impl<'a> Animator<'a> {
     /// shown. A frame from a kept store runs to the end (it is quick, and
     /// its store is worth keeping).
     pub fn render_views_until(
+        &mut self,
+        frame: u32,
+        views: Vec<View>,
+        stop: Option<&AtomicBool>,
+    ) -> Option<Vec<ViewOutput>> {
+        with_workers_awake(|| self.render_awake(frame, views, stop))
+    }
+
+    fn render_awake(
         &mut self,
         frame: u32,
         views: Vec<View>,

@@ -649,15 +649,26 @@ impl SampleStore for RsvpStore {
                 let shifts: Vec<ViewportFrame> = frames.by_ref().take(count).collect();
                 let mut mean = Frame::new(pose.camera.width, pose.camera.height);
                 let scale = 1.0 / count as f32;
-                for shift in &shifts {
-                    let frame = shift.frame.as_ref().expect("asked for linear colour");
-                    for (sum, &c) in mean.pixels.iter_mut().zip(&frame.pixels) {
-                        *sum += c;
-                    }
-                }
-                for sum in &mut mean.pixels {
-                    *sum *= scale;
-                }
+                let linear: Vec<&Frame> = shifts
+                    .iter()
+                    .map(|s| s.frame.as_ref().expect("asked for linear colour"))
+                    .collect();
+                const CHUNK: usize = 4096;
+                mean.pixels
+                    .par_chunks_mut(CHUNK)
+                    .enumerate()
+                    .for_each(|(chunk, sums)| {
+                        let start = chunk * CHUNK;
+                        for frame in &linear {
+                            let shift = &frame.pixels[start..start + sums.len()];
+                            for (sum, &c) in sums.iter_mut().zip(shift) {
+                                *sum += c;
+                            }
+                        }
+                        for sum in sums {
+                            *sum *= scale;
+                        }
+                    });
                 let image = mean.to_rgb8();
                 let averaging_ms = start.elapsed().as_secs_f64() * 1e3;
                 let made = ViewportFrame {
