@@ -8,7 +8,9 @@ use std::path::{Path, PathBuf};
 
 /// Top-level modules, lowest layer first.
 const LAYERS: &[&[&str]] = &[
-    &["ray", "rng", "color", "sampling", "output", "chunk", "farm", "pool"],
+    &[
+        "ray", "rng", "color", "sampling", "output", "chunk", "farm", "pool",
+    ],
     &["geometry", "texture"],
     &["voxel", "camera"],
     &["timeline"],
