@@ -448,13 +448,9 @@ impl Frame {
     pub fn to_rgb8(&self) -> image::RgbImage {
         let table = srgb_table();
         let mut out = image::RgbImage::new(self.width, self.height);
-        out.par_chunks_mut(3 * 4096)
-            .zip(self.pixels.par_chunks(4096))
-            .for_each(|(bytes, pixels)| {
-                for (dst, src) in bytes.chunks_exact_mut(3).zip(pixels) {
-                    dst.copy_from_slice(&src.to_array().map(|c| table.encode(c)));
-                }
-            });
+        out.par_chunks_exact_mut(3)
+            .zip(self.pixels.par_iter())
+            .for_each(|(dst, src)| dst.copy_from_slice(&src.to_array().map(|c| table.encode(c))));
         out
     }
 }

@@ -653,22 +653,12 @@ impl SampleStore for RsvpStore {
                     .iter()
                     .map(|s| s.frame.as_ref().expect("asked for linear colour"))
                     .collect();
-                const CHUNK: usize = 4096;
-                mean.pixels
-                    .par_chunks_mut(CHUNK)
-                    .enumerate()
-                    .for_each(|(chunk, sums)| {
-                        let start = chunk * CHUNK;
-                        for frame in &linear {
-                            let shift = &frame.pixels[start..start + sums.len()];
-                            for (sum, &c) in sums.iter_mut().zip(shift) {
-                                *sum += c;
-                            }
-                        }
-                        for sum in sums {
-                            *sum *= scale;
-                        }
-                    });
+                mean.pixels.par_iter_mut().enumerate().for_each(|(i, sum)| {
+                    for frame in &linear {
+                        *sum += frame.pixels[i];
+                    }
+                    *sum *= scale;
+                });
                 let image = mean.to_rgb8();
                 let averaging_ms = start.elapsed().as_secs_f64() * 1e3;
                 let made = ViewportFrame {
