@@ -3,8 +3,8 @@
 //! A reused frame is a chain of parallel steps of 0.1-2 ms each (mapping,
 //! tracing, keeping, assembling, gathering, OSTC's bookkeeping), with a
 //! little serial work between them. Rayon's idle workers go to sleep
-//! within microseconds, and waking one took about 0.2 ms here (2 vCPUs):
-//! every step started on one thread and the other joined late. Keeping
+//! within microseconds, and waking one costs a good part of a short step:
+//! every step would start on one thread and the others join late. Keeping
 //! the other workers looking for work until the frame is done lets each
 //! step start on all of them at once.
 
