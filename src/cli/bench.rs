@@ -387,7 +387,10 @@ fn bench_suite(
         rayon::current_num_threads(),
         match rounds {
             1 => "one run of each sequence".to_string(),
-            n => format!("median of {n} alternated runs of each sequence"),
+            n => format!(
+                "median of {n} alternated runs of each sequence \
+                 (speedups: the lowest and highest round in brackets)"
+            ),
         },
         if cfg!(debug_assertions) {
             " (DEBUG BUILD)"

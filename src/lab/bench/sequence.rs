@@ -211,7 +211,12 @@ pub struct SequenceBench {
     /// The same for the accelerated sequence (frame 0, buffers and copies
     /// included).
     pub accelerated_ms: f64,
+    /// `full_ms` over `accelerated_ms`.
     pub speedup: f64,
+    /// Each round's full sequence over the accelerated one that followed
+    /// it: how far the machine's own noise moves the speedup. The median
+    /// `speedup` always lies within them.
+    pub round_speedups: Vec<f64>,
     pub samples_traced: u64,
     /// OSTC's recording and merging over the whole sequence (last round).
     pub bookkeeping_ms: f64,
@@ -378,6 +383,11 @@ pub fn bench_sequence(
         &mut profile,
         &mut progress,
     );
+    let round_speedups = full_times
+        .iter()
+        .zip(&fast_times)
+        .map(|(full, fast)| full / fast.max(1e-9))
+        .collect();
     let timed_regions = |oracle_ms: f64| full_times[0] / oracle_ms.max(1e-9);
     let oracle = checked.oracle.map(|(oracle, traced_ms)| OracleSpeedups {
         // Weighted by the rays each sample costs (see `Oracle::rays`).
@@ -401,6 +411,7 @@ pub fn bench_sequence(
         full_vs_plain: full_sampled / plain_sampled.max(1e-9),
         accelerated_ms,
         speedup: full_ms / accelerated_ms,
+        round_speedups,
         samples_traced,
         bookkeeping_ms,
         knobs: options.rsvp,
@@ -712,6 +723,47 @@ mod tests {
             assert!(side.mean_psnr_db >= side.worst_psnr_db);
         }
         assert_ne!(reference.accelerated, reference.full);
+    }
+
+    /// Each round's speedup is kept, and the medians' ratio lies among
+    /// them.
+    #[test]
+    fn every_round_keeps_its_own_speedup() {
+        let scene = small("paper-bounce.toml");
+        let mut accel = Accelerator::build(BackendKind::Grid, &scene.objects).unwrap();
+        let options = Options::new(Techniques::AUTO, 0..4);
+        let times_only = Measure {
+            reference: false,
+            ..REFERENCE_ONLY
+        };
+        let mut references = References::default();
+        let bench = bench_sequence(
+            &scene,
+            &mut accel,
+            &options,
+            3,
+            times_only,
+            &mut references,
+            || {},
+        );
+        assert_eq!(bench.round_speedups.len(), 3);
+        let lowest = bench
+            .round_speedups
+            .iter()
+            .copied()
+            .fold(f64::INFINITY, f64::min);
+        let highest = bench.round_speedups.iter().copied().fold(0.0, f64::max);
+        assert!(
+            lowest > 0.0 && highest.is_finite(),
+            "{:?}",
+            bench.round_speedups
+        );
+        assert!(
+            (lowest..=highest).contains(&bench.speedup),
+            "{} outside {:?}",
+            bench.speedup,
+            bench.round_speedups
+        );
     }
 
     #[test]

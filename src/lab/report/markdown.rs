@@ -225,7 +225,10 @@ frame loop (as `retrace bench --only frame` makes them), on every tenth frame: n
 the full side is slower than it should be and the speedup reads high.
 - **accel ms/frame**: the same for the accelerated sequence; it pays for everything it does: \
 frame 0, buffers, recording, merging, copies, resampling, scene updates.
-- **speedup**: full time over accelerated time, whole sequences.
+- **speedup**: full time over accelerated time, whole sequences. With `--repeats`, the \
+medians' ratio, and in brackets the lowest and highest of the rounds' own speedups (each \
+round's full sequence over the accelerated one right after it): how far the machine's own \
+noise moves the figure.
 - **oracle (sample / region)**: the speedup of the least tracing any reuse could get away \
 with (below). For camera sequences: the rays full renders of all frames trace over the rays of \
 the samples that had to be traced; the second figure traces every OSTC region holding such a \

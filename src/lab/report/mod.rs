@@ -53,6 +53,8 @@ pub struct BenchRow {
     pub accelerated_ms_per_frame: f64,
     /// full / accelerated, for the whole sequence.
     pub speedup: f64,
+    /// With more than one round (`--repeats`), each round's speedup.
+    pub round_speedups: Vec<f64>,
     /// All output pixels over the samples the oracle must trace.
     pub oracle_speedup: Option<f64>,
     /// The same when whole OSTC regions are traced.
@@ -99,6 +101,17 @@ pub struct BenchRow {
 }
 
 impl BenchRow {
+    /// The lowest and the highest round's speedup, with more than one
+    /// round.
+    pub fn speedup_range(&self) -> Option<(f64, f64)> {
+        let rounds = &self.round_speedups;
+        (rounds.len() > 1).then(|| {
+            let lowest = rounds.iter().copied().fold(f64::INFINITY, f64::min);
+            let highest = rounds.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+            (lowest, highest)
+        })
+    }
+
     /// speedup / region_oracle_speedup: how close OSTC comes to the best
     /// any method tracing whole regions could do.
     pub fn region_efficiency(&self) -> Option<f64> {
@@ -215,6 +228,7 @@ impl ExperimentResult {
             full_vs_plain: bench.full_vs_plain,
             accelerated_ms_per_frame: bench.accelerated_ms / frames,
             speedup: bench.speedup,
+            round_speedups: bench.round_speedups.clone(),
             oracle_speedup,
             region_oracle_speedup: bench.oracle.map(|o| o.regions),
             timed_region_oracle_speedup: bench.oracle.map(|o| o.timed_regions),
@@ -463,6 +477,7 @@ mod tests {
             full_vs_plain: 1.0,
             accelerated_ms_per_frame: 1.5,
             speedup: 20.0,
+            round_speedups: Vec::new(),
             oracle_speedup: oracle,
             region_oracle_speedup: None,
             timed_region_oracle_speedup: None,
@@ -549,6 +564,37 @@ mod tests {
         // Not measured: an empty cell, not a made-up number.
         assert!(lines[2].contains(",20,,,,,"), "{}", lines[2]);
         assert!(lines[2].ends_with(",e2-in-frames.csv"));
+    }
+
+    /// With several rounds the table and the CSV show how far they spread;
+    /// with one there is no spread to show.
+    #[test]
+    fn rounds_show_the_spread_of_their_speedups() {
+        let mut repeated = row("E4", None);
+        repeated.speedup = 4.05;
+        repeated.round_speedups = vec![4.2, 3.9, 4.05];
+        let mut once = row("E1", None);
+        // No quoted commas: the fields split where the columns do.
+        for row in [&mut repeated, &mut once] {
+            row.info.what = "all at once".to_string();
+        }
+        let shown = table(&[repeated.clone(), once.clone()]);
+        assert!(shown.contains("4.05x (3.90-4.20)"), "{shown}");
+        assert!(
+            shown.contains("20.00x") && !shown.contains("20.00x ("),
+            "{shown}"
+        );
+        let csv = rows_csv(&[repeated, once]);
+        let lines: Vec<&str> = csv.lines().collect();
+        let column = |name: &str| ROW_COLUMNS.iter().position(|c| *c == name).unwrap();
+        let (lowest, highest) = (
+            column("speedup_lowest_round"),
+            column("speedup_highest_round"),
+        );
+        let fields: Vec<&str> = lines[1].split(',').collect();
+        assert_eq!((fields[lowest], fields[highest]), ("3.9", "4.2"));
+        let fields: Vec<&str> = lines[2].split(',').collect();
+        assert_eq!((fields[lowest], fields[highest]), ("", ""));
     }
 
     #[test]

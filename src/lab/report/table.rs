@@ -68,7 +68,12 @@ pub(super) fn cells(row: &BenchRow) -> [String; 15] {
         format!("{:.2}", row.full_ms_per_frame),
         format!("{:.2}", row.full_vs_plain),
         format!("{:.2}", row.accelerated_ms_per_frame),
-        format!("{:.2}x", row.speedup),
+        match row.speedup_range() {
+            Some((lowest, highest)) => {
+                format!("{:.2}x ({lowest:.2}-{highest:.2})", row.speedup)
+            }
+            None => format!("{:.2}x", row.speedup),
+        },
         figures(
             [
                 row.oracle_speedup,
@@ -159,7 +164,7 @@ fn opt<T: ToString>(value: Option<T>) -> String {
 }
 
 /// The columns of `bench.csv`.
-pub const ROW_COLUMNS: [&str; 47] = [
+pub const ROW_COLUMNS: [&str; 49] = [
     "experiment",
     "what",
     "technique",
@@ -173,6 +178,8 @@ pub const ROW_COLUMNS: [&str; 47] = [
     "full_vs_plain",
     "accelerated_ms_per_frame",
     "speedup",
+    "speedup_lowest_round",
+    "speedup_highest_round",
     "oracle_speedup",
     "region_oracle_speedup",
     "efficiency",
@@ -242,6 +249,8 @@ pub fn rows_csv(rows: &[BenchRow]) -> String {
             row.full_vs_plain.to_string(),
             row.accelerated_ms_per_frame.to_string(),
             row.speedup.to_string(),
+            opt(row.speedup_range().map(|r| r.0)),
+            opt(row.speedup_range().map(|r| r.1)),
             opt(row.oracle_speedup),
             opt(row.region_oracle_speedup),
             opt(row.efficiency),
