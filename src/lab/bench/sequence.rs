@@ -214,8 +214,8 @@ pub struct SequenceBench {
     /// `full_ms` over `accelerated_ms`.
     pub speedup: f64,
     /// Each round's full sequence over the accelerated one that followed
-    /// it: how far the machine's own noise moves the speedup. The median
-    /// `speedup` always lies within them.
+    /// it: how far the machine's own noise moves the speedup. `speedup`,
+    /// the medians' ratio, always lies within them.
     pub round_speedups: Vec<f64>,
     pub samples_traced: u64,
     /// OSTC's recording and merging over the whole sequence (last round).

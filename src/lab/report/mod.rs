@@ -53,7 +53,7 @@ pub struct BenchRow {
     pub accelerated_ms_per_frame: f64,
     /// full / accelerated, for the whole sequence.
     pub speedup: f64,
-    /// With more than one round (`--repeats`), each round's speedup.
+    /// Each round's own speedup (`--repeats`; one round, one figure).
     pub round_speedups: Vec<f64>,
     /// All output pixels over the samples the oracle must trace.
     pub oracle_speedup: Option<f64>,
