@@ -233,6 +233,7 @@ pub fn rows_csv(rows: &[BenchRow]) -> String {
     out.push('\n');
     for row in rows {
         let info = &row.info;
+        let speedup_range = row.speedup_range();
         let reference_frames: Vec<String> =
             row.reference_frames.iter().map(u32::to_string).collect();
         let mut fields = vec![
@@ -249,8 +250,8 @@ pub fn rows_csv(rows: &[BenchRow]) -> String {
             row.full_vs_plain.to_string(),
             row.accelerated_ms_per_frame.to_string(),
             row.speedup.to_string(),
-            opt(row.speedup_range().map(|r| r.0)),
-            opt(row.speedup_range().map(|r| r.1)),
+            opt(speedup_range.map(|(lowest, _)| lowest)),
+            opt(speedup_range.map(|(_, highest)| highest)),
             opt(row.oracle_speedup),
             opt(row.region_oracle_speedup),
             opt(row.efficiency),
