@@ -12,6 +12,9 @@
 #   2. The ball again, 3 chunks, with chunk 1's statistics file made
 #      unwritable (a folder in its place): `farm status` must name the task
 #      with its exit code, and the assembly job must not run.
+#   3. A task cancelled and requeued with `retrace farm requeue` within
+#      the same second, with a scheduling pass in that second: it must run
+#      again and complete (slurmd refuses a launch that early).
 #
 # Usage: farm/test-farm.sh [RETRACE]   (default target/release/retrace)
 # Needs root (munged runs as user munge, the jobs as root) and the Debian
@@ -288,3 +291,28 @@ grep -q "Is a directory\|cannot" "$work/fail/logs/render-${fail_array}_1.log" ||
   fail "task 1's log does not say why it failed"
 log "task 1 failed with exit 1; the assembly job did not run ($assembly_state, $(squeue -h -j "$fail_assembly" -t all -o %r))"
 scancel "$fail_assembly"
+
+# --------------------------------------------------------------- 3. a requeue in the second of its cancel
+# slurmd refuses to launch a job whose credential dates from the second the
+# job was killed in; the task then fails with exit 1 without running. Task 1
+# is cancelled just after a second begins and requeued at once; cancelling
+# task 0 next ends a job, which starts a scheduling pass in that same second.
+submit quick scenes/paper-bounce.toml --chunks 2 --spp 16 -o "$work/quick/frame_####.png"
+read -r quick_array quick_assembly <<<"$quick"
+# Past their full first frames, the tasks stop within milliseconds.
+wait_for 60 "task 0 of $quick_array to write frame 2" test -e "$work/quick/frame_0002.png"
+wait_for 60 "task 1 of $quick_array to write frame 52" test -e "$work/quick/frame_0052.png"
+sleep "$(date +%N | awk '{print (1e9 - $1) / 1e9 + 0.02}')"
+scancel "${quick_array}_1"
+cancelled_at=$(date +%s.%N)
+for ((i = 0; i < 500; i++)); do [[ $(states "${quick_array}_1") == CANCELLED ]] && break; sleep 0.02; done
+"$retrace" farm requeue "$quick_array" 1 >&2
+scancel "${quick_array}_0"
+log "array $quick_array: task 1 cancelled and requeued, task 0 cancelled, within $(awk -v a="$cancelled_at" -v b="$(date +%s.%N)" 'BEGIN {printf "%.2f", b - a}') s"
+wait_jobs "$quick_array"
+grep -q "Restarts=1" <(scontrol -o show job "${quick_array}_1") || fail "task 1 of $quick_array was not restarted once"
+[[ $(states "${quick_array}_1") == COMPLETED ]] ||
+  fail "task 1 of $quick_array, requeued in the second of its cancel: $("$retrace" farm status "$quick_array" | grep "^${quick_array}_1 ")"
+grep -q "restart 1" "$work/quick/logs/render-${quick_array}_1.log" || fail "the requeued task 1 of $quick_array did not run again"
+log "task 1, requeued in the second of its cancel, ran again and completed"
+scancel "$quick_assembly"

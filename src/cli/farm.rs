@@ -43,7 +43,7 @@ enum FarmCommand {
     /// Each task of Slurm jobs: state, exit code, restarts, reason.
     Status(StatusArgs),
     /// Run tasks of a render array again (cancelled, failed or running
-    /// ones), now rather than after Slurm's requeue delay; they resume
+    /// ones) within seconds rather than after Slurm's requeue delay; they resume
     /// from the frames already written. With --assembly, the assembly job
     /// waits for every task again: a failed or cancelled task had made its
     /// dependency one that could never be met.
@@ -186,9 +186,13 @@ fn requeue(args: RequeueArgs) -> Result<()> {
     for task in &args.tasks {
         let id = format!("{}_{task}", args.array);
         scontrol(&["requeue", &id])?;
-        // A requeued task is otherwise held for about two minutes (its
-        // BeginTime).
-        scontrol(&["update", &format!("jobid={id}"), "StartTime=now"])?;
+        // Slurm holds a requeued task about two minutes (its BeginTime);
+        // one second is the least that is safe. slurmd refuses to launch a
+        // job whose credential dates from the second the job was killed in
+        // (it compares whole seconds) and the task then fails with exit 1
+        // without running, so `now` loses the race whenever a scheduling
+        // pass comes within that second.
+        scontrol(&["update", &format!("jobid={id}"), "StartTime=now+1"])?;
         say!("requeued task {task} of {}", args.array);
     }
     if let Some(assembly) = &args.assembly {
