@@ -306,7 +306,10 @@ sleep "$(date +%N | awk '{print (1e9 - $1) / 1e9 + 0.02}')"
 scancel "${quick_array}_1"
 cancelled_at=$(date +%s.%N)
 for ((i = 0; i < 500; i++)); do [[ $(states "${quick_array}_1") == CANCELLED ]] && break; sleep 0.02; done
+[[ $(states "${quick_array}_1") == CANCELLED ]] || fail "task 1 of $quick_array not cancelled after 10 s"
 "$retrace" farm requeue "$quick_array" 1 >&2
+# Task 0 has some 45 frames left, seconds of work.
+[[ $(states "${quick_array}_0") == RUNNING ]] || fail "task 0 of $quick_array ended before the requeue: nothing tested"
 scancel "${quick_array}_0"
 log "array $quick_array: task 1 cancelled and requeued, task 0 cancelled, within $(awk -v a="$cancelled_at" -v b="$(date +%s.%N)" 'BEGIN {printf "%.2f", b - a}') s"
 wait_jobs "$quick_array"
