@@ -166,6 +166,7 @@ log "Slurm up (ports $port-$((port + 1)), folder $base): munged $(pid_of "$munge
 # --------------------------------------------------------------- helpers
 # Job states one a line (tasks of an array each), from slurmctld.
 states() { squeue -h -j "$1" -t all -o %T 2>/dev/null; }
+cancelled() { [[ $(states "$1") == CANCELLED ]]; }
 # Waits until no task of the jobs is pending, running or completing
 # (polling: `sbatch --wait` polls at 2, 8 and then every 32 s, and cannot
 # wait again after a requeue). A job held by a dependency that can never be
@@ -237,8 +238,7 @@ log "submitted: ball array $ball_array (assembly $ball_assembly), E4 array $e4_a
 wait_for 120 "ball task 1 to write frame 35" test -e "$work/ball/frame_0035.png"
 scancel "${ball_array}_1"
 cancelled_at=$SECONDS
-task_ended() { [[ $(states "${ball_array}_1") == CANCELLED ]]; }
-wait_for 30 "the cancelled task to end" task_ended
+wait_for 30 "the cancelled task to end" cancelled "${ball_array}_1"
 log "ball task 1 cancelled; ended within $((SECONDS - cancelled_at)) s"
 task_log=$work/ball/logs/render-${ball_array}_1.log
 grep -q '^interrupted' "$task_log" || fail "the cancelled task's log does not say it was interrupted: $(cat "$task_log")"
@@ -305,8 +305,7 @@ wait_for 60 "task 1 of $quick_array to write frame 52" test -e "$work/quick/fram
 sleep "$(date +%N | awk '{print (1e9 - $1) / 1e9 + 0.02}')"
 scancel "${quick_array}_1"
 cancelled_at=$(date +%s.%N)
-for ((i = 0; i < 500; i++)); do [[ $(states "${quick_array}_1") == CANCELLED ]] && break; sleep 0.02; done
-[[ $(states "${quick_array}_1") == CANCELLED ]] || fail "task 1 of $quick_array not cancelled after 10 s"
+wait_for 10 "task 1 of $quick_array to be cancelled" cancelled "${quick_array}_1"
 "$retrace" farm requeue "$quick_array" 1 >&2
 # Task 0 has some 45 frames left, seconds of work.
 [[ $(states "${quick_array}_0") == RUNNING ]] || fail "task 0 of $quick_array ended before the requeue: nothing tested"
