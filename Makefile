@@ -39,15 +39,23 @@ demo: build
 	$(RETRACE) animate scenes/paper-all.toml --spp 4 --frames 0-23 -o out/anim/frame_####.png \
 	  --dirty-image out/anim/traced_####.png --stats out/anim/stats.csv
 
+# The library is linted without its optional features (the lab, the
+# window, the farm) too: what only they use is dead code there, which the
+# default build never shows.
 lint: deps
 	cargo fmt --all -- --check
 	cargo clippy --all-targets -- -D warnings
+	cargo clippy --lib --no-default-features -- -D warnings
 
 # --all-targets builds the criterion benches too and runs each once, in
 # test mode (a separate optimised `cargo bench --no-run` cost a fresh
-# machine about 3 more minutes and checked nothing more).
+# machine about 3 more minutes and checked nothing more). The library is
+# then built and unit-tested without its optional features, so the
+# renderer keeps working without winit, softbuffer and plotters.
 test: lint test-deps
 	cargo test --all-targets
+	cargo build --lib --no-default-features
+	cargo test --lib --no-default-features
 
 # Debian's OBJ test models (the textured spider) for the test that renders them.
 test-deps:

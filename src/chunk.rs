@@ -10,9 +10,12 @@
 //! Every technique's output is independent of which frame a run started
 //! from (exact frames equal their full renders; RSVP viewports resample
 //! buffer samples that equal a fresh trace), so the frames of a chunked
-//! run are the frames of one long run, bit for bit.
+//! run are the frames of one long run, bit for bit, and their statistics
+//! merge into one run's ([`merge_stats`]).
 
 use std::ops::RangeInclusive;
+
+use serde_json::Value;
 
 /// Where a task's chunk index came from, for messages.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -100,6 +103,40 @@ pub fn chunk_path(path: &std::path::Path, count: u32, index: u32) -> std::path::
     };
     path.with_file_name(name)
 }
+
+/// The statistics of a whole run from its chunks' (each a JSON array of
+/// per-frame rows, as `animate --stats x.json` writes): the rows in frame
+/// order. Fails if a frame appears twice.
+pub fn merge_stats(chunks: Vec<Vec<Value>>) -> Result<Vec<Value>, String> {
+    let mut rows: Vec<Value> = chunks.into_iter().flatten().collect();
+    let key = |row: &Value| {
+        (
+            row.get("frame").and_then(Value::as_u64).unwrap_or(u64::MAX),
+            row.get("viewport")
+                .and_then(Value::as_str)
+                .unwrap_or_default()
+                .to_string(),
+        )
+    };
+    // Stable: a frame's views keep the order the run wrote them in.
+    rows.sort_by_key(|row| key(row).0);
+    for pair in rows.windows(2) {
+        if key(&pair[0]) == key(&pair[1]) {
+            let (frame, view) = key(&pair[0]);
+            let view = if view.is_empty() {
+                String::new()
+            } else {
+                format!(" (viewport {view})")
+            };
+            return Err(format!("frame {frame}{view} is in two chunks' statistics"));
+        }
+    }
+    Ok(rows)
+}
+
+/// The share of the reuse the recommended chunk size may lose: what `farm
+/// submit` advises and `bench --only chunking` reports.
+pub const ACCEPTED_REUSE_LOSS: f64 = 0.1;
 
 #[cfg(test)]
 mod tests {
@@ -192,6 +229,25 @@ mod tests {
         assert_eq!(
             chunk_path(Path::new("stats"), 1, 0),
             Path::new("stats.chunk0")
+        );
+    }
+
+    #[test]
+    fn chunk_statistics_merge_in_frame_order() {
+        let row = |frame: u32| serde_json::json!({"frame": frame, "viewport": ""});
+        let merged = merge_stats(vec![vec![row(2), row(3)], vec![row(0), row(1)]]).unwrap();
+        let frames: Vec<_> = merged
+            .iter()
+            .map(|r| r["frame"].as_u64().unwrap())
+            .collect();
+        assert_eq!(frames, [0, 1, 2, 3]);
+        let err = merge_stats(vec![vec![row(1)], vec![row(1)]]).unwrap_err();
+        assert!(err.contains("frame 1"), "{err}");
+        // Two viewports of one frame are two rows, not a repeat.
+        let view = |name: &str| serde_json::json!({"frame": 5, "viewport": name});
+        assert_eq!(
+            merge_stats(vec![vec![view("a"), view("b")]]).unwrap().len(),
+            2
         );
     }
 }

@@ -1,6 +1,6 @@
 //! What `retrace farm` reads from a Slurm cluster and from its tasks'
 //! outputs: each array task's state as `scontrol` or `sacct` tells it, and
-//! the chunks' per-frame statistics put back into one run.
+//! the share of each frame's pixels the chunks reused.
 
 use serde_json::Value;
 
@@ -132,36 +132,6 @@ pub fn sort_records(records: &mut [TaskRecord]) {
     });
 }
 
-/// The statistics of a whole run from its chunks' (each a JSON array of
-/// per-frame rows, as `animate --stats x.json` writes): the rows in frame
-/// order. Fails if a frame appears twice.
-pub fn merge_stats(chunks: Vec<Vec<Value>>) -> Result<Vec<Value>, String> {
-    let mut rows: Vec<Value> = chunks.into_iter().flatten().collect();
-    let key = |row: &Value| {
-        (
-            row.get("frame").and_then(Value::as_u64).unwrap_or(u64::MAX),
-            row.get("viewport")
-                .and_then(Value::as_str)
-                .unwrap_or_default()
-                .to_string(),
-        )
-    };
-    // Stable: a frame's views keep the order the run wrote them in.
-    rows.sort_by_key(|row| key(row).0);
-    for pair in rows.windows(2) {
-        if key(&pair[0]) == key(&pair[1]) {
-            let (frame, view) = key(&pair[0]);
-            let view = if view.is_empty() {
-                String::new()
-            } else {
-                format!(" (viewport {view})")
-            };
-            return Err(format!("frame {frame}{view} is in two chunks' statistics"));
-        }
-    }
-    Ok(rows)
-}
-
 /// The share of a row's pixels that were reused instead of traced, 0 to 1.
 pub fn reused_share(row: &Value) -> Option<f64> {
     let pixels = row.get("pixels")?.as_f64()?;
@@ -213,9 +183,6 @@ impl RestartCost {
         (self.frames / share).ceil().max(1.0) as u32
     }
 }
-
-/// The share of the reuse the recommended chunk size may lose.
-pub const ACCEPTED_REUSE_LOSS: f64 = 0.1;
 
 #[cfg(test)]
 mod tests {
@@ -289,22 +256,12 @@ JobId=15 JobName=retrace-assemble JobState=PENDING Reason=DependencyNeverSatisfi
     }
 
     #[test]
-    fn chunk_statistics_merge_in_frame_order() {
-        let row = |frame: u32| serde_json::json!({"frame": frame, "viewport": "", "pixels": 4, "pixels_reused": 3});
-        let merged = merge_stats(vec![vec![row(2), row(3)], vec![row(0), row(1)]]).unwrap();
-        let frames: Vec<_> = merged
-            .iter()
-            .map(|r| r["frame"].as_u64().unwrap())
-            .collect();
-        assert_eq!(frames, [0, 1, 2, 3]);
-        assert_eq!(reused_share(&merged[0]), Some(0.75));
-        let err = merge_stats(vec![vec![row(1)], vec![row(1)]]).unwrap_err();
-        assert!(err.contains("frame 1"), "{err}");
-        // Two viewports of one frame are two rows, not a repeat.
-        let view = |name: &str| serde_json::json!({"frame": 5, "viewport": name});
+    fn the_reused_share_is_of_the_row_s_pixels() {
+        let row = serde_json::json!({"frame": 0, "pixels": 4, "pixels_reused": 3});
+        assert_eq!(reused_share(&row), Some(0.75));
         assert_eq!(
-            merge_stats(vec![vec![view("a"), view("b")]]).unwrap().len(),
-            2
+            reused_share(&serde_json::json!({"pixels": 0, "pixels_reused": 0})),
+            None
         );
     }
 

@@ -3,6 +3,10 @@
 //! Embree finds the hits ([`accel::embree`]); this crate owns the cameras,
 //! shading, and the reuse algorithms of Gage & Semwal (Panimation, RSVP) and
 //! Jevans (OSTC).
+//!
+//! The features `lab` (measurements and plots), `view` (the window) and
+//! `farm` (Slurm) add modules the renderer does not need; all are on by
+//! default.
 
 #![deny(unsafe_code)]
 
@@ -10,9 +14,11 @@ pub mod accel;
 pub mod camera;
 pub mod chunk;
 pub mod color;
+#[cfg(feature = "farm")]
 pub mod farm;
 pub mod frame_loop;
 pub mod geometry;
+#[cfg(feature = "lab")]
 pub mod lab;
 pub mod metrics;
 pub mod output;
@@ -26,5 +32,6 @@ pub mod scene;
 pub mod shade;
 pub mod texture;
 pub mod timeline;
+#[cfg(feature = "view")]
 pub mod view;
 pub mod voxel;

@@ -7,11 +7,16 @@ use std::process::ExitCode;
 use clap::{Parser, Subcommand};
 
 use cli::animate::{animate, AnimateArgs};
+#[cfg(feature = "lab")]
 use cli::bench::{bench, BenchArgs};
+#[cfg(feature = "farm")]
 use cli::farm::{farm, FarmArgs};
 use cli::render::{render, RenderArgs};
+#[cfg(feature = "lab")]
 use cli::tradeoff::{tradeoff, TradeoffArgs};
+#[cfg(feature = "lab")]
 use cli::validate::{validate, ValidateArgs};
+#[cfg(feature = "view")]
 use cli::view::{view, ViewArgs};
 
 /// Prints a line to stdout; a closed stdout (`retrace ... | head -1`) is
@@ -39,14 +44,18 @@ struct Cli {
     command: Command,
 }
 
+// A subcommand whose feature is off is left out rather than refused at
+// run time: `--help` lists only what this build can do.
 #[derive(Subcommand)]
 enum Command {
     /// Render one image of a scene file (.toml) or a bare model (.obj).
     Render(RenderArgs),
     /// Render an animation's frames, re-tracing only what changed.
     Animate(AnimateArgs),
+    #[cfg(feature = "lab")]
     /// Measure rendering costs (release builds only make sense here).
     Bench(BenchArgs),
+    #[cfg(feature = "lab")]
     /// Check Embree against the pure-Rust grid: ray by ray (camera rays and
     /// seeded random rays) and image by image. Exits with status 1 when
     /// agreement falls below the limits: hit/miss agreement 99.95%, same
@@ -57,6 +66,7 @@ enum Command {
     /// 6e-5 for coordinates near 10); at most 0.5% of pixels differing by
     /// more than 1/255, mean colour difference 1e-3.
     Validate(ValidateArgs),
+    #[cfg(feature = "lab")]
     /// Sweep each approximation knob (pan snap vs resample; RSVP filter,
     /// oversampling and level bias; OSTC region and voxel grids) and report
     /// its speedup against its error versus the exact reference (direct
@@ -66,10 +76,12 @@ enum Command {
     /// build); `--frames 0-49` takes half that, with frame 0's full trace
     /// weighing more in each speedup.
     Tradeoff(TradeoffArgs),
+    #[cfg(feature = "farm")]
     /// Render an animation on a Slurm cluster: submit a job array (one
     /// chunk of frames a task) and the job that assembles the result, and
     /// report each task's state.
     Farm(FarmArgs),
+    #[cfg(feature = "view")]
     /// Open a scene in a window: drag pans, the wheel zooms about the
     /// cursor, space plays the timeline, `t` shows the samples each picture
     /// traced, `m` turns reuse off and on, `s` saves, `q` quits. With
@@ -112,6 +124,7 @@ fn main() -> ExitCode {
         // The window's thread waits for input: run on one of the pool's
         // workers it would leave the frame loop one thread short. The
         // viewer runs its frame loop on the pool itself.
+        #[cfg(feature = "view")]
         Command::View(args) => view(args),
         command => run_in_pool(command),
     };
@@ -133,10 +146,15 @@ fn run_in_pool(command: Command) -> anyhow::Result<()> {
     rayon::scope(|_| match command {
         Command::Render(args) => render(args),
         Command::Animate(args) => animate(args),
+        #[cfg(feature = "lab")]
         Command::Bench(args) => bench(args),
+        #[cfg(feature = "lab")]
         Command::Validate(args) => validate(args),
+        #[cfg(feature = "lab")]
         Command::Tradeoff(args) => tradeoff(args),
+        #[cfg(feature = "farm")]
         Command::Farm(args) => farm(args),
+        #[cfg(feature = "view")]
         Command::View(args) => view(args),
     })
 }

@@ -1,8 +1,9 @@
 //! How far one image is from another: the error figures every accuracy
-//! report uses, and the bit-for-bit comparisons behind the exactness
-//! checks.
+//! report uses, the converged reference they are measured against, and the
+//! bit-for-bit comparisons behind the exactness checks.
 
 use crate::render::Frame;
+use crate::sampling::{PixelSamples, REFERENCE_SAMPLES_PER_PIXEL};
 
 /// Two images of different sizes: nothing to compare pixel by pixel.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, thiserror::Error)]
@@ -139,6 +140,30 @@ pub fn output_differences(
     ))
 }
 
+/// Samples a pixel of the converged reference the bench and `animate
+/// --verify` measure both sides against. At 640x480 a 64-spp render of an
+/// E1 or E2 frame is 52.7-54.3 dB from a 256-spp one, and 4 spp is
+/// 35.6-36.3 dB from it, so the reference's own error is under 2% of the
+/// squared error it helps measure at 4 spp (under 0.1 dB), at a quarter of
+/// 256 spp's time.
+pub const BENCH_REFERENCE_SAMPLES: u32 = 64;
+
+/// Frames between two that get a reference (the last frame always does):
+/// a reference frame costs as much as 64 frames at 1 spp.
+pub const REFERENCE_EVERY: u32 = 20;
+
+/// The reference a run at `run` samples a pixel is measured against: the
+/// bench's count, or the converged count when the run has as many (a
+/// reference no finer than the run would measure nothing).
+pub fn reference_samples(run: PixelSamples) -> PixelSamples {
+    let count = if run.count() < BENCH_REFERENCE_SAMPLES {
+        BENCH_REFERENCE_SAMPLES
+    } else {
+        REFERENCE_SAMPLES_PER_PIXEL
+    };
+    PixelSamples::new(count).expect("the reference counts are within the limits")
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -205,5 +230,13 @@ mod tests {
             output_differences(&reference, &written, &reference),
             Ok((0, 1))
         );
+    }
+
+    #[test]
+    fn the_reference_is_finer_than_the_run() {
+        let count = |spp| reference_samples(PixelSamples::new(spp).unwrap()).count();
+        assert_eq!(count(1), BENCH_REFERENCE_SAMPLES);
+        assert_eq!(count(16), BENCH_REFERENCE_SAMPLES);
+        assert_eq!(count(BENCH_REFERENCE_SAMPLES), REFERENCE_SAMPLES_PER_PIXEL);
     }
 }

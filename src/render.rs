@@ -482,9 +482,18 @@ pub fn render_view_sampled(
     samples: PixelSamples,
     intersector: &dyn Intersector,
 ) -> (Frame, RayCounts) {
-    let shader = Shader::new(scene, intersector);
+    render_camera(&Shader::new(scene, intersector), camera, samples)
+}
+
+/// `camera`'s image traced in full through its own rays at `samples` a
+/// pixel.
+pub fn render_camera(
+    shader: &Shader,
+    camera: &Camera,
+    samples: PixelSamples,
+) -> (Frame, RayCounts) {
     let table = RayTable::with_samples(camera, samples);
-    render_image(&shader, &table, camera.width, camera.height)
+    render_image(shader, &table, camera.width, camera.height)
 }
 
 /// Traces every pixel of a `width` x `height` image, pixel (x, y) from

@@ -9,8 +9,7 @@ use anyhow::{Context, Result};
 use clap::Args;
 
 use retrace::frame_loop::{Animator, FrameStats, Options, Techniques, ViewOutput};
-use retrace::lab::bench::{reference_samples, REFERENCE_EVERY};
-use retrace::metrics::ImageError;
+use retrace::metrics::{reference_samples, ImageError, REFERENCE_EVERY};
 use retrace::output::{save_image, PendingFile};
 use retrace::sampling::PixelSamples;
 
@@ -177,7 +176,7 @@ fn write_stats(
             })
             .cloned()
             .collect();
-        let rows = retrace::farm::merge_stats(vec![kept, rows]).map_err(anyhow::Error::msg)?;
+        let rows = retrace::chunk::merge_stats(vec![kept, rows]).map_err(anyhow::Error::msg)?;
         serde_json::to_string_pretty(&rows)?
     } else {
         stats_csv(stats)?
@@ -609,7 +608,7 @@ pub(crate) fn animate(args: AnimateArgs) -> Result<()> {
 
 /// With `--verify`, approximate output and the full render at the run's
 /// samples, both against a converged reference of the same views (the
-/// bench's: see [`retrace::lab::bench::BENCH_REFERENCE_SAMPLES`]), on every
+/// bench's: see [`retrace::metrics::BENCH_REFERENCE_SAMPLES`]), on every
 /// [`REFERENCE_EVERY`]th frame of the run and the last.
 struct ReferenceCheck {
     run: PixelSamples,
@@ -650,14 +649,14 @@ impl ReferenceCheck {
             .frame
             .as_ref()
             .expect("verification keeps linear colour");
-        let (keyed, _) = animator.render_view_sampled(frame, index, self.reference);
-        let (full, _) = animator.render_true_view(frame, index);
+        let (keyed, _) = animator.render_own_rays(frame, index, Some(self.reference));
+        let (full, _) = animator.render_own_rays(frame, index, None);
         // A snapped pan's frame is an exact render of the camera moved onto
         // the lattice: measured against that view's reference, and against
         // the keyed camera's besides.
         let snapped = animator.is_exact() && output.stats.off_keyed_view();
         let (output_error, snapped_vs_keyed) = if snapped {
-            let (shown, _) = animator.render_full_sampled(frame, index, self.reference);
+            let (shown, _) = animator.render_full(frame, index, Some(self.reference));
             (
                 retrace::metrics::image_error(image, &shown)?,
                 Some(retrace::metrics::image_error(image, &keyed)?),
@@ -730,7 +729,13 @@ fn refuse_idle_flags(
     options: &Options,
     store_image: bool,
 ) -> Result<()> {
-    use retrace::frame_loop::{idle_reason, Technique};
+    use retrace::frame_loop::Technique;
+    use retrace::reuse::{idle_reason, Run};
+    let run = Run {
+        scene,
+        options,
+        interactive: false,
+    };
     let mode = args.mode;
     let explicit = mode != Techniques::AUTO && mode != Techniques::FULL;
     // Why `technique` does not run: not asked for, or idle on this scene.
@@ -738,11 +743,12 @@ fn refuse_idle_flags(
         if !mode.has(technique) {
             return Some(format!("--mode leaves {} off", technique.name()));
         }
-        idle_reason(scene, options, technique)
+        idle_reason(&run, technique).map(|idle| idle.to_string())
     };
     for technique in Technique::ALL {
         if explicit && mode.has(technique) {
-            if let Some(reason) = idle_reason(scene, options, technique) {
+            if let Some(reason) = idle_reason(&run, technique) {
+                let reason = reason.to_string();
                 return Err(idle_flag(&format!("--mode {}", technique.name()), &reason));
             }
         }
@@ -799,7 +805,7 @@ fn verify_view(
     // An exact frame is measured against the camera's unsnapped rays too:
     // what snapping costs.
     stats.error = Some(if animator.is_exact() && !has_viewports {
-        let (truth, _) = animator.render_true_view(frame, index);
+        let (truth, _) = animator.render_own_rays(frame, index, None);
         retrace::metrics::image_error(image, &truth)?
     } else {
         retrace::metrics::image_error(image, &reference)?

@@ -8,10 +8,9 @@ use std::process::Command;
 use anyhow::{Context, Result};
 use clap::{Args, Subcommand};
 
-use retrace::chunk::{chunk_frames, chunk_path};
+use retrace::chunk::{chunk_frames, chunk_path, merge_stats, ACCEPTED_REUSE_LOSS};
 use retrace::farm::{
-    merge_stats, parse_sacct, parse_scontrol, reused_share, sort_records, task_indices,
-    RestartCost, ACCEPTED_REUSE_LOSS,
+    parse_sacct, parse_scontrol, reused_share, sort_records, task_indices, RestartCost,
 };
 use retrace::scene::SceneOverrides;
 

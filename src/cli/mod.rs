@@ -2,11 +2,16 @@
 //! the arguments and helpers they share.
 
 pub(crate) mod animate;
+#[cfg(feature = "lab")]
 pub(crate) mod bench;
+#[cfg(feature = "farm")]
 pub(crate) mod farm;
 pub(crate) mod render;
+#[cfg(feature = "lab")]
 pub(crate) mod tradeoff;
+#[cfg(feature = "lab")]
 pub(crate) mod validate;
+#[cfg(feature = "view")]
 pub(crate) mod view;
 
 use std::path::{Path, PathBuf};
@@ -385,6 +390,8 @@ fn check_writable(dir: &Path) -> Result<()> {
     Ok(())
 }
 
+/// Only the lab's reports (`bench`, `validate`) are written as JSON.
+#[cfg(feature = "lab")]
 fn write_json(path: &Path, value: &impl serde::Serialize) -> Result<()> {
     ensure_parent(path)?;
     let text = serde_json::to_string_pretty(value)?;

@@ -15,7 +15,7 @@ use crate::reuse::{Erasure, SampleStore};
 use crate::scene::Scene;
 use crate::timeline::Animation;
 
-use super::options::OstcSettings;
+use crate::reuse::OstcSettings;
 
 /// The most memory OSTC's region bits and grid may take (E3's: 1 MB). Fine
 /// regions over a narrow view's whole-turn buffer, or a huge voxel grid,
@@ -82,22 +82,60 @@ pub fn swept_bounds(scene: &Scene, animation: &Animation) -> Aabb {
     swept
 }
 
+/// Why OSTC, asked for, cannot be kept for a run: stores then restart
+/// whenever something moves, which is exact.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum OstcRefusal {
+    /// No voxel grid fits moving objects that reach infinity.
+    UnboundedSweep,
+    /// The region bits and the voxel grid would pass [`OSTC_LIMIT_BYTES`].
+    TooLarge {
+        regions: usize,
+        region_size: (i64, i64),
+        voxels: u32,
+        bytes: f64,
+    },
+}
+
+impl std::fmt::Display for OstcRefusal {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            OstcRefusal::UnboundedSweep => write!(
+                f,
+                "the moving objects' swept bounds are not finite (no grid fits them)"
+            ),
+            OstcRefusal::TooLarge {
+                regions,
+                region_size: (width, height),
+                voxels,
+                bytes,
+            } => write!(
+                f,
+                "its bookkeeping ({regions} regions of {width}x{height} samples, {voxels} \
+                 voxels) would take {:.1} GB; the limit is {:.0} GB",
+                bytes / 1e9,
+                OSTC_LIMIT_BYTES / 1e9
+            ),
+        }
+    }
+}
+
 /// OSTC bookkeeping over `layout` for the moving parts of `scene`'s
 /// timeline: None when nothing but the camera moves (no grid when no
-/// object moves, no light bookkeeping when no light moves); an error, the
-/// reason, when it cannot be kept.
+/// object moves, no light bookkeeping when no light moves); the reason
+/// when it cannot be kept.
 pub(super) fn build_ostc(
     scene: &Scene,
     animation: &Animation,
     settings: &OstcSettings,
     layout: RegionLayout,
-) -> Result<Option<Ostc>, String> {
+) -> Result<Option<Ostc>, OstcRefusal> {
     if !animation.moves_scene() {
         return Ok(None);
     }
     let swept = (!animation.objects.is_empty()).then(|| swept_bounds(scene, animation));
     if swept.is_some_and(|b| !(b.max - b.min).is_finite()) {
-        return Err("the moving objects' swept bounds are not finite (no grid fits them)".into());
+        return Err(OstcRefusal::UnboundedSweep);
     }
     let mut animated_lights = vec![false; scene.lights.len()];
     for track in &animation.lights {
@@ -106,15 +144,12 @@ pub(super) fn build_ostc(
     let voxels = settings.voxels;
     let bytes = Ostc::bytes_for(layout.count(), voxels, swept.is_some());
     if bytes > OSTC_LIMIT_BYTES {
-        return Err(format!(
-            "its bookkeeping ({} regions of {}x{} samples, {voxels} voxels) would take \
-             {:.1} GB; the limit is {:.0} GB",
-            layout.count(),
-            layout.width,
-            layout.height,
-            bytes / 1e9,
-            OSTC_LIMIT_BYTES / 1e9
-        ));
+        return Err(OstcRefusal::TooLarge {
+            regions: layout.count(),
+            region_size: (layout.width, layout.height),
+            voxels,
+            bytes,
+        });
     }
     Ok(Some(Ostc::new(layout, swept, voxels, &animated_lights)))
 }

@@ -2,18 +2,20 @@
 //!
 //! A frame's output is its views: the camera's own image (a trivial
 //! viewport: the identity transform over the camera's own projection), or
-//! the scene's RSVP viewports. For each frame the loop poses the scene,
-//! decides whether its views may come from a sample store
+//! the scene's RSVP viewports. Before the first frame the loop asks the
+//! stores for the run's plan ([`crate::reuse::plan_for`]); for each frame
+//! it poses the scene, asks the plan whether the views come from a store
 //! ([`crate::reuse::SampleStore`]) and whether the kept store can serve
 //! them or must start again (and why), erases from it what OSTC says the
 //! scene's changes dirtied ([`changes`]), and renders the views through
-//! it; a frame that may not reuse is rendered in full.
+//! it; a frame the plan does not serve is rendered in full. The loop knows
+//! no store's internals: adding a store touches its own files and the
+//! registry in [`crate::reuse`].
 //!
 //! Promises:
 //! - Every frame's state comes from its frame number and the timeline,
-//!   never from the previous frame, and whether frames live on the pan
-//!   lattice is decided over the whole timeline: a chunk of frames equals
-//!   the same frames of one long run.
+//!   never from the previous frame, and the plan is made over the whole
+//!   timeline: a chunk of frames equals the same frames of one long run.
 //! - A camera frame from a store equals [`Animator::render_full`] of the
 //!   same frame bit for bit (a snapped pan: of the snapped view); RSVP's
 //!   buffer samples equal a fresh trace, its viewports are measured
@@ -21,49 +23,31 @@
 
 mod abandon;
 mod changes;
-mod options;
 mod stats;
 
-pub use changes::{swept_bounds, OSTC_LIMIT_BYTES};
-pub use options::{Options, OstcSettings, Technique, Techniques};
-pub use stats::{FrameStats, FullReason, Reason, Restart};
+pub use crate::reuse::{FullReason, Options, OstcSettings, Technique, Techniques, View};
+pub use changes::{swept_bounds, OstcRefusal, OSTC_LIMIT_BYTES};
+pub use stats::{FrameStats, Reason, Restart};
 
-use std::collections::HashMap;
 use std::sync::atomic::AtomicBool;
 use std::time::Instant;
 
 use glam::Affine3A;
 
 use crate::accel::{Accelerator, Intersector};
-use crate::camera::{Camera, Projection, ViewTransform, ViewportPose};
+use crate::camera::{Camera, ViewTransform, ViewportPose};
 use crate::geometry::Placement;
 use crate::pool::with_workers_awake;
-use crate::render::{render_view_sampled, Frame};
-use crate::reuse::lattice_buffer::{cells_traced, render_window};
+use crate::render::Frame;
+use crate::reuse::lattice_buffer::cells_traced;
 use crate::reuse::ostc::Ostc;
-use crate::reuse::pan::{EqualAngleLattice, FractionalPan, PanStore};
-use crate::reuse::rsvp::{render_direct_sampled, RsvpStore, SampleLattice};
-use crate::reuse::still::StillStore;
-use crate::reuse::{FrameMode, SampleStore, Wanted};
+use crate::reuse::{plan_for, FrameMode, Run, SampleStore, Serve, StorePlan, Wanted};
 use crate::sampling::PixelSamples;
 use crate::scene::Scene;
 use crate::shade::{RayCounts, Shader};
 use crate::timeline::Animation;
 use abandon::Abandonable;
 use changes::{build_ostc, invalidate, Invalidation, ScenePose};
-
-/// The most memory a pan buffer may take. A narrow equal-angle view keeps
-/// a whole turn of its fine samples (E1's: 17 MB; 0.1 degrees over 640 px:
-/// 17 GB): beyond this, frames are rendered in full, with the reason.
-pub const PAN_BUFFER_LIMIT_BYTES: f64 = 2e9;
-
-/// One output picture of a frame: the camera's image (named "") or an RSVP
-/// viewport.
-#[derive(Clone, Debug, PartialEq)]
-pub struct View {
-    pub name: String,
-    pub pose: ViewportPose,
-}
 
 /// One view's picture of a frame, and what it cost.
 pub struct ViewOutput {
@@ -76,17 +60,6 @@ pub struct ViewOutput {
     /// when [`Options::traced_images`] asks for it (a full render: all
     /// black).
     pub traced_image: Option<image::RgbImage>,
-}
-
-/// What the timeline allows, found once for a run.
-struct TimelineFacts {
-    /// Whether the camera changes at all over the timeline.
-    camera_moves: bool,
-    /// The most a pan buffer of this timeline's views could take, in bytes.
-    pan_buffer_bytes: f64,
-    /// Per pan lattice (see [`lattice_key`]), the rows the run's views of
-    /// it cover.
-    row_spans: HashMap<LatticeKey, (i64, i64)>,
 }
 
 /// The samples kept from earlier frames and what goes with them.
@@ -113,46 +86,65 @@ pub struct Animator<'a> {
     posed_frame: Option<u32>,
     accel: &'a mut Accelerator,
     options: Options,
-    facts: TimelineFacts,
-    kept: Option<Kept>,
-    /// Why OSTC, asked for, could not be kept.
-    ostc_refusal: Option<String>,
     /// Whether the views come from the caller ([`Animator::render_views`]),
     /// not from the timeline alone.
     interactive: bool,
+    /// What kind of store serves the run's frames, and when.
+    plan: Box<dyn StorePlan>,
+    kept: Option<Kept>,
+    /// Why OSTC, asked for, could not be kept.
+    ostc_refusal: Option<OstcRefusal>,
 }
 
 impl<'a> Animator<'a> {
     pub fn new(scene: &'a Scene, accel: &'a mut Accelerator, options: Options) -> Animator<'a> {
-        let facts = TimelineFacts::of(scene, &options.frames);
+        Animator::with_views_from(scene, accel, options, false)
+    }
+
+    /// An animator for views no timeline knows in advance (an interactive
+    /// viewer's, given to [`Animator::render_views`]): the scene's objects
+    /// and lights still follow the timeline, but the camera may turn
+    /// anywhere at any frame (an equal-angle camera's frames live on the
+    /// pan lattice from the first, and its pan buffer holds every row of
+    /// the lattice, pole to pole).
+    pub fn interactive(
+        scene: &'a Scene,
+        accel: &'a mut Accelerator,
+        options: Options,
+    ) -> Animator<'a> {
+        Animator::with_views_from(scene, accel, options, true)
+    }
+
+    fn with_views_from(
+        scene: &'a Scene,
+        accel: &'a mut Accelerator,
+        options: Options,
+        interactive: bool,
+    ) -> Animator<'a> {
+        let plan = plan_for(&Run {
+            scene,
+            options: &options,
+            interactive,
+        });
         Animator {
             base: scene,
             scene: scene.clone(),
             posed_frame: None,
             accel,
             options,
-            facts,
+            interactive,
+            plan,
             kept: None,
             ostc_refusal: None,
-            interactive: false,
         }
     }
 
-    /// An animator for views no timeline knows in advance (an interactive
-    /// viewer's, given to [`Animator::render_views`]): the scene's objects
-    /// and lights still follow the timeline, but the camera may turn
-    /// anywhere at any frame, so an equal-angle camera's frames live on the
-    /// pan lattice from the first, and its pan buffer holds every row of
-    /// the lattice, pole to pole.
-    pub fn interactive(
-        scene: &'a Scene,
-        accel: &'a mut Accelerator,
-        options: Options,
-    ) -> Animator<'a> {
-        let mut animator = Animator::new(scene, accel, options);
-        animator.facts.free_camera(scene);
-        animator.interactive = true;
-        animator
+    fn run(&self) -> Run<'_> {
+        Run {
+            scene: self.base,
+            options: &self.options,
+            interactive: self.interactive,
+        }
     }
 
     pub fn options(&self) -> &Options {
@@ -182,14 +174,11 @@ impl<'a> Animator<'a> {
     /// Whether the frame's views are RSVP viewports rather than the
     /// camera's image.
     pub fn has_viewports(&self) -> bool {
-        !self.base.viewports.is_empty()
+        self.run().has_viewports()
     }
 
     pub fn camera_at(&self, frame: u32) -> Camera {
-        match self.animation() {
-            Some(animation) => animation.camera_at(&self.base.camera, frame),
-            None => self.base.camera.clone(),
-        }
+        self.run().camera_at(frame)
     }
 
     /// The views of `frame`: every viewport, or the camera's own image.
@@ -257,39 +246,27 @@ impl<'a> Animator<'a> {
         (Shader::new(&self.scene, self.accel), camera)
     }
 
-    /// Whether a full render of `camera` is taken on the pan lattice, so
-    /// that a pan (by any animator of this timeline) compares with it bit
-    /// for bit: equal-angle cameras of a timeline that moves the camera.
-    fn on_lattice(&self, camera: &Camera) -> bool {
-        self.facts.on_lattice(camera)
-    }
-
-    /// View `index` of `frame` rendered from scratch, as the reference for
-    /// reuse: a viewport through its own rays; the camera's image on the
-    /// pan lattice when the timeline pans it (so a snapped pan compares
-    /// exactly), through the camera's own rays otherwise.
-    pub fn render_full(&mut self, frame: u32, index: usize) -> (Frame, RayCounts) {
-        self.render_full_sampled(frame, index, self.scene.samples)
-    }
-
-    /// As [`Animator::render_full`] at `samples` a pixel rather than the
-    /// scene's: a converged reference of the view an exact frame shows (a
-    /// snapped pan's view, not the keyed camera's).
-    pub fn render_full_sampled(
+    /// View `index` of `frame` traced from scratch, at `samples` a pixel
+    /// (None: the scene's), through the rays an exact frame shows: a
+    /// snapped pan's lattice view, not the keyed camera's. A reused frame
+    /// that is exact ([`Animator::is_exact`]) equals it bit for bit.
+    pub fn render_full(
         &mut self,
         frame: u32,
         index: usize,
-        samples: PixelSamples,
+        samples: Option<PixelSamples>,
     ) -> (Frame, RayCounts) {
         self.pose(frame);
         let view = self.views(frame).swap_remove(index);
-        self.render_view_in_full(&self.scene, &*self.accel, &view, samples)
+        let shader = Shader::new(&self.scene, &*self.accel);
+        let samples = samples.unwrap_or(self.scene.samples);
+        self.plan.render_full(&shader, &view, samples)
     }
 
-    /// As [`Animator::render_full`], from a scene and an accelerator built
-    /// afresh for `frame` (the timeline's state at `frame` put on the scene
-    /// as loaded): a reference that shares nothing the frame loop posed,
-    /// so a posing bug cannot hide in both.
+    /// As [`Animator::render_full`] at the scene's samples, from a scene
+    /// and an accelerator built afresh for `frame` (the timeline's state
+    /// at `frame` put on the scene as loaded): a reference that shares
+    /// nothing the frame loop posed, so a posing bug cannot hide in both.
     pub fn render_full_afresh(
         &self,
         frame: u32,
@@ -301,75 +278,47 @@ impl<'a> Animator<'a> {
         }
         let accel = Accelerator::build(self.accel.kind(), &scene.objects)?;
         let view = self.views(frame).swap_remove(index);
-        Ok(self.render_view_in_full(&scene, &accel, &view, self.scene.samples))
+        let shader = Shader::new(&scene, &accel);
+        Ok(self.plan.render_full(&shader, &view, scene.samples))
     }
 
-    /// `view` of `scene` (posed) traced in full through `accel` at
-    /// `samples` a pixel.
-    fn render_view_in_full(
-        &self,
-        scene: &Scene,
-        accel: &dyn Intersector,
-        view: &View,
-        samples: PixelSamples,
-    ) -> (Frame, RayCounts) {
-        let shader = Shader::new(scene, accel);
-        if self.has_viewports() {
-            return render_direct_sampled(&shader, &view.pose, samples);
-        }
-        let camera = &view.pose.camera;
-        if self.on_lattice(camera) {
-            let lattice = EqualAngleLattice::for_camera_sampled(camera, samples);
-            let window = lattice.window(camera);
-            return render_window(&shader, &lattice, &window);
-        }
-        render_view_sampled(scene, camera, samples, accel)
-    }
-
-    /// View `index` of `frame` through its own, unsnapped rays: the exact
-    /// picture any approximation is measured against.
-    pub fn render_true_view(&mut self, frame: u32, index: usize) -> (Frame, RayCounts) {
-        self.render_view_sampled(frame, index, self.scene.samples)
-    }
-
-    /// As [`Animator::render_true_view`] at `samples` a pixel rather than
-    /// the scene's: a converged reference of the view, for measuring how
-    /// far the scene's own samples (full or reused) are from it.
-    pub fn render_view_sampled(
+    /// View `index` of `frame` through its own, unsnapped rays at
+    /// `samples` a pixel (None: the scene's): the exact picture any
+    /// approximation is measured against, or at many samples the
+    /// converged reference.
+    pub fn render_own_rays(
         &mut self,
         frame: u32,
         index: usize,
-        samples: PixelSamples,
+        samples: Option<PixelSamples>,
     ) -> (Frame, RayCounts) {
         self.pose(frame);
         let view = self.views(frame).swap_remove(index);
-        if self.has_viewports() {
-            let shader = Shader::new(&self.scene, self.accel);
-            return render_direct_sampled(&shader, &view.pose, samples);
-        }
-        render_view_sampled(&self.scene, &view.pose.camera, samples, self.accel)
+        let shader = Shader::new(&self.scene, &*self.accel);
+        let samples = samples.unwrap_or(self.scene.samples);
+        self.plan.render_own_rays(&shader, &view, samples)
     }
 
     /// Whether the frames are exact, comparable bit for bit with
     /// [`Animator::render_full`]: the camera's image, pans snapped.
     pub fn is_exact(&self) -> bool {
-        !self.has_viewports() && self.options.fractional_pan == FractionalPan::Snap
+        self.plan.exact()
     }
 
     /// What view `index` of `frame` is measured against: its full render
     /// where the frames are exact, its own rays otherwise.
     pub fn render_reference(&mut self, frame: u32, index: usize) -> (Frame, RayCounts) {
         if self.is_exact() {
-            self.render_full(frame, index)
+            self.render_full(frame, index, None)
         } else {
-            self.render_true_view(frame, index)
+            self.render_own_rays(frame, index, None)
         }
     }
 
     /// Why OSTC was asked for but not kept, if it was not: stores then
     /// restart whenever something moves.
-    pub fn ostc_refusal(&self) -> Option<&str> {
-        self.ostc_refusal.as_deref()
+    pub fn ostc_refusal(&self) -> Option<OstcRefusal> {
+        self.ostc_refusal
     }
 
     /// The kept samples as a picture around the view of `frame`'s camera,
@@ -384,81 +333,6 @@ impl<'a> Animator<'a> {
     pub fn verify_store(&self) -> Option<(u64, u64)> {
         let kept = self.kept.as_ref()?;
         kept.store.verify(&Shader::new(&self.scene, self.accel))
-    }
-
-    /// Why `frame` (of `views`) may not come from a store, if it may not:
-    /// None inside when reuse was not asked for at all.
-    fn full_reason(&self, frame: u32, views: &[View]) -> Option<Option<FullReason>> {
-        let techniques = self.options.techniques;
-        if self.has_viewports() {
-            return (!techniques.rsvp).then_some(None);
-        }
-        let camera = &views[0].pose.camera;
-        if !techniques.buffered() {
-            return Some(None);
-        }
-        let equal_angle = camera.projection == Projection::EqualAngle;
-        if techniques.pan && equal_angle && self.facts.camera_moves && !self.on_lattice(camera) {
-            return Some(Some(FullReason::PanBufferTooLarge {
-                bytes: self.facts.pan_buffer_bytes,
-            }));
-        }
-        if techniques.pan && self.on_lattice(camera) {
-            return None;
-        }
-        if !techniques.ostc && !equal_angle {
-            return Some(Some(FullReason::PanNeedsEqualAngle(camera.projection)));
-        }
-        // The store says whether it fits camera views no timeline foresees.
-        if self.interactive {
-            return None;
-        }
-        // Without panning a store holds only while the camera stands still.
-        let moves = |other: u32| self.camera_at(other) != *camera;
-        let still = (frame == 0 || !moves(frame - 1)) && !moves(frame + 1);
-        let reason = if equal_angle {
-            FullReason::CameraMovesPanOff
-        } else {
-            FullReason::CameraMovesNotEqualAngle(camera.projection)
-        };
-        (!still).then_some(Some(reason))
-    }
-
-    /// A new store for `views`: RSVP's buffer for viewports; for the
-    /// camera's image the pan lattice, sized for every window of this run
-    /// that shares it, where its frames live there (with pan off too, so
-    /// they equal full renders), and its own image otherwise.
-    fn new_store(&self, views: &[View]) -> Box<dyn SampleStore> {
-        let camera = &views[0].pose.camera;
-        if self.has_viewports() {
-            let columns = SampleLattice::for_camera(&self.base.camera).columns_per_turn;
-            let lattice = SampleLattice::new(camera.position, columns);
-            return Box::new(RsvpStore::new(
-                lattice,
-                self.options.rsvp,
-                self.scene.samples,
-            ));
-        }
-        // Strata serve OSTC alone (it re-traces groups of them).
-        let keep_strata =
-            self.options.techniques.ostc && self.animation().is_some_and(|a| a.moves_scene());
-        if !self.on_lattice(camera) {
-            return Box::new(StillStore::new(camera, self.scene.samples, keep_strata));
-        }
-        let window = EqualAngleLattice::for_camera(camera).window(camera);
-        let (mut low, mut high) = (window.row, window.row + i64::from(window.height));
-        if let Some(&(top, bottom)) = self.facts.row_spans.get(&lattice_key(camera)) {
-            (low, high) = (low.min(top), high.max(bottom));
-        }
-        // A resampled view reads up to one row more on either side.
-        Box::new(PanStore::new(
-            camera,
-            low - 1..high + 1,
-            self.options.fractional_pan,
-            self.options.techniques.pan,
-            self.scene.samples,
-            keep_strata,
-        ))
     }
 
     /// OSTC bookkeeping for `store`, when it is on and the timeline moves
@@ -510,24 +384,20 @@ impl<'a> Animator<'a> {
     /// colour, with what each took.
     pub fn render(&mut self, frame: u32) -> Vec<ViewOutput> {
         let views = self.views(frame);
-        self.render_views(frame, views)
+        self.render_views(frame, views, None)
+            .expect("nothing to stop it")
     }
 
     /// As [`Animator::render`], showing `views` (of the kind
     /// [`Animator::views`] gives: the camera's image, or one per viewport)
-    /// rather than the timeline's: for an [`Animator::interactive`] one.
-    pub fn render_views(&mut self, frame: u32, views: Vec<View>) -> Vec<ViewOutput> {
-        self.render_views_until(frame, views, None)
-            .expect("nothing to stop it")
-    }
-
-    /// As [`Animator::render_views`]; a frame traced from nothing (in
-    /// full, or into a new store) gives up as soon as `stop` is set, and
-    /// is None: the store it was filling is dropped with it (the next
-    /// frame starts one afresh), so nothing half-traced is ever kept or
-    /// shown. A frame from a kept store runs to the end (it is quick, and
-    /// its store is worth keeping).
-    pub fn render_views_until(
+    /// rather than the timeline's where the animator is
+    /// [`Animator::interactive`]. A frame traced from nothing (in full, or
+    /// into a new store) gives up as soon as `stop` is set, and is None:
+    /// the store it was filling is dropped with it (the next frame starts
+    /// one afresh), so nothing half-traced is ever kept or shown. A frame
+    /// from a kept store runs to the end (it is quick, and its store is
+    /// worth keeping).
+    pub fn render_views(
         &mut self,
         frame: u32,
         views: Vec<View>,
@@ -548,7 +418,7 @@ impl<'a> Animator<'a> {
         );
         let start = Instant::now();
         self.pose(frame);
-        if let Some(reason) = self.full_reason(frame, &views) {
+        if let Serve::Full(reason) = self.plan.serves(&self.run(), frame, &views) {
             self.kept = None;
             return self.render_in_full(frame, views, reason, stop);
         }
@@ -557,7 +427,7 @@ impl<'a> Animator<'a> {
         let restart = self.restart(&poses, &pose);
         let mut changed = Invalidation::default();
         if restart.is_some() {
-            let store = self.new_store(&views);
+            let store = self.plan.new_store(&self.run(), &views);
             let ostc = self.new_ostc(store.as_ref());
             self.kept = Some(Kept { store, ostc, pose });
         } else {
@@ -659,8 +529,8 @@ impl<'a> Animator<'a> {
                 Some(gate) => gate,
                 None => &*self.accel,
             };
-            let (image, rays) =
-                self.render_view_in_full(&self.scene, intersector, &view, self.scene.samples);
+            let shader = Shader::new(&self.scene, intersector);
+            let (image, rays) = self.plan.render_full(&shader, &view, self.scene.samples);
             if gate.as_ref().is_some_and(Abandonable::tripped) {
                 return None;
             }
@@ -696,148 +566,7 @@ impl<'a> Animator<'a> {
     }
 }
 
-/// Why `technique` cannot act on a run of `scene` with `options`,
-/// whether asked for or not; None when it can. (Known before the run:
-/// flags are checked before any work.)
-pub fn idle_reason(scene: &Scene, options: &Options, technique: Technique) -> Option<String> {
-    idle_reason_in(
-        scene,
-        options,
-        &TimelineFacts::of(scene, &options.frames),
-        technique,
-    )
-}
-
-fn idle_reason_in(
-    scene: &Scene,
-    options: &Options,
-    facts: &TimelineFacts,
-    technique: Technique,
-) -> Option<String> {
-    let animation = scene.animation.as_ref();
-    let has_viewports = !scene.viewports.is_empty();
-    match technique {
-        Technique::Rsvp => (!has_viewports).then(|| {
-            "the scene has no [[viewport]] for RSVP to resample (the camera's image \
-             reuses through pan and ostc)"
-                .to_string()
-        }),
-        Technique::Pan if has_viewports => Some(
-            "the scene's output is its [[viewport]]s, and RSVP's buffer follows the \
-             camera's pans by itself (use rsvp)"
-                .to_string(),
-        ),
-        Technique::Pan if !facts.camera_moves => Some("the camera does not move".to_string()),
-        // Keys move the camera; its projection stays the scene's.
-        Technique::Pan if scene.camera.projection != Projection::EqualAngle => Some(format!(
-            "only an equal-angle camera pans, and this one is {}",
-            scene.camera.projection
-        )),
-        Technique::Pan => (!facts.on_lattice(&scene.camera)).then(|| {
-            FullReason::PanBufferTooLarge {
-                bytes: facts.pan_buffer_bytes,
-            }
-            .to_string()
-        }),
-        Technique::Ostc if !animation.is_some_and(|a| a.moves_scene()) => {
-            Some("no object or light moves".to_string())
-        }
-        Technique::Ostc if has_viewports && !options.techniques.rsvp => Some(
-            "without rsvp the viewports are traced through their own rays, every frame \
-             (use rsvp,ostc)"
-                .to_string(),
-        ),
-        Technique::Ostc => None,
-    }
-}
-
 /// A view's pixel count.
 fn pixels(pose: &ViewportPose) -> u64 {
     u64::from(pose.camera.width) * u64::from(pose.camera.height)
-}
-
-impl TimelineFacts {
-    /// The facts for a camera that may turn anywhere at any frame: it
-    /// moves, and the views of each pan lattice may reach every row.
-    fn free_camera(&mut self, scene: &Scene) {
-        self.camera_moves = true;
-        let mut cameras = vec![scene.camera.clone()];
-        if let Some(animation) = &scene.animation {
-            cameras.extend((0..animation.frames).map(|f| animation.camera_at(&scene.camera, f)));
-        }
-        for camera in cameras {
-            if camera.projection != Projection::EqualAngle {
-                continue;
-            }
-            let rows = EqualAngleLattice::rows_for(&camera);
-            self.row_spans.insert(lattice_key(&camera), (0, rows));
-            // Resampling reads a row more on either side.
-            self.pan_buffer_bytes = self
-                .pan_buffer_bytes
-                .max(EqualAngleLattice::buffer_bytes(&camera, rows + 2));
-        }
-    }
-
-    /// Whether a full render of `camera` is taken on the pan lattice (see
-    /// [`Animator::render_full`]).
-    fn on_lattice(&self, camera: &Camera) -> bool {
-        camera.projection == Projection::EqualAngle
-            && self.camera_moves
-            && self.pan_buffer_bytes <= PAN_BUFFER_LIMIT_BYTES
-    }
-
-    fn of(scene: &Scene, run: &std::ops::Range<u32>) -> TimelineFacts {
-        let mut facts = TimelineFacts {
-            camera_moves: false,
-            pan_buffer_bytes: 0.0,
-            row_spans: HashMap::new(),
-        };
-        let camera_at = |frame| match &scene.animation {
-            Some(animation) => animation.camera_at(&scene.camera, frame),
-            None => scene.camera.clone(),
-        };
-        // Over the whole timeline, not just this run: whether frames live on
-        // the lattice must not depend on which frames a run renders, or a
-        // chunk of a render farm's run would differ from one long run.
-        let timeline = scene.animation.as_ref().map_or(0..0, |a| 0..a.frames);
-        let first = camera_at(0);
-        // The rows every equal-angle view reaches, top and bottom.
-        let (mut top, mut bottom) = (i64::MAX, i64::MIN);
-        for frame in timeline.chain(run.clone()) {
-            let camera = camera_at(frame);
-            facts.camera_moves |= camera != first;
-            if camera.projection != Projection::EqualAngle {
-                continue;
-            }
-            let seen = EqualAngleLattice::rows_seen(&camera);
-            (top, bottom) = (top.min(seen.start), bottom.max(seen.end));
-            // Resampling reads a row more on either side.
-            let span = bottom.saturating_sub(top).saturating_add(2);
-            facts.pan_buffer_bytes = facts
-                .pan_buffer_bytes
-                .max(EqualAngleLattice::buffer_bytes(&camera, span));
-            // Each lattice's rows, found once here rather than at every
-            // restart (an eye that moves every frame restarts every frame).
-            if run.contains(&frame) {
-                let span = facts
-                    .row_spans
-                    .entry(lattice_key(&camera))
-                    .or_insert((seen.start, seen.end));
-                *span = (span.0.min(seen.start), span.1.max(seen.end));
-            }
-        }
-        facts
-    }
-}
-
-/// Which pan lattice an equal-angle camera's views live on: its eye (to
-/// the bit) and its columns per turn, as [`EqualAngleLattice::fits`] tells.
-type LatticeKey = ([u64; 3], i64);
-
-fn lattice_key(camera: &Camera) -> LatticeKey {
-    (
-        // + 0.0: -0.0 and 0.0 are one eye, as `fits` compares them.
-        camera.position.to_array().map(|c| (c + 0.0).to_bits()),
-        EqualAngleLattice::columns_per_turn_for(camera),
-    )
 }

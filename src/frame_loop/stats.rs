@@ -1,46 +1,9 @@
 //! What one frame did and cost, as the statistics files and the lab read
 //! it, and why a frame did not reuse what it could have.
 
-use crate::camera::Projection;
 use crate::metrics::ImageError;
-use crate::reuse::{FrameMode, Unfit};
+use crate::reuse::{FrameMode, FullReason, Unfit};
 use crate::shade::RayCounts;
-
-/// Why a frame was rendered in full though reuse was asked for.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum FullReason {
-    /// A whole turn of the pan lattice's samples would take this many
-    /// bytes, past [`super::PAN_BUFFER_LIMIT_BYTES`].
-    PanBufferTooLarge { bytes: f64 },
-    /// Only an equal-angle camera pans.
-    PanNeedsEqualAngle(Projection),
-    /// The equal-angle camera moves and pan is off.
-    CameraMovesPanOff,
-    /// A camera of another projection moves.
-    CameraMovesNotEqualAngle(Projection),
-}
-
-impl std::fmt::Display for FullReason {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match self {
-            FullReason::PanBufferTooLarge { bytes } => write!(
-                f,
-                "a pan buffer at this field of view (a whole turn of samples) would take \
-                 {:.1} GB; the limit is {:.0} GB",
-                bytes / 1e9,
-                super::PAN_BUFFER_LIMIT_BYTES / 1e9
-            ),
-            FullReason::PanNeedsEqualAngle(projection) => {
-                write!(f, "pan needs an equal-angle camera, not {projection}")
-            }
-            FullReason::CameraMovesPanOff => write!(f, "the camera moves and pan is off"),
-            FullReason::CameraMovesNotEqualAngle(projection) => write!(
-                f,
-                "the {projection} camera moves: only equal-angle views pan"
-            ),
-        }
-    }
-}
 
 /// Why a frame's sample store started again.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -9,23 +9,244 @@
 //! a frame's views, erases from it what OSTC says changed, and renders the
 //! views through it; a store traces only the samples it lacks.
 //!
+//! Every kind of store plans itself ([`StorePlan`]): from the scene's
+//! timeline and the run's options it decides, before the first frame,
+//! whether its stores can serve the run's frames, how large they will be
+//! and, where they cannot, why ([`FullReason`]). [`plan_for`] is the
+//! registry that picks the plan of a run; the frame loop asks it and
+//! follows.
+//!
 //! Promises of every store: a sample it keeps is bit for bit what a fresh
 //! trace of its group gives (groups are fixed 4x2 packets aligned to the
 //! store's lattice, traced through [`crate::render`]); a sample erased is
 //! traced again before any view shows it.
 
 pub mod lattice_buffer;
+mod options;
 pub mod ostc;
 pub mod pan;
 pub mod regions;
 pub mod rsvp;
 pub mod still;
 
-use crate::camera::{Camera, ViewportPose};
+pub use options::{Options, OstcSettings, Technique, Techniques};
+
+use crate::camera::{Camera, Projection, ViewportPose};
 use crate::render::Frame;
+use crate::sampling::PixelSamples;
+use crate::scene::Scene;
 use crate::shade::{RayCounts, Shader};
 use ostc::Ostc;
 use regions::{RegionLayout, RegionSet};
+
+/// One output picture of a frame: the camera's image (named "") or an RSVP
+/// viewport.
+#[derive(Clone, Debug, PartialEq)]
+pub struct View {
+    pub name: String,
+    pub pose: ViewportPose,
+}
+
+/// What a run asks of the stores: the scene as loaded and the options,
+/// and whether the views come from a caller rather than the timeline.
+#[derive(Clone, Copy)]
+pub struct Run<'a> {
+    pub scene: &'a Scene,
+    pub options: &'a Options,
+    /// Views no timeline knows in advance (an interactive viewer's): the
+    /// camera may turn anywhere at any frame.
+    pub interactive: bool,
+}
+
+impl Run<'_> {
+    pub fn camera_at(&self, frame: u32) -> Camera {
+        match &self.scene.animation {
+            Some(animation) => animation.camera_at(&self.scene.camera, frame),
+            None => self.scene.camera.clone(),
+        }
+    }
+
+    /// Whether the scene's output is its RSVP viewports rather than the
+    /// camera's image.
+    pub fn has_viewports(&self) -> bool {
+        !self.scene.viewports.is_empty()
+    }
+
+    /// Whether OSTC will keep a store's samples: asked for, and something
+    /// other than the camera moves.
+    pub fn ostc_keeps(&self) -> bool {
+        self.options.techniques.ostc
+            && self
+                .scene
+                .animation
+                .as_ref()
+                .is_some_and(|a| a.moves_scene())
+    }
+
+    /// Whether `camera`, shown at `frame`, stands still from the frame
+    /// before to the frame after: a store that cannot follow the camera
+    /// holds only then.
+    pub fn camera_still_at(&self, frame: u32, camera: &Camera) -> bool {
+        let moves = |other: u32| self.camera_at(other) != *camera;
+        (frame == 0 || !moves(frame - 1)) && !moves(frame + 1)
+    }
+}
+
+/// Whether a frame's views come from a store.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Serve {
+    Store,
+    /// Rendered in full, for the reason given (None: reuse was not asked
+    /// for at all).
+    Full(Option<FullReason>),
+}
+
+/// A kind of store's plan for a run, made once before its first frame
+/// ([`plan_for`]).
+pub trait StorePlan {
+    /// Whether `views` of `frame` come from this plan's store, and if not,
+    /// why.
+    fn serves(&self, run: &Run, frame: u32, views: &[View]) -> Serve;
+
+    /// A new, empty store for `views`.
+    fn new_store(&self, run: &Run, views: &[View]) -> Box<dyn SampleStore>;
+
+    /// `view` traced from scratch at `samples` a pixel through the rays a
+    /// frame of this plan shows, so that a reused frame compares with it
+    /// bit for bit (a snapped pan: the lattice's).
+    fn render_full(
+        &self,
+        shader: &Shader,
+        view: &View,
+        samples: PixelSamples,
+    ) -> (Frame, RayCounts) {
+        self.render_own_rays(shader, view, samples)
+    }
+
+    /// `view` traced through its own, unsnapped rays at `samples` a pixel:
+    /// the exact picture any approximation is measured against.
+    fn render_own_rays(
+        &self,
+        shader: &Shader,
+        view: &View,
+        samples: PixelSamples,
+    ) -> (Frame, RayCounts) {
+        crate::render::render_camera(shader, &view.pose.camera, samples)
+    }
+
+    /// Whether this plan's frames equal [`StorePlan::render_full`] bit for
+    /// bit.
+    fn exact(&self) -> bool;
+}
+
+/// The plan of `run`: RSVP's buffer for viewports; for the camera's image
+/// the pan lattice where the timeline turns an equal-angle camera and its
+/// buffer fits, the still camera's own image otherwise. Adding a kind of
+/// store adds its case here.
+pub fn plan_for(run: &Run) -> Box<dyn StorePlan + Send + Sync> {
+    if run.has_viewports() {
+        return Box::new(rsvp::RsvpPlan);
+    }
+    match pan::PanPlan::new(run) {
+        Ok(pan) => Box::new(pan),
+        Err(refusal) => Box::new(still::StillPlan::new(run, refusal)),
+    }
+}
+
+/// Why `technique` cannot act on `run`, whether asked for or not; None
+/// when it can. Known before the run, so flags are checked before any
+/// work.
+pub fn idle_reason(run: &Run, technique: Technique) -> Option<Idle> {
+    match technique {
+        Technique::Pan => pan::PanPlan::idle_reason(run),
+        Technique::Rsvp => (!run.has_viewports()).then_some(Idle::NoViewports),
+        Technique::Ostc => ostc::idle_reason(run),
+    }
+}
+
+/// Why a technique cannot act on a run.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Idle {
+    /// RSVP: nothing to resample.
+    NoViewports,
+    /// Pan: the output is viewports, which RSVP's buffer pans by itself.
+    ViewportsPanThemselves,
+    /// Pan: the camera does not move.
+    CameraStill,
+    /// Pan: the camera is of another projection.
+    NotEqualAngle(Projection),
+    /// Pan: the buffer would pass its limit.
+    Full(FullReason),
+    /// OSTC: no object or light moves.
+    NothingMoves,
+    /// OSTC: viewports traced through their own rays keep nothing.
+    ViewportsWithoutRsvp,
+}
+
+impl std::fmt::Display for Idle {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Idle::NoViewports => write!(
+                f,
+                "the scene has no [[viewport]] for RSVP to resample (the camera's image \
+                 reuses through pan and ostc)"
+            ),
+            Idle::ViewportsPanThemselves => write!(
+                f,
+                "the scene's output is its [[viewport]]s, and RSVP's buffer follows the \
+                 camera's pans by itself (use rsvp)"
+            ),
+            Idle::CameraStill => write!(f, "the camera does not move"),
+            Idle::NotEqualAngle(projection) => write!(
+                f,
+                "only an equal-angle camera pans, and this one is {projection}"
+            ),
+            Idle::Full(reason) => reason.fmt(f),
+            Idle::NothingMoves => write!(f, "no object or light moves"),
+            Idle::ViewportsWithoutRsvp => write!(
+                f,
+                "without rsvp the viewports are traced through their own rays, every frame \
+                 (use rsvp,ostc)"
+            ),
+        }
+    }
+}
+
+/// Why a frame was rendered in full though reuse was asked for.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum FullReason {
+    /// A whole turn of the pan lattice's samples would take this many
+    /// bytes, past [`pan::PAN_BUFFER_LIMIT_BYTES`].
+    PanBufferTooLarge { bytes: f64 },
+    /// Only an equal-angle camera pans.
+    PanNeedsEqualAngle(Projection),
+    /// The equal-angle camera moves and pan is off.
+    CameraMovesPanOff,
+    /// A camera of another projection moves.
+    CameraMovesNotEqualAngle(Projection),
+}
+
+impl std::fmt::Display for FullReason {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            FullReason::PanBufferTooLarge { bytes } => write!(
+                f,
+                "a pan buffer at this field of view (a whole turn of samples) would take \
+                 {:.1} GB; the limit is {:.0} GB",
+                bytes / 1e9,
+                pan::PAN_BUFFER_LIMIT_BYTES / 1e9
+            ),
+            FullReason::PanNeedsEqualAngle(projection) => {
+                write!(f, "pan needs an equal-angle camera, not {projection}")
+            }
+            FullReason::CameraMovesPanOff => write!(f, "the camera moves and pan is off"),
+            FullReason::CameraMovesNotEqualAngle(projection) => write!(
+                f,
+                "the {projection} camera moves: only equal-angle views pan"
+            ),
+        }
+    }
+}
 
 /// How finely OSTC nulls a store's samples when an object moves.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -6,12 +6,14 @@
 //! traced in exactly the packets a full render of the camera uses, so a
 //! frame equals a full render bit for bit.
 
-use crate::camera::{RayTable, ViewportPose};
+use crate::camera::{Projection, RayTable, ViewportPose};
 use crate::render::{SampleGroup, GROUP_HEIGHT, GROUP_WIDTH};
 use crate::reuse::lattice_buffer::{Lattice, LatticeBuffer, Window};
 use crate::reuse::ostc::Ostc;
 use crate::reuse::regions::{RegionLayout, RegionSet};
-use crate::reuse::{FrameMode, SampleStore, StoreFrame, Unfit, Wanted};
+use crate::reuse::{
+    FrameMode, FullReason, Run, SampleStore, Serve, StoreFrame, StorePlan, Unfit, View, Wanted,
+};
 use crate::sampling::PixelSamples;
 use crate::shade::Shader;
 
@@ -39,6 +41,53 @@ fn image_window(table: &RayTable) -> Window {
         height,
         yaw_error: 0.0,
         pitch_error: 0.0,
+    }
+}
+
+/// A run whose camera's frames do not live on the pan lattice: a still
+/// camera's own image serves the frames where the camera stands still.
+pub struct StillPlan {
+    /// Why pan, asked for, cannot act: every frame is then rendered in
+    /// full.
+    pan_refusal: Option<FullReason>,
+}
+
+impl StillPlan {
+    pub fn new(_run: &Run, pan_refusal: Option<FullReason>) -> StillPlan {
+        StillPlan { pan_refusal }
+    }
+}
+
+impl StorePlan for StillPlan {
+    fn serves(&self, run: &Run, frame: u32, views: &[View]) -> Serve {
+        if !run.options.techniques.buffered() {
+            return Serve::Full(None);
+        }
+        if let Some(reason) = self.pan_refusal {
+            return Serve::Full(Some(reason));
+        }
+        let camera = &views[0].pose.camera;
+        // A viewer's store says by itself whether it fits the camera.
+        if run.interactive || run.camera_still_at(frame, camera) {
+            return Serve::Store;
+        }
+        Serve::Full(Some(match camera.projection {
+            Projection::EqualAngle => FullReason::CameraMovesPanOff,
+            projection => FullReason::CameraMovesNotEqualAngle(projection),
+        }))
+    }
+
+    fn new_store(&self, run: &Run, views: &[View]) -> Box<dyn SampleStore> {
+        Box::new(StillStore::new(
+            &views[0].pose.camera,
+            run.scene.samples,
+            // Strata serve OSTC alone (it re-traces groups of them).
+            run.ostc_keeps(),
+        ))
+    }
+
+    fn exact(&self) -> bool {
+        true
     }
 }
 

@@ -796,7 +796,7 @@ fn render(
     let start = Instant::now();
     let view = viewer.view(&state);
     let output = animator
-        .render_views_until(state.frame, vec![view], stop)?
+        .render_views(state.frame, vec![view], stop)?
         .pop()
         .expect("one view, one picture");
     Some(Picture {
@@ -828,7 +828,8 @@ fn render_coarse(
     let start = Instant::now();
     let view = viewer.coarse_view(&state, COARSE_FACTOR);
     let output = animator
-        .render_views(state.frame, vec![view])
+        .render_views(state.frame, vec![view], None)
+        .expect("nothing to stop it")
         .pop()
         .expect("one view, one picture");
     let (width, height) = viewer.picture_size(&state);

@@ -96,7 +96,7 @@ fn full_renders_are_the_same_reference_whatever_the_mode() {
     drop(auto);
     let mut full = Animator::new(&scene, &mut accel, Options::new(Techniques::FULL, 0..4));
     for (frame, panned) in panned.iter().enumerate() {
-        let (reference, _) = full.render_full(frame as u32, 0);
+        let (reference, _) = full.render_full(frame as u32, 0, None);
         assert_eq!(
             retrace::metrics::count_differences(panned, &reference).unwrap(),
             0,
@@ -422,7 +422,7 @@ fn resampled_pans_match_snapped_ones_on_whole_samples_and_measure_their_error() 
     let mut resampled = Animator::new(&scene, &mut accel, resampling(0..4));
     let ViewOutput { frame, stats, .. } = resampled.render(2).remove(0);
     assert_eq!(stats.mode.as_str(), "pan");
-    let (truth, _) = resampled.render_true_view(2, 0);
+    let (truth, _) = resampled.render_own_rays(2, 0, None);
     let error = image_error(&frame.unwrap(), &truth).unwrap();
     // Measured over frames 0-3: 17.9-18.3 dB, mean error 0.048-0.058 (the
     // far checkerboard aliases at 64x48); the true view moved one pixel
@@ -663,7 +663,7 @@ fn views_reaching_a_pole_keep_panning_in_both_pan_modes() {
                 stats,
                 ..
             } = resampled.render(frame).remove(0);
-            let (truth, _) = resampled.render_true_view(frame, 0);
+            let (truth, _) = resampled.render_own_rays(frame, 0, None);
             let error = retrace::metrics::image_error(&image.unwrap(), &truth).unwrap();
             // Looking down (-56.25): at least 23.2 dB, mean error at most
             // 0.0151; the true view moved one pixel scores 16.8-17.0 dB and
@@ -745,7 +745,7 @@ fn a_pan_too_narrow_for_a_whole_turn_buffer_renders_in_full() {
         Accelerator::build(retrace::accel::BackendKind::Embree, &scene.objects).unwrap();
     let mut animator = Animator::new(&scene, &mut accel, Options::new(Techniques::AUTO, 0..3));
     let image = animator.render(1).remove(0).frame.unwrap();
-    let (truth, _) = animator.render_true_view(1, 0);
+    let (truth, _) = animator.render_own_rays(1, 0, None);
     assert_eq!(
         retrace::metrics::count_differences(&image, &truth).unwrap(),
         0
@@ -820,7 +820,7 @@ fn pans_by_whole_samples_equal_the_cameras_own_rays() {
                 (0.0, 0.0),
                 "frame {frame} snapped"
             );
-            let (own, _) = animator.render_true_view(frame, 0);
+            let (own, _) = animator.render_own_rays(frame, 0, None);
             assert_eq!(
                 retrace::metrics::count_differences(output.frame.as_ref().unwrap(), &own).unwrap(),
                 0,

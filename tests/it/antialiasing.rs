@@ -204,10 +204,10 @@ fn antialiased_viewports_are_no_worse_than_direct_renders_at_the_same_samples() 
             &mut accel,
             at(&reference, Techniques::FULL),
         )
-        .render_full(frame, 0);
+        .render_full(frame, 0, None);
         let (direct, _) =
             retrace::frame_loop::Animator::new(&four, &mut accel, at(&four, Techniques::FULL))
-                .render_full(frame, 0);
+                .render_full(frame, 0, None);
         let mut rsvp =
             retrace::frame_loop::Animator::new(&four, &mut accel, at(&four, Techniques::AUTO));
         let output = rsvp.render(frame).remove(0);

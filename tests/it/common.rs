@@ -26,7 +26,7 @@ pub fn run_exact_with(scene: &Scene, backend: BackendKind, options: Options) -> 
     for frame in frames {
         let output = animator.render(frame).remove(0);
         let (image, rgb, stats) = (output.frame.unwrap(), output.image, output.stats);
-        let (reference, _) = animator.render_full(frame, 0);
+        let (reference, _) = animator.render_full(frame, 0, None);
         // And against the frame built afresh: a scene posed by the timeline
         // and an accelerator of its own, sharing nothing the loop posed.
         let (afresh, _) = animator.render_full_afresh(frame, 0).unwrap();

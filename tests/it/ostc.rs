@@ -195,7 +195,7 @@ fn ostc_too_big_for_memory_is_refused_and_frames_stay_exact() {
             stats,
             ..
         } = animator.render(frame).remove(0);
-        let (reference, _) = animator.render_full(frame, 0);
+        let (reference, _) = animator.render_full(frame, 0, None);
         assert_eq!(
             count_differences(&image.unwrap(), &reference).unwrap(),
             0,
@@ -209,7 +209,7 @@ fn ostc_too_big_for_memory_is_refused_and_frames_stay_exact() {
             );
         }
     }
-    let why = animator.ostc_refusal().expect("refused");
+    let why = animator.ostc_refusal().expect("refused").to_string();
     assert!(
         why.contains("GB") && why.contains("16777216 voxels"),
         "{why}"

@@ -189,7 +189,7 @@ on_every_backend! {
             assert_eq!(outputs.len(), 1);
             assert_eq!(outputs[0].stats.mode.as_str(), "rsvp");
             traced.push(outputs[0].stats.samples_traced);
-            let (direct, _) = animator.render_full(frame, 0);
+            let (direct, _) = animator.render_full(frame, 0, None);
             let error = image_error(outputs[0].frame.as_ref().unwrap(), &direct).unwrap();
             // Measured 18.7-20.1 dB (the far checkerboard aliases at 64x48);
             // the direct render moved one pixel scores 14.1-14.6 dB, and
@@ -209,7 +209,7 @@ on_every_backend! {
         // Full mode traces the viewport's own rays.
         let mut full = Animator::new(&scene, &mut accel, Options::new(Techniques::FULL, 0..6));
         let outputs = full.render(3);
-        let (direct, _) = full.render_full(3, 0);
+        let (direct, _) = full.render_full(3, 0, None);
         assert_eq!(outputs[0].frame.as_ref().unwrap(), &direct);
     }
 }
@@ -351,7 +351,7 @@ fn eye_moves_restart_the_buffer() {
     animator.render(0);
     let outputs = animator.render(1);
     assert!(crate::common::reason(&outputs[0].stats).contains("eye moved"));
-    let (direct, _) = animator.render_full(1, 0);
+    let (direct, _) = animator.render_full(1, 0, None);
     assert!(
         image_error(outputs[0].frame.as_ref().unwrap(), &direct)
             .unwrap()
@@ -382,7 +382,7 @@ fn the_finest_pyramid_levels_resample_as_well_as_the_others() {
     let mut animator = Animator::new(&scene, &mut accel, options);
     let outputs = animator.render(0);
     assert_eq!(outputs[0].stats.finest_level, Some(16));
-    let (direct, _) = animator.render_full(0, 0);
+    let (direct, _) = animator.render_full(0, 0, None);
     let error = image_error(outputs[0].frame.as_ref().unwrap(), &direct).unwrap();
     assert!(error.psnr_db > 30.0, "{error:?}");
 }

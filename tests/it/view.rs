@@ -653,7 +653,7 @@ fn a_scene_viewport_shows_what_animate_writes_and_refines_to_its_direct_render()
     let scene = load_scene(&path.join("vp.toml"), &overrides).unwrap();
     let mut accel = Accelerator::build_with(BackendKind::default(), &scene.objects, None).unwrap();
     let mut animator = Animator::new(&scene, &mut accel, Options::new(Techniques::FULL, 0..4));
-    let (direct, _) = animator.render_view_sampled(3, 1, PixelSamples::new(16).unwrap());
+    let (direct, _) = animator.render_own_rays(3, 1, Some(PixelSamples::new(16).unwrap()));
     let converged = png(&path.join("zoom_3_converged.png"));
     assert!(converged == direct.to_rgb8());
     assert!(converged != png(&path.join("zoom_3.png")));

@@ -5,7 +5,7 @@ use std::fmt::Write as _;
 
 use anyhow::Result;
 
-use retrace::farm::ACCEPTED_REUSE_LOSS;
+use retrace::chunk::ACCEPTED_REUSE_LOSS;
 use retrace::frame_loop::{Options, Techniques};
 use retrace::lab::bench::{bench_chunking, ChunkingBench};
 use retrace::lab::plot::{line_chart, Series};

@@ -96,8 +96,11 @@ pub fn bench_chunking(
     // Untimed: the first render of a process pays for page faults and
     // rayon's threads.
     std::hint::black_box(
-        Animator::new(scene, accel, Options::new(Techniques::FULL, frames.clone()))
-            .render_full(frames.start, 0),
+        Animator::new(scene, accel, Options::new(Techniques::FULL, frames.clone())).render_full(
+            frames.start,
+            0,
+            None,
+        ),
     );
     let mut full = Vec::new();
     let mut per_count: Vec<Vec<(f64, f64, f64)>> = vec![Vec::new(); counts.len()];
@@ -108,7 +111,7 @@ pub fn bench_chunking(
             let views = animator.views(frames.start).len();
             for frame in frames.clone() {
                 for index in 0..views {
-                    let (image, _) = animator.render_true_view(frame, index);
+                    let (image, _) = animator.render_own_rays(frame, index, None);
                     std::hint::black_box(image.to_rgb8());
                 }
                 progress();

@@ -22,8 +22,8 @@ mod viewport_oracle;
 pub use chunking::{bench_chunking, ChunkingBench, ChunkingRow};
 pub use oracle::{rays_per_pixel, OracleRays};
 pub use sequence::{
-    bench_sequence, reference_samples, ErrorSummary, FrameProfile, Measure, OracleSpeedups,
-    ReferenceErrors, References, SequenceBench, BENCH_REFERENCE_SAMPLES, REFERENCE_EVERY,
+    bench_sequence, ErrorSummary, FrameProfile, Measure, OracleSpeedups, ReferenceErrors,
+    References, SequenceBench,
 };
 pub use viewport_oracle::viewport_oracle;
 

@@ -70,7 +70,7 @@ impl Oracle {
         // limit (a narrow view) no pan runs either.
         let columns = EqualAngleLattice::columns_per_turn_for(camera) as f64;
         let on_lattice = camera.projection == crate::camera::Projection::EqualAngle
-            && 8.0 * columns * columns / 2.0 <= crate::frame_loop::PAN_BUFFER_LIMIT_BYTES;
+            && 8.0 * columns * columns / 2.0 <= crate::reuse::pan::PAN_BUFFER_LIMIT_BYTES;
         let (rw, rh) = self.region_size;
         let width = i64::from(frame.width);
         // Where each pixel's sample lives (a slot of `shown`, None for none)

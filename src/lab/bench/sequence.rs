@@ -11,11 +11,12 @@ use std::time::Instant;
 
 use crate::accel::Accelerator;
 use crate::frame_loop::{Animator, Options, Techniques};
-use crate::metrics::{count_differences, image_error, ImageError};
+use crate::metrics::{
+    count_differences, image_error, reference_samples, ImageError, REFERENCE_EVERY,
+};
 use crate::pool::with_workers_awake;
 use crate::render::Frame;
 use crate::reuse::rsvp::RsvpKnobs;
-use crate::sampling::{PixelSamples, REFERENCE_SAMPLES_PER_PIXEL};
 use crate::scene::Scene;
 use crate::shade::{RayCounts, Shader};
 
@@ -82,29 +83,6 @@ pub struct ErrorSummary {
     pub differing_share: f64,
     /// Every frame equal to what it is measured by, bit for bit.
     pub identical: bool,
-}
-
-/// Samples a pixel of the converged reference the bench measures both
-/// sides against. At 640x480 a 64-spp render of an E1 or E2 frame is
-/// 52.7-54.3 dB from a 256-spp one, and 4 spp is 35.6-36.3 dB from it, so
-/// the reference's own error is under 2% of the squared error it helps
-/// measure at 4 spp (under 0.1 dB), at a quarter of 256 spp's time.
-pub const BENCH_REFERENCE_SAMPLES: u32 = 64;
-
-/// Frames between two that get a reference (the last frame always does):
-/// a reference frame costs as much as 64 frames at 1 spp.
-pub const REFERENCE_EVERY: u32 = 20;
-
-/// The reference a run at `run` samples a pixel is measured against: the
-/// bench's count, or the converged count when the run has as many (a
-/// reference no finer than the run would measure nothing).
-pub fn reference_samples(run: PixelSamples) -> PixelSamples {
-    let count = if run.count() < BENCH_REFERENCE_SAMPLES {
-        BENCH_REFERENCE_SAMPLES
-    } else {
-        REFERENCE_SAMPLES_PER_PIXEL
-    };
-    PixelSamples::new(count).expect("the reference counts are within the limits")
 }
 
 /// Converged references of a scene's views, by frame, view and whether
@@ -190,8 +168,8 @@ pub struct Measure {
     /// The camera image's oracle (camera sequences only).
     pub oracle: bool,
     /// Both sides against a converged reference (see
-    /// [`BENCH_REFERENCE_SAMPLES`]), on every [`REFERENCE_EVERY`]th frame
-    /// and the last.
+    /// [`crate::metrics::BENCH_REFERENCE_SAMPLES`]), on every
+    /// [`REFERENCE_EVERY`]th frame and the last.
     pub reference: bool,
 }
 
@@ -288,7 +266,7 @@ pub fn bench_sequence(
     // Untimed: the first render of a process pays for page faults and
     // rayon's threads, which neither side should.
     std::hint::black_box(
-        Animator::new(scene, accel, full_options.clone()).render_full(frames.start, 0),
+        Animator::new(scene, accel, full_options.clone()).render_full(frames.start, 0, None),
     );
     let (mut full_times, mut fast_times) = (Vec::new(), Vec::new());
     // Per frame and round, for per-frame medians.
@@ -311,7 +289,7 @@ pub fn bench_sequence(
                     // Each view's own rays, rendered in place: the fastest
                     // plain render of the frame (a snapped pan's lattice
                     // render copies its samples into place besides).
-                    let (image, rays) = full.render_true_view(frame, index);
+                    let (image, rays) = full.render_own_rays(frame, index, None);
                     std::hint::black_box(image.to_rgb8());
                     frame_rays += rays;
                 }
@@ -503,7 +481,7 @@ fn check_sequence(
         for (index, output) in outputs.iter().enumerate() {
             let image = output.frame.as_ref().expect("linear output is on");
             if exact {
-                let (full, _) = check.render_full(frame, index);
+                let (full, _) = check.render_full(frame, index, None);
                 let same = frame_hash(image) == frame_hash(&full);
                 row.exact = Some(same);
                 all_exact &= same;
@@ -523,7 +501,7 @@ fn check_sequence(
                 }
             }
             let truth =
-                (measure.error || referenced).then(|| check.render_true_view(frame, index).0);
+                (measure.error || referenced).then(|| check.render_own_rays(frame, index, None).0);
             if let (true, Some(truth)) = (measure.error, &truth) {
                 // A view and its own rays are one size: a bug otherwise.
                 let error = image_error(image, truth).expect("a view's frames");
@@ -535,7 +513,9 @@ fn check_sequence(
                 let keyed = references
                     .0
                     .entry((frame, index, ViewShown::Keyed))
-                    .or_insert_with(|| check.render_view_sampled(frame, index, reference_count).0);
+                    .or_insert_with(|| {
+                        check.render_own_rays(frame, index, Some(reference_count)).0
+                    });
                 let full = image_error(truth, keyed).expect("a view's frames");
                 let snapped = exact && output.stats.off_keyed_view();
                 let fast = if snapped {
@@ -544,7 +524,7 @@ fn check_sequence(
                         .0
                         .entry((frame, index, ViewShown::Snapped))
                         .or_insert_with(|| {
-                            check.render_full_sampled(frame, index, reference_count).0
+                            check.render_full(frame, index, Some(reference_count)).0
                         });
                     image_error(image, shown).expect("a view's frames")
                 } else {
@@ -621,6 +601,7 @@ fn plain_render_ms(animator: &mut Animator, frame: u32) -> f64 {
 mod tests {
     use super::*;
     use crate::accel::BackendKind;
+    use crate::metrics::BENCH_REFERENCE_SAMPLES;
     use crate::scene::{builtin_scene, SceneOverrides};
 
     const REFERENCE_ONLY: Measure = Measure {
@@ -761,13 +742,5 @@ mod tests {
             bench.speedup,
             bench.round_speedups
         );
-    }
-
-    #[test]
-    fn the_reference_is_finer_than_the_run() {
-        let count = |spp| reference_samples(PixelSamples::new(spp).unwrap()).count();
-        assert_eq!(count(1), BENCH_REFERENCE_SAMPLES);
-        assert_eq!(count(16), BENCH_REFERENCE_SAMPLES);
-        assert_eq!(count(BENCH_REFERENCE_SAMPLES), REFERENCE_SAMPLES_PER_PIXEL);
     }
 }

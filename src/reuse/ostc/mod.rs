@@ -59,6 +59,23 @@ use rayon::prelude::*;
 use crate::ray::{lanes, LaneMask, Ray, RayPacket, PACKET_WIDTH};
 use crate::render::SampleGroup;
 use crate::reuse::regions::{RegionLayout, RegionSet};
+use crate::reuse::{Idle, Run};
+
+/// Why OSTC cannot act on `run`, whether asked for or not.
+pub fn idle_reason(run: &Run) -> Option<Idle> {
+    if !run
+        .scene
+        .animation
+        .as_ref()
+        .is_some_and(|a| a.moves_scene())
+    {
+        Some(Idle::NothingMoves)
+    } else if run.has_viewports() && !run.options.techniques.rsvp {
+        Some(Idle::ViewportsWithoutRsvp)
+    } else {
+        None
+    }
+}
 
 mod footprint;
 

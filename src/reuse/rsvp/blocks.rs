@@ -4,7 +4,7 @@
 //! so a patch's samples are a few rows of one or two plain arrays instead
 //! of strided runs from every owner.
 //!
-//! Derived data: a block is assembled from the stores the first time a
+//! Derived data: a block is assembled from the tiles the first time a
 //! frame reads it, and from then on follows every traced group. It holds
 //! exactly what assembling it again would give (erasing only clears traced
 //! bits, so it changes nothing here), which the tests check.
@@ -19,7 +19,7 @@ use super::{
     filter::{encode, SampleCode},
     lattice::{column_runs, owned_positions, wrap},
     map::SampleBox,
-    store::{tile_key, TileCache, TileHasher, TILE_COLS},
+    tiles::{tile_key, TileCache, TileHasher, TILE_COLS},
     Level, SampleBuffer, SampleLattice,
 };
 use crate::ray::PACKET_WIDTH;
@@ -152,7 +152,7 @@ impl SampleBuffer {
             blocks.give_up_unread(frame - 1, &mut self.spare_blocks);
         }
         // New blocks are assembled before they join their levels, so the
-        // stores can be read while they are written.
+        // tiles can be read while they are written.
         let mut fresh: Vec<Box<[SampleCode]>> = wanted
             .iter()
             .map(|_| {
@@ -173,7 +173,7 @@ impl SampleBuffer {
         }
     }
 
-    /// Block `key` of `level` from the stores: each row owner by owner.
+    /// Block `key` of `level` from the tiles: each row owner by owner.
     /// Rows past the pole and columns past the turn are black (no read
     /// reaches them: reads clamp rows and wrap columns).
     fn assemble_block(&self, level: Level, key: (i64, i64), out: &mut [SampleCode]) {
@@ -236,7 +236,7 @@ impl SampleBuffer {
         out: &mut [Vec3],
         stride: usize,
     ) {
-        let store = &self.levels[level.index()];
+        let samples = &self.levels[level.index()];
         let columns = self.lattice.slot_columns(level);
         let count = out.len().div_ceil(stride);
         let mut i = 0;
@@ -246,8 +246,9 @@ impl SampleBuffer {
             let run = (count - i)
                 .min((TILE_COLS - (wc & (TILE_COLS - 1))) as usize)
                 .min((columns - wc) as usize);
-            let tile = cache.tile(store, level, key);
-            let source = (tile != u32::MAX).then(|| &store.tile_colors(tile)[sample..sample + run]);
+            let tile = cache.tile(samples, level, key);
+            let source =
+                (tile != u32::MAX).then(|| &samples.tile_colors(tile)[sample..sample + run]);
             match (source, stride) {
                 (None, 1) => out[i..i + run].fill(Vec3::ZERO),
                 (Some(source), 1) => out[i..i + run].copy_from_slice(source),
@@ -259,7 +260,7 @@ impl SampleBuffer {
     }
 
     /// Samples of the assembled blocks that differ (bit for bit) from
-    /// assembling the blocks again from the stores: none, unless a traced
+    /// assembling the blocks again from the tiles: none, unless a traced
     /// group was not followed.
     pub(super) fn stale_block_samples(&self) -> u64 {
         let mut fresh: Vec<SampleCode> = vec![0; BLOCK_SAMPLES];
@@ -339,7 +340,7 @@ fn copy_samples(out: &mut [SampleCode], source: &[SampleCode]) {
 /// Writes freshly traced groups (sorted by level, as `trace` keeps them)
 /// into every assembled block of `blocks` (by level index) holding their
 /// positions: at their own level and at every finer one. A free function
-/// so that it can run beside the stores keeping the same groups.
+/// so that it can run beside the tiles keeping the same groups.
 pub(super) fn follow_traced(
     blocks: &mut [LevelBlocks],
     lattice: &SampleLattice,

@@ -9,7 +9,7 @@ use super::{
     blocks::SampleView,
     filter::{bilinear, decode, encode, filter_split, mean, rgb8, SampleCode},
     map::{nan_filled, Mapped, SampleBox, GRID_SPACING},
-    store::{tile_key, TileCache},
+    tiles::{tile_key, TileCache},
     viewport::PixelMap,
     Filter, Level, SampleBuffer, PATCH,
 };
@@ -24,10 +24,10 @@ impl SampleBuffer {
         let row = row.clamp(0, self.lattice.last_row(level.y));
         let (owner, col, row) = self.lattice.owner(level, col, row);
         let (key, sample, _) = tile_key(col, row);
-        let store = &self.levels[owner.index()];
-        match cache.tile(store, owner, key) {
+        let samples = &self.levels[owner.index()];
+        match cache.tile(samples, owner, key) {
             u32::MAX => Vec3::ZERO,
-            tile => store.tile_colors(tile)[sample],
+            tile => samples.tile_colors(tile)[sample],
         }
     }
 
@@ -144,7 +144,7 @@ impl SampleBuffer {
         (frame, image)
     }
 
-    /// A pixel's code at lattice coordinates (x, y), from the stores: as
+    /// A pixel's code at lattice coordinates (x, y), from the tiles: as
     /// [`gather_patch`] makes it from the blocks.
     #[inline(always)]
     fn filter(

@@ -11,7 +11,7 @@ use super::{
     fast_atan2,
     filter::{filter_origin, filter_reads},
     lattice::{column_runs, owned_positions},
-    store::{tile_key, TILE_COLS, TILE_COL_SHIFT, TILE_ROW_SHIFT},
+    tiles::{tile_key, TILE_COLS, TILE_COL_SHIFT, TILE_ROW_SHIFT},
     viewport::PixelMap,
     Filter, Level, RsvpKnobs, SampleBuffer, MAX_LEVEL, PATCH,
 };
@@ -404,10 +404,10 @@ impl SampleBuffer {
     /// `row` covering slot columns `c_from..=c_to` was traced: whole tiles'
     /// masks at once.
     fn run_traced(&self, owner: Level, row: i64, c_from: i64, c_to: i64) -> bool {
-        let store = &self.levels[owner.index()];
+        let samples = &self.levels[owner.index()];
         let columns = self.lattice.slot_columns(owner);
         tile_spans(columns, row, c_from, c_to, |key, wanted| {
-            let traced = store.tile(key).map_or(0, |t| store.traced[t as usize]);
+            let traced = samples.tile(key).map_or(0, |t| samples.traced[t as usize]);
             traced & wanted == wanted
         })
     }
@@ -580,11 +580,11 @@ impl<'a> GroupRequests<'a> {
         let slot_index = (((owner.x & 3) * 4 + (owner.y & 3)) * 2) as usize + (key.1 & 1) as usize;
         let slot = &mut self.cached[slot_index];
         if (slot.0, slot.1) != (index, key) {
-            let store = &self.buffer.levels[index];
+            let samples = &self.buffer.levels[index];
             *slot = (
                 index,
                 key,
-                store.tile(key).map_or(0, |t| store.traced[t as usize]),
+                samples.tile(key).map_or(0, |t| samples.traced[t as usize]),
             );
         }
         &mut slot.2
@@ -776,7 +776,7 @@ mod tests {
     #[test]
     fn trace_order_keys_keep_every_level_and_sort_by_it() {
         // Levels past index 255 (level 15 in azimuth and finer) need a
-        // ninth bit: a key without it sends them to a coarser level's store.
+        // ninth bit: a key without it sends them to a coarser level's tiles.
         let far = SampleGroup {
             col: (1 << ORDER_COORD_BITS) - 4,
             row: (1 << ORDER_COORD_BITS) - 2,

@@ -36,11 +36,13 @@ mod filter;
 mod gather;
 mod lattice;
 mod map;
-mod store;
+mod plan;
+mod tiles;
 mod viewport;
 
 pub use filter::{Filter, RsvpKnobs};
 pub use lattice::{fast_atan2, Level, LevelRays, SampleLattice};
+pub use plan::RsvpPlan;
 pub use viewport::{render_direct, render_direct_sampled, ViewportRays};
 
 use std::f64::consts::FRAC_PI_2;
@@ -62,7 +64,7 @@ use filter::filter_reads;
 use filter::SampleCode;
 use lattice::wrap;
 use map::nan_filled;
-use store::{
+use tiles::{
     group_key, key_group, tile_key, traced_groups, LevelSamples, TracedGroups, TILE_COLS,
     TILE_COL_SHIFT, TILE_ROW_SHIFT,
 };

@@ -23,7 +23,7 @@ pub(super) const TILE_SAMPLES: usize = (TILE_COLS * TILE_ROWS) as usize;
 const _: () = assert!(TILE_COLS / GROUP_WIDTH as i64 == 64);
 const _: () = assert!(1 << TILE_COL_SHIFT == TILE_COLS && 1 << TILE_ROW_SHIFT == TILE_ROWS);
 
-/// Tiles per chunk of a store's samples: 192 KB, allocated zeroed (memory
+/// Tiles per chunk of a level's samples: 192 KB, allocated zeroed (memory
 /// fresh from the system stays untouched until a sample on its page is
 /// kept) and never moved.
 const CHUNK_TILES: usize = 32;
@@ -104,15 +104,15 @@ pub(super) fn key_group(key: u128) -> (Level, SampleGroup) {
     (level, group)
 }
 
-/// Every traced group of a level's store: (group, tile, bit in its mask).
+/// Every traced group of a level's samples: (group, tile, bit in its mask).
 pub(super) fn traced_groups(
-    store: &LevelSamples,
+    samples: &LevelSamples,
 ) -> impl Iterator<Item = (SampleGroup, usize, u32)> + '_ {
-    store
+    samples
         .tiles
         .iter()
         .flat_map(move |(&(tile_col, tile_row), &tile)| {
-            let mut rest = store.traced[tile as usize];
+            let mut rest = samples.traced[tile as usize];
             std::iter::from_fn(move || {
                 if rest == 0 {
                     return None;
@@ -227,16 +227,16 @@ impl TileCache {
         }
     }
 
-    /// The tile of `key` in `store` (level `level`), or u32::MAX if none.
+    /// The tile of `key` in `samples` (level `level`), or u32::MAX if none.
     #[inline(always)]
-    pub(super) fn tile(&mut self, store: &LevelSamples, level: Level, key: (i64, i64)) -> u32 {
+    pub(super) fn tile(&mut self, samples: &LevelSamples, level: Level, key: (i64, i64)) -> u32 {
         let index = level.index();
         // Distinct for levels within 4 of each other in azimuth and 8 in
         // elevation: the owners one patch reads.
         let slot = (((level.x & 3) * 8 + (level.y & 7)) * 2) as usize + (key.1 & 1) as usize;
         if self.keys[slot] != (index, key) {
             self.keys[slot] = (index, key);
-            self.tiles[slot] = store.tile(key).unwrap_or(u32::MAX);
+            self.tiles[slot] = samples.tile(key).unwrap_or(u32::MAX);
         }
         self.tiles[slot]
     }

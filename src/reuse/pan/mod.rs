@@ -17,6 +17,10 @@
 //! position and trace the same aligned groups, so a shifted frame equals a
 //! full render bit for bit.
 
+mod plan;
+
+pub use plan::{PanPlan, PAN_BUFFER_LIMIT_BYTES};
+
 use std::f64::consts::{FRAC_PI_2, TAU};
 use std::time::Instant;
 

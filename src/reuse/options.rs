@@ -1,10 +1,10 @@
 //! What a run of the frame loop is asked to do, settled before its first
 //! frame.
 
-use crate::reuse::ostc::DEFAULT_VOXELS;
-use crate::reuse::pan::FractionalPan;
-use crate::reuse::regions::RegionGrid;
-use crate::reuse::rsvp::RsvpKnobs;
+use super::ostc::DEFAULT_VOXELS;
+use super::pan::FractionalPan;
+use super::regions::RegionGrid;
+use super::rsvp::RsvpKnobs;
 
 /// One reuse technique.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -88,7 +88,7 @@ impl Techniques {
     }
 
     /// Whether a camera image may be kept in a buffer.
-    pub(super) fn buffered(self) -> bool {
+    pub fn buffered(self) -> bool {
         self.pan || self.ostc
     }
 }
@@ -127,7 +127,7 @@ impl OstcSettings {
     }
 }
 
-/// Everything a run of [`super::Animator`] is asked for.
+/// Everything a run of the frame loop is asked for.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Options {
     pub techniques: Techniques,
