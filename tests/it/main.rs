@@ -9,6 +9,7 @@ mod animate;
 mod antialiasing;
 mod cli;
 mod cli_messages;
+mod docs;
 mod extremes;
 mod farm;
 mod fuzz;
