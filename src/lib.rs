@@ -32,6 +32,7 @@ pub mod scene;
 pub mod shade;
 pub mod texture;
 pub mod timeline;
+pub mod verify;
 #[cfg(feature = "view")]
 pub mod view;
 pub mod voxel;

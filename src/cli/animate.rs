@@ -8,11 +8,10 @@ use std::time::Instant;
 use anyhow::{Context, Result};
 use clap::Args;
 
-use retrace::frame_loop::{Animator, FrameStats, Options, Techniques, ViewOutput};
-use retrace::metrics::{reference_samples, ImageError, REFERENCE_EVERY};
+use retrace::frame_loop::{Animator, FrameStats, Options, Techniques};
 use retrace::output::{save_image, PendingFile};
-use retrace::sampling::PixelSamples;
 
+use super::verify::RunCheck;
 use super::{
     check_writable, ensure_parent, folder_of, frame_pattern, idle_flag, load, on_interrupt,
     parse_frame_range, scene_name, BackendArg, FramePattern, OstcArgs, Progress, RsvpKnobArgs,
@@ -138,22 +137,6 @@ impl GifWriter {
         drop(self.encoder.take());
         Ok(self.file.commit()?)
     }
-}
-
-/// Closes what an animation run writes besides its frames.
-fn finish_outputs(
-    gif: Option<GifWriter>,
-    stats_path: Option<&Path>,
-    stats: &[retrace::frame_loop::FrameStats],
-    earlier: &[serde_json::Value],
-) -> Result<()> {
-    if let Some(gif) = gif {
-        gif.finish()?;
-    }
-    if let Some(path) = stats_path {
-        write_stats(path, stats, earlier)?;
-    }
-    Ok(())
 }
 
 fn write_stats(
@@ -365,28 +348,7 @@ fn check_outputs(args: &AnimateArgs, stats: Option<&Path>) -> Result<()> {
 }
 
 pub(crate) fn animate(args: AnimateArgs) -> Result<()> {
-    let frame_files = FramePattern::parse(&args.output)?;
-    let traced_files = args
-        .dirty_image
-        .as_deref()
-        .map(FramePattern::parse)
-        .transpose()?;
-    let store_files = args
-        .buffer_image
-        .as_deref()
-        .map(FramePattern::parse)
-        .transpose()?;
-    let extension = |path: &Path| path.extension().map(|e| e.to_string_lossy().to_lowercase());
-    if let Some(path) = &args.stats {
-        if !matches!(extension(path).as_deref(), Some("csv" | "json")) {
-            anyhow::bail!("--stats {}: use a .csv or .json file", path.display());
-        }
-    }
-    if let Some(path) = &args.gif {
-        if extension(path).as_deref() != Some("gif") {
-            anyhow::bail!("--gif {}: use a .gif file", path.display());
-        }
-    }
+    let mut files = OutputFiles::parse(&args)?;
     let scene = load(&args.scene)?;
     if scene.animation.is_none() {
         eprintln!(
@@ -409,69 +371,157 @@ pub(crate) fn animate(args: AnimateArgs) -> Result<()> {
         fractional_pan: args.fractional_pan.unwrap_or_default(),
         ostc: args.ostc.settings(),
         rsvp: args.rsvp.knobs(scene.samples)?,
-        traced_images: traced_files.is_some(),
+        traced_images: files.traced.is_some(),
     };
-    refuse_idle_flags(&args, &scene, &options, store_files.is_some())?;
+    refuse_idle_flags(&args, &scene, &options, files.store.is_some())?;
     check_outputs(&args, stats_path.as_deref())?;
-    let has_viewports = !scene.viewports.is_empty();
-    let mut gif = match &args.gif {
-        Some(path) => Some(GifWriter::create(path, fps)?),
-        None => None,
-    };
+    if let Some(path) = &args.gif {
+        files.gif = Some(GifWriter::create(path, fps)?);
+    }
     let mut accel = args.backend.build(&scene)?;
     let mut animator = Animator::new(&scene, &mut accel, options);
+    // What an interrupt says and saves: the frames finished so far, their
+    // statistics, and how to resume.
+    let finished = Arc::new(Mutex::new(Vec::<FrameStats>::new()));
+    let earlier = Arc::new(earlier_stats(&args, stats_path.as_deref())?);
+    save_on_interrupt(&finished, &earlier, stats_path.clone(), *range.start());
+    let region_size = args.ostc.settings().region_size(
+        scene.camera.width,
+        scene.camera.height,
+        animator.has_viewports(),
+    );
+    let mut run_check = RunCheck::new(scene.samples, (*range.start(), *range.end()), region_size);
+    let rendered = render_frames(
+        &args,
+        &mut animator,
+        &range,
+        &mut files,
+        &finished,
+        &mut run_check,
+    )?;
+    let all_stats = std::mem::take(&mut *finished.lock().unwrap_or_else(PoisonError::into_inner));
+    if let Some(gif) = files.gif {
+        gif.finish()?;
+    }
+    if let Some(path) = &stats_path {
+        write_stats(path, &all_stats, &earlier)?;
+    }
+    // Reuse that was asked for but could not apply is worth a word.
+    let mut refusals: Vec<String> = all_stats
+        .iter()
+        .filter_map(|s| s.refusal().map(|r| r.to_string()))
+        .collect();
+    refusals.dedup();
+    for reason in refusals {
+        eprintln!("warning: rendered in full: {reason}");
+    }
+    warn_ostc_refused(&animator);
+    run_check.say_store()?;
+    say_run(&args, &animator, &rendered, &all_stats);
+    if args.verify && !all_stats.is_empty() {
+        run_check.say(&animator, &rendered.names, &all_stats)?;
+    }
+    Ok(())
+}
+
+/// Where a run's pictures go: its frames, and as asked the traced-sample
+/// images, the store's pictures and a GIF.
+struct OutputFiles {
+    frames: FramePattern,
+    traced: Option<FramePattern>,
+    store: Option<FramePattern>,
+    gif: Option<GifWriter>,
+}
+
+impl OutputFiles {
+    /// The file patterns the flags name, checked before any work (the GIF
+    /// is created once the run is known to go ahead).
+    fn parse(args: &AnimateArgs) -> Result<OutputFiles> {
+        let pattern = |flag: &Option<String>| flag.as_deref().map(FramePattern::parse).transpose();
+        let extension = |path: &Path| path.extension().map(|e| e.to_string_lossy().to_lowercase());
+        if let Some(path) = &args.stats {
+            if !matches!(extension(path).as_deref(), Some("csv" | "json")) {
+                anyhow::bail!("--stats {}: use a .csv or .json file", path.display());
+            }
+        }
+        if let Some(path) = &args.gif {
+            if extension(path).as_deref() != Some("gif") {
+                anyhow::bail!("--gif {}: use a .gif file", path.display());
+            }
+        }
+        Ok(OutputFiles {
+            frames: FramePattern::parse(&args.output)?,
+            traced: pattern(&args.dirty_image)?,
+            store: pattern(&args.buffer_image)?,
+            gif: None,
+        })
+    }
+}
+
+/// On an interrupt, says which frames were kept and how to resume, and
+/// writes the statistics of the `finished` frames.
+fn save_on_interrupt(
+    finished: &Arc<Mutex<Vec<FrameStats>>>,
+    earlier: &Arc<Vec<serde_json::Value>>,
+    stats_path: Option<PathBuf>,
+    first: u32,
+) {
+    let (finished, earlier) = (Arc::clone(finished), Arc::clone(earlier));
+    on_interrupt(move || {
+        let stats = finished.lock().unwrap_or_else(PoisonError::into_inner);
+        let mut frames: Vec<u32> = stats.iter().map(|s| s.frame).collect();
+        frames.dedup();
+        eprintln!(
+            "{} of this run kept ({}); resume with:\n  {}",
+            counted(frames.len() as u64, "finished frame"),
+            match (frames.first(), frames.last()) {
+                (Some(a), Some(b)) => format!("frames {a}-{b}"),
+                _ => format!("none from frame {first} on"),
+            },
+            resume_command()
+        );
+        if let Some(path) = &stats_path {
+            if !stats.is_empty() {
+                match write_stats(path, &stats, &earlier) {
+                    Ok(()) => eprintln!("statistics of those frames: {}", path.display()),
+                    Err(err) => eprintln!("cannot write {}: {err}", path.display()),
+                }
+            }
+        }
+    });
+}
+
+/// What a run rendered: its views' names, the frames `--skip-existing`
+/// left, and the time spent writing files.
+struct Rendered {
+    names: Vec<String>,
+    frames: u32,
+    skipped: u32,
+    write_ms: f64,
+}
+
+/// Renders the frames of `range`, writes their files, checks them with
+/// `--verify`, and keeps each view's statistics in `finished` as it is
+/// done.
+fn render_frames(
+    args: &AnimateArgs,
+    animator: &mut Animator,
+    range: &std::ops::RangeInclusive<u32>,
+    files: &mut OutputFiles,
+    finished: &Mutex<Vec<FrameStats>>,
+    run_check: &mut RunCheck,
+) -> Result<Rendered> {
     let names: Vec<String> = animator
         .views(*range.start())
         .into_iter()
         .map(|view| view.name)
         .collect();
     let mut progress = Progress::new(u64::from(range.end() - range.start() + 1));
-    // What an interrupt says and saves: the frames finished so far, their
-    // statistics, and how to resume.
-    let finished = Arc::new(Mutex::new(Vec::<FrameStats>::new()));
-    let earlier = Arc::new(earlier_stats(&args, stats_path.as_deref())?);
-    {
-        let (finished, stats_path) = (Arc::clone(&finished), stats_path.clone());
-        let earlier = Arc::clone(&earlier);
-        let first = *range.start();
-        on_interrupt(move || {
-            let stats = finished.lock().unwrap_or_else(PoisonError::into_inner);
-            let mut frames: Vec<u32> = stats.iter().map(|s| s.frame).collect();
-            frames.dedup();
-            eprintln!(
-                "{} of this run kept ({}); resume with:\n  {}",
-                counted(frames.len() as u64, "finished frame"),
-                match (frames.first(), frames.last()) {
-                    (Some(a), Some(b)) => format!("frames {a}-{b}"),
-                    _ => format!("none from frame {first} on"),
-                },
-                resume_command()
-            );
-            if let Some(path) = &stats_path {
-                if !stats.is_empty() {
-                    match write_stats(path, &stats, &earlier) {
-                        Ok(()) => eprintln!("statistics of those frames: {}", path.display()),
-                        Err(err) => eprintln!("cannot write {}: {err}", path.display()),
-                    }
-                }
-            }
-        });
-    }
-    let region_size =
-        args.ostc
-            .settings()
-            .region_size(scene.camera.width, scene.camera.height, has_viewports);
-    let mut failed_frames = Vec::new();
-    let mut against_reference = ReferenceCheck::new(scene.samples);
-    let mut previous_reference: Option<retrace::render::Frame> = None;
-    // (frames checked, samples compared, samples differing)
-    let mut store_check = (0u32, 0u64, 0u64);
-    let mut write_ms = 0.0;
-    let mut skipped = 0;
+    let (mut write_ms, mut skipped) = (0.0, 0);
     for frame in range.clone() {
-        if args.skip_existing && names.iter().all(|n| frame_files.path(frame, n).exists()) {
-            if let Some(gif) = &mut gif {
-                gif.add_file(&frame_files.path(frame, &names[0]))?;
+        if args.skip_existing && names.iter().all(|n| files.frames.path(frame, n).exists()) {
+            if let Some(gif) = &mut files.gif {
+                gif.add_file(&files.frames.path(frame, &names[0]))?;
             }
             skipped += 1;
             progress.frame_done(frame, "skipped: its files exist");
@@ -481,39 +531,15 @@ pub(crate) fn animate(args: AnimateArgs) -> Result<()> {
         let (mut frame_ms, mut frame_samples) = (0.0, 0);
         for (index, mut output) in outputs.into_iter().enumerate() {
             if args.verify {
-                let (differing, reference) =
-                    verify_view(&mut animator, frame, index, &mut output, has_viewports)?;
-                // The regions a perfect OSTC would re-trace, from the
-                // references' changes (of the camera's image).
-                if !has_viewports {
-                    if let Some(previous) = &previous_reference {
-                        output.stats.changed_regions = Some(retrace::metrics::changed_regions(
-                            previous,
-                            &reference,
-                            region_size,
-                        )?);
-                    }
-                    previous_reference = Some(reference);
-                }
-                if animator.is_exact() && differing != (0, 0) {
-                    failed_frames.push((frame, differing));
-                }
-                let last = frame == *range.end();
-                let sampled = last || (frame - range.start()) % REFERENCE_EVERY == 0;
-                // Exact output off its camera's own rays is a snapped pan:
-                // approximate against the camera's view, so measured too.
-                let approximate = !animator.is_exact() || output.stats.off_keyed_view();
-                if sampled && approximate {
-                    against_reference.add(&mut animator, frame, index, &output)?;
-                }
+                run_check.check_view(animator, frame, index, &mut output)?;
             }
             let write_start = Instant::now();
-            save_image(&frame_files.path(frame, &output.name), &output.image)?;
-            if let (Some(files), Some(traced)) = (&traced_files, &output.traced_image) {
-                save_image(&files.path(frame, &output.name), traced)?;
+            save_image(&files.frames.path(frame, &output.name), &output.image)?;
+            if let (Some(traced_files), Some(traced)) = (&files.traced, &output.traced_image) {
+                save_image(&traced_files.path(frame, &output.name), traced)?;
             }
             if index == 0 {
-                if let Some(gif) = &mut gif {
+                if let Some(gif) = &mut files.gif {
                     gif.add(&output.image)?;
                 }
             }
@@ -525,21 +551,15 @@ pub(crate) fn animate(args: AnimateArgs) -> Result<()> {
                 .unwrap_or_else(PoisonError::into_inner)
                 .push(output.stats);
         }
-        if let Some(files) = &store_files {
+        if let Some(store_files) = &files.store {
             if let Some(picture) = animator.store_picture(frame) {
                 let write_start = Instant::now();
-                save_image(&files.path(frame, ""), &picture)?;
+                save_image(&store_files.path(frame, ""), &picture)?;
                 write_ms += write_start.elapsed().as_secs_f64() * 1e3;
             }
         }
-        // A store's samples must be exactly what a fresh trace gives,
-        // however objects moved: re-trace them all, every frame.
         if args.verify {
-            if let Some((compared, differing)) = animator.verify_store() {
-                store_check.0 += 1;
-                store_check.1 += compared;
-                store_check.2 += differing;
-            }
+            run_check.check_store(animator);
         }
         progress.frame_done(
             frame,
@@ -550,174 +570,12 @@ pub(crate) fn animate(args: AnimateArgs) -> Result<()> {
         );
     }
     progress.finish();
-    let all_stats = std::mem::take(&mut *finished.lock().unwrap_or_else(PoisonError::into_inner));
-    finish_outputs(gif, stats_path.as_deref(), &all_stats, &earlier)?;
-    // Reuse that was asked for but could not apply is worth a word.
-    let mut refusals: Vec<String> = all_stats
-        .iter()
-        .filter_map(|s| s.refusal().map(|r| r.to_string()))
-        .collect();
-    refusals.dedup();
-    for reason in refusals {
-        eprintln!("warning: rendered in full: {reason}");
-    }
-    warn_ostc_refused(&animator);
-    if store_check.0 > 0 {
-        say!(
-            "verify: buffer samples re-traced at {} frame(s): {} compared, {} differ",
-            store_check.0,
-            store_check.1,
-            store_check.2
-        );
-        if store_check.2 > 0 {
-            anyhow::bail!(
-                "verification failed: {} buffer samples differ from a fresh trace",
-                store_check.2
-            );
-        }
-    }
-    let rendered = range.end() - range.start() + 1 - skipped;
-    let (what, references) = if has_viewports {
-        (
-            format!(
-                "{} x {} ({}){}",
-                counted(u64::from(rendered), "frame"),
-                counted(names.len() as u64, "viewport"),
-                names.join(", "),
-                skipped_note(skipped)
-            ),
-            "direct renders",
-        )
-    } else {
-        (
-            format!(
-                "{}{}",
-                counted(u64::from(rendered), "frame"),
-                skipped_note(skipped)
-            ),
-            "full renders",
-        )
-    };
-    say_run(&args, &what, &all_stats, write_ms, references);
-    if args.verify && !all_stats.is_empty() {
-        say_verified(&animator, &names, &all_stats, &failed_frames)?;
-        against_reference.say(&names);
-    }
-    Ok(())
-}
-
-/// With `--verify`, approximate output and the full render at the run's
-/// samples, both against a converged reference of the same views (the
-/// bench's: see [`retrace::metrics::BENCH_REFERENCE_SAMPLES`]), on every
-/// [`REFERENCE_EVERY`]th frame of the run and the last.
-struct ReferenceCheck {
-    run: PixelSamples,
-    reference: PixelSamples,
-    frames: Vec<u32>,
-    errors: Vec<ReferenceErrors>,
-}
-
-/// One view of one frame against the converged reference.
-struct ReferenceErrors {
-    view: String,
-    /// The full render of the keyed view at the run's samples.
-    full: ImageError,
-    /// The output, against the reference of the view it shows.
-    output: ImageError,
-    /// A snapped pan's output against the keyed camera's reference.
-    snapped_vs_keyed: Option<ImageError>,
-}
-
-impl ReferenceCheck {
-    fn new(run: PixelSamples) -> ReferenceCheck {
-        ReferenceCheck {
-            run,
-            reference: reference_samples(run),
-            frames: Vec::new(),
-            errors: Vec::new(),
-        }
-    }
-
-    fn add(
-        &mut self,
-        animator: &mut Animator,
-        frame: u32,
-        index: usize,
-        output: &ViewOutput,
-    ) -> Result<()> {
-        let image = output
-            .frame
-            .as_ref()
-            .expect("verification keeps linear colour");
-        let (keyed, _) = animator.render_own_rays(frame, index, Some(self.reference));
-        let (full, _) = animator.render_own_rays(frame, index, None);
-        // A snapped pan's frame is an exact render of the camera moved onto
-        // the lattice: measured against that view's reference, and against
-        // the keyed camera's besides.
-        let snapped = animator.is_exact() && output.stats.off_keyed_view();
-        let (output_error, snapped_vs_keyed) = if snapped {
-            let (shown, _) = animator.render_full(frame, index, Some(self.reference));
-            (
-                retrace::metrics::image_error(image, &shown)?,
-                Some(retrace::metrics::image_error(image, &keyed)?),
-            )
-        } else {
-            (retrace::metrics::image_error(image, &keyed)?, None)
-        };
-        self.errors.push(ReferenceErrors {
-            view: output.name.clone(),
-            full: retrace::metrics::image_error(&full, &keyed)?,
-            output: output_error,
-            snapped_vs_keyed,
-        });
-        if self.frames.last() != Some(&frame) {
-            self.frames.push(frame);
-        }
-        Ok(())
-    }
-
-    /// Two lines a view, full render above output, with the same figures.
-    fn say(&self, names: &[String]) {
-        if self.errors.is_empty() {
-            return;
-        }
-        let frames: Vec<String> = self.frames.iter().map(u32::to_string).collect();
-        for name in names {
-            let rows = || self.errors.iter().filter(|e| &e.view == name);
-            let label = if name.is_empty() {
-                String::new()
-            } else {
-                format!(" {name}")
-            };
-            let heading = format!(
-                "verify{label} (against a {}-spp reference, frames {})",
-                self.reference.count(),
-                frames.join(", ")
-            );
-            let full = format!("full render at {} spp:", self.run.count());
-            say!(
-                "{heading}: {full:26} {}",
-                error_summary(rows().map(|e| e.full))
-            );
-            let snapped = rows().any(|e| e.snapped_vs_keyed.is_some());
-            say!(
-                "{heading}: {:26} {}",
-                if snapped {
-                    "output (its snapped view):"
-                } else {
-                    "accelerated output:"
-                },
-                error_summary(rows().map(|e| e.output))
-            );
-            if snapped {
-                say!(
-                    "{heading}: {:26} {}",
-                    "output (keyed camera):",
-                    error_summary(rows().filter_map(|e| e.snapped_vs_keyed))
-                );
-            }
-        }
-    }
+    Ok(Rendered {
+        names,
+        frames: range.end() - range.start() + 1 - skipped,
+        skipped,
+        write_ms,
+    })
 }
 
 /// Refuses, with the reason, every flag that cannot act on this run: a
@@ -770,118 +628,6 @@ fn refuse_idle_flags(
     Ok(())
 }
 
-/// Renders view `index` of `frame` in full and records, in `output`'s
-/// stats, its time, the pixels that differ from it and the error against
-/// the view's own rays. Returns the pixels that differ (in linear colour,
-/// and in the 8-bit image written), and the full render.
-fn verify_view(
-    animator: &mut Animator,
-    frame: u32,
-    index: usize,
-    output: &mut ViewOutput,
-    has_viewports: bool,
-) -> Result<((u64, u64), retrace::render::Frame)> {
-    let start = Instant::now();
-    let (reference, _) = animator.render_reference(frame, index);
-    let full_ms = start.elapsed().as_secs_f64() * 1e3;
-    let image = output
-        .frame
-        .as_ref()
-        .expect("verification keeps linear colour");
-    let (mut differing, written) =
-        retrace::metrics::output_differences(image, &output.image, &reference)?;
-    // Where objects or lights move, an exact frame must also equal a render
-    // of the frame from a scene and accelerator built afresh: the reference
-    // above shares the frame loop's posed scene.
-    let moves = animator.animation().is_some_and(|a| a.moves_scene());
-    if animator.is_exact() && moves {
-        let (afresh, _) = animator.render_full_afresh(frame, index)?;
-        differing = differing.max(retrace::metrics::count_differences(image, &afresh)?);
-    }
-    let stats = &mut output.stats;
-    stats.full_ms = Some(full_ms);
-    stats.speedup = Some(full_ms / stats.total_ms);
-    stats.differing_pixels = Some(differing);
-    // An exact frame is measured against the camera's unsnapped rays too:
-    // what snapping costs.
-    stats.error = Some(if animator.is_exact() && !has_viewports {
-        let (truth, _) = animator.render_own_rays(frame, index, None);
-        retrace::metrics::image_error(image, &truth)?
-    } else {
-        retrace::metrics::image_error(image, &reference)?
-    });
-    Ok(((differing, written), reference))
-}
-
-/// The run's verdict with `--verify`: exact frames equal their full
-/// renders (or the run fails); approximate ones say their error.
-fn say_verified(
-    animator: &Animator,
-    names: &[String],
-    stats: &[retrace::frame_loop::FrameStats],
-    failed_frames: &[(u32, (u64, u64))],
-) -> Result<()> {
-    if animator.has_viewports() {
-        for name in names {
-            let rows = stats.iter().filter(|s| &s.viewport == name);
-            say!(
-                "verify {name} (against its own rays): {}",
-                error_summary(rows.filter_map(|s| s.error))
-            );
-        }
-        return Ok(());
-    }
-    if !failed_frames.is_empty() {
-        let list: Vec<String> = failed_frames
-            .iter()
-            .map(|(f, (linear, written))| {
-                format!("frame {f}: {linear} pixels ({written} in the image written)")
-            })
-            .collect();
-        anyhow::bail!(
-            "verification failed, frames differ from full renders: {}",
-            list.join(", ")
-        );
-    }
-    // Only a pan moves frames off the camera's own rays (snapped to the
-    // lattice, or resampled); without one the two checks agree.
-    let off_own_rays = stats
-        .iter()
-        .any(retrace::frame_loop::FrameStats::off_keyed_view);
-    if animator.is_exact() {
-        let largest_snap_deg = stats
-            .iter()
-            .map(|s| s.yaw_error_deg.abs().max(s.pitch_error_deg.abs()))
-            .fold(0.0, f64::max);
-        let step_deg =
-            retrace::reuse::pan::EqualAngleLattice::step_for(&animator.camera_at(0)).to_degrees();
-        say!(
-            "verify: every frame equals its full render bit for bit{}",
-            if off_own_rays {
-                format!(
-                    " (a pan: of the view snapped onto the lattice, at most {:.2} samples = {:.3} degrees off the keyed camera)",
-                    largest_snap_deg / step_deg,
-                    largest_snap_deg
-                )
-            } else {
-                String::new()
-            }
-        );
-    }
-    if off_own_rays || !animator.is_exact() {
-        say!(
-            "verify ({}, against the camera's own unsnapped rays): {}",
-            if animator.is_exact() {
-                "snapped"
-            } else {
-                "resampled"
-            },
-            error_summary(stats.iter().filter_map(|s| s.error))
-        );
-    }
-    Ok(())
-}
-
 /// OSTC asked for but refused is worth a word: buffers restarted on every
 /// change instead.
 fn warn_ostc_refused(animator: &Animator) {
@@ -891,18 +637,28 @@ fn warn_ostc_refused(animator: &Animator) {
 }
 
 /// The run's last lines: what was rendered, in what time, and with
-/// `--verify` the time of the `references` it was checked against.
-fn say_run(
-    args: &AnimateArgs,
-    what: &str,
-    stats: &[retrace::frame_loop::FrameStats],
-    write_ms: f64,
-    references: &str,
-) {
+/// `--verify` the time of the full (or direct) renders it was checked
+/// against.
+fn say_run(args: &AnimateArgs, animator: &Animator, rendered: &Rendered, stats: &[FrameStats]) {
+    let frames = counted(u64::from(rendered.frames), "frame");
+    let skipped = skipped_note(rendered.skipped);
+    let (what, references) = if animator.has_viewports() {
+        let names = &rendered.names;
+        (
+            format!(
+                "{frames} x {} ({}){skipped}",
+                counted(names.len() as u64, "viewport"),
+                names.join(", "),
+            ),
+            "direct renders",
+        )
+    } else {
+        (format!("{frames}{skipped}"), "full renders")
+    };
     say!(
         "{}: {what} {}",
         scene_name(&args.scene),
-        run_summary(stats, write_ms)
+        run_summary(stats, rendered.write_ms)
     );
     if args.verify && stats.is_empty() {
         say!("verify: no frame rendered, nothing to check");
@@ -966,27 +722,6 @@ fn verify_timing(stats: &[retrace::frame_loop::FrameStats]) -> String {
     let total = sum_ms(stats.iter().map(|s| s.total_ms));
     let full = sum_ms(stats.iter().filter_map(|s| s.full_ms));
     format!("{full:.1} ms, speedup {:.2}x", full / total.max(1e-9))
-}
-
-/// Worst and mean PSNR, largest and mean absolute error and share of
-/// differing pixels over `errors`.
-fn error_summary(errors: impl Iterator<Item = ImageError>) -> String {
-    let errors: Vec<ImageError> = errors.collect();
-    let count = errors.len().max(1) as f64;
-    let worst_psnr = errors
-        .iter()
-        .map(|e| e.psnr_db)
-        .fold(f64::INFINITY, f64::min);
-    // Identical frames have infinite PSNR: cap them so the mean stays finite.
-    let mean_psnr = errors.iter().map(|e| e.psnr_db.min(100.0)).sum::<f64>() / count;
-    let max_abs = errors.iter().map(|e| e.max_abs).fold(0.0f32, f32::max);
-    let mean = errors.iter().map(|e| e.mean_abs).sum::<f64>() / count;
-    let share = errors.iter().map(|e| e.differing_share).sum::<f64>() / count;
-    format!(
-        "PSNR worst {worst_psnr:.2} dB, mean {mean_psnr:.2} dB; max abs error {max_abs:.4}, \
-         mean abs error {mean:.5}, {:.2}% of pixels differ by more than one 8-bit step",
-        share * 100.0
-    )
 }
 
 /// This run's command line with `--skip-existing`: it renders the frames

@@ -486,7 +486,7 @@ fn run_experiment(
         reference: true,
     };
     let rounds = args.repeats.unwrap_or(1) as usize;
-    let mut references = retrace::lab::bench::References::default();
+    let mut references = retrace::verify::References::default();
     let result = bench_sequence(
         &scene,
         &mut accel,

@@ -11,6 +11,7 @@ pub(crate) mod render;
 pub(crate) mod tradeoff;
 #[cfg(feature = "lab")]
 pub(crate) mod validate;
+mod verify;
 #[cfg(feature = "view")]
 pub(crate) mod view;
 

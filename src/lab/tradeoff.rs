@@ -20,13 +20,14 @@ use std::path::Path;
 use crate::accel::{AccelError, Accelerator, BackendKind};
 use crate::frame_loop::{Options, OstcSettings, Techniques};
 use crate::lab::bench::ErrorSummary;
-use crate::lab::bench::{bench_sequence, Measure, References, SequenceBench};
+use crate::lab::bench::{bench_sequence, Measure, SequenceBench};
 use crate::lab::plot::{LabelledPoint, PlotError, ScatterGroup};
 use crate::reuse::ostc::DEFAULT_VOXELS;
 use crate::reuse::pan::FractionalPan;
 use crate::reuse::regions::RegionGrid;
 use crate::reuse::rsvp::{Filter, RsvpKnobs};
 use crate::scene::{builtin_scene, Scene, SceneError, SceneOverrides};
+use crate::verify::References;
 
 /// One knob at one setting, against the exact reference.
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]

@@ -21,6 +21,7 @@ const LAYERS: &[&[&str]] = &[
     &["metrics"],
     &["reuse"],
     &["frame_loop"],
+    &["verify"],
     &["lab"],
     &["view"],
 ];

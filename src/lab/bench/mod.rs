@@ -23,7 +23,7 @@ pub use chunking::{bench_chunking, ChunkingBench, ChunkingRow};
 pub use oracle::{rays_per_pixel, OracleRays};
 pub use sequence::{
     bench_sequence, ErrorSummary, FrameProfile, Measure, OracleSpeedups, ReferenceErrors,
-    References, SequenceBench,
+    SequenceBench,
 };
 pub use viewport_oracle::viewport_oracle;
 

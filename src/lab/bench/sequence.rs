@@ -11,14 +11,12 @@ use std::time::Instant;
 
 use crate::accel::Accelerator;
 use crate::frame_loop::{Animator, Options, Techniques};
-use crate::metrics::{
-    count_differences, image_error, reference_samples, ImageError, REFERENCE_EVERY,
-};
+use crate::metrics::{ImageError, REFERENCE_EVERY};
 use crate::pool::with_workers_awake;
-use crate::render::Frame;
 use crate::reuse::rsvp::RsvpKnobs;
 use crate::scene::Scene;
 use crate::shade::{RayCounts, Shader};
+use crate::verify::{Checks, References, Verifier};
 
 use super::oracle::{rays_per_pixel, traced_as_groups, Oracle, OracleRays};
 use super::{median, set_frame_medians};
@@ -83,23 +81,6 @@ pub struct ErrorSummary {
     pub differing_share: f64,
     /// Every frame equal to what it is measured by, bit for bit.
     pub identical: bool,
-}
-
-/// Converged references of a scene's views, by frame, view and whether
-/// the view is the one a snapped pan shows: runs of the same scene,
-/// samples and frames at other knobs (the tradeoff's settings) share
-/// them, as a reference costs as much as 64 frames.
-#[derive(Default)]
-pub struct References(std::collections::HashMap<(u32, usize, ViewShown), Frame>);
-
-/// Which view of a frame a reference is of.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-enum ViewShown {
-    /// The camera (or viewport) as keyed.
-    Keyed,
-    /// The view an exact frame shows: a pan's camera snapped onto the
-    /// lattice.
-    Snapped,
 }
 
 /// Both sides of a sequence against a converged reference of the same
@@ -230,18 +211,6 @@ pub struct SequenceBench {
 /// stale sample shows up at the next checkpoint unless erased again before
 /// it, and every checkpoint costs a retrace of all kept samples.
 const BUFFER_CHECK_EVERY: u32 = 20;
-
-/// FNV-1a over a frame's bits: full and accelerated frames compare without
-/// keeping a hundred frames in memory.
-fn frame_hash(frame: &Frame) -> u64 {
-    frame
-        .pixels
-        .iter()
-        .flat_map(|p| p.to_array())
-        .fold(0xcbf2_9ce4_8422_2325u64, |h, x| {
-            (h ^ u64::from(x.to_bits())).wrapping_mul(0x0100_0000_01b3)
-        })
-}
 
 /// Renders `options.frames` of `scene` in full and with `options`,
 /// alternating `rounds` times, and compares the medians of the sequence
@@ -464,7 +433,8 @@ fn check_sequence(
     let mut errors = Vec::new();
     let (mut all_exact, mut identical) = (true, true);
     let mut plain_ms = Vec::new();
-    let reference_count = reference_samples(scene.samples);
+    let mut verifier = Verifier::with_references(scene.samples, std::mem::take(references));
+    let reference_count = verifier.reference_samples();
     let (mut reference_frames, mut full_vs_reference, mut fast_vs_reference) =
         (Vec::new(), Vec::new(), Vec::new());
     let mut snapped_vs_keyed = Vec::new();
@@ -479,61 +449,47 @@ fn check_sequence(
             measure.reference && (last || (frame - frames.start) % REFERENCE_EVERY == 0);
         let (mut full_worst, mut fast_worst) = (f64::INFINITY, f64::INFINITY);
         for (index, output) in outputs.iter().enumerate() {
-            let image = output.frame.as_ref().expect("linear output is on");
-            if exact {
-                let (full, _) = check.render_full(frame, index, None);
-                let same = frame_hash(image) == frame_hash(&full);
+            let checks = Checks {
+                full: exact,
+                // The bench's check pass shares the posed scene; the tests
+                // and `animate --verify` build it afresh too.
+                afresh: false,
+                own_rays: measure.error,
+                reference: referenced,
+            };
+            // A view and its own rays are one size: a bug otherwise.
+            let view = verifier
+                .check_view(&mut check, frame, index, output, checks)
+                .expect("a view's frames");
+            if let Some(same) = view.equal_to_full() {
                 row.exact = Some(same);
                 all_exact &= same;
-                if let Some(oracle) = &mut oracle {
-                    let (shader, camera) = check.posed_shader(frame);
-                    let pixel_rays = rays_per_pixel(&shader, &camera, scene.samples);
-                    let (samples, region_samples) = oracle.add(&camera, &full, &pixel_rays);
-                    row.oracle_samples = Some(samples);
-                    row.oracle_region_samples = Some(region_samples);
-                    let table = crate::camera::RayTable::with_samples(&camera, scene.samples);
-                    let groups = oracle.region_groups(camera.width, side);
-                    let start = Instant::now();
-                    traced_as_groups(&table, side_i, |source| {
-                        std::hint::black_box(crate::render::trace_groups(&shader, source, &groups))
-                    });
-                    oracle_ms += start.elapsed().as_secs_f64() * 1e3;
-                }
             }
-            let truth =
-                (measure.error || referenced).then(|| check.render_own_rays(frame, index, None).0);
-            if let (true, Some(truth)) = (measure.error, &truth) {
-                // A view and its own rays are one size: a bug otherwise.
-                let error = image_error(image, truth).expect("a view's frames");
-                identical &= count_differences(image, truth).expect("a view's frames") == 0;
+            if let (Some(oracle), Some((full, _))) = (&mut oracle, &view.full) {
+                let (shader, camera) = check.posed_shader(frame);
+                let pixel_rays = rays_per_pixel(&shader, &camera, scene.samples);
+                let (samples, region_samples) = oracle.add(&camera, full, &pixel_rays);
+                row.oracle_samples = Some(samples);
+                row.oracle_region_samples = Some(region_samples);
+                let table = crate::camera::RayTable::with_samples(&camera, scene.samples);
+                let groups = oracle.region_groups(camera.width, side);
+                let start = Instant::now();
+                traced_as_groups(&table, side_i, |source| {
+                    std::hint::black_box(crate::render::trace_groups(&shader, source, &groups))
+                });
+                oracle_ms += start.elapsed().as_secs_f64() * 1e3;
+            }
+            if let Some((error, same)) = view.own_rays {
+                identical &= same;
                 worst = worst.min(error.psnr_db);
                 errors.push(error);
             }
-            if let (true, Some(truth)) = (referenced, &truth) {
-                let keyed = references
-                    .0
-                    .entry((frame, index, ViewShown::Keyed))
-                    .or_insert_with(|| {
-                        check.render_own_rays(frame, index, Some(reference_count)).0
-                    });
-                let full = image_error(truth, keyed).expect("a view's frames");
-                let snapped = exact && output.stats.off_keyed_view();
-                let fast = if snapped {
-                    snapped_vs_keyed.push(image_error(image, keyed).expect("a view's frames"));
-                    let shown = references
-                        .0
-                        .entry((frame, index, ViewShown::Snapped))
-                        .or_insert_with(|| {
-                            check.render_full(frame, index, Some(reference_count)).0
-                        });
-                    image_error(image, shown).expect("a view's frames")
-                } else {
-                    image_error(image, keyed).expect("a view's frames")
-                };
-                full_worst = full_worst.min(full.psnr_db);
-                fast_worst = fast_worst.min(fast.psnr_db);
-                full_vs_reference.push(full);
-                fast_vs_reference.push(fast);
+            if let Some(reference) = view.reference {
+                full_worst = full_worst.min(reference.full.psnr_db);
+                fast_worst = fast_worst.min(reference.output.psnr_db);
+                full_vs_reference.push(reference.full);
+                fast_vs_reference.push(reference.output);
+                snapped_vs_keyed.extend(reference.snapped_vs_keyed);
             }
         }
         if measure.error && !exact {
@@ -553,6 +509,7 @@ fn check_sequence(
         }
         progress();
     }
+    *references = verifier.into_references();
     Checked {
         plain_ms,
         exact: exact.then_some(all_exact),

@@ -1,0 +1,283 @@
+//! The one verifier: an accelerated frame against a full render of the
+//! same frame, against the view's own rays, and against a converged
+//! reference.
+//!
+//! `animate --verify`, the bench's check pass and the tests all check
+//! through [`Verifier::check_view`], so "exact" and "error" mean one thing
+//! everywhere.
+//!
+//! Promises:
+//! - An exact frame ([`Animator::is_exact`]) is compared with a full render
+//!   of the same frame both in linear colour and in the 8-bit bytes
+//!   written; where objects or lights move, also with a full render from a
+//!   scene and accelerator built afresh, which shares nothing the frame
+//!   loop posed.
+//! - A snapped pan's output is measured against the reference of the view
+//!   it shows and, besides, against the keyed camera's; any other output
+//!   against the keyed view's.
+
+use std::collections::HashMap;
+use std::time::Instant;
+
+use crate::accel::AccelError;
+use crate::frame_loop::{Animator, ViewOutput};
+use crate::metrics::{
+    count_differences, image_error, output_differences, reference_samples, ImageError, SizeMismatch,
+};
+use crate::render::Frame;
+use crate::sampling::PixelSamples;
+
+/// Why a check could not be made (not a failed check: that is a
+/// [`ViewCheck`]'s finding).
+#[derive(Debug, thiserror::Error)]
+pub enum VerifyError {
+    #[error(transparent)]
+    Size(#[from] SizeMismatch),
+    #[error("building the afresh reference's accelerator: {0}")]
+    Accel(#[from] AccelError),
+}
+
+/// What to check of a view.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Checks {
+    /// Compare with a full render of the frame (an exact frame: bit for
+    /// bit), timed.
+    pub full: bool,
+    /// Where objects or lights move, compare an exact frame also with a
+    /// full render from a scene and accelerator built afresh.
+    pub afresh: bool,
+    /// Measure the error against the view's own, unsnapped rays.
+    pub own_rays: bool,
+    /// Measure the output and the full render at the run's samples
+    /// against a converged reference.
+    pub reference: bool,
+}
+
+/// One view of one frame, checked.
+#[derive(Clone, Debug, Default)]
+pub struct ViewCheck {
+    /// With [`Checks::full`]: what the frame was compared with (a full
+    /// render where frames are exact, the view's own rays otherwise) and
+    /// how long it took.
+    pub full: Option<(Frame, f64)>,
+    /// With [`Checks::full`]: pixels differing from it, in linear colour
+    /// (the larger count of the two full renders where the scene moves)
+    /// and in the 8-bit image written.
+    pub differing: Option<(u64, u64)>,
+    /// With [`Checks::own_rays`]: the error against the view's own rays,
+    /// and whether every pixel equals them.
+    pub own_rays: Option<(ImageError, bool)>,
+    pub reference: Option<ReferenceErrors>,
+}
+
+impl ViewCheck {
+    /// Whether the frame is exact and equals its full render bit for bit
+    /// (None: not compared).
+    pub fn equal_to_full(&self) -> Option<bool> {
+        self.differing.map(|d| d == (0, 0))
+    }
+}
+
+/// One view of one frame against the converged reference.
+#[derive(Clone, Copy, Debug)]
+pub struct ReferenceErrors {
+    /// The full render of the keyed view at the run's samples.
+    pub full: ImageError,
+    /// The output, against the reference of the view it shows.
+    pub output: ImageError,
+    /// A snapped pan's output against the keyed camera's reference.
+    pub snapped_vs_keyed: Option<ImageError>,
+}
+
+/// Which view of a frame a reference is of.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+enum ViewShown {
+    /// The camera (or viewport) as keyed.
+    Keyed,
+    /// The view an exact frame shows: a pan's camera snapped onto the
+    /// lattice.
+    Snapped,
+}
+
+/// Converged references of a scene's views, by frame, view and whether
+/// the view is the one a snapped pan shows: runs of the same scene,
+/// samples and frames at other knobs (the tradeoff's settings) share
+/// them, as a reference costs as much as 64 frames.
+#[derive(Default)]
+pub struct References(HashMap<(u32, usize, ViewShown), Frame>);
+
+/// Checks views of a run's frames, keeping the converged references it
+/// renders.
+pub struct Verifier {
+    reference_samples: PixelSamples,
+    references: References,
+}
+
+impl Verifier {
+    /// A verifier for a run at `samples` a pixel; its references are at
+    /// [`reference_samples`] of those.
+    pub fn new(samples: PixelSamples) -> Verifier {
+        Verifier::with_references(samples, References::default())
+    }
+
+    /// As [`Verifier::new`], going on from `references` of the same scene,
+    /// samples and frames.
+    pub fn with_references(samples: PixelSamples, references: References) -> Verifier {
+        Verifier {
+            reference_samples: reference_samples(samples),
+            references,
+        }
+    }
+
+    /// The references rendered so far, for a later verifier of the same
+    /// scene, samples and frames.
+    pub fn into_references(self) -> References {
+        self.references
+    }
+
+    pub fn reference_samples(&self) -> PixelSamples {
+        self.reference_samples
+    }
+
+    /// Checks `output`, view `index` of `frame` as `animator` rendered it
+    /// (with linear colour), as `checks` asks.
+    pub fn check_view(
+        &mut self,
+        animator: &mut Animator,
+        frame: u32,
+        index: usize,
+        output: &ViewOutput,
+        checks: Checks,
+    ) -> Result<ViewCheck, VerifyError> {
+        let image = output
+            .frame
+            .as_ref()
+            .expect("checking needs the frame in linear colour (Options::linear)");
+        let exact = animator.is_exact();
+        let mut check = ViewCheck::default();
+        if checks.full {
+            let start = Instant::now();
+            let (full, _) = animator.render_reference(frame, index);
+            let full_ms = start.elapsed().as_secs_f64() * 1e3;
+            let (mut linear, written) = output_differences(image, &output.image, &full)?;
+            let moves = animator.animation().is_some_and(|a| a.moves_scene());
+            if checks.afresh && exact && moves {
+                let (afresh, _) = animator.render_full_afresh(frame, index)?;
+                linear = linear.max(count_differences(image, &afresh)?);
+            }
+            check.differing = Some((linear, written));
+            check.full = Some((full, full_ms));
+        }
+        let own_rays = match &check.full {
+            // Where frames are not exact, the full render is of their own
+            // rays.
+            Some((full, _)) if !exact => Some(full.clone()),
+            _ if checks.own_rays || checks.reference => {
+                Some(animator.render_own_rays(frame, index, None).0)
+            }
+            _ => None,
+        };
+        if let (true, Some(truth)) = (checks.own_rays, &own_rays) {
+            let identical = count_differences(image, truth)? == 0;
+            check.own_rays = Some((image_error(image, truth)?, identical));
+        }
+        if let (true, Some(truth)) = (checks.reference, &own_rays) {
+            let snapped = exact && output.stats.off_keyed_view();
+            check.reference =
+                Some(self.against_reference(animator, frame, index, image, truth, snapped)?);
+        }
+        Ok(check)
+    }
+
+    /// `image` and `full` (the view's own rays at the run's samples)
+    /// against the converged reference.
+    fn against_reference(
+        &mut self,
+        animator: &mut Animator,
+        frame: u32,
+        index: usize,
+        image: &Frame,
+        full: &Frame,
+        snapped: bool,
+    ) -> Result<ReferenceErrors, VerifyError> {
+        let samples = Some(self.reference_samples);
+        let keyed = self
+            .references
+            .0
+            .entry((frame, index, ViewShown::Keyed))
+            .or_insert_with(|| animator.render_own_rays(frame, index, samples).0);
+        let full = image_error(full, keyed)?;
+        if !snapped {
+            return Ok(ReferenceErrors {
+                full,
+                output: image_error(image, keyed)?,
+                snapped_vs_keyed: None,
+            });
+        }
+        // A snapped pan's frame is an exact render of the camera moved onto
+        // the lattice: measured against that view's reference, and against
+        // the keyed camera's besides.
+        let snapped_vs_keyed = Some(image_error(image, keyed)?);
+        let shown = self
+            .references
+            .0
+            .entry((frame, index, ViewShown::Snapped))
+            .or_insert_with(|| animator.render_full(frame, index, samples).0);
+        Ok(ReferenceErrors {
+            full,
+            output: image_error(image, shown)?,
+            snapped_vs_keyed,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::accel::{Accelerator, BackendKind};
+    use crate::frame_loop::{Options, Techniques};
+    use crate::scene::{paper_scene, SceneOverrides};
+    use glam::Vec3;
+
+    #[test]
+    fn a_changed_pixel_is_found_in_linear_colour_and_in_the_bytes_written() {
+        let scene = paper_scene(&SceneOverrides {
+            width: Some(64),
+            height: Some(48),
+            ..SceneOverrides::default()
+        })
+        .unwrap();
+        let mut accel = Accelerator::build(BackendKind::Embree, &scene.objects).unwrap();
+        let mut animator = Animator::new(&scene, &mut accel, Options::new(Techniques::AUTO, 0..1));
+        let mut output = animator.render(0).remove(0);
+        let checks = Checks {
+            full: true,
+            afresh: true,
+            own_rays: true,
+            reference: false,
+        };
+        let mut verifier = Verifier::new(scene.samples);
+        let check = verifier
+            .check_view(&mut animator, 0, 0, &output, checks)
+            .unwrap();
+        assert_eq!(check.differing, Some((0, 0)));
+        assert_eq!(check.equal_to_full(), Some(true));
+        assert!(check.own_rays.is_some_and(|(_, identical)| identical));
+
+        // A change too small for 8 bits shows in linear colour only.
+        let kept = output.frame.as_ref().unwrap().pixels[5];
+        output.frame.as_mut().unwrap().pixels[5] = kept + Vec3::splat(1e-6);
+        let check = verifier
+            .check_view(&mut animator, 0, 0, &output, checks)
+            .unwrap();
+        assert_eq!(check.differing, Some((1, 0)));
+        assert_eq!(check.equal_to_full(), Some(false));
+        // And one byte written, with the linear colour right.
+        output.frame.as_mut().unwrap().pixels[5] = kept;
+        output.image.get_pixel_mut(7, 3).0[1] ^= 0x10;
+        let check = verifier
+            .check_view(&mut animator, 0, 0, &output, checks)
+            .unwrap();
+        assert_eq!(check.differing, Some((0, 1)));
+    }
+}
