@@ -538,22 +538,7 @@ pub fn load_obj_mesh_with(path: &Path, textures: &mut TextureCache) -> Result<Ob
         }
     };
     if material_problem.is_none() {
-        let defined: HashSet<&str> = materials.iter().map(|m| m.name.as_str()).collect();
-        let mut told = HashSet::new();
-        for (number, line) in text.lines().enumerate() {
-            if line.split_whitespace().next() != Some("usemtl") {
-                continue;
-            }
-            let name = usemtl_name(line);
-            if !defined.contains(name) && told.insert(name) {
-                problems.push(format!(
-                    "{}:{}: usemtl: material '{name}' is not defined in any material library; \
-                     its faces use the default material",
-                    path.display(),
-                    number + 1
-                ));
-            }
-        }
+        warn_undefined_materials(path, &text, &materials, &mut problems);
     }
 
     // Each material once (its texture loads once), by index.
@@ -582,42 +567,13 @@ pub fn load_obj_mesh_with(path: &Path, textures: &mut TextureCache) -> Result<Ob
     let mut parts: Vec<ObjPart> = Vec::new();
     for model in models {
         let m = &model.mesh;
-        let positions: Vec<Vec3> = m
-            .positions
-            .chunks_exact(3)
-            .map(|c| Vec3::new(c[0], c[1], c[2]))
-            .collect();
-        let mut normals: Vec<Vec3> = m
-            .normals
-            .chunks_exact(3)
-            .map(|c| Vec3::new(c[0], c[1], c[2]))
-            .collect();
-        if normals.len() != positions.len() {
-            normals.clear();
-        }
-        // OBJ's v runs up the image; textures are stored top row first.
-        let mut texcoords: Vec<Vec2> = m
-            .texcoords
-            .chunks_exact(2)
-            .map(|c| Vec2::new(c[0], 1.0 - c[1]))
-            .collect();
-        if texcoords.len() != positions.len() {
-            texcoords.clear();
-        }
-        let mut triangles = Vec::with_capacity(m.indices.len() / 3);
-        for t in m.indices.chunks_exact(3) {
-            let [a, b, c] = [t[0], t[1], t[2]].map(|i| positions[i as usize]);
-            if (b - a).cross(c - a).length_squared() > 0.0 {
-                triangles.push([t[0], t[1], t[2]]);
-            } else {
-                dropped_degenerate += 1;
-            }
-        }
+        let mesh = model_mesh(m, &mut dropped_degenerate);
+        let texcoords_missing = mesh.texcoords.is_empty();
         let material = m
             .material_id
             .and_then(|id| converted.get(id).cloned().flatten());
         if let Some(textured) = material.as_ref().filter(|m| m.textured()) {
-            if texcoords.is_empty() && untextured.insert(textured.name.clone()) {
+            if texcoords_missing && untextured.insert(textured.name.clone()) {
                 problems.push(format!(
                     "{}: faces with material '{}' have no texture coordinates (vt): its \
                      textures are not shown on them",
@@ -626,12 +582,6 @@ pub fn load_obj_mesh_with(path: &Path, textures: &mut TextureCache) -> Result<Ob
                 ));
             }
         }
-        let mesh = TriangleMesh {
-            positions,
-            triangles,
-            normals,
-            texcoords,
-        };
         // Parts with the same material merge: fewer objects, same picture.
         // Not a part with normals and one without: the file's normals stay
         // as given, and only the other gets normals of its own.
@@ -649,6 +599,75 @@ pub fn load_obj_mesh_with(path: &Path, textures: &mut TextureCache) -> Result<Ob
         material_problem,
         problems,
     })
+}
+
+/// Warns of each `usemtl` (once a name) naming a material no library
+/// defines: its faces use the default material.
+fn warn_undefined_materials(
+    path: &Path,
+    text: &str,
+    materials: &[tobj::Material],
+    problems: &mut Vec<String>,
+) {
+    let defined: HashSet<&str> = materials.iter().map(|m| m.name.as_str()).collect();
+    let mut told = HashSet::new();
+    for (number, line) in text.lines().enumerate() {
+        if line.split_whitespace().next() != Some("usemtl") {
+            continue;
+        }
+        let name = usemtl_name(line);
+        if !defined.contains(name) && told.insert(name) {
+            problems.push(format!(
+                "{}:{}: usemtl: material '{name}' is not defined in any material library; \
+                 its faces use the default material",
+                path.display(),
+                number + 1
+            ));
+        }
+    }
+}
+
+/// One model of tobj's as a triangle mesh: zero-area triangles dropped
+/// (counted in `dropped_degenerate`), normals and texture coordinates kept
+/// only where every vertex has them.
+fn model_mesh(m: &tobj::Mesh, dropped_degenerate: &mut usize) -> TriangleMesh {
+    let positions: Vec<Vec3> = m
+        .positions
+        .chunks_exact(3)
+        .map(|c| Vec3::new(c[0], c[1], c[2]))
+        .collect();
+    let mut normals: Vec<Vec3> = m
+        .normals
+        .chunks_exact(3)
+        .map(|c| Vec3::new(c[0], c[1], c[2]))
+        .collect();
+    if normals.len() != positions.len() {
+        normals.clear();
+    }
+    // OBJ's v runs up the image; textures are stored top row first.
+    let mut texcoords: Vec<Vec2> = m
+        .texcoords
+        .chunks_exact(2)
+        .map(|c| Vec2::new(c[0], 1.0 - c[1]))
+        .collect();
+    if texcoords.len() != positions.len() {
+        texcoords.clear();
+    }
+    let mut triangles = Vec::with_capacity(m.indices.len() / 3);
+    for t in m.indices.chunks_exact(3) {
+        let [a, b, c] = [t[0], t[1], t[2]].map(|i| positions[i as usize]);
+        if (b - a).cross(c - a).length_squared() > 0.0 {
+            triangles.push([t[0], t[1], t[2]]);
+        } else {
+            *dropped_degenerate += 1;
+        }
+    }
+    TriangleMesh {
+        positions,
+        triangles,
+        normals,
+        texcoords,
+    }
 }
 
 fn append_mesh(into: &mut TriangleMesh, mesh: TriangleMesh) {

@@ -611,8 +611,48 @@ impl<'a> Shader<'a> {
             &lane_flags(mask & !hit_mask),
         );
 
+        self.add_lights(
+            &lanes_hit,
+            hit_mask,
+            &specular_texels,
+            &mut colors,
+            counts,
+            reborrow(&mut observer),
+        );
+        if depth < scene.max_depth {
+            let secondary = Secondary {
+                depth,
+                cones,
+                next_cones: &next_cones,
+                curvature_radii: &curvature_radii,
+            };
+            self.add_secondary(
+                &lanes_hit,
+                hit_mask,
+                secondary,
+                &mut colors,
+                counts,
+                observer,
+            );
+        }
+        colors
+    }
+
+    /// Adds to `colors` each light's diffuse and Phong terms on the hit
+    /// lanes it reaches, casting the shadow rays (one packet a light).
+    #[inline(always)]
+    fn add_lights(
+        &self,
+        lanes_hit: &HitLanes,
+        hit_mask: LaneMask,
+        specular_texels: &[Vec3; PACKET_WIDTH],
+        colors: &mut Vec3Lanes,
+        counts: &mut RayCounts,
+        mut observer: Option<&mut dyn RayObserver>,
+    ) {
+        let scene = self.scene;
         for (light_index, light) in scene.lights.iter().enumerate() {
-            let h = &lanes_hit;
+            let h = lanes_hit;
             let (facing, lit_from, to_light) = h.toward(light.position);
             // A light behind the surface cannot light it: no ray needed.
             let lit_mask = hit_mask & lanes_where(|lane| facing[lane] > 0.0);
@@ -658,7 +698,7 @@ impl<'a> Shader<'a> {
                 );
             }
             add_light(
-                &mut colors,
+                colors,
                 light.power,
                 &h.albedo,
                 &n_dot_l,
@@ -666,76 +706,98 @@ impl<'a> Shader<'a> {
                 &lane_flags(shaded),
             );
         }
-
-        if depth < scene.max_depth {
-            let h = &lanes_hit;
-            // Scene numbers are finite (a `Scene` promise), so no NaN to exclude.
-            let mirror_mask = hit_mask & lanes_where(|lane| h.reflectivity[lane] > 0.0);
-            // Built only where there is glass: it is a packet of rays and
-            // more, which scenes without glass would fill for nothing.
-            let glass = self
-                .any_glass
-                .then(|| h.glass_lanes(hit_mask))
-                .filter(|glass| glass.lanes != 0);
-            let reflect_mask = mirror_mask | glass.as_ref().map_or(0, |glass| glass.reflecting);
-            let mut mirrored = Vec3Lanes::default();
-            if reflect_mask != 0 {
-                let directions = h.mirror_directions();
-                // As for shadow rays: all lanes, then reset the others.
-                let mut reflected: RayPacket = std::array::from_fn(|lane| {
-                    Ray::new(h.spawn_point.get(lane), directions.get(lane))
-                });
-                for lane in lanes(!reflect_mask) {
-                    reflected[lane] = Ray::INACTIVE;
-                }
-                mirrored = self.shade_lanes(
-                    &reflected,
-                    reflect_mask,
-                    Generation {
-                        depth: depth + 1,
-                        kind: RayKind::Reflection,
-                        cones: &next_cones,
-                    },
-                    counts,
-                    reborrow(&mut observer),
-                );
-            }
-            if mirror_mask != 0 {
-                mix_reflection(
-                    &mut colors,
-                    &mirrored,
-                    &h.reflectivity,
-                    &lane_flags(mirror_mask),
-                );
-            }
-            if let Some(glass) = glass {
-                let mut refracted_cones = next_cones;
-                if self.textured {
-                    for lane in lanes(glass.refracting) {
-                        refracted_cones.spread[lane] = refracted_spread(
-                            cones.spread[lane],
-                            next_cones.width[lane],
-                            curvature_radii[lane],
-                            glass.eta[lane],
-                        );
-                    }
-                }
-                let refracted = self.shade_lanes(
-                    &glass.rays,
-                    glass.refracting,
-                    Generation {
-                        depth: depth + 1,
-                        kind: RayKind::Refraction,
-                        cones: &refracted_cones,
-                    },
-                    counts,
-                    observer,
-                );
-                glass.mix(&mut colors, &mirrored, &refracted);
-            }
-        }
-        colors
     }
+
+    /// Adds to `colors` what the mirror and glass lanes reflect and
+    /// refract, traced one generation deeper.
+    #[inline(always)]
+    fn add_secondary(
+        &self,
+        lanes_hit: &HitLanes,
+        hit_mask: LaneMask,
+        secondary: Secondary<'_>,
+        colors: &mut Vec3Lanes,
+        counts: &mut RayCounts,
+        mut observer: Option<&mut dyn RayObserver>,
+    ) {
+        let Secondary {
+            depth,
+            cones,
+            next_cones,
+            curvature_radii,
+        } = secondary;
+        let h = lanes_hit;
+        // Scene numbers are finite (a `Scene` promise), so no NaN to exclude.
+        let mirror_mask = hit_mask & lanes_where(|lane| h.reflectivity[lane] > 0.0);
+        // Built only where there is glass: it is a packet of rays and
+        // more, which scenes without glass would fill for nothing.
+        let glass = self
+            .any_glass
+            .then(|| h.glass_lanes(hit_mask))
+            .filter(|glass| glass.lanes != 0);
+        let reflect_mask = mirror_mask | glass.as_ref().map_or(0, |glass| glass.reflecting);
+        let mut mirrored = Vec3Lanes::default();
+        if reflect_mask != 0 {
+            let directions = h.mirror_directions();
+            // As for shadow rays: all lanes, then reset the others.
+            let mut reflected: RayPacket =
+                std::array::from_fn(|lane| Ray::new(h.spawn_point.get(lane), directions.get(lane)));
+            for lane in lanes(!reflect_mask) {
+                reflected[lane] = Ray::INACTIVE;
+            }
+            mirrored = self.shade_lanes(
+                &reflected,
+                reflect_mask,
+                Generation {
+                    depth: depth + 1,
+                    kind: RayKind::Reflection,
+                    cones: next_cones,
+                },
+                counts,
+                reborrow(&mut observer),
+            );
+        }
+        if mirror_mask != 0 {
+            mix_reflection(colors, &mirrored, &h.reflectivity, &lane_flags(mirror_mask));
+        }
+        if let Some(glass) = glass {
+            let mut refracted_cones = *next_cones;
+            if self.textured {
+                for lane in lanes(glass.refracting) {
+                    refracted_cones.spread[lane] = refracted_spread(
+                        cones.spread[lane],
+                        next_cones.width[lane],
+                        curvature_radii[lane],
+                        glass.eta[lane],
+                    );
+                }
+            }
+            let refracted = self.shade_lanes(
+                &glass.rays,
+                glass.refracting,
+                Generation {
+                    depth: depth + 1,
+                    kind: RayKind::Refraction,
+                    cones: &refracted_cones,
+                },
+                counts,
+                observer,
+            );
+            glass.mix(colors, &mirrored, &refracted);
+        }
+    }
+}
+
+/// What the reflected and refracted rays of a packet's hits carry on.
+struct Secondary<'a> {
+    /// The packet's own depth.
+    depth: u32,
+    /// The cones the packet's rays arrived in.
+    cones: &'a RayCones,
+    /// The cones leaving each hit.
+    next_cones: &'a RayCones,
+    /// Each mirror or glass lane's radius of curvature.
+    curvature_radii: &'a [f32; PACKET_WIDTH],
 }
 
 /// What a packet of rays is in the recursion: its depth (0 for primary

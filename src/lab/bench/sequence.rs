@@ -241,37 +241,17 @@ pub fn bench_sequence(
     // Per frame and round, for per-frame medians.
     let mut full_frame_ms = vec![Vec::new(); profile.len()];
     let mut fast_frame_ms = vec![Vec::new(); profile.len()];
-    // Counts are the same every round: the last round's are kept.
-    let (mut samples_traced, mut bookkeeping_ms, mut pixels_per_frame) = (0, 0.0, 0);
-    let mut largest_snap_deg: f64 = 0.0;
-    let mut full_reasons: Vec<String> = Vec::new();
+    let mut counts = AcceleratedCounts::default();
     for _ in 0..rounds {
         let mut full = Animator::new(scene, accel, full_options.clone());
-        let mut elapsed = 0.0;
-        for (row, frame) in profile.iter_mut().zip(frames.clone()) {
-            let start = Instant::now();
-            let mut frame_rays = RayCounts::default();
-            // With the workers kept awake through the frame, as the frame
-            // loop keeps them for the accelerated side.
-            with_workers_awake(|| {
-                for index in 0..views {
-                    // Each view's own rays, rendered in place: the fastest
-                    // plain render of the frame (a snapped pan's lattice
-                    // render copies its samples into place besides).
-                    let (image, rays) = full.render_own_rays(frame, index, None);
-                    std::hint::black_box(image.to_rgb8());
-                    frame_rays += rays;
-                }
-            });
-            let ms = start.elapsed().as_secs_f64() * 1e3;
-            full_frame_ms[(frame - frames.start) as usize].push(ms);
-            elapsed += ms;
-            row.full_rays = frame_rays;
-            progress();
-        }
-        full_times.push(elapsed);
+        full_times.push(full_round(
+            &mut full,
+            views,
+            &mut profile,
+            &mut full_frame_ms,
+            &mut progress,
+        ));
         drop(full);
-
         let mut fast = Animator::new(
             scene,
             accel,
@@ -280,45 +260,13 @@ pub fn bench_sequence(
                 ..options.clone()
             },
         );
-        let mut elapsed = 0.0;
-        (samples_traced, bookkeeping_ms) = (0, 0.0);
-        for (row, frame) in profile.iter_mut().zip(frames.clone()) {
-            let start = Instant::now();
-            let outputs = fast.render(frame);
-            let ms = start.elapsed().as_secs_f64() * 1e3;
-            fast_frame_ms[(frame - frames.start) as usize].push(ms);
-            elapsed += ms;
-            pixels_per_frame = outputs.iter().map(|o| o.stats.pixels).sum();
-            (row.accelerated_rays, row.samples_traced, row.bookkeeping_ms) =
-                (RayCounts::default(), 0, 0.0);
-            (row.accelerated_trace_ms, row.accelerated_copy_ms) = (0.0, 0.0);
-            for output in &outputs {
-                let stats = &output.stats;
-                row.accelerated_rays += stats.rays();
-                row.samples_traced += stats.samples_traced;
-                row.bookkeeping_ms += stats.bookkeeping_ms;
-                row.accelerated_trace_ms += stats.trace_ms;
-                row.accelerated_copy_ms += stats.copy_ms;
-                largest_snap_deg = largest_snap_deg
-                    .max(stats.yaw_error_deg.abs())
-                    .max(stats.pitch_error_deg.abs());
-                if let Some(reason) = stats.refusal().map(|r| r.to_string()) {
-                    if !full_reasons.contains(&reason) {
-                        full_reasons.push(reason);
-                    }
-                }
-            }
-            // Frame-wide OSTC figures repeat on every view's stats.
-            if let Some(first) = outputs.first() {
-                row.dirty_regions = first.stats.dirty_regions;
-                row.samples_nulled = first.stats.samples_nulled;
-            }
-            samples_traced += row.samples_traced;
-            bookkeeping_ms += row.bookkeeping_ms;
-            std::hint::black_box(outputs);
-            progress();
-        }
-        fast_times.push(elapsed);
+        fast_times.push(accelerated_round(
+            &mut fast,
+            &mut profile,
+            &mut fast_frame_ms,
+            &mut counts,
+            &mut progress,
+        ));
     }
     set_frame_medians(&mut profile, full_frame_ms, fast_frame_ms);
     let checked = check_sequence(
@@ -353,14 +301,14 @@ pub fn bench_sequence(
     SequenceBench {
         frames: frames.end - frames.start,
         views,
-        pixels_per_frame,
+        pixels_per_frame: counts.pixels_per_frame,
         full_ms,
         full_vs_plain: full_sampled / plain_sampled.max(1e-9),
         accelerated_ms,
         speedup: full_ms / accelerated_ms,
         round_speedups,
-        samples_traced,
-        bookkeeping_ms,
+        samples_traced: counts.samples_traced,
+        bookkeeping_ms: counts.bookkeeping_ms,
         knobs: options.rsvp,
         exact: checked.exact,
         samples_per_pixel: scene.samples.count(),
@@ -368,14 +316,114 @@ pub fn bench_sequence(
         reference: checked.reference,
         buffer_check: checked.buffer_check,
         oracle,
-        largest_snap_deg,
-        largest_snap_samples: largest_snap_deg.to_radians()
+        largest_snap_deg: counts.largest_snap_deg,
+        largest_snap_samples: counts.largest_snap_deg.to_radians()
             / crate::reuse::pan::EqualAngleLattice::step_for(&scene.camera),
         rounds,
         threads: rayon::current_num_threads(),
-        full_reasons,
+        full_reasons: counts.full_reasons,
         profile,
     }
+}
+
+/// One timed round of full renders of `full`'s frames (its options'),
+/// each view through its own rays with the workers kept awake through the
+/// frame, as the frame loop keeps them for the accelerated side. Returns
+/// the round's milliseconds; each frame's go to `frame_ms`.
+fn full_round(
+    full: &mut Animator,
+    views: usize,
+    profile: &mut [FrameProfile],
+    frame_ms: &mut [Vec<f64>],
+    progress: &mut impl FnMut(),
+) -> f64 {
+    let frames = full.options().frames.clone();
+    let mut elapsed = 0.0;
+    for (row, frame) in profile.iter_mut().zip(frames.clone()) {
+        let start = Instant::now();
+        let mut frame_rays = RayCounts::default();
+        with_workers_awake(|| {
+            for index in 0..views {
+                // Each view's own rays, rendered in place: the fastest
+                // plain render of the frame (a snapped pan's lattice
+                // render copies its samples into place besides).
+                let (image, rays) = full.render_own_rays(frame, index, None);
+                std::hint::black_box(image.to_rgb8());
+                frame_rays += rays;
+            }
+        });
+        let ms = start.elapsed().as_secs_f64() * 1e3;
+        frame_ms[(frame - frames.start) as usize].push(ms);
+        elapsed += ms;
+        row.full_rays = frame_rays;
+        progress();
+    }
+    elapsed
+}
+
+/// What the accelerated rounds count: the same every round, the last
+/// one's kept.
+#[derive(Default)]
+struct AcceleratedCounts {
+    samples_traced: u64,
+    bookkeeping_ms: f64,
+    pixels_per_frame: u64,
+    largest_snap_deg: f64,
+    /// Why frames were rendered in full though reuse was asked for.
+    full_reasons: Vec<String>,
+}
+
+/// One timed round of `fast`'s frames, with reuse. Returns the round's
+/// milliseconds; each frame's go to `frame_ms`, its counts to `profile`
+/// and the sequence's to `counts`.
+fn accelerated_round(
+    fast: &mut Animator,
+    profile: &mut [FrameProfile],
+    frame_ms: &mut [Vec<f64>],
+    counts: &mut AcceleratedCounts,
+    progress: &mut impl FnMut(),
+) -> f64 {
+    let frames = fast.options().frames.clone();
+    let mut elapsed = 0.0;
+    (counts.samples_traced, counts.bookkeeping_ms) = (0, 0.0);
+    for (row, frame) in profile.iter_mut().zip(frames.clone()) {
+        let start = Instant::now();
+        let outputs = fast.render(frame);
+        let ms = start.elapsed().as_secs_f64() * 1e3;
+        frame_ms[(frame - frames.start) as usize].push(ms);
+        elapsed += ms;
+        counts.pixels_per_frame = outputs.iter().map(|o| o.stats.pixels).sum();
+        (row.accelerated_rays, row.samples_traced, row.bookkeeping_ms) =
+            (RayCounts::default(), 0, 0.0);
+        (row.accelerated_trace_ms, row.accelerated_copy_ms) = (0.0, 0.0);
+        for output in &outputs {
+            let stats = &output.stats;
+            row.accelerated_rays += stats.rays();
+            row.samples_traced += stats.samples_traced;
+            row.bookkeeping_ms += stats.bookkeeping_ms;
+            row.accelerated_trace_ms += stats.trace_ms;
+            row.accelerated_copy_ms += stats.copy_ms;
+            counts.largest_snap_deg = counts
+                .largest_snap_deg
+                .max(stats.yaw_error_deg.abs())
+                .max(stats.pitch_error_deg.abs());
+            if let Some(reason) = stats.refusal().map(|r| r.to_string()) {
+                if !counts.full_reasons.contains(&reason) {
+                    counts.full_reasons.push(reason);
+                }
+            }
+        }
+        // Frame-wide OSTC figures repeat on every view's stats.
+        if let Some(first) = outputs.first() {
+            row.dirty_regions = first.stats.dirty_regions;
+            row.samples_nulled = first.stats.samples_nulled;
+        }
+        counts.samples_traced += row.samples_traced;
+        counts.bookkeeping_ms += row.bookkeeping_ms;
+        std::hint::black_box(outputs);
+        progress();
+    }
+    elapsed
 }
 
 /// What the untimed pass found.

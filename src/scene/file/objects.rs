@@ -187,44 +187,7 @@ fn convert_object(
                 radius: radius * o.scale,
             })
         }
-        ObjectKind::Plane => {
-            let point = transform.transform_point3(require(o.point, "point")?);
-            if !within_world(point) {
-                return Err(err(
-                    "point",
-                    format!("{point} lies beyond the scene's extent (within ±{WORLD_LIMIT:e})"),
-                ));
-            }
-            let normal = transform.transform_vector3(require(o.normal, "normal")?);
-            if normal.length_squared() == 0.0 {
-                return Err(err("normal", "must not be zero".into()));
-            }
-            let normal = normal.normalize();
-            match o.size {
-                None => Shape::Plane(Plane { point, normal }),
-                Some(size) => {
-                    if !(size[0].is_finite()
-                        && size[1].is_finite()
-                        && size[0] > 0.0
-                        && size[1] > 0.0)
-                    {
-                        return Err(err(
-                            "size",
-                            format!("both sides must be above 0, got {size:?}"),
-                        ));
-                    }
-                    let (u, v) = crate::geometry::plane_axes(normal);
-                    let (hu, hv) = (u * size[0] * 0.5, v * size[1] * 0.5);
-                    let corners = vec![
-                        point - hu - hv,
-                        point + hu - hv,
-                        point + hu + hv,
-                        point - hu + hv,
-                    ];
-                    polygon_mesh(corners).map_err(|m| err("size", m))?
-                }
-            }
-        }
+        ObjectKind::Plane => plane_shape(o, &transform, &require, &err)?,
         ObjectKind::Quad | ObjectKind::Polygon => {
             let vertices = o
                 .vertices
@@ -244,63 +207,12 @@ fn convert_object(
             polygon_mesh(points).map_err(|m| err("vertices", m))?
         }
         ObjectKind::Mesh => {
-            let file = o
-                .file
-                .as_ref()
-                .ok_or_else(|| err("file", "required for type = \"mesh\"".into()))?;
-            let obj_path = ctx
-                .file_of(def.span())
-                .parent()
-                .unwrap_or(Path::new("."))
-                .join(file);
-            // A model that is not there is the scene's mistake: name its
-            // line. (Errors inside the model name the model's own line.)
-            if !obj_path.is_file() {
-                return Err(err(
-                    "file",
-                    format!("{}: no such model file", obj_path.display()),
-                ));
-            }
-            let crease_deg = mesh_crease_angle(o).map_err(|(f, m)| err(f, m))?;
-            let loaded =
-                crate::scene::load_obj_mesh_with(&obj_path, &mut ctx.textures.borrow_mut())?;
-            warnings.extend(loaded.warnings(&obj_path));
-            if loaded.triangle_count() == 0 {
-                warnings.push(format!("{}: mesh has no triangles", obj_path.display()));
-            }
-            let name = o.name.clone().unwrap_or_else(|| format!("object[{index}]"));
-            let mut objects = Vec::new();
-            for (part_index, part) in loaded.parts.into_iter().enumerate() {
-                let mut mesh = part.mesh;
-                for p in &mut mesh.positions {
-                    *p = transform.transform_point3(*p);
-                }
-                for n in &mut mesh.normals {
-                    *n = crate::geometry::transform_normal(&transform, *n);
-                }
-                if mesh.normals.is_empty() {
-                    apply_crease_normals(&mut mesh, crease_deg);
-                }
-                // The scene's material wins; without one, the MTL's.
-                let part_material = match (&o.material, part.material) {
-                    (None, Some(mtl)) => {
-                        materials.push(mtl);
-                        materials.len() - 1
-                    }
-                    _ => material,
-                };
-                objects.push(Object {
-                    name: if part_index == 0 {
-                        name.clone()
-                    } else {
-                        format!("{name} part {part_index}")
-                    },
-                    shape: Shape::Mesh(mesh),
-                    material: part_material,
-                    placement: Placement::World,
-                });
-            }
-            return Ok(objects);
+            let parts = MeshParts {
+                index,
+                material,
+                transform,
+            };
+            return mesh_objects(ctx, def, parts, materials, warnings, &err);
         }
     };
     Ok(vec![Object {
@@ -309,6 +221,133 @@ fn convert_object(
         material,
         placement: Placement::World,
     }])
+}
+
+/// A table's required vector field, checked: the value given, or the
+/// error naming the field.
+type RequireVec3<'a> = dyn Fn(Option<[f32; 3]>, &str) -> Result<Vec3, SceneError> + 'a;
+
+/// A plane object's shape: infinite, or with `size` a rectangle of two
+/// triangles.
+fn plane_shape(
+    o: &ObjectDef,
+    transform: &Affine3A,
+    require: &RequireVec3,
+    err: &dyn Fn(&str, String) -> SceneError,
+) -> Result<Shape, SceneError> {
+    let point = transform.transform_point3(require(o.point, "point")?);
+    if !within_world(point) {
+        return Err(err(
+            "point",
+            format!("{point} lies beyond the scene's extent (within ±{WORLD_LIMIT:e})"),
+        ));
+    }
+    let normal = transform.transform_vector3(require(o.normal, "normal")?);
+    if normal.length_squared() == 0.0 {
+        return Err(err("normal", "must not be zero".into()));
+    }
+    let normal = normal.normalize();
+    Ok(match o.size {
+        None => Shape::Plane(Plane { point, normal }),
+        Some(size) => {
+            if !(size[0].is_finite() && size[1].is_finite() && size[0] > 0.0 && size[1] > 0.0) {
+                return Err(err(
+                    "size",
+                    format!("both sides must be above 0, got {size:?}"),
+                ));
+            }
+            let (u, v) = crate::geometry::plane_axes(normal);
+            let (hu, hv) = (u * size[0] * 0.5, v * size[1] * 0.5);
+            let corners = vec![
+                point - hu - hv,
+                point + hu - hv,
+                point + hu + hv,
+                point - hu + hv,
+            ];
+            polygon_mesh(corners).map_err(|m| err("size", m))?
+        }
+    })
+}
+
+/// Where a mesh table's parts go: its table index, the scene's material
+/// for it and its transform.
+struct MeshParts {
+    index: usize,
+    material: usize,
+    transform: Affine3A,
+}
+
+/// A mesh table's model, one object per part, its transform applied.
+fn mesh_objects(
+    ctx: &Ctx,
+    def: &Spanned<ObjectDef>,
+    parts: MeshParts,
+    materials: &mut Vec<Material>,
+    warnings: &mut Vec<String>,
+    err: &dyn Fn(&str, String) -> SceneError,
+) -> Result<Vec<Object>, SceneError> {
+    let o = def.get_ref();
+    let MeshParts {
+        index,
+        material,
+        transform,
+    } = parts;
+    let file = o
+        .file
+        .as_ref()
+        .ok_or_else(|| err("file", "required for type = \"mesh\"".into()))?;
+    let obj_path = ctx
+        .file_of(def.span())
+        .parent()
+        .unwrap_or(Path::new("."))
+        .join(file);
+    // A model that is not there is the scene's mistake: name its
+    // line. (Errors inside the model name the model's own line.)
+    if !obj_path.is_file() {
+        return Err(err(
+            "file",
+            format!("{}: no such model file", obj_path.display()),
+        ));
+    }
+    let crease_deg = mesh_crease_angle(o).map_err(|(f, m)| err(f, m))?;
+    let loaded = crate::scene::load_obj_mesh_with(&obj_path, &mut ctx.textures.borrow_mut())?;
+    warnings.extend(loaded.warnings(&obj_path));
+    if loaded.triangle_count() == 0 {
+        warnings.push(format!("{}: mesh has no triangles", obj_path.display()));
+    }
+    let name = o.name.clone().unwrap_or_else(|| format!("object[{index}]"));
+    let mut objects = Vec::new();
+    for (part_index, part) in loaded.parts.into_iter().enumerate() {
+        let mut mesh = part.mesh;
+        for p in &mut mesh.positions {
+            *p = transform.transform_point3(*p);
+        }
+        for n in &mut mesh.normals {
+            *n = crate::geometry::transform_normal(&transform, *n);
+        }
+        if mesh.normals.is_empty() {
+            apply_crease_normals(&mut mesh, crease_deg);
+        }
+        // The scene's material wins; without one, the MTL's.
+        let part_material = match (&o.material, part.material) {
+            (None, Some(mtl)) => {
+                materials.push(mtl);
+                materials.len() - 1
+            }
+            _ => material,
+        };
+        objects.push(Object {
+            name: if part_index == 0 {
+                name.clone()
+            } else {
+                format!("{name} part {part_index}")
+            },
+            shape: Shape::Mesh(mesh),
+            material: part_material,
+            placement: Placement::World,
+        });
+    }
+    Ok(objects)
 }
 
 /// The crease angle of a mesh's table, in degrees: `crease_angle`, 180 for
