@@ -149,7 +149,7 @@ pub fn plan_for(run: &Run) -> Box<dyn StorePlan + Send + Sync> {
     }
     match pan::PanPlan::new(run) {
         Ok(pan) => Box::new(pan),
-        Err(refusal) => Box::new(still::StillPlan::new(run, refusal)),
+        Err(refusal) => Box::new(still::StillPlan::new(refusal)),
     }
 }
 

@@ -53,7 +53,7 @@ pub struct StillPlan {
 }
 
 impl StillPlan {
-    pub fn new(_run: &Run, pan_refusal: Option<FullReason>) -> StillPlan {
+    pub fn new(pan_refusal: Option<FullReason>) -> StillPlan {
         StillPlan { pan_refusal }
     }
 }
