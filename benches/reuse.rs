@@ -213,12 +213,14 @@ fn rsvp_resample(c: &mut Criterion) {
         let poses = std::slice::from_ref(&pose);
         let mut buffer = SampleBuffer::new(SampleLattice::for_camera(&scene.camera));
         let first = buffer.render(&shader, poses, &knobs, false, None);
-        assert!(first[0].samples_traced > 0, "the first frame traces");
+        assert!(first[0].work.samples_traced > 0, "the first frame traces");
         group.bench_function(name, |b| {
             b.iter(|| buffer.render(&shader, poses, &knobs, false, None))
         });
         assert_eq!(
-            buffer.render(&shader, poses, &knobs, false, None)[0].samples_traced,
+            buffer.render(&shader, poses, &knobs, false, None)[0]
+                .work
+                .samples_traced,
             0,
             "later frames of the same pose trace nothing"
         );

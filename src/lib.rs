@@ -13,6 +13,7 @@
 pub mod accel;
 pub mod camera;
 pub mod chunk;
+pub mod clock;
 pub mod color;
 #[cfg(feature = "farm")]
 pub mod farm;

@@ -20,9 +20,11 @@ use std::collections::HashMap;
 use std::time::Instant;
 
 use crate::accel::AccelError;
-use crate::frame_loop::{Animator, ViewOutput};
+use crate::clock;
+use crate::frame_loop::{Animator, FrameCheck, ViewOutput};
 use crate::metrics::{
-    count_differences, image_error, output_differences, reference_samples, ImageError, SizeMismatch,
+    count_byte_differences, count_differences, image_error, output_differences, reference_samples,
+    ImageError, SizeMismatch,
 };
 use crate::render::Frame;
 use crate::sampling::PixelSamples;
@@ -35,6 +37,17 @@ pub enum VerifyError {
     Size(#[from] SizeMismatch),
     #[error("building the afresh reference's accelerator: {0}")]
     Accel(#[from] AccelError),
+}
+
+/// A picture as written against one made independently of it (a
+/// `retrace render` of the same view, a picture written earlier): the
+/// pixels whose bytes differ. Used where only the written files are at
+/// hand, as the viewer's pictures are.
+pub fn written_differences(
+    picture: &image::RgbImage,
+    truth: &image::RgbImage,
+) -> Result<u64, VerifyError> {
+    Ok(count_byte_differences(picture, truth)?)
 }
 
 /// What to check of a view.
@@ -75,6 +88,19 @@ impl ViewCheck {
     /// (None: not compared).
     pub fn equal_to_full(&self) -> Option<bool> {
         self.differing.map(|d| d == (0, 0))
+    }
+
+    /// The check as the frame's statistics record it, with the regions
+    /// that truly changed since the previous frame where they were
+    /// counted; None without [`Checks::full`].
+    pub fn frame_check(&self, changed_regions: Option<u64>) -> Option<FrameCheck> {
+        let (_, full_ms) = self.full.as_ref()?;
+        Some(FrameCheck {
+            full_ms: *full_ms,
+            differing_pixels: self.differing.map_or(0, |d| d.0),
+            changed_regions,
+            error: self.own_rays.map(|(error, _)| error),
+        })
     }
 }
 
@@ -158,7 +184,7 @@ impl Verifier {
         if checks.full {
             let start = Instant::now();
             let (full, _) = animator.render_reference(frame, index);
-            let full_ms = start.elapsed().as_secs_f64() * 1e3;
+            let full_ms = clock::ms(start.elapsed());
             let (mut linear, written) = output_differences(image, &output.image, &full)?;
             let moves = animator.animation().is_some_and(|a| a.moves_scene());
             if checks.afresh && exact && moves {

@@ -8,7 +8,10 @@ use std::time::Instant;
 use anyhow::{Context, Result};
 use clap::Args;
 
-use retrace::frame_loop::{Animator, FrameStats, Options, Techniques};
+use retrace::clock;
+use retrace::frame_loop::{
+    stats_csv, stats_json, stats_rows, Animator, FrameStats, Options, Techniques,
+};
 use retrace::output::{save_image, PendingFile};
 
 use super::verify::RunCheck;
@@ -145,10 +148,7 @@ fn write_stats(
     earlier: &[serde_json::Value],
 ) -> Result<()> {
     let text = if is_json(path) {
-        let rows = stats
-            .iter()
-            .map(serde_json::to_value)
-            .collect::<Result<Vec<_>, _>>()?;
+        let rows = stats_rows(stats);
         let frames: std::collections::HashSet<u32> = stats.iter().map(|s| s.frame).collect();
         let kept = earlier
             .iter()
@@ -160,9 +160,9 @@ fn write_stats(
             .cloned()
             .collect();
         let rows = retrace::chunk::merge_stats(vec![kept, rows]).map_err(anyhow::Error::msg)?;
-        serde_json::to_string_pretty(&rows)?
+        stats_json(&rows)
     } else {
-        stats_csv(stats)?
+        stats_csv(&stats_rows(stats))?
     };
     ensure_parent(path)?;
     retrace::output::save_text(path, &text)?;
@@ -189,78 +189,6 @@ fn earlier_stats(args: &AnimateArgs, path: Option<&Path>) -> Result<Vec<serde_js
             path.display()
         )
     })
-}
-
-/// The stats as CSV, one column per field (nested fields as `error.psnr_db`),
-/// in the order `FrameStats` declares them, so CSV and JSON never drift apart.
-fn stats_csv(stats: &[retrace::frame_loop::FrameStats]) -> Result<String> {
-    let rows = stats
-        .iter()
-        .map(serde_json::to_value)
-        .collect::<Result<Vec<_>, _>>()?;
-    rows_csv(&rows)
-}
-
-/// Rows of `FrameStats` as JSON values (a run's own, or read back from
-/// its chunks' files) as CSV.
-pub(crate) fn rows_csv(rows: &[serde_json::Value]) -> Result<String> {
-    fn flatten(prefix: &str, value: &serde_json::Value, out: &mut Vec<(String, String)>) {
-        match value {
-            serde_json::Value::Object(map) => {
-                for (key, inner) in map {
-                    let name = if prefix.is_empty() {
-                        key.clone()
-                    } else {
-                        format!("{prefix}.{key}")
-                    };
-                    flatten(&name, inner, out);
-                }
-            }
-            serde_json::Value::Null => out.push((prefix.to_string(), String::new())),
-            serde_json::Value::String(text) => {
-                let cell = if text.contains([',', '"', '\n']) {
-                    format!("\"{}\"", text.replace('"', "\"\""))
-                } else {
-                    text.clone()
-                };
-                out.push((prefix.to_string(), cell))
-            }
-            serde_json::Value::Number(n) => out.push((
-                prefix.to_string(),
-                match n.as_f64() {
-                    Some(x) if n.is_f64() => format!("{x:.6}"),
-                    _ => n.to_string(),
-                },
-            )),
-            other => out.push((prefix.to_string(), other.to_string())),
-        }
-    }
-    // Optional nested values are null in some rows: the columns of a row
-    // with every value present name them all.
-    let template = retrace::frame_loop::FrameStats {
-        error: Some(retrace::metrics::ImageError::default()),
-        ..Default::default()
-    };
-    let mut header = Vec::new();
-    flatten("", &serde_json::to_value(&template)?, &mut header);
-    let mut csv = header
-        .iter()
-        .map(|(name, _)| name.as_str())
-        .collect::<Vec<_>>()
-        .join(",");
-    csv.push('\n');
-    for value in rows {
-        let mut row = Vec::new();
-        flatten("", value, &mut row);
-        let cells: std::collections::HashMap<_, _> = row.into_iter().collect();
-        let line: Vec<&str> = header
-            .iter()
-            .map(|(name, _)| cells.get(name).map_or("", String::as_str))
-            .collect();
-        csv.push_str(&line.join(","));
-        csv.push('\n');
-    }
-    Ok(csv)
 }
 
 /// The frames this task renders and where its statistics go: all of
@@ -543,9 +471,9 @@ fn render_frames(
                     gif.add(&output.image)?;
                 }
             }
-            write_ms += write_start.elapsed().as_secs_f64() * 1e3;
-            frame_ms += output.stats.total_ms;
-            frame_samples += output.stats.samples_traced;
+            write_ms += clock::ms(write_start.elapsed());
+            frame_ms += output.stats.total_ms();
+            frame_samples += output.stats.work.samples_traced;
             finished
                 .lock()
                 .unwrap_or_else(PoisonError::into_inner)
@@ -555,7 +483,7 @@ fn render_frames(
             if let Some(picture) = animator.store_picture(frame) {
                 let write_start = Instant::now();
                 save_image(&store_files.path(frame, ""), &picture)?;
-                write_ms += write_start.elapsed().as_secs_f64() * 1e3;
+                write_ms += clock::ms(write_start.elapsed());
             }
         }
         if args.verify {
@@ -689,14 +617,14 @@ fn sum_ms(values: impl Iterator<Item = f64>) -> f64 {
 
 /// Time spent, and samples traced against pixels shown, over a run.
 fn run_summary(stats: &[retrace::frame_loop::FrameStats], write_ms: f64) -> String {
-    let total = sum_ms(stats.iter().map(|s| s.total_ms));
-    let traced: u64 = stats.iter().map(|s| s.samples_traced).sum();
+    let total = sum_ms(stats.iter().map(|s| s.total_ms()));
+    let traced: u64 = stats.iter().map(|s| s.work.samples_traced).sum();
     let pixels: u64 = stats.iter().map(|s| s.pixels).sum();
     let per_pixel = traced as f64 / pixels.max(1) as f64;
     // RSVP traces the pyramid level a viewport's pixels need, a whole
     // level at a time: zoomed in or at a wide view's edges, finer than the
     // pixels themselves.
-    let why = if per_pixel > 1.0 && stats.iter().any(|s| !s.viewport.is_empty()) {
+    let why = if per_pixel > 1.0 && stats.iter().any(|s| !s.view.is_empty()) {
         " (RSVP traces whole pyramid levels about as fine as the viewports' pixels, finer where a view is squeezed)"
     } else {
         ""
@@ -719,8 +647,8 @@ fn counted(count: u64, word: &str) -> String {
 
 /// The reference renders' time and the speedup against them.
 fn verify_timing(stats: &[retrace::frame_loop::FrameStats]) -> String {
-    let total = sum_ms(stats.iter().map(|s| s.total_ms));
-    let full = sum_ms(stats.iter().filter_map(|s| s.full_ms));
+    let total = sum_ms(stats.iter().map(|s| s.total_ms()));
+    let full = sum_ms(stats.iter().filter_map(|s| s.check.map(|c| c.full_ms)));
     format!("{full:.1} ms, speedup {:.2}x", full / total.max(1e-9))
 }
 

@@ -14,8 +14,9 @@ use retrace::farm::{
 };
 use retrace::scene::SceneOverrides;
 
-use super::animate::{rows_csv, GifWriter};
+use super::animate::GifWriter;
 use super::{folder_of, frame_pattern, make_folder, parse_frame_range, FramePattern};
+use retrace::frame_loop::{stats_csv, stats_json};
 
 /// The batch scripts, carried in the binary so that an installed retrace
 /// submits the same scripts as the repository's `farm/slurm/`.
@@ -454,8 +455,8 @@ fn assemble(args: AssembleArgs) -> Result<()> {
         .map_err(anyhow::Error::msg)?;
     let csv_path = dir.join("stats.csv");
     let json_path = dir.join("stats.json");
-    retrace::output::save_text(&csv_path, &rows_csv(&merged)?)?;
-    retrace::output::save_text(&json_path, &serde_json::to_string_pretty(&merged)?)?;
+    retrace::output::save_text(&csv_path, &stats_csv(&merged)?)?;
+    retrace::output::save_text(&json_path, &stats_json(&merged))?;
     say!("wrote {} and {}", csv_path.display(), json_path.display());
 
     let plot_path = dir.join("savings.png");

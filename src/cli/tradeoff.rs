@@ -83,7 +83,7 @@ pub(crate) fn tradeoff(args: TradeoffArgs) -> Result<()> {
     );
     say!("{}", retrace::lab::tradeoff::table(&rows).trim_end());
     let csv = args.out.join("tradeoff.csv");
-    retrace::output::save_text(&csv, &retrace::lab::tradeoff::csv(&rows))?;
+    retrace::output::save_text(&csv, &retrace::lab::tradeoff::csv(&rows)?)?;
     let png = args.out.join("tradeoff.png");
     retrace::lab::tradeoff::plot(&png, &rows)?;
     say!("wrote {} and {}", csv.display(), png.display());

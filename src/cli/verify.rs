@@ -72,20 +72,19 @@ impl RunCheck {
         let check = self
             .verifier
             .check_view(animator, frame, index, output, checks)?;
-        let (full, full_ms) = check.full.expect("asked for");
         let differing = check.differing.expect("asked for");
-        let stats = &mut output.stats;
-        stats.full_ms = Some(full_ms);
-        stats.speedup = Some(full_ms / stats.total_ms);
-        stats.differing_pixels = Some(differing.0);
-        stats.error = check.own_rays.map(|(error, _)| error);
         // The regions a perfect OSTC would re-trace, from the full renders'
         // changes (of the camera's image).
-        if !animator.has_viewports() {
-            if let Some(previous) = &self.previous_full {
-                stats.changed_regions = Some(changed_regions(previous, &full, self.region_size)?);
+        let camera_image = !animator.has_viewports();
+        let changed = match (&self.previous_full, &check.full) {
+            (Some(previous), Some((full, _))) if camera_image => {
+                Some(changed_regions(previous, full, self.region_size)?)
             }
-            self.previous_full = Some(full);
+            _ => None,
+        };
+        output.stats.check = check.frame_check(changed);
+        if camera_image {
+            self.previous_full = check.full.map(|(full, _)| full);
         }
         if animator.is_exact() && differing != (0, 0) {
             self.failed_frames.push((frame, differing));
@@ -194,10 +193,10 @@ fn say_verified(
 ) -> Result<()> {
     if animator.has_viewports() {
         for name in names {
-            let rows = stats.iter().filter(|s| &s.viewport == name);
+            let rows = stats.iter().filter(|s| &s.view == name);
             say!(
                 "verify {name} (against its own rays): {}",
-                error_summary(rows.filter_map(|s| s.error))
+                error_summary(rows.filter_map(FrameStats::error))
             );
         }
         return Ok(());
@@ -222,7 +221,10 @@ fn say_verified(
     if animator.is_exact() {
         let largest_snap_deg = stats
             .iter()
-            .map(|s| s.yaw_error_deg.abs().max(s.pitch_error_deg.abs()))
+            .map(|s| {
+                let (yaw, pitch) = s.snap_error_deg();
+                yaw.abs().max(pitch.abs())
+            })
             .fold(0.0, f64::max);
         let step_deg =
             retrace::reuse::pan::EqualAngleLattice::step_for(&animator.camera_at(0)).to_degrees();
@@ -247,7 +249,7 @@ fn say_verified(
             } else {
                 "resampled"
             },
-            error_summary(stats.iter().filter_map(|s| s.error))
+            error_summary(stats.iter().filter_map(FrameStats::error))
         );
     }
     Ok(())

@@ -11,7 +11,7 @@ use retrace::sampling::MAX_SAMPLES_PER_PIXEL;
 use retrace::view::refine::DEFAULT_REFINE_SPP;
 use retrace::view::script::{parse_script, run_script, stats_csv, EventStats};
 use retrace::view::window::{run_window, Hooks};
-use retrace::view::worker::{Abandoned, REFINE_MODE};
+use retrace::view::worker::{Abandoned, Stage};
 use retrace::view::{next_save_path, Picture, RenderThread, Viewer};
 
 use super::{check_writable, ensure_parent, load, scene_name, BackendArg, SceneArgs};
@@ -105,7 +105,7 @@ pub(crate) fn view(args: ViewArgs) -> Result<()> {
                 .map_err(anyhow::Error::msg)?;
             say_script(&name, &rows, &thread.abandoned());
             if let Some(path) = &args.stats {
-                save_text(path, &stats_csv(&rows))?;
+                save_text(path, &stats_csv(&rows)?)?;
             }
             Ok(())
         }
@@ -126,7 +126,7 @@ pub(crate) fn view(args: ViewArgs) -> Result<()> {
             )
             .map_err(anyhow::Error::msg)?;
             if let Some(path) = &args.stats {
-                save_text(path, &stats_csv(&hooks.rows))?;
+                save_text(path, &stats_csv(&hooks.rows)?)?;
             }
             Ok(())
         }
@@ -137,7 +137,11 @@ pub(crate) fn view(args: ViewArgs) -> Result<()> {
 /// given up for newer input.
 fn say_script(name: &str, rows: &[EventStats], abandoned: &[Abandoned]) {
     let times: Vec<f64> = rows.iter().filter_map(|r| r.ms_to_picture).collect();
-    let traced: u64 = rows.iter().filter_map(|r| r.samples_traced).sum();
+    let traced: u64 = rows
+        .iter()
+        .filter_map(|r| r.picture.as_ref())
+        .map(|p| p.work.samples_traced)
+        .sum();
     say!(
         "{name}: {} commands with a picture, ms to picture: median {:.1}, max {:.1}; {} samples traced",
         times.len(),
@@ -207,17 +211,17 @@ impl Hooks for WindowHooks {
                 state.pitch.to_degrees(),
                 state.notches,
                 if state.reuse { "on" } else { "off" },
-                picture.mode,
+                picture.mode(),
                 picture.samples,
-                picture.render_ms,
+                picture.stats.total_ms(),
                 latency_ms,
-                picture.samples_traced
+                picture.stats.work.samples_traced
             );
         }
         if !picture.complete {
             return;
         }
-        if picture.mode == REFINE_MODE {
+        if picture.stage == Stage::Refined {
             // The row of the request it refines.
             if let Some(row) = self
                 .rows
@@ -235,13 +239,12 @@ impl Hooks for WindowHooks {
             event: format!("picture {}", picture.generation),
             frame: state.frame,
             reuse: state.reuse,
-            mode: Some(picture.mode),
+            mode: Some(picture.mode()),
             ms_to_first_picture: Some(first_ms),
             ms_to_picture: Some(latency_ms),
             ms_to_converged: picture.converged.then_some(latency_ms),
-            render_ms: Some(picture.render_ms),
-            samples_traced: Some(picture.samples_traced),
-            pixels: picture.pixels,
+            pixels: u64::from(picture.image.width()) * u64::from(picture.image.height()),
+            picture: Some(picture.stats.clone()),
         });
     }
 

@@ -8,6 +8,7 @@
 
 use std::time::Instant;
 
+use crate::clock;
 use crate::geometry::{Aabb, Light, Object, Placement, Shape};
 use crate::reuse::ostc::{Footprint, Ostc};
 use crate::reuse::regions::{RegionLayout, RegionSet};
@@ -202,7 +203,7 @@ pub(super) fn invalidate(
     Invalidation {
         regions: regions as u64,
         samples_nulled,
-        ms: start.elapsed().as_secs_f64() * 1e3,
+        ms: clock::ms(start.elapsed()),
     }
 }
 

@@ -27,21 +27,23 @@ mod stats;
 
 pub use crate::reuse::{FullReason, Options, OstcSettings, Technique, Techniques, View};
 pub use changes::{swept_bounds, OstcRefusal, OSTC_LIMIT_BYTES};
-pub use stats::{FrameStats, Reason, Restart};
+pub use stats::{
+    stats_csv, stats_json, stats_rows, FrameCheck, FrameStats, OstcWork, Reason, Restart, StatsRows,
+};
 
 use std::sync::atomic::AtomicBool;
-use std::time::Instant;
 
 use glam::Affine3A;
 
 use crate::accel::{Accelerator, Intersector};
 use crate::camera::{Camera, ViewTransform, ViewportPose};
+use crate::clock::Stopwatch;
 use crate::geometry::Placement;
 use crate::pool::with_workers_awake;
 use crate::render::Frame;
 use crate::reuse::lattice_buffer::cells_traced;
 use crate::reuse::ostc::Ostc;
-use crate::reuse::{plan_for, FrameMode, Run, SampleStore, Serve, StorePlan, Wanted};
+use crate::reuse::{plan_for, FrameMode, Run, SampleStore, Serve, StorePlan, ViewWork, Wanted};
 use crate::sampling::PixelSamples;
 use crate::scene::Scene;
 use crate::shade::{RayCounts, Shader};
@@ -416,7 +418,7 @@ impl<'a> Animator<'a> {
             self.interactive || views == self.views(frame),
             "views other than the timeline's need an interactive animator"
         );
-        let start = Instant::now();
+        let watch = Stopwatch::start();
         self.pose(frame);
         if let Serve::Full(reason) = self.plan.serves(&self.run(), frame, &views) {
             self.kept = None;
@@ -441,7 +443,7 @@ impl<'a> Animator<'a> {
                 kept.pose = pose;
             }
         }
-        let setup_ms = start.elapsed().as_secs_f64() * 1e3 - changed.ms;
+        let setup_ms = watch.ms() - changed.ms;
         let kept = self.kept.as_mut().expect("store just ensured");
         let gate = stop
             .filter(|_| restart.is_some())
@@ -462,39 +464,30 @@ impl<'a> Animator<'a> {
             return None;
         }
         let (walked, record_ms) = kept.ostc.as_ref().map_or((0, 0.0), Ostc::take_counters);
-        // Recording ran on every worker thread: its share of the elapsed
-        // time. Frame-wide figures are shared out over the views.
-        let record_share = record_ms / rayon::current_num_threads() as f64;
+        // Frame-wide figures are shared out over the views; recording ran
+        // on every worker thread, so its share of the elapsed time counts.
         let count = frames.len().max(1) as f64;
+        let ostc = OstcWork {
+            dirty_regions: changed.regions,
+            samples_nulled: changed.samples_nulled,
+            voxels_walked: walked,
+            record_ms: record_ms / rayon::current_num_threads() as f64 / count,
+            erase_ms: changed.ms / count,
+        };
         let mode = kept.store.mode(kept.ostc.is_some());
         let mut outputs = Vec::with_capacity(views.len());
         for (view, made) in views.into_iter().zip(frames) {
-            let total = (setup_ms + changed.ms) / count + made.trace_ms + made.assembly_ms;
-            let bookkeeping = (changed.ms + record_share) / count;
-            let trace = (made.trace_ms - record_share / count).max(0.0);
-            let (yaw_error, pitch_error) = made.snap_error.unwrap_or((0.0, 0.0));
-            let mut stats = FrameStats {
+            let stats = FrameStats {
                 frame,
+                view: view.name.clone(),
                 mode,
                 reason: restart.map(Reason::Restart),
                 pixels: pixels(&view.pose),
-                pixels_reused: made.pixels_reused,
-                samples_traced: made.samples_traced,
-                dirty_regions: changed.regions,
-                samples_nulled: changed.samples_nulled,
-                voxels_walked: walked,
-                bookkeeping_ms: bookkeeping,
-                trace_ms: trace,
-                copy_ms: (total - trace - bookkeeping).max(0.0),
-                total_ms: total,
-                yaw_error_deg: yaw_error.to_degrees(),
-                pitch_error_deg: pitch_error.to_degrees(),
-                viewport: view.name.clone(),
-                finest_level: made.levels.map(|l| l.1),
-                coarsest_level: made.levels.map(|l| l.0),
-                ..FrameStats::default()
+                work: made.work,
+                ostc,
+                setup_ms: setup_ms / count,
+                check: None,
             };
-            stats.count_rays(made.rays);
             let traced_image = self.options.traced_images.then(|| {
                 kept.store
                     .paint_traced(outputs.len(), &view.pose, &made.image)
@@ -523,7 +516,7 @@ impl<'a> Animator<'a> {
         let mut outputs = Vec::with_capacity(views.len());
         self.pose(frame);
         for view in views {
-            let start = Instant::now();
+            let watch = Stopwatch::start();
             let gate = stop.map(|stop| Abandonable::new(&*self.accel, stop));
             let intersector: &dyn Intersector = match &gate {
                 Some(gate) => gate,
@@ -534,22 +527,23 @@ impl<'a> Animator<'a> {
             if gate.as_ref().is_some_and(Abandonable::tripped) {
                 return None;
             }
-            let trace_ms = start.elapsed().as_secs_f64() * 1e3;
+            let trace_ms = watch.ms();
             let rgb = image.to_rgb8();
-            let total_ms = start.elapsed().as_secs_f64() * 1e3;
-            let mut stats = FrameStats {
+            let stats = FrameStats {
                 frame,
+                view: view.name.clone(),
                 mode: FrameMode::Full,
                 reason: reason.map(Reason::Full),
                 pixels: pixels(&view.pose),
-                samples_traced: cells_traced(&rays, self.scene.samples),
-                trace_ms,
-                copy_ms: total_ms - trace_ms,
-                total_ms,
-                viewport: view.name.clone(),
+                work: ViewWork {
+                    samples_traced: cells_traced(&rays, self.scene.samples),
+                    rays,
+                    trace_ms,
+                    assembly_ms: watch.ms() - trace_ms,
+                    ..ViewWork::default()
+                },
                 ..FrameStats::default()
             };
-            stats.count_rays(rays);
             let traced_image = self
                 .options
                 .traced_images

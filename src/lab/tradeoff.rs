@@ -22,6 +22,7 @@ use crate::frame_loop::{Options, OstcSettings, Techniques};
 use crate::lab::bench::ErrorSummary;
 use crate::lab::bench::{bench_sequence, Measure, SequenceBench};
 use crate::lab::plot::{LabelledPoint, PlotError, ScatterGroup};
+use crate::output::{csv_text, CsvError, Floats};
 use crate::reuse::ostc::DEFAULT_VOXELS;
 use crate::reuse::pan::FractionalPan;
 use crate::reuse::regions::RegionGrid;
@@ -465,32 +466,13 @@ fn psnr_text(db: f64) -> String {
     }
 }
 
-/// The rows as CSV, one line per knob setting, with a header.
-pub fn csv(rows: &[TradeoffRow]) -> String {
-    let mut text = String::from(
-        "knob,setting,frames,full_ms_per_frame,accelerated_ms_per_frame,speedup,\
-         max_abs_error,mean_abs_error,worst_psnr_db,differing_share,bit_exact,\
-         full_reference_psnr_db,accelerated_reference_psnr_db\n",
-    );
-    for r in rows {
-        text.push_str(&format!(
-            "{},{},{},{:.4},{:.4},{:.4},{},{},{},{},{},{},{}\n",
-            r.knob,
-            r.setting,
-            r.frames,
-            r.full_ms_per_frame,
-            r.accelerated_ms_per_frame,
-            r.speedup,
-            r.max_abs_error,
-            r.mean_abs_error,
-            psnr_text(r.worst_psnr_db),
-            r.differing_share,
-            r.bit_exact.map_or(String::new(), |b| b.to_string()),
-            psnr_text(r.full_reference_psnr_db),
-            psnr_text(r.accelerated_reference_psnr_db),
-        ));
+/// The rows as CSV, one line per knob setting, with a header, at full
+/// precision (an infinite PSNR, every frame exact, as `inf`).
+pub fn csv(rows: &[TradeoffRow]) -> Result<String, CsvError> {
+    match rows.first() {
+        Some(first) => csv_text(rows, first, Floats::Shortest),
+        None => Ok(String::new()),
     }
-    text
 }
 
 /// The rows as a table for a terminal.
@@ -600,15 +582,15 @@ mod tests {
             },
             row("RSVP filter", "box", None),
         ];
-        let text = csv(&rows);
+        let text = csv(&rows).unwrap();
         let lines: Vec<&str> = text.lines().collect();
         assert_eq!(lines.len(), 4);
         let columns = lines[0].split(',').count();
         assert!(lines.iter().all(|l| l.split(',').count() == columns));
         assert!(lines[2].contains(",inf,"), "{}", lines[2]);
-        assert!(lines[2].ends_with(",true,28.50,30.25"), "{}", lines[2]);
+        assert!(lines[2].ends_with(",true,28.5,30.25"), "{}", lines[2]);
         assert!(
-            lines[3].ends_with(",,28.50,30.25"),
+            lines[3].ends_with(",,28.5,30.25"),
             "no exactness claim for RSVP: {}",
             lines[3]
         );

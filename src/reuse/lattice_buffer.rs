@@ -7,11 +7,10 @@
 //! the packets) a full render of the window traces, so a frame made from
 //! it equals a full render bit for bit.
 
-use std::time::Instant;
-
 use glam::Vec3;
 use rayon::prelude::*;
 
+use crate::clock::Stopwatch;
 use crate::color::srgb_table;
 use crate::ray::{LaneMask, PACKET_WIDTH};
 use crate::render::{
@@ -20,7 +19,7 @@ use crate::render::{
 };
 use crate::reuse::ostc::Ostc;
 use crate::reuse::regions::{RegionLayout, RegionSet};
-use crate::reuse::StoreFrame;
+use crate::reuse::{StoreFrame, ViewWork};
 use crate::sampling::PixelSamples;
 use crate::shade::{RayCounts, RayObserver, Shader};
 
@@ -353,44 +352,6 @@ struct TracedCells {
     fresh: LaneMask,
 }
 
-/// What one frame of a pan cost.
-#[derive(Clone, Debug, Default, serde::Serialize)]
-pub struct PanFrameStats {
-    pub samples_traced: u64,
-    pub pixels_reused: u64,
-    pub rays: RayCounts,
-    /// Of the frame's time, tracing (recording into OSTC included).
-    pub trace_ms: f64,
-    /// The groups traced for the frame (wrapped lattice coordinates).
-    #[serde(skip)]
-    pub traced: Vec<SampleGroup>,
-}
-
-impl PanFrameStats {
-    /// The frame as a store gives it (`elapsed_ms` in all), and the groups
-    /// it traced.
-    pub fn store_frame(
-        self,
-        frame: Option<Frame>,
-        image: image::RgbImage,
-        elapsed_ms: f64,
-        snap_error: Option<(f64, f64)>,
-    ) -> (StoreFrame, Vec<SampleGroup>) {
-        let made = StoreFrame {
-            frame,
-            image,
-            samples_traced: self.samples_traced,
-            pixels_reused: self.pixels_reused,
-            rays: self.rays,
-            trace_ms: self.trace_ms,
-            assembly_ms: (elapsed_ms - self.trace_ms).max(0.0),
-            snap_error,
-            levels: None,
-        };
-        (made, self.traced)
-    }
-}
-
 impl<L: Lattice> LatticeBuffer<L> {
     /// A buffer for windows within rows `rows` of the lattice, keeping a
     /// square count's strata too when `keep_strata` is set (for OSTC, which
@@ -698,10 +659,10 @@ impl<L: Lattice> LatticeBuffer<L> {
         window: &Window,
         linear: bool,
         ostc: Option<&Ostc>,
-    ) -> (Option<Frame>, image::RgbImage, PanFrameStats) {
-        let start = Instant::now();
+    ) -> (StoreFrame, Vec<SampleGroup>) {
+        let watch = Stopwatch::start();
         let (fresh_pixels, rays, traced) = self.trace_missing(shader, window, ostc);
-        let trace_ms = start.elapsed().as_secs_f64() * 1e3;
+        let trace_ms = watch.ms();
         let (width, height) = (window.width as usize, window.height as usize);
         let mut pixels = Vec::with_capacity(if linear { width * height } else { 0 });
         let mut bytes: Vec<u8> = Vec::with_capacity(width * height * 3);
@@ -724,16 +685,14 @@ impl<L: Lattice> LatticeBuffer<L> {
         let (frame, image) =
             assembled(window.width, window.height, linear.then_some(pixels), bytes);
         let pixels = u64::from(window.width) * u64::from(window.height);
-        (
-            frame,
-            image,
-            PanFrameStats {
-                samples_traced: cells_traced(&rays, self.lattice.samples()),
-                pixels_reused: pixels - fresh_pixels.min(pixels),
-                rays,
-                trace_ms,
-                traced,
-            },
-        )
+        let work = ViewWork {
+            samples_traced: cells_traced(&rays, self.lattice.samples()),
+            pixels_reused: pixels - fresh_pixels.min(pixels),
+            rays,
+            trace_ms,
+            assembly_ms: watch.ms() - trace_ms,
+            ..ViewWork::default()
+        };
+        (StoreFrame { frame, image, work }, traced)
     }
 }

@@ -345,6 +345,14 @@ pub struct StoreFrame {
     /// Linear colour, when wanted.
     pub frame: Option<Frame>,
     pub image: image::RgbImage,
+    pub work: ViewWork,
+}
+
+/// What a store did for one view of a frame, measured by the store as it
+/// did it; the frame loop carries it unchanged into
+/// [`crate::frame_loop::FrameStats`].
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct ViewWork {
     /// Samples traced for this view (the first view to need a sample
     /// pays for it).
     pub samples_traced: u64,
@@ -361,6 +369,28 @@ pub struct StoreFrame {
     /// RSVP: the coarsest and finest pyramid level the view read (by
     /// [`rsvp::Level::finest`]).
     pub levels: Option<(u32, u32)>,
+}
+
+impl ViewWork {
+    /// The work of views whose pictures were combined into one (RSVP's
+    /// shifted viewports averaged into a pixel's samples): counts and
+    /// times add up, the levels span them all.
+    pub fn combined(parts: impl IntoIterator<Item = ViewWork>) -> ViewWork {
+        parts
+            .into_iter()
+            .fold(ViewWork::default(), |sum, part| ViewWork {
+                samples_traced: sum.samples_traced + part.samples_traced,
+                pixels_reused: sum.pixels_reused + part.pixels_reused,
+                rays: sum.rays + part.rays,
+                trace_ms: sum.trace_ms + part.trace_ms,
+                assembly_ms: sum.assembly_ms + part.assembly_ms,
+                snap_error: sum.snap_error.or(part.snap_error),
+                levels: match (sum.levels, part.levels) {
+                    (Some(a), Some(b)) => Some((a.0.min(b.0), a.1.max(b.1))),
+                    (a, b) => a.or(b),
+                },
+            })
+    }
 }
 
 /// Samples kept from earlier frames, and the views made from them.

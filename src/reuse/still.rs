@@ -153,11 +153,8 @@ impl SampleStore for StillStore {
         ostc: Option<&Ostc>,
         wanted: Wanted,
     ) -> Vec<StoreFrame> {
-        let start = std::time::Instant::now();
         let window = image_window(self.buffer.lattice());
-        let (frame, image, still) = self.buffer.frame(shader, &window, wanted.linear, ostc);
-        let elapsed = start.elapsed().as_secs_f64() * 1e3;
-        let (made, traced) = still.store_frame(frame, image, elapsed, None);
+        let (made, traced) = self.buffer.frame(shader, &window, wanted.linear, ostc);
         self.traced = traced;
         vec![made]
     }

@@ -12,6 +12,7 @@
 
 use std::time::Instant;
 
+use crate::clock;
 use crate::render::{image_groups, trace_groups, Frame, PrimaryRays};
 use crate::shade::{RayCounts, Shader};
 
@@ -81,7 +82,7 @@ pub fn trace_in_bands(
         // The pace of the bands so far, smoothed (a band slowed by other
         // work on the machine should not halve the next one), and bands
         // growing at most twofold, so one fast band cannot make a long one.
-        let ms_per_group = start.elapsed().as_secs_f64() * 1e3 / band.len() as f64;
+        let ms_per_group = clock::ms(start.elapsed()) / band.len() as f64;
         pace = match pace {
             None => ms_per_group,
             Some(pace) => 0.75 * pace + 0.25 * ms_per_group,

@@ -32,6 +32,9 @@ use glam::DVec2;
 
 use super::state::{Effect, Input, Key, ViewState, Viewer};
 use super::worker::{Finished, RenderThread, REFINE_MODE};
+use crate::clock;
+use crate::frame_loop::FrameStats;
+use crate::output::{csv_text, CsvError, Floats};
 
 /// One command of a script.
 #[derive(Clone, Debug, PartialEq)]
@@ -167,7 +170,7 @@ fn parse_command(content: &str, size: (u32, u32)) -> Result<Command, String> {
 }
 
 /// What one command cost: the first picture that showed it.
-#[derive(Clone, Debug, serde::Serialize)]
+#[derive(Clone, Debug, Default, serde::Serialize)]
 pub struct EventStats {
     pub line: usize,
     pub event: String,
@@ -176,18 +179,19 @@ pub struct EventStats {
     pub reuse: bool,
     /// How the frame loop made the picture.
     pub mode: Option<&'static str>,
+    /// From the command to its complete picture, ms.
+    pub ms_to_picture: Option<f64>,
     /// From the command to the first picture showing it (coarse or
     /// complete), ms.
     pub ms_to_first_picture: Option<f64>,
-    /// From the command to its complete picture, ms.
-    pub ms_to_picture: Option<f64>,
     /// From the command to the converged picture showing it (refined to
     /// the top of the ladder), ms; None if none came before the end.
     pub ms_to_converged: Option<f64>,
-    /// The frame loop's time for that picture, ms.
-    pub render_ms: Option<f64>,
-    pub samples_traced: Option<u64>,
+    /// Pixels of the picture shown.
     pub pixels: u64,
+    /// What the complete picture that answered it cost, as the frame loop
+    /// recorded it (its columns `picture.frame`, `picture.total_ms`, ...).
+    pub picture: Option<FrameStats>,
 }
 
 /// What the script asks to be written: (path, picture).
@@ -294,7 +298,7 @@ pub fn run_script(
             let converged = log
                 .iter()
                 .find(|f| f.generation >= generation && f.converged);
-            let since = |f: &Finished| f.done.duration_since(at).as_secs_f64() * 1e3;
+            let since = |f: &Finished| clock::ms(f.done.duration_since(at));
             let (width, height) = viewer.size_of(&state);
             EventStats {
                 line,
@@ -305,38 +309,25 @@ pub fn run_script(
                 ms_to_first_picture: first.map(since),
                 ms_to_picture: answer.map(since),
                 ms_to_converged: converged.map(since),
-                render_ms: answer.map(|f| f.render_ms),
-                samples_traced: answer.map(|f| f.samples_traced),
                 pixels: u64::from(width) * u64::from(height),
+                picture: answer.map(|f| f.stats.clone()),
             }
         })
         .collect())
 }
 
-/// The statistics as CSV, one row per command.
-pub fn stats_csv(rows: &[EventStats]) -> String {
-    let mut csv = String::from(
-        "line,event,frame,reuse,mode,ms_to_picture,render_ms,samples_traced,pixels,\
-         ms_to_first_picture,ms_to_converged\n",
-    );
-    let opt = |v: Option<f64>| v.map_or(String::new(), |v| format!("{v:.3}"));
-    for row in rows {
-        csv.push_str(&format!(
-            "{},\"{}\",{},{},{},{},{},{},{},{},{}\n",
-            row.line,
-            row.event.replace('"', "\"\""),
-            row.frame,
-            if row.reuse { "on" } else { "off" },
-            row.mode.unwrap_or(""),
-            opt(row.ms_to_picture),
-            opt(row.render_ms),
-            row.samples_traced.map_or(String::new(), |v| v.to_string()),
-            row.pixels,
-            opt(row.ms_to_first_picture),
-            opt(row.ms_to_converged)
-        ));
-    }
-    csv
+/// The statistics as CSV, one row per command, times to the
+/// microsecond.
+pub fn stats_csv(rows: &[EventStats]) -> Result<String, CsvError> {
+    let columns_of = EventStats {
+        mode: Some(""),
+        ms_to_picture: Some(0.0),
+        ms_to_first_picture: Some(0.0),
+        ms_to_converged: Some(0.0),
+        picture: Some(FrameStats::every_column()),
+        ..EventStats::default()
+    };
+    csv_text(rows, &columns_of, Floats::Fixed(3))
 }
 
 #[cfg(test)]

@@ -18,6 +18,7 @@ use winit::platform::x11::EventLoopBuilderExtX11;
 use winit::window::{Window, WindowId};
 
 use crate::accel::BackendKind;
+use crate::clock;
 use crate::scene::Scene;
 
 use super::state::{Effect, Input, Key, ViewState, Viewer};
@@ -217,10 +218,10 @@ impl App<'_> {
             title.push_str(&format!(
                 " | {} spp | {:.1} ms | {:.1}% traced | reuse {} ({})",
                 p.samples,
-                p.render_ms,
+                p.stats.total_ms(),
                 100.0 * p.traced_share(),
                 if p.state.reuse { "on" } else { "off" },
-                p.mode
+                p.mode()
             ));
         }
         let frames = self.viewer.frames();
@@ -281,7 +282,7 @@ impl App<'_> {
                     .find(|(g, _)| *g <= picture.generation)
                     .map(|(_, at)| *at),
             };
-            let since = asked_at.map_or(0.0, |at| now.duration_since(at).as_secs_f64() * 1e3);
+            let since = asked_at.map_or(0.0, |at| clock::ms(now.duration_since(at)));
             let first = match self.first_shown {
                 Some((g, ms)) if g == picture.generation => ms,
                 _ => since,

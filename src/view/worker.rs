@@ -46,9 +46,10 @@ use std::time::{Duration, Instant};
 
 use crate::accel::{Accelerator, BackendKind};
 use crate::camera::{Camera, RayTable, Viewport};
-use crate::frame_loop::{Animator, KeptSamples, Options, Reason, Techniques};
+use crate::clock::{self, Stopwatch};
+use crate::frame_loop::{Animator, FrameStats, KeptSamples, Options, Techniques};
 use crate::reuse::rsvp::{RsvpKnobs, ViewportRays};
-use crate::reuse::FrameMode;
+use crate::reuse::{FrameMode, ViewWork};
 use crate::sampling::PixelSamples;
 use crate::scene::Scene;
 use crate::shade::Shader;
@@ -66,15 +67,12 @@ pub struct Picture {
     pub image: image::RgbImage,
     /// The picture painted black where it traced (the paper's figure 4).
     pub traced: image::RgbImage,
-    /// Milliseconds the frame loop took for it.
-    pub render_ms: f64,
+    /// What it cost, as the frame loop records it (a coarse picture: at
+    /// its own size; a refinement: its own trace of every pixel).
+    pub stats: FrameStats,
+    pub stage: Stage,
     /// When it was finished.
     pub done: Instant,
-    pub samples_traced: u64,
-    pub pixels: u64,
-    /// The frame loop's word for how it was made (pan, rsvp, full, ...),
-    /// or `coarse`, or `refine`.
-    pub mode: &'static str,
     /// False for a coarse picture shown while the full one is traced.
     pub complete: bool,
     /// Samples a pixel (of the coarse picture's pixels for a coarse one).
@@ -82,15 +80,39 @@ pub struct Picture {
     /// The last picture of its request: refined to the top of the ladder
     /// (or the frame loop's, with refinement off).
     pub converged: bool,
-    /// The frame loop traced it from nothing (in full, or into a new
-    /// buffer).
-    pub traced_afresh: bool,
+}
+
+/// How a picture was made.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Stage {
+    /// The frame loop's picture of the view.
+    FrameLoop,
+    /// Traced afresh at a fraction of the size and magnified, while the
+    /// frame loop's is traced.
+    Coarse,
+    /// Traced afresh at more samples a pixel ([`super::refine`]).
+    Refined,
 }
 
 impl Picture {
     /// Samples traced for this picture over its pixels.
     pub fn traced_share(&self) -> f64 {
-        self.samples_traced as f64 / self.pixels.max(1) as f64
+        self.stats.work.samples_traced as f64 / self.stats.pixels.max(1) as f64
+    }
+
+    /// The frame loop's word for how it was made (pan, rsvp, full, ...),
+    /// or `coarse`, or `refine`.
+    pub fn mode(&self) -> &'static str {
+        match self.stage {
+            Stage::FrameLoop => self.stats.mode.as_str(),
+            Stage::Coarse => "coarse",
+            Stage::Refined => REFINE_MODE,
+        }
+    }
+
+    /// Traced from nothing: in full, into a new buffer, coarse or refined.
+    pub fn traced_afresh(&self) -> bool {
+        self.stage != Stage::FrameLoop || self.stats.traced_afresh()
     }
 
     /// What is shown: the picture, or with the overlay, the picture
@@ -105,12 +127,11 @@ impl Picture {
 }
 
 /// A finished picture as the log keeps it: enough to time each request.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Debug)]
 pub struct Finished {
     pub generation: u64,
     pub done: Instant,
-    pub render_ms: f64,
-    pub samples_traced: u64,
+    pub stats: FrameStats,
     pub mode: &'static str,
     pub complete: bool,
     pub samples: u32,
@@ -543,7 +564,7 @@ fn publish_refined(shared: &Shared, notify: &Notify, picture: Picture) -> bool {
 }
 
 fn publish_locked(shared: &Shared, notify: &Notify, inbox: &mut Inbox, picture: Picture) {
-    if picture.complete && picture.mode != REFINE_MODE {
+    if picture.complete && picture.stage != Stage::Refined {
         while inbox
             .unanswered
             .front()
@@ -551,8 +572,8 @@ fn publish_locked(shared: &Shared, notify: &Notify, inbox: &mut Inbox, picture: 
         {
             inbox.unanswered.pop_front();
         }
-        if picture.traced_afresh {
-            inbox.patience = Duration::from_secs_f64(picture.render_ms / 1e3);
+        if picture.traced_afresh() {
+            inbox.patience = clock::duration(picture.stats.total_ms());
         }
     }
     let mut outbox = lock(&shared.outbox);
@@ -560,9 +581,8 @@ fn publish_locked(shared: &Shared, notify: &Notify, inbox: &mut Inbox, picture: 
         outbox.log.push(Finished {
             generation: picture.generation,
             done: picture.done,
-            render_ms: picture.render_ms,
-            samples_traced: picture.samples_traced,
-            mode: picture.mode,
+            stats: picture.stats.clone(),
+            mode: picture.mode(),
             complete: picture.complete,
             samples: picture.samples,
             converged: picture.converged,
@@ -570,7 +590,7 @@ fn publish_locked(shared: &Shared, notify: &Notify, inbox: &mut Inbox, picture: 
         });
     }
     let picture = Arc::new(picture);
-    if picture.complete && picture.mode != REFINE_MODE {
+    if picture.complete && picture.stage != Stage::Refined {
         outbox.frame_loop = Some(Arc::clone(&picture));
     }
     outbox.latest = Some(picture);
@@ -589,7 +609,7 @@ fn abandon(shared: &Shared, generation: u64, samples: u32, frame_loop: bool) {
             samples,
             frame_loop,
             at,
-            waited_ms: at.saturating_duration_since(asked).as_secs_f64() * 1e3,
+            waited_ms: clock::ms(at.saturating_duration_since(asked)),
         });
     }
 }
@@ -744,7 +764,7 @@ fn refine(serving: &Serving, animator: &mut Animator, generation: u64, state: &V
     let shader = Shader::new(scene, accel);
     let stop = || asked_meanwhile(shared);
     for (rung, &spp) in rungs.iter().enumerate() {
-        let start = Instant::now();
+        let watch = Stopwatch::start();
         let samples = PixelSamples::new(spp).expect("the ladder's counts are checked");
         // The camera's image as a render of the camera traces it; a
         // viewport through its own rays, the frame loop's reference.
@@ -758,25 +778,39 @@ fn refine(serving: &Serving, animator: &mut Animator, generation: u64, state: &V
             };
             trace_in_bands(&shader, &rays, width, height, &stop)
         };
-        let Some((frame, _)) = traced else {
+        let Some((frame, rays)) = traced else {
             return abandon(shared, generation, spp, false);
+        };
+        let trace_ms = watch.ms();
+        let image = frame.to_rgb8();
+        let pixels = u64::from(width) * u64::from(height);
+        let stats = FrameStats {
+            frame: state.frame,
+            view: view.name.clone(),
+            mode: FrameMode::Full,
+            pixels,
+            work: ViewWork {
+                // Every pixel, each through `spp` rays.
+                samples_traced: pixels,
+                rays,
+                trace_ms,
+                assembly_ms: watch.ms() - trace_ms,
+                ..ViewWork::default()
+            },
+            ..FrameStats::default()
         };
         let picture = Picture {
             generation,
             state: state.clone(),
-            image: frame.to_rgb8(),
+            image,
             // Every pixel traced afresh.
             traced: image::RgbImage::new(width, height),
-            render_ms: start.elapsed().as_secs_f64() * 1e3,
+            stats,
+            stage: Stage::Refined,
             done: Instant::now(),
-            // Every pixel, each through `spp` rays.
-            samples_traced: u64::from(width) * u64::from(height),
-            pixels: u64::from(width) * u64::from(height),
-            mode: REFINE_MODE,
             complete: true,
             samples: spp,
             converged: rung + 1 == rungs.len(),
-            traced_afresh: true,
         };
         if !publish_refined(shared, notify, picture) {
             return abandon(shared, generation, spp, false);
@@ -793,7 +827,6 @@ fn render(
     state: ViewState,
     stop: Option<&AtomicBool>,
 ) -> Option<Picture> {
-    let start = Instant::now();
     let view = viewer.view(&state);
     let output = animator
         .render_views(state.frame, vec![view], stop)?
@@ -801,18 +834,14 @@ fn render(
         .expect("one view, one picture");
     Some(Picture {
         generation,
-        render_ms: start.elapsed().as_secs_f64() * 1e3,
+        stats: output.stats,
+        stage: Stage::FrameLoop,
         done: Instant::now(),
-        samples_traced: output.stats.samples_traced,
-        pixels: output.stats.pixels,
-        mode: output.stats.mode.as_str(),
         traced: output.traced_image.expect("traced images asked for"),
         image: output.image,
         complete: true,
         samples: viewer.samples(),
         converged: false,
-        traced_afresh: output.stats.mode == FrameMode::Full
-            || matches!(output.stats.reason, Some(Reason::Restart(_))),
         state,
     })
 }
@@ -825,7 +854,6 @@ fn render_coarse(
     generation: u64,
     state: ViewState,
 ) -> Picture {
-    let start = Instant::now();
     let view = viewer.coarse_view(&state, COARSE_FACTOR);
     let output = animator
         .render_views(state.frame, vec![view], None)
@@ -840,11 +868,8 @@ fn render_coarse(
     };
     Picture {
         generation,
-        render_ms: start.elapsed().as_secs_f64() * 1e3,
         done: Instant::now(),
-        samples_traced: output.stats.samples_traced,
-        pixels: u64::from(width) * u64::from(height),
-        mode: "coarse",
+        stage: Stage::Coarse,
         traced: magnify(
             output
                 .traced_image
@@ -852,10 +877,10 @@ fn render_coarse(
                 .expect("traced images asked for"),
         ),
         image: magnify(&output.image),
+        stats: output.stats,
         complete: false,
         samples: viewer.samples(),
         converged: false,
-        traced_afresh: true,
         state,
     }
 }
@@ -926,9 +951,9 @@ mod tests {
             assert_eq!(rough.image.dimensions(), exact.image.dimensions());
             // A sixteenth of the samples (snapped to whole sample groups).
             assert!(
-                (40 * 30..2 * 40 * 30).contains(&rough.samples_traced),
+                (40 * 30..2 * 40 * 30).contains(&rough.stats.work.samples_traced),
                 "{}",
-                rough.samples_traced
+                rough.stats.work.samples_traced
             );
             // One coarse pixel a block: near the block's average (point
             // samples of a checkerboard at 40x30 alias: 17-21 dB here).

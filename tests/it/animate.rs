@@ -35,7 +35,7 @@ fn run_exact(
 ) -> (u64, Vec<String>) {
     let stats = crate::common::run_exact_reusing(scene, backend, techniques);
     (
-        stats.iter().map(|s| s.samples_traced).sum(),
+        stats.iter().map(|s| s.work.samples_traced).sum(),
         stats.iter().map(|s| s.mode.to_string()).collect(),
     )
 }
@@ -58,7 +58,7 @@ on_every_backend! {
         let scene = paper_with_keys(&(key(0, "yaw = 0.0") + &key(4, "yaw = 40.0") + &key(8, "yaw = 0.0")), 9);
         let mut accel = Accelerator::build(backend, &scene.objects).unwrap();
         let mut animator = Animator::new(&scene, &mut accel, Options::new(Techniques::AUTO, 0..9));
-        let traced: Vec<u64> = (0..9).map(|f| animator.render(f).remove(0).stats.samples_traced).collect();
+        let traced: Vec<u64> = (0..9).map(|f| animator.render(f).remove(0).stats.work.samples_traced).collect();
         assert!(traced[1..=4].iter().all(|&t| t > 0), "{traced:?}");
         assert!(traced[5..].iter().all(|&t| t == 0), "coming back traced again: {traced:?}");
     }
@@ -78,7 +78,7 @@ on_every_backend! {
         let stats = crate::common::run_exact(&scene, backend, ostc);
         let modes: Vec<&str> = stats.iter().map(|s| s.mode.as_str()).collect();
         assert!(modes[6..].iter().all(|&m| m == "ostc"), "{modes:?}");
-        assert!(stats[6..].iter().all(|s| s.pixels_reused > 0), "{modes:?}");
+        assert!(stats[6..].iter().all(|s| s.work.pixels_reused > 0), "{modes:?}");
     }
 }
 
@@ -646,12 +646,12 @@ fn views_reaching_a_pole_keep_panning_in_both_pan_modes() {
         );
         for s in &stats[1..] {
             assert!(
-                s.mode.as_str() == "pan" && s.pixels_reused > 0 && s.reason.is_none(),
+                s.mode.as_str() == "pan" && s.work.pixels_reused > 0 && s.reason.is_none(),
                 "pitch {pitch}, frame {}: {} {:?}, {} reused",
                 s.frame,
                 s.mode,
                 s.reason,
-                s.pixels_reused
+                s.work.pixels_reused
             );
         }
         let mut accel =
@@ -681,7 +681,7 @@ fn views_reaching_a_pole_keep_panning_in_both_pan_modes() {
                 );
             }
             assert!(
-                frame == 0 || stats.pixels_reused > 0,
+                frame == 0 || stats.work.pixels_reused > 0,
                 "pitch {pitch}, frame {frame}"
             );
         }
@@ -816,7 +816,7 @@ fn pans_by_whole_samples_equal_the_cameras_own_rays() {
         for frame in 0..5 {
             let output = animator.render(frame).remove(0);
             assert_eq!(
-                (output.stats.yaw_error_deg, output.stats.pitch_error_deg),
+                output.stats.snap_error_deg(),
                 (0.0, 0.0),
                 "frame {frame} snapped"
             );

@@ -52,7 +52,7 @@ on_every_backend! {
         let stats = crate::common::run_exact_reusing_with(&scene, backend, options);
         assert!(stats.iter().all(|s| s.mode.as_str() == "pan"));
         // Samples count cells; the rays, their four sub-samples each.
-        assert_eq!(stats[0].samples_traced * 4, stats[0].primary_rays);
+        assert_eq!(stats[0].work.samples_traced * 4, stats[0].work.rays.primary);
     }
 
     antialiased_moving_objects_equal_full_renders_bit_for_bit(backend) {
@@ -92,7 +92,7 @@ fn antialiased_ostc_re_traces_groups_of_strata() {
             retrace::accel::BackendKind::Embree,
             options,
         );
-        stats[1..].iter().map(|s| s.samples_traced).sum()
+        stats[1..].iter().map(|s| s.work.samples_traced).sum()
     };
     let (one, four) = (traced(1), traced(4));
     assert!(

@@ -494,7 +494,10 @@ fn bench_reports_both_sides_against_the_reference() {
     }
     let csv = std::fs::read_to_string(out_dir.join("bench.csv")).unwrap();
     let header: Vec<&str> = csv.lines().next().unwrap().split(',').collect();
-    for column in ["full_ref_worst_psnr_db", "accelerated_ref_worst_psnr_db"] {
+    for column in [
+        "full_vs_reference.worst_psnr_db",
+        "accelerated_vs_reference.worst_psnr_db",
+    ] {
         let at = header.iter().position(|c| *c == column).unwrap();
         let cell = csv.lines().nth(1).unwrap().split(',').nth(at).unwrap();
         assert!(cell.parse::<f64>().unwrap().is_finite(), "{column}: {cell}");
@@ -527,7 +530,7 @@ fn bench_writes_the_table_profiles_plots_and_report() {
     let lines: Vec<&str> = csv.lines().collect();
     let header: Vec<&str> = lines[0].split(',').collect();
     for column in [
-        "experiment",
+        "id",
         "paper_speedup",
         "full_ms_per_frame",
         "accelerated_ms_per_frame",
@@ -582,7 +585,7 @@ fn bench_writes_the_table_profiles_plots_and_report() {
             .lines()
             .next()
             .unwrap()
-            .contains(",accelerated_trace_ms,accelerated_copy_ms,"));
+            .contains(",accelerated.trace_ms,accelerated.copy_ms,"));
         for plot in [format!("{stem}-time.png"), format!("{stem}-rays.png")] {
             let image = image::open(out_dir.join(&plot)).unwrap();
             assert!(image.width() > 100 && image.height() > 100);
@@ -614,7 +617,10 @@ fn bench_e3_and_e4_cut_regions_as_asked() {
                     std::fs::read_to_string(out_dir.join(format!("{stem}-frames.csv"))).unwrap();
                 let mut lines = frames.lines();
                 let header: Vec<&str> = lines.next().unwrap().split(',').collect();
-                let column = header.iter().position(|c| *c == "dirty_regions").unwrap();
+                let column = header
+                    .iter()
+                    .position(|c| *c == "accelerated.dirty_regions")
+                    .unwrap();
                 lines
                     .map(|l| l.split(',').nth(column).unwrap().parse::<u64>().unwrap())
                     .sum()

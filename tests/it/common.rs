@@ -71,12 +71,14 @@ pub fn run_exact_reusing_with(
     let stats = run_exact_with(scene, backend, options);
     for s in &stats[1..] {
         assert!(
-            s.mode != retrace::reuse::FrameMode::Full && s.reason.is_none() && s.pixels_reused > 0,
+            s.mode != retrace::reuse::FrameMode::Full
+                && s.reason.is_none()
+                && s.work.pixels_reused > 0,
             "frame {} did not reuse: {} ({}), {} pixels reused",
             s.frame,
             s.mode,
             reason(s),
-            s.pixels_reused
+            s.work.pixels_reused
         );
     }
     stats

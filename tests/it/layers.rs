@@ -9,7 +9,7 @@ use std::path::{Path, PathBuf};
 /// Top-level modules, lowest layer first.
 const LAYERS: &[&[&str]] = &[
     &[
-        "ray", "rng", "color", "sampling", "output", "chunk", "farm", "pool",
+        "ray", "rng", "color", "sampling", "output", "chunk", "farm", "pool", "clock",
     ],
     &["geometry", "texture"],
     &["voxel", "camera"],

@@ -41,7 +41,7 @@ material = "bouncer"
 use crate::common::{run_exact, run_exact_reusing};
 
 fn traced(stats: &[FrameStats]) -> u64 {
-    stats.iter().map(|s| s.samples_traced).sum()
+    stats.iter().map(|s| s.work.samples_traced).sum()
 }
 
 on_every_backend! {
@@ -54,8 +54,8 @@ on_every_backend! {
         let stats = run_exact_reusing(&scene, backend, Techniques::AUTO);
         // The camera stands still: its own image, no pan lattice.
         assert!(stats.iter().all(|s| s.mode.as_str() == "ostc"), "{:?}", stats.iter().map(|s| s.mode).collect::<Vec<_>>());
-        assert!(stats[1..].iter().all(|s| s.dirty_regions > 0));
-        assert!(stats[1..].iter().all(|s| s.voxels_walked > 0));
+        assert!(stats[1..].iter().all(|s| s.ostc.dirty_regions > 0));
+        assert!(stats[1..].iter().all(|s| s.ostc.voxels_walked > 0));
         // Frames 1-7 re-trace 1984 samples (the ball's regions, 224-312 a
         // frame) of 43008 shown; twice that (3968) must fail.
         let later = traced(&stats[1..]);
@@ -70,10 +70,10 @@ on_every_backend! {
         );
         let stats = run_exact_reusing(&scene, backend, Techniques::AUTO);
         // No object moves: no voxel grid, nothing walked.
-        assert!(stats.iter().all(|s| s.voxels_walked == 0));
+        assert!(stats.iter().all(|s| s.ostc.voxels_walked == 0));
         // The sky above the horizon keeps its samples.
-        assert!(stats[1..].iter().all(|s| s.samples_traced < 64 * 48), "{:?}", stats.iter().map(|s| s.samples_traced).collect::<Vec<_>>());
-        assert!(stats[1..].iter().all(|s| s.dirty_regions > 0));
+        assert!(stats[1..].iter().all(|s| s.work.samples_traced < 64 * 48), "{:?}", stats.iter().map(|s| s.work.samples_traced).collect::<Vec<_>>());
+        assert!(stats[1..].iter().all(|s| s.ostc.dirty_regions > 0));
     }
 
     a_recoloured_light_retraces_only_what_it_lit(backend) {
@@ -88,7 +88,7 @@ on_every_backend! {
         assert_eq!(traced(&recoloured[1..]), 0, "a light that lit nothing re-traced samples");
         let moved = run_exact_reusing(&light("position = [3.0, -4.0, 2.0]"), backend, Techniques::AUTO);
         // A moved light may now light anything it could face.
-        assert!(moved[1..].iter().all(|s| s.dirty_regions > 0));
+        assert!(moved[1..].iter().all(|s| s.ostc.dirty_regions > 0));
     }
 
     pan_and_motion_together_stay_exact(backend) {
@@ -116,8 +116,8 @@ on_every_backend! {
             let stats = &outputs[0].stats;
             assert_eq!(stats.mode.as_str(), "rsvp+ostc", "frame {frame}: {}", crate::common::reason(stats));
             if frame > 0 {
-                assert!(stats.dirty_regions > 0, "frame {frame}");
-                traced += stats.samples_traced;
+                assert!(stats.ostc.dirty_regions > 0, "frame {frame}");
+                traced += stats.work.samples_traced;
             }
             let (compared, differing) = animator.verify_store().unwrap();
             assert!(compared > 0);
@@ -133,7 +133,7 @@ on_every_backend! {
         let first = {
             let mut accel = retrace::accel::Accelerator::build(backend, &scene.objects).unwrap();
             let mut fresh = retrace::frame_loop::Animator::new(&scene, &mut accel, Options::new(Techniques::AUTO, 0..6));
-            fresh.render(0)[0].stats.samples_traced
+            fresh.render(0)[0].stats.work.samples_traced
         };
         assert!(traced < 5 * first, "traced {traced} after a first frame of {first}");
     }
@@ -164,7 +164,7 @@ on_every_backend! {
             ..Techniques::FULL
         };
         let stats = run_exact(&scene, backend, pan_only);
-        assert!(stats[1..].iter().all(|s| s.samples_traced >= 32 * 24));
+        assert!(stats[1..].iter().all(|s| s.work.samples_traced >= 32 * 24));
         assert!(crate::common::reason(&stats[1]).contains("ostc is off"), "{:?}", crate::common::reason(&stats[1]));
     }
 }
@@ -226,7 +226,7 @@ fn still_scenes_build_no_ostc_bookkeeping() {
     let stats = run_exact_reusing(&scene, BackendKind::Embree, Techniques::AUTO);
     assert!(stats
         .iter()
-        .all(|s| s.mode.as_str() == "pan" && s.voxels_walked == 0));
+        .all(|s| s.mode.as_str() == "pan" && s.ostc.voxels_walked == 0));
 }
 
 #[test]

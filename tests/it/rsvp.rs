@@ -63,17 +63,17 @@ on_every_backend! {
         let zoomed = ViewTransform { zoom: 3.0, rotate: 0.5, ..ViewTransform::default() };
         let poses = [pose(&scene, Projection::Perspective, zoomed)];
         let first = buffer.render(&shader, &poses, &knobs, true, None);
-        assert!(first[0].samples_traced > 0);
-        assert_eq!(buffer.samples_traced(), first[0].samples_traced);
+        assert!(first[0].work.samples_traced > 0);
+        assert_eq!(buffer.samples_traced(), first[0].work.samples_traced);
         // The same frame again traces nothing and gives the same picture.
         let again = buffer.render(&shader, &poses, &knobs, true, None);
-        assert_eq!(again[0].samples_traced, 0);
-        assert_eq!(again[0].rays.total(), 0);
+        assert_eq!(again[0].work.samples_traced, 0);
+        assert_eq!(again[0].work.rays.total(), 0);
         assert_eq!(again[0].frame, first[0].frame);
         // A second viewport over the same area shares the samples.
         let both = [poses[0].clone(), poses[0].clone()];
         let shared = buffer.render(&shader, &both, &knobs, true, None);
-        assert_eq!(shared[0].samples_traced + shared[1].samples_traced, 0);
+        assert_eq!(shared[0].work.samples_traced + shared[1].work.samples_traced, 0);
     }
 
     buffer_samples_equal_a_fresh_trace_of_their_group(backend) {
@@ -129,7 +129,7 @@ on_every_backend! {
             let mut buffer = SampleBuffer::new(lattice.clone());
             let knobs = RsvpKnobs { filter, ..RsvpKnobs::default() };
             let view = buffer.render(&shader, std::slice::from_ref(&pose), &knobs, true, None);
-            assert_eq!(view[0].levels, (0, 0));
+            assert_eq!(view[0].work.levels, Some((0, 0)));
             // Pass 2 blends sRGB codes: the image shows each sample's own
             // 8 bits, exactly.
             let image = &view[0].image;
@@ -158,7 +158,7 @@ on_every_backend! {
             let error = image_error(frame, &direct).unwrap();
             if zoom > 1.0 {
                 // Far finer than level 0: the pyramid, not an upscale.
-                assert!(view[0].levels.0 >= 8, "{:?}", view[0].levels);
+                assert!(view[0].work.levels.unwrap().0 >= 8, "{:?}", view[0].work.levels);
                 // Measured 68.2 dB; samples read from a level they were not
                 // traced into (black) measured 4.3 dB. At this zoom the view
                 // is nearly flat: a one-pixel shift cannot show (88 dB).
@@ -188,7 +188,7 @@ on_every_backend! {
             let outputs = animator.render(frame);
             assert_eq!(outputs.len(), 1);
             assert_eq!(outputs[0].stats.mode.as_str(), "rsvp");
-            traced.push(outputs[0].stats.samples_traced);
+            traced.push(outputs[0].stats.work.samples_traced);
             let (direct, _) = animator.render_full(frame, 0, None);
             let error = image_error(outputs[0].frame.as_ref().unwrap(), &direct).unwrap();
             // Measured 18.7-20.1 dB (the far checkerboard aliases at 64x48);
@@ -381,7 +381,10 @@ fn the_finest_pyramid_levels_resample_as_well_as_the_others() {
     };
     let mut animator = Animator::new(&scene, &mut accel, options);
     let outputs = animator.render(0);
-    assert_eq!(outputs[0].stats.finest_level, Some(16));
+    assert_eq!(
+        outputs[0].stats.work.levels.map(|(_, finest)| finest),
+        Some(16)
+    );
     let (direct, _) = animator.render_full(0, 0, None);
     let error = image_error(outputs[0].frame.as_ref().unwrap(), &direct).unwrap();
     assert!(error.psnr_db > 30.0, "{error:?}");

@@ -7,10 +7,23 @@ use anyhow::Result;
 
 use retrace::chunk::ACCEPTED_REUSE_LOSS;
 use retrace::frame_loop::{Options, Techniques};
-use retrace::lab::bench::{bench_chunking, ChunkingBench};
+use retrace::lab::bench::{bench_chunking, ChunkingBench, ChunkingRow};
 use retrace::lab::plot::{line_chart, Series};
+use retrace::output::{csv_text, Floats};
 
 use super::{check_writable, load, parse_frame_range, BenchArgs, Experiment};
+
+/// One line of `chunking.csv`: a chunk count's cost on one experiment.
+#[derive(serde::Serialize)]
+struct ChunkingLine<'a> {
+    experiment: &'a str,
+    #[serde(flatten)]
+    row: &'a ChunkingRow,
+    /// A plain full render of the same frames.
+    full_cpu_s: f64,
+    /// The share of the reuse the chunking loses.
+    reuse_lost: Option<f64>,
+}
 
 pub(super) fn bench_chunking_cli(args: &BenchArgs, bar: indicatif::ProgressBar) -> Result<()> {
     let counts = args.chunk_counts.clone();
@@ -117,27 +130,21 @@ pub(super) fn bench_chunking_cli(args: &BenchArgs, bar: indicatif::ProgressBar) 
             .collect();
         line_chart(&out.join(file), title, "chunks", y_label, &series)?;
     }
-    let mut csv = String::from(
-        "experiment,chunks,min_frames_per_chunk,max_frames_per_chunk,cpu_s,wall_s,longest_chunk_s,full_cpu_s,reuse_lost\n",
-    );
-    for (label, bench) in &results {
-        for row in &bench.rows {
-            let _ = writeln!(
-                csv,
-                "{label},{},{},{},{:.4},{:.4},{:.4},{:.4},{}",
-                row.chunks,
-                row.frames_per_chunk.0,
-                row.frames_per_chunk.1,
-                row.cpu_s,
-                row.wall_s,
-                row.longest_chunk_s,
-                bench.full_cpu_s,
-                bench
-                    .reuse_lost(row)
-                    .map_or(String::new(), |l| format!("{l:.4}")),
-            );
-        }
-    }
+    let lines: Vec<ChunkingLine> = results
+        .iter()
+        .flat_map(|(experiment, bench)| {
+            bench.rows.iter().map(move |row| ChunkingLine {
+                experiment,
+                row,
+                full_cpu_s: bench.full_cpu_s,
+                reuse_lost: bench.reuse_lost(row),
+            })
+        })
+        .collect();
+    let csv = match lines.first() {
+        Some(first) => csv_text(&lines, first, Floats::Shortest)?,
+        None => String::new(),
+    };
     retrace::output::save_text(&out.join("chunking.csv"), &csv)?;
     let report = format!(
         "# What farm chunks cost\n\n`{}`\n\n{}\n\nEach chunk is rendered as its own run, one after another, as a farm \
@@ -166,7 +173,7 @@ fn chunking_table(results: &[(String, ChunkingBench)]) -> String {
     for (label, bench) in results {
         let one = bench.rows.iter().find(|r| r.chunks == 1).map(|r| r.cpu_s);
         for row in &bench.rows {
-            let (small, large) = row.frames_per_chunk;
+            let (small, large) = (row.fewest_frames, row.most_frames);
             let _ = writeln!(
                 out,
                 "| {label} | {} | {} | {:.2} | {} | {} | {:.2} |",

@@ -20,11 +20,12 @@ use crate::frame_loop::{Animator, Options, Techniques};
 use crate::scene::Scene;
 
 /// One chunk count's cost, medians over the rounds.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct ChunkingRow {
     pub chunks: u32,
     /// The fewest and most frames a chunk has.
-    pub frames_per_chunk: (u32, u32),
+    pub fewest_frames: u32,
+    pub most_frames: u32,
     /// CPU seconds of all chunks together.
     pub cpu_s: f64,
     /// Wall seconds of all chunks, one after another.
@@ -156,10 +157,8 @@ pub fn bench_chunking(
                 .collect();
             ChunkingRow {
                 chunks,
-                frames_per_chunk: (
-                    sizes.iter().copied().min().unwrap_or(0),
-                    sizes.iter().copied().max().unwrap_or(0),
-                ),
+                fewest_frames: sizes.iter().copied().min().unwrap_or(0),
+                most_frames: sizes.iter().copied().max().unwrap_or(0),
                 cpu_s: median(measured.iter().map(|m| m.0).collect()),
                 wall_s: median(measured.iter().map(|m| m.1).collect()),
                 longest_chunk_s: median(measured.iter().map(|m| m.2).collect()),
@@ -194,7 +193,8 @@ mod tests {
     fn row(chunks: u32, cpu_s: f64) -> ChunkingRow {
         ChunkingRow {
             chunks,
-            frames_per_chunk: (100 / chunks, 100 / chunks),
+            fewest_frames: 100 / chunks,
+            most_frames: 100 / chunks,
             cpu_s,
             wall_s: cpu_s,
             longest_chunk_s: cpu_s / f64::from(chunks),

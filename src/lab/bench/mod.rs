@@ -34,6 +34,7 @@ use rayon::prelude::*;
 
 use crate::accel::embree::{EmbreeError, EmbreeIntersector};
 use crate::accel::{AccelError, Accelerator, BackendKind, Intersector};
+use crate::clock;
 use crate::ray::{Hit, HitPacket, LaneMask, Ray, RayPacket, PACKET_WIDTH};
 use crate::render::render_frame;
 use crate::scene::Scene;
@@ -214,10 +215,10 @@ pub fn bench_frame(
     for _ in 0..repeats {
         let start = Instant::now();
         std::hint::black_box(render_frame(scene, accel));
-        full.push(start.elapsed().as_secs_f64() * 1e3);
+        full.push(clock::ms(start.elapsed()));
         let start = Instant::now();
         replay();
-        embree.push(start.elapsed().as_secs_f64() * 1e3);
+        embree.push(clock::ms(start.elapsed()));
         progress();
     }
     let (full_ms, embree_ms) = (median(full), median(embree));
@@ -258,10 +259,10 @@ pub fn bench_backends(
     for _ in 0..repeats {
         let start = Instant::now();
         replay(&log, &embree);
-        embree_times.push(start.elapsed().as_secs_f64() * 1e3);
+        embree_times.push(clock::ms(start.elapsed()));
         let start = Instant::now();
         replay(&log, &grid);
-        grid_times.push(start.elapsed().as_secs_f64() * 1e3);
+        grid_times.push(clock::ms(start.elapsed()));
         progress();
     }
     let (embree_ms, grid_ms) = (median(embree_times), median(grid_times));

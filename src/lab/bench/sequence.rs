@@ -10,7 +10,8 @@
 use std::time::Instant;
 
 use crate::accel::Accelerator;
-use crate::frame_loop::{Animator, Options, Techniques};
+use crate::clock;
+use crate::frame_loop::{Animator, FrameStats, Options, Techniques};
 use crate::metrics::{ImageError, REFERENCE_EVERY};
 use crate::pool::with_workers_awake;
 use crate::reuse::rsvp::RsvpKnobs;
@@ -29,20 +30,9 @@ pub struct FrameProfile {
     pub full_ms: f64,
     pub accelerated_ms: f64,
     pub full_rays: RayCounts,
-    pub accelerated_rays: RayCounts,
-    /// Samples (primary rays) the accelerated side traced.
-    pub samples_traced: u64,
-    /// OSTC: regions found dirty and samples erased for them.
-    pub dirty_regions: u64,
-    pub samples_nulled: u64,
-    /// OSTC: recording and merging.
-    pub bookkeeping_ms: f64,
-    /// The accelerated side's tracing: the samples it could not reuse, with
-    /// their shadow and reflection rays.
-    pub accelerated_trace_ms: f64,
-    /// The accelerated side's everything else but bookkeeping: copying
-    /// reused pixels, RSVP's mapping and resampling, 8-bit conversion.
-    pub accelerated_copy_ms: f64,
+    /// The accelerated side's statistics, the frame's views as one
+    /// ([`FrameStats::frame_total`]) of the last timed round.
+    pub accelerated: FrameStats,
     /// Samples the oracle says this frame could not avoid tracing.
     pub oracle_samples: Option<u64>,
     /// The same with every region that holds one traced whole.
@@ -352,7 +342,7 @@ fn full_round(
                 frame_rays += rays;
             }
         });
-        let ms = start.elapsed().as_secs_f64() * 1e3;
+        let ms = clock::ms(start.elapsed());
         frame_ms[(frame - frames.start) as usize].push(ms);
         elapsed += ms;
         row.full_rays = frame_rays;
@@ -389,37 +379,23 @@ fn accelerated_round(
     for (row, frame) in profile.iter_mut().zip(frames.clone()) {
         let start = Instant::now();
         let outputs = fast.render(frame);
-        let ms = start.elapsed().as_secs_f64() * 1e3;
+        let ms = clock::ms(start.elapsed());
         frame_ms[(frame - frames.start) as usize].push(ms);
         elapsed += ms;
-        counts.pixels_per_frame = outputs.iter().map(|o| o.stats.pixels).sum();
-        (row.accelerated_rays, row.samples_traced, row.bookkeeping_ms) =
-            (RayCounts::default(), 0, 0.0);
-        (row.accelerated_trace_ms, row.accelerated_copy_ms) = (0.0, 0.0);
-        for output in &outputs {
-            let stats = &output.stats;
-            row.accelerated_rays += stats.rays();
-            row.samples_traced += stats.samples_traced;
-            row.bookkeeping_ms += stats.bookkeeping_ms;
-            row.accelerated_trace_ms += stats.trace_ms;
-            row.accelerated_copy_ms += stats.copy_ms;
-            counts.largest_snap_deg = counts
-                .largest_snap_deg
-                .max(stats.yaw_error_deg.abs())
-                .max(stats.pitch_error_deg.abs());
+        let views: Vec<FrameStats> = outputs.iter().map(|o| o.stats.clone()).collect();
+        row.accelerated = FrameStats::frame_total(&views);
+        counts.pixels_per_frame = row.accelerated.pixels;
+        for stats in &views {
+            let (yaw, pitch) = stats.snap_error_deg();
+            counts.largest_snap_deg = counts.largest_snap_deg.max(yaw.abs()).max(pitch.abs());
             if let Some(reason) = stats.refusal().map(|r| r.to_string()) {
                 if !counts.full_reasons.contains(&reason) {
                     counts.full_reasons.push(reason);
                 }
             }
         }
-        // Frame-wide OSTC figures repeat on every view's stats.
-        if let Some(first) = outputs.first() {
-            row.dirty_regions = first.stats.dirty_regions;
-            row.samples_nulled = first.stats.samples_nulled;
-        }
-        counts.samples_traced += row.samples_traced;
-        counts.bookkeeping_ms += row.bookkeeping_ms;
+        counts.samples_traced += row.accelerated.work.samples_traced;
+        counts.bookkeeping_ms += row.accelerated.bookkeeping_ms();
         std::hint::black_box(outputs);
         progress();
     }
@@ -525,7 +501,7 @@ fn check_sequence(
                 traced_as_groups(&table, side_i, |source| {
                     std::hint::black_box(crate::render::trace_groups(&shader, source, &groups))
                 });
-                oracle_ms += start.elapsed().as_secs_f64() * 1e3;
+                oracle_ms += clock::ms(start.elapsed());
             }
             if let Some((error, same)) = view.own_rays {
                 identical &= same;
@@ -596,7 +572,7 @@ fn plain_render_ms(animator: &mut Animator, frame: u32) -> f64 {
                 };
                 std::hint::black_box(image.to_rgb8());
             }
-            start.elapsed().as_secs_f64() * 1e3
+            clock::ms(start.elapsed())
         })
         .collect();
     median(times)

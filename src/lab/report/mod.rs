@@ -11,9 +11,10 @@ mod markdown;
 mod table;
 
 pub use markdown::{report_markdown, RunInfo};
-pub use table::{profile_csv, rows_csv, rows_json, table, PROFILE_COLUMNS, ROW_COLUMNS};
+pub use table::{profile_csv, rows_csv, rows_json, table};
 
 use crate::lab::bench::{ErrorSummary, FrameProfile, SequenceBench};
+use crate::output::OutputError;
 
 /// What an experiment is, before it is measured.
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
@@ -283,9 +284,10 @@ struct TimeSplit {
 impl TimeSplit {
     fn of(profile: &[FrameProfile]) -> TimeSplit {
         let sum = |part: fn(&FrameProfile) -> f64| profile.iter().map(part).sum::<f64>();
-        let tracing = sum(|p| p.accelerated_trace_ms);
-        let copying = sum(|p| p.accelerated_copy_ms);
-        let total = (tracing + copying + sum(|p| p.bookkeeping_ms)).max(f64::MIN_POSITIVE);
+        let tracing = sum(|p| p.accelerated.trace_ms());
+        let copying = sum(|p| p.accelerated.copy_ms());
+        let total =
+            (tracing + copying + sum(|p| p.accelerated.bookkeeping_ms())).max(f64::MIN_POSITIVE);
         TimeSplit {
             tracing: tracing / total,
             copying: copying / total,
@@ -370,13 +372,13 @@ pub fn charts(result: &ExperimentResult) -> Vec<ChartSpec> {
     let mut ray_lines = vec![
         line("full: all rays", &|p| Some(p.full_rays.total() as f64)),
         line("accelerated: primary", &|p| {
-            Some(p.accelerated_rays.primary as f64)
+            Some(p.accelerated.work.rays.primary as f64)
         }),
         line("accelerated: shadow", &|p| {
-            Some(p.accelerated_rays.shadow as f64)
+            Some(p.accelerated.work.rays.shadow as f64)
         }),
         line("accelerated: reflection", &|p| {
-            Some(p.accelerated_rays.reflection as f64)
+            Some(p.accelerated.work.rays.reflection as f64)
         }),
     ];
     if result.profile.iter().any(|p| p.oracle_samples.is_some()) {
@@ -420,7 +422,7 @@ pub fn write_bench<E>(
     mut draw: impl FnMut(&std::path::Path, &ChartSpec) -> Result<(), E>,
 ) -> Result<Vec<std::path::PathBuf>, E>
 where
-    E: From<crate::output::OutputError>,
+    E: From<OutputError>,
 {
     let rows: Vec<BenchRow> = results.iter().map(|r| r.row.clone()).collect();
     let mut written = Vec::new();
@@ -430,12 +432,13 @@ where
         written.push(path);
         Ok(())
     };
-    text("bench.csv", &rows_csv(&rows))?;
+    let csv = |text: Result<String, crate::output::CsvError>| text.map_err(OutputError::from);
+    text("bench.csv", &csv(rows_csv(&rows))?)?;
     text("bench.json", &rows_json(&rows))?;
     for result in results {
         text(
             &profile_file(&result.row.info.id),
-            &profile_csv(&result.profile),
+            &csv(profile_csv(&result.profile))?,
         )?;
     }
     text("report.md", &report_markdown(run, results))?;
@@ -452,7 +455,7 @@ where
 #[cfg(test)]
 mod tests {
     use super::markdown::summary;
-    use super::table::{csv_field, thousands};
+    use super::table::thousands;
     use super::*;
     use crate::shade::RayCounts;
 
@@ -546,12 +549,21 @@ mod tests {
         assert!(lines[2].contains("none"), "no OSTC: no bookkeeping");
     }
 
+    /// A CSV's cells by column name, for rows without quoted commas.
+    fn cells(csv: &str, line: usize) -> std::collections::HashMap<String, String> {
+        let header = csv.lines().next().unwrap().split(',').map(str::to_owned);
+        let row = csv.lines().nth(line).unwrap().split(',').map(str::to_owned);
+        header.zip(row).collect()
+    }
+
     #[test]
     fn csv_has_one_line_per_row_and_quotes_commas() {
-        let csv = rows_csv(&[row("E1", Some(25.0)), row("E2 in", None)]);
+        let mut e2 = row("E2 in", None);
+        // No quoted commas in this row: its fields split where the columns do.
+        e2.info.what = "zoom in".to_string();
+        let csv = rows_csv(&[row("E1", Some(25.0)), e2]).unwrap();
         let lines: Vec<&str> = csv.lines().collect();
         assert_eq!(lines.len(), 3);
-        assert_eq!(lines[0].split(',').count(), ROW_COLUMNS.len());
         // "pan, 3.6 deg/frame" holds a comma: quoted, so the column count holds.
         assert!(lines[1].contains("\"pan, 3.6 deg/frame\""));
         assert!(lines[1].starts_with("E1,"));
@@ -561,9 +573,20 @@ mod tests {
             lines[1]
         );
         assert!(lines[1].ends_with(",e1-frames.csv"));
-        // Not measured: an empty cell, not a made-up number.
-        assert!(lines[2].contains(",20,,,,,"), "{}", lines[2]);
         assert!(lines[2].ends_with(",e2-in-frames.csv"));
+        let header: Vec<&str> = lines[0].split(',').collect();
+        let column = |name: &str| header.iter().position(|c| *c == name).unwrap();
+        // Not measured: an empty cell, not a made-up number; an error
+        // summary's fields each in their own column.
+        let e2: Vec<&str> = lines[2].split(',').collect();
+        assert_eq!(e2[column("oracle_speedup")], "");
+        assert_eq!(e2[column("full_vs_reference.worst_psnr_db")], "");
+        assert_eq!(header.len(), e2.len());
+        // bench.json has the same fields.
+        let json: serde_json::Value =
+            serde_json::from_str(&rows_json(&[row("E1", Some(25.0))])).unwrap();
+        assert_eq!(json[0]["oracle_speedup"], 25.0);
+        assert_eq!(json[0]["profile"], "e1-frames.csv");
     }
 
     /// With several rounds the table and the CSV show how far they spread;
@@ -584,23 +607,17 @@ mod tests {
             shown.contains("20.00x") && !shown.contains("20.00x ("),
             "{shown}"
         );
-        let csv = rows_csv(&[repeated, once]);
-        let lines: Vec<&str> = csv.lines().collect();
-        let column = |name: &str| ROW_COLUMNS.iter().position(|c| *c == name).unwrap();
-        let (lowest, highest) = (
-            column("speedup_lowest_round"),
-            column("speedup_highest_round"),
-        );
-        let fields: Vec<&str> = lines[1].split(',').collect();
-        assert_eq!((fields[lowest], fields[highest]), ("3.9", "4.2"));
-        let fields: Vec<&str> = lines[2].split(',').collect();
-        assert_eq!((fields[lowest], fields[highest]), ("", ""));
-    }
-
-    #[test]
-    fn csv_fields_escape_quotes() {
-        assert_eq!(csv_field("plain"), "plain");
-        assert_eq!(csv_field("a \"b\", c"), "\"a \"\"b\"\", c\"");
+        let csv = rows_csv(&[repeated, once]).unwrap();
+        let (first, second) = (cells(&csv, 1), cells(&csv, 2));
+        let spread = |row: &std::collections::HashMap<String, String>| {
+            (
+                row["speedup_lowest_round"].clone(),
+                row["speedup_highest_round"].clone(),
+            )
+        };
+        assert_eq!(spread(&first), ("3.9".into(), "4.2".into()));
+        assert_eq!(first["round_speedups"], "4.2 3.9 4.05");
+        assert_eq!(spread(&second), (String::new(), String::new()));
     }
 
     #[test]
@@ -624,22 +641,30 @@ mod tests {
                 refraction: 0,
             },
             oracle_samples: Some(5),
-            accelerated_trace_ms: 1.5,
-            accelerated_copy_ms: 0.75,
+            accelerated: crate::frame_loop::FrameStats {
+                work: crate::reuse::ViewWork {
+                    trace_ms: 1.5,
+                    assembly_ms: 0.75,
+                    ..Default::default()
+                },
+                ..Default::default()
+            },
             ..FrameProfile::default()
         };
-        let csv = profile_csv(&[frame]);
-        let lines: Vec<&str> = csv.lines().collect();
-        assert_eq!(lines.len(), 2);
-        assert_eq!(lines[0].split(',').count(), PROFILE_COLUMNS.len());
-        let cells: Vec<&str> = lines[1].split(',').collect();
-        assert_eq!(cells.len(), PROFILE_COLUMNS.len());
-        assert_eq!(cells[0], "7");
-        assert_eq!(cells[3..6], ["100", "150", "20"]);
-        assert_eq!(cells[13..15], ["1.5000", "0.7500"]);
-        assert_eq!(cells[15], "5");
-        assert_eq!(cells[16], "", "no region oracle: empty");
-        assert_eq!(cells[19], "4.000");
+        let csv = profile_csv(&[frame]).unwrap();
+        assert_eq!(csv.lines().count(), 2);
+        let row = cells(&csv, 1);
+        assert_eq!(row["frame"], "7");
+        let rays =
+            ["primary", "shadow", "reflection"].map(|k| row[&format!("full_rays.{k}")].clone());
+        assert_eq!(rays, ["100", "150", "20"]);
+        // The accelerated side as the frame loop's statistics.
+        assert_eq!(row["accelerated.trace_ms"], "1.5000");
+        assert_eq!(row["accelerated.copy_ms"], "0.7500");
+        assert_eq!(row["accelerated.total_ms"], "2.2500");
+        assert_eq!(row["oracle_samples"], "5");
+        assert_eq!(row["oracle_region_samples"], "", "no region oracle: empty");
+        assert_eq!(row["accelerated.error.psnr_db"], "");
     }
 
     #[test]

@@ -2,6 +2,8 @@
 //! experiment's per-frame CSV.
 
 use super::{profile_file, BenchRow, ErrorSummary, FrameProfile};
+use crate::frame_loop::FrameStats;
+use crate::output::{csv_text, CsvError, Floats};
 
 /// The figures measured, joined by " / ": the per-sample oracle, then the
 /// region ones where there are regions; `n/a` if none was.
@@ -150,202 +152,80 @@ pub fn table(rows: &[BenchRow]) -> String {
     out
 }
 
-/// A CSV field: quoted when it holds a comma, quote or line break.
-pub(super) fn csv_field(text: &str) -> String {
-    if text.contains([',', '"', '\n', '\r']) {
-        format!("\"{}\"", text.replace('"', "\"\""))
-    } else {
-        text.to_string()
+/// A row as `bench.csv` and `bench.json` hold it: what was measured and
+/// what follows from it, so both files have the same fields.
+#[derive(serde::Serialize)]
+struct WrittenRow<'a> {
+    #[serde(flatten)]
+    row: &'a BenchRow,
+    speedup_lowest_round: Option<f64>,
+    speedup_highest_round: Option<f64>,
+    region_efficiency: Option<f64>,
+    timed_region_efficiency: Option<f64>,
+    /// The experiment's per-frame CSV.
+    profile: String,
+}
+
+impl WrittenRow<'_> {
+    fn of(row: &BenchRow) -> WrittenRow<'_> {
+        let range = row.speedup_range();
+        WrittenRow {
+            row,
+            speedup_lowest_round: range.map(|(lowest, _)| lowest),
+            speedup_highest_round: range.map(|(_, highest)| highest),
+            region_efficiency: row.region_efficiency(),
+            timed_region_efficiency: row.timed_region_efficiency(),
+            profile: profile_file(&row.info.id),
+        }
     }
 }
 
-fn opt<T: ToString>(value: Option<T>) -> String {
-    value.map_or_else(String::new, |v| v.to_string())
-}
-
-/// The columns of `bench.csv`.
-pub const ROW_COLUMNS: [&str; 49] = [
-    "experiment",
-    "what",
-    "technique",
-    "paper_speedup",
-    "scene",
-    "triangles",
-    "width",
-    "height",
-    "frames",
-    "full_ms_per_frame",
-    "full_vs_plain",
-    "accelerated_ms_per_frame",
-    "speedup",
-    "speedup_lowest_round",
-    "speedup_highest_round",
-    "oracle_speedup",
-    "region_oracle_speedup",
-    "efficiency",
-    "region_efficiency",
-    "timed_region_oracle_speedup",
-    "timed_region_efficiency",
-    "bookkeeping_share",
-    "tracing_share",
-    "copying_share",
-    "samples_traced",
-    "oracle_samples",
-    "exact",
-    "worst_psnr_db",
-    "spp",
-    "reference_spp",
-    "reference_frames",
-    "full_ref_worst_psnr_db",
-    "full_ref_mean_psnr_db",
-    "full_ref_max_abs",
-    "full_ref_mean_abs",
-    "full_ref_differing_share",
-    "accelerated_ref_worst_psnr_db",
-    "accelerated_ref_mean_psnr_db",
-    "accelerated_ref_max_abs",
-    "accelerated_ref_mean_abs",
-    "accelerated_ref_differing_share",
-    "largest_snap_samples",
-    "accelerated_keyed_ref_worst_psnr_db",
-    "accelerated_keyed_ref_mean_psnr_db",
-    "accelerated_keyed_ref_max_abs",
-    "accelerated_keyed_ref_mean_abs",
-    "accelerated_keyed_ref_differing_share",
-    "exactness",
-    "profile",
-];
-
-/// An error summary's columns in `bench.csv`; empty where not measured.
-fn summary_fields(summary: Option<&ErrorSummary>) -> [String; 5] {
-    [
-        opt(summary.map(|s| s.worst_psnr_db)),
-        opt(summary.map(|s| s.mean_psnr_db)),
-        opt(summary.map(|s| s.max_abs)),
-        opt(summary.map(|s| s.mean_abs)),
-        opt(summary.map(|s| s.differing_share)),
-    ]
-}
-
-/// The table as CSV (full precision; empty cells where not measured).
-pub fn rows_csv(rows: &[BenchRow]) -> String {
-    let mut out = ROW_COLUMNS.join(",");
-    out.push('\n');
-    for row in rows {
-        let info = &row.info;
-        let speedup_range = row.speedup_range();
-        let reference_frames: Vec<String> =
-            row.reference_frames.iter().map(u32::to_string).collect();
-        let mut fields = vec![
-            info.id.clone(),
-            info.what.clone(),
-            info.technique.clone(),
-            info.paper_speedup.clone(),
-            info.scene.clone(),
-            info.triangles.to_string(),
-            info.width.to_string(),
-            info.height.to_string(),
-            row.frames.to_string(),
-            row.full_ms_per_frame.to_string(),
-            row.full_vs_plain.to_string(),
-            row.accelerated_ms_per_frame.to_string(),
-            row.speedup.to_string(),
-            opt(speedup_range.map(|(lowest, _)| lowest)),
-            opt(speedup_range.map(|(_, highest)| highest)),
-            opt(row.oracle_speedup),
-            opt(row.region_oracle_speedup),
-            opt(row.efficiency),
-            opt(row.region_efficiency()),
-            opt(row.timed_region_oracle_speedup),
-            opt(row.timed_region_efficiency()),
-            opt(row.bookkeeping_share),
-            row.tracing_share.to_string(),
-            row.copying_share.to_string(),
-            row.samples_traced.to_string(),
-            opt(row.oracle_samples),
-            opt(row.exact),
-            // Identical frames have an infinite PSNR: JSON has no word for
-            // it, CSV says inf.
-            opt(row.worst_psnr_db),
-            row.samples_per_pixel.to_string(),
-            opt(row.reference_samples),
-            // Frames split by spaces: one cell whatever the count.
-            reference_frames.join(" "),
-        ];
-        fields.extend(summary_fields(row.full_vs_reference.as_ref()));
-        fields.extend(summary_fields(row.accelerated_vs_reference.as_ref()));
-        fields.push(row.largest_snap_samples.to_string());
-        fields.extend(summary_fields(row.accelerated_vs_keyed_reference.as_ref()));
-        fields.extend([row.exactness.clone(), profile_file(&info.id)]);
-        let fields: Vec<String> = fields.iter().map(|f| csv_field(f)).collect();
-        out.push_str(&fields.join(","));
-        out.push('\n');
-    }
-    out
+/// The table as CSV: every field at full precision (an error summary's
+/// as `full_vs_reference.worst_psnr_db`, ...; the rounds' speedups split
+/// by spaces), an empty cell where not measured, `inf` for the PSNR of
+/// identical frames.
+pub fn rows_csv(rows: &[BenchRow]) -> Result<String, CsvError> {
+    let written: Vec<WrittenRow> = rows.iter().map(WrittenRow::of).collect();
+    let summary = Some(ErrorSummary {
+        worst_psnr_db: 0.0,
+        mean_psnr_db: 0.0,
+        max_abs: 0.0,
+        mean_abs: 0.0,
+        differing_share: 0.0,
+        identical: false,
+    });
+    let Some(first) = rows.first() else {
+        return Ok(String::new());
+    };
+    let every_column = BenchRow {
+        full_vs_reference: summary,
+        accelerated_vs_reference: summary,
+        accelerated_vs_keyed_reference: summary,
+        ..first.clone()
+    };
+    csv_text(&written, &WrittenRow::of(&every_column), Floats::Shortest)
 }
 
 /// The table as JSON: the rows, with infinite PSNRs as null.
 pub fn rows_json(rows: &[BenchRow]) -> String {
-    serde_json::to_string_pretty(rows).expect("rows serialize")
+    let written: Vec<WrittenRow> = rows.iter().map(WrittenRow::of).collect();
+    serde_json::to_string_pretty(&written).expect("rows serialize")
 }
 
-/// The columns of each experiment's per-frame CSV.
-pub const PROFILE_COLUMNS: [&str; 22] = [
-    "frame",
-    "full_ms",
-    "accelerated_ms",
-    "full_primary",
-    "full_shadow",
-    "full_reflection",
-    "accelerated_primary",
-    "accelerated_shadow",
-    "accelerated_reflection",
-    "samples_traced",
-    "dirty_regions",
-    "samples_nulled",
-    "bookkeeping_ms",
-    "accelerated_trace_ms",
-    "accelerated_copy_ms",
-    "oracle_samples",
-    "oracle_region_samples",
-    "psnr_db",
-    "exact",
-    "speedup",
-    "full_ref_psnr_db",
-    "accelerated_ref_psnr_db",
-];
-
-/// The per-frame CSV of one experiment.
-pub fn profile_csv(profile: &[FrameProfile]) -> String {
-    let mut out = PROFILE_COLUMNS.join(",");
-    out.push('\n');
-    for p in profile {
-        let fields = [
-            p.frame.to_string(),
-            format!("{:.4}", p.full_ms),
-            format!("{:.4}", p.accelerated_ms),
-            p.full_rays.primary.to_string(),
-            p.full_rays.shadow.to_string(),
-            p.full_rays.reflection.to_string(),
-            p.accelerated_rays.primary.to_string(),
-            p.accelerated_rays.shadow.to_string(),
-            p.accelerated_rays.reflection.to_string(),
-            p.samples_traced.to_string(),
-            p.dirty_regions.to_string(),
-            p.samples_nulled.to_string(),
-            format!("{:.4}", p.bookkeeping_ms),
-            format!("{:.4}", p.accelerated_trace_ms),
-            format!("{:.4}", p.accelerated_copy_ms),
-            opt(p.oracle_samples),
-            opt(p.oracle_region_samples),
-            opt(p.psnr_db.map(|db| format!("{db:.3}"))),
-            opt(p.exact),
-            format!("{:.3}", p.full_ms / p.accelerated_ms),
-            opt(p.full_reference_psnr_db.map(|db| format!("{db:.3}"))),
-            opt(p.accelerated_reference_psnr_db.map(|db| format!("{db:.3}"))),
-        ];
-        out.push_str(&fields.join(","));
-        out.push('\n');
-    }
-    out
+/// The per-frame CSV of one experiment: [`FrameProfile`]'s fields, the
+/// accelerated side's as the frame loop's statistics
+/// (`accelerated.samples_traced`, `accelerated.trace_ms`, ...), times to
+/// four places.
+pub fn profile_csv(profile: &[FrameProfile]) -> Result<String, CsvError> {
+    let every_column = FrameProfile {
+        accelerated: FrameStats::every_column(),
+        oracle_samples: Some(0),
+        oracle_region_samples: Some(0),
+        psnr_db: Some(0.0),
+        full_reference_psnr_db: Some(0.0),
+        accelerated_reference_psnr_db: Some(0.0),
+        exact: Some(true),
+        ..FrameProfile::default()
+    };
+    csv_text(profile, &every_column, Floats::Fixed(4))
 }

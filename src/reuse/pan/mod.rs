@@ -22,21 +22,19 @@ mod plan;
 pub use plan::{PanPlan, PAN_BUFFER_LIMIT_BYTES};
 
 use std::f64::consts::{FRAC_PI_2, TAU};
-use std::time::Instant;
 
 use glam::{DVec3, Vec3};
 
 use crate::camera::ViewportPose;
 use crate::camera::{Camera, Projection};
+use crate::clock::Stopwatch;
 use crate::color::srgb_table;
 use crate::ray::Ray;
-use crate::render::{Frame, PrimaryRays, SampleGroup, GROUP_HEIGHT, GROUP_WIDTH};
-use crate::reuse::lattice_buffer::{
-    assembled, cells_traced, Lattice, LatticeBuffer, PanFrameStats, Window,
-};
+use crate::render::{PrimaryRays, SampleGroup, GROUP_HEIGHT, GROUP_WIDTH};
+use crate::reuse::lattice_buffer::{assembled, cells_traced, Lattice, LatticeBuffer, Window};
 use crate::reuse::ostc::Ostc;
 use crate::reuse::regions::{RegionLayout, RegionSet};
-use crate::reuse::{FrameMode, SampleStore, StoreFrame, Unfit, Wanted};
+use crate::reuse::{FrameMode, SampleStore, StoreFrame, Unfit, ViewWork, Wanted};
 use crate::sampling::PixelSamples;
 use crate::shade::Shader;
 
@@ -290,11 +288,11 @@ impl LatticeBuffer<EqualAngleLattice> {
         camera: &Camera,
         linear: bool,
         ostc: Option<&Ostc>,
-    ) -> (Option<Frame>, image::RgbImage, PanFrameStats) {
+    ) -> (StoreFrame, Vec<SampleGroup>) {
+        let watch = Stopwatch::start();
         let (window, fx, fy) = self.resample_window(camera);
-        let start = Instant::now();
         let (_, rays, traced) = self.trace_missing(shader, &window, ostc);
-        let trace_ms = start.elapsed().as_secs_f64() * 1e3;
+        let trace_ms = watch.ms();
         let (fx, fy) = (fx as f32, fy as f32);
         let weights = [
             (1.0 - fx) * (1.0 - fy),
@@ -326,17 +324,15 @@ impl LatticeBuffer<EqualAngleLattice> {
         let (frame, image) =
             assembled(camera.width, camera.height, linear.then_some(pixels), bytes);
         let total = (width * height) as u64;
-        (
-            frame,
-            image,
-            PanFrameStats {
-                samples_traced: cells_traced(&rays, self.lattice().samples()),
-                pixels_reused: total.saturating_sub(rays.primary),
-                rays,
-                trace_ms,
-                traced,
-            },
-        )
+        let work = ViewWork {
+            samples_traced: cells_traced(&rays, self.lattice().samples()),
+            pixels_reused: total.saturating_sub(rays.primary),
+            rays,
+            trace_ms,
+            assembly_ms: watch.ms() - trace_ms,
+            ..ViewWork::default()
+        };
+        (StoreFrame { frame, image, work }, traced)
     }
 }
 
@@ -459,19 +455,16 @@ impl SampleStore for PanStore {
         wanted: Wanted,
     ) -> Vec<StoreFrame> {
         let camera = &views[0].camera;
-        let start = Instant::now();
         self.window = self.buffer.lattice().window(camera);
-        let (frame, image, pan) = match self.fractional {
+        let (mut made, traced) = match self.fractional {
             FractionalPan::Snap => self.buffer.frame(shader, &self.window, wanted.linear, ostc),
             FractionalPan::Resample => {
                 self.buffer
                     .frame_resampled(shader, camera, wanted.linear, ostc)
             }
         };
-        let elapsed = start.elapsed().as_secs_f64() * 1e3;
-        let snap_error = (self.fractional == FractionalPan::Snap)
+        made.work.snap_error = (self.fractional == FractionalPan::Snap)
             .then_some((self.window.yaw_error, self.window.pitch_error));
-        let (made, traced) = pan.store_frame(frame, image, elapsed, snap_error);
         self.traced = traced;
         vec![made]
     }

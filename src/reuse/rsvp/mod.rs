@@ -46,17 +46,17 @@ pub use plan::RsvpPlan;
 pub use viewport::{render_direct, render_direct_sampled, ViewportRays};
 
 use std::f64::consts::FRAC_PI_2;
-use std::time::Instant;
 
 use glam::Vec3;
 use rayon::prelude::*;
 
 use crate::camera::{Camera, ViewportPose};
+use crate::clock::Stopwatch;
 use crate::color::srgb_table;
 use crate::render::{trace_each, trace_groups, Frame, PrimaryRays, SampleGroup, GROUP_WIDTH};
 use crate::reuse::ostc::Ostc;
 use crate::reuse::regions::{RegionLayout, RegionSet};
-use crate::reuse::{Erasure, FrameMode, SampleStore, StoreFrame, Unfit, Wanted};
+use crate::reuse::{Erasure, FrameMode, SampleStore, StoreFrame, Unfit, ViewWork, Wanted};
 use crate::sampling::PixelSamples;
 use crate::shade::{RayCounts, Shader};
 use blocks::LevelBlocks;
@@ -77,25 +77,6 @@ pub const MAX_LEVEL: u32 = 16;
 /// Viewport pixels per side of a patch: a square whose pixels all read
 /// one pyramid level.
 pub const PATCH: u32 = 16;
-
-/// What one viewport's frame cost and gave.
-pub struct ViewportFrame {
-    /// Linear colour, when asked for.
-    pub frame: Option<Frame>,
-    pub image: image::RgbImage,
-    /// Samples this viewport asked for first and that were traced for it.
-    pub samples_traced: u64,
-    pub rays: RayCounts,
-    /// Mapping pixels and finding null samples.
-    pub map_ms: f64,
-    /// This viewport's share of the frame's trace batch.
-    pub trace_ms: f64,
-    /// Filtering and conversion to 8 bits.
-    pub gather_ms: f64,
-    /// The lowest and highest [`Level::finest`] of the levels the
-    /// viewport's patches read.
-    pub levels: (u32, u32),
-}
 
 /// Every sample traced so far, over all pyramid levels.
 pub struct SampleBuffer {
@@ -309,7 +290,7 @@ impl SampleBuffer {
         }
         // One batch rather than one per level: a frame that refines a few
         // levels would otherwise wait for each level's last group in turn.
-        let start = Instant::now();
+        let watch = Stopwatch::start();
         let lattice = &self.lattice;
         let sources: Vec<LevelRays> = (0..Level::COUNT)
             .map(|index| LevelRays {
@@ -351,7 +332,7 @@ impl SampleBuffer {
             || blocks::follow_traced(blocks, lattice, &all, &colors),
         );
         // Keeping the samples (above) counts as tracing them.
-        let per_group = start.elapsed().as_secs_f64() * 1e3 / all.len() as f64;
+        let per_group = watch.ms() / all.len() as f64;
         for level in kept {
             for (who, (owned, rays)) in level.into_iter().enumerate() {
                 self.samples_traced += owned;
@@ -375,13 +356,13 @@ impl SampleBuffer {
         knobs: &RsvpKnobs,
         linear: bool,
         ostc: Option<&Ostc>,
-    ) -> Vec<ViewportFrame> {
+    ) -> Vec<StoreFrame> {
         let mut mapped = Vec::with_capacity(poses.len());
         let mut map_ms = Vec::with_capacity(poses.len());
         for pose in poses {
-            let start = Instant::now();
+            let watch = Stopwatch::start();
             mapped.push(self.map(pose, knobs));
-            map_ms.push(start.elapsed().as_secs_f64() * 1e3);
+            map_ms.push(watch.ms());
         }
         let requests: Vec<Vec<(Level, SampleGroup)>> = mapped
             .iter_mut()
@@ -390,33 +371,36 @@ impl SampleBuffer {
         let traced = self.trace(shader, &requests, ostc);
         // Pass 2 reads assembled blocks; assembling new ones is its cost,
         // shared between the viewports.
-        let start = Instant::now();
+        let watch = Stopwatch::start();
         self.assemble_blocks(mapped.iter().flat_map(|m| {
             m.patches
                 .iter()
                 .filter_map(|p| p.blocks.map(|b| (p.level, b)))
         }));
-        let assembly_ms = start.elapsed().as_secs_f64() * 1e3 / poses.len().max(1) as f64;
+        let assembly_ms = watch.ms() / poses.len().max(1) as f64;
         poses
             .iter()
             .zip(&mapped)
             .zip(traced.into_iter().zip(map_ms))
             .map(|((pose, mapped), ((samples, rays, trace_ms), map_ms))| {
-                let start = Instant::now();
+                let watch = Stopwatch::start();
                 let (frame, image) = self.gather(pose, mapped, knobs.filter, linear);
-                let gather_ms = start.elapsed().as_secs_f64() * 1e3 + assembly_ms;
+                let gather_ms = watch.ms() + assembly_ms;
                 let levels = mapped.patches.iter().fold((u32::MAX, 0), |(lo, hi), p| {
                     (lo.min(p.level.finest()), hi.max(p.level.finest()))
                 });
-                ViewportFrame {
+                StoreFrame {
                     frame,
                     image,
-                    samples_traced: samples,
-                    rays,
-                    map_ms,
-                    trace_ms,
-                    gather_ms,
-                    levels,
+                    work: ViewWork {
+                        samples_traced: samples,
+                        pixels_reused: pixels(pose).saturating_sub(samples),
+                        rays,
+                        trace_ms,
+                        assembly_ms: map_ms + gather_ms,
+                        snap_error: None,
+                        levels: Some(levels),
+                    },
                 }
             })
             .collect()
@@ -628,14 +612,9 @@ impl SampleStore for RsvpStore {
     ) -> Vec<StoreFrame> {
         let count = self.samples.count() as usize;
         if count == 1 {
-            let frames = self
+            return self
                 .buffer
                 .render(shader, views, &self.knobs, wanted.linear, ostc);
-            return frames
-                .into_iter()
-                .zip(views)
-                .map(|(view, pose)| store_frame(pose, view))
-                .collect();
         }
         // Every view's shifts in one batch: samples any of them needs are
         // traced once.
@@ -647,8 +626,8 @@ impl SampleStore for RsvpStore {
         views
             .iter()
             .map(|pose| {
-                let start = Instant::now();
-                let shifts: Vec<ViewportFrame> = frames.by_ref().take(count).collect();
+                let watch = Stopwatch::start();
+                let shifts: Vec<StoreFrame> = frames.by_ref().take(count).collect();
                 let mut mean = Frame::new(pose.camera.width, pose.camera.height);
                 let scale = 1.0 / count as f32;
                 let linear: Vec<&Frame> = shifts
@@ -662,20 +641,14 @@ impl SampleStore for RsvpStore {
                     *sum *= scale;
                 });
                 let image = mean.to_rgb8();
-                let averaging_ms = start.elapsed().as_secs_f64() * 1e3;
-                let made = ViewportFrame {
+                let mut work = ViewWork::combined(shifts.iter().map(|s| s.work));
+                work.assembly_ms += watch.ms();
+                work.pixels_reused = pixels(pose).saturating_sub(work.samples_traced);
+                StoreFrame {
                     frame: wanted.linear.then_some(mean),
                     image,
-                    samples_traced: shifts.iter().map(|s| s.samples_traced).sum(),
-                    rays: shifts.iter().fold(RayCounts::default(), |a, s| a + s.rays),
-                    map_ms: shifts.iter().map(|s| s.map_ms).sum(),
-                    trace_ms: shifts.iter().map(|s| s.trace_ms).sum(),
-                    gather_ms: shifts.iter().map(|s| s.gather_ms).sum::<f64>() + averaging_ms,
-                    levels: shifts.iter().fold((u32::MAX, 0), |(lo, hi), s| {
-                        (lo.min(s.levels.0), hi.max(s.levels.1))
-                    }),
-                };
-                store_frame(pose, made)
+                    work,
+                }
             })
             .collect()
     }
@@ -711,20 +684,9 @@ impl SampleStore for RsvpStore {
     }
 }
 
-/// One view's frame as the frame loop takes it from a store.
-fn store_frame(pose: &ViewportPose, view: ViewportFrame) -> StoreFrame {
-    let pixels = u64::from(pose.camera.width) * u64::from(pose.camera.height);
-    StoreFrame {
-        frame: view.frame,
-        image: view.image,
-        samples_traced: view.samples_traced,
-        pixels_reused: pixels.saturating_sub(view.samples_traced),
-        rays: view.rays,
-        trace_ms: view.trace_ms,
-        assembly_ms: view.map_ms + view.gather_ms,
-        snap_error: None,
-        levels: Some(view.levels),
-    }
+/// A view's pixel count.
+fn pixels(pose: &ViewportPose) -> u64 {
+    u64::from(pose.camera.width) * u64::from(pose.camera.height)
 }
 
 /// Samples in a group.

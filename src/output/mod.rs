@@ -5,6 +5,12 @@
 //! TGA files are run-length encoded with every packet inside one row, as
 //! the TGA 2.0 specification requires: decoders that work row by row
 //! (Pillow's) refuse packets that run on into the next row.
+//!
+//! Every CSV file is written from serializable rows by [`csv_text`].
+
+mod csv;
+
+pub use csv::{csv_text, CsvError, Floats};
 
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -14,6 +20,8 @@ use image::ImageFormat;
 
 #[derive(Debug, thiserror::Error)]
 pub enum OutputError {
+    #[error(transparent)]
+    Csv(#[from] CsvError),
     #[error("{path}: unsupported image format (use .png or .tga)")]
     UnsupportedFormat { path: PathBuf },
     #[error("{path}: cannot write: {source}")]
