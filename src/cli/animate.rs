@@ -313,10 +313,11 @@ pub(crate) fn animate(args: AnimateArgs) -> Result<()> {
     let finished = Arc::new(Mutex::new(Vec::<FrameStats>::new()));
     let earlier = Arc::new(earlier_stats(&args, stats_path.as_deref())?);
     save_on_interrupt(&finished, &earlier, stats_path.clone(), *range.start());
-    let region_size = args.ostc.settings().region_size(
-        scene.camera.width,
-        scene.camera.height,
-        animator.has_viewports(),
+    // The camera image's regions, where the frames truly changed.
+    let region_size = retrace::reuse::lattice_buffer::lattice_region_size(
+        args.ostc.settings().regions,
+        (scene.camera.width, scene.camera.height),
+        1,
     );
     let mut run_check = RunCheck::new(scene.samples, (*range.start(), *range.end()), region_size);
     let rendered = render_frames(

@@ -12,7 +12,7 @@ use crate::clock;
 use crate::geometry::{Aabb, Light, Object, Placement, Shape};
 use crate::reuse::ostc::{Footprint, Ostc};
 use crate::reuse::regions::{RegionLayout, RegionSet};
-use crate::reuse::{Erasure, SampleStore};
+use crate::reuse::{Dirty, Erasure, SampleStore};
 use crate::scene::Scene;
 use crate::timeline::Animation;
 
@@ -183,7 +183,11 @@ pub(super) fn invalidate(
                     dirty.union_with(&ostc.dirty_for(&[*was, *is]));
                 }
             }
-            let nulled = store.erase(&layout, &dirty);
+            let nulled = store.erase(&Dirty {
+                layout: &layout,
+                regions: &dirty,
+                groups: &[],
+            });
             ostc.forget(&dirty);
             (dirty.len(), nulled)
         }
@@ -194,7 +198,11 @@ pub(super) fn invalidate(
             let (regions, groups) = dirty_groups(ostc, old, new);
             let mut touched = regions.clone();
             touched.union_with(&lit);
-            let nulled = store.erase(&layout, &lit) + store.erase_groups(&groups);
+            let nulled = store.erase(&Dirty {
+                layout: &layout,
+                regions: &lit,
+                groups: &groups,
+            });
             ostc.forget(&lit);
             ostc.forget_groups(&regions, &groups);
             (touched.len(), nulled)

@@ -345,21 +345,10 @@ impl<'a> Animator<'a> {
         if !self.options.techniques.ostc {
             return None;
         }
-        // Regions are cut from the scene camera's screen, whatever views it,
-        // in the samples of the store's lattice.
+        // Regions are cut from the scene camera's screen, whatever views it.
         let camera = &self.base.camera;
-        let side = store.lattice_side();
-        let size = self.options.ostc.region_size(
-            camera.width * side,
-            camera.height * side,
-            self.has_viewports(),
-        );
-        let built = build_ostc(
-            self.base,
-            animation,
-            &self.options.ostc,
-            store.regions(size),
-        );
+        let layout = store.ostc_regions(self.options.ostc.regions, (camera.width, camera.height));
+        let built = build_ostc(self.base, animation, &self.options.ostc, layout);
         built.unwrap_or_else(|why| {
             self.ostc_refusal = Some(why);
             None

@@ -18,7 +18,7 @@ use crate::render::{
     GROUP_HEIGHT, GROUP_WIDTH,
 };
 use crate::reuse::ostc::Ostc;
-use crate::reuse::regions::{RegionLayout, RegionSet};
+use crate::reuse::regions::{RegionGrid, RegionLayout, RegionSet};
 use crate::reuse::{StoreFrame, ViewWork};
 use crate::sampling::PixelSamples;
 use crate::shade::{RayCounts, RayObserver, Shader};
@@ -352,6 +352,17 @@ struct TracedCells {
     fresh: LaneMask,
 }
 
+/// OSTC's region size over a lattice's buffer, in its samples: `grid`
+/// (None: one sample group a region, the camera image's default) cut from
+/// a screen of `camera` pixels at `side` lattice samples a pixel along
+/// each axis. The one rule for the camera image's regions; the bench's
+/// region oracle uses it too.
+pub fn lattice_region_size(grid: Option<RegionGrid>, camera: (u32, u32), side: u32) -> (i64, i64) {
+    let (width, height) = (camera.0 * side, camera.1 * side);
+    grid.unwrap_or_else(|| RegionGrid::one_group(width, height))
+        .region_size(width, height)
+}
+
 impl<L: Lattice> LatticeBuffer<L> {
     /// A buffer for windows within rows `rows` of the lattice, keeping a
     /// square count's strata too when `keep_strata` is set (for OSTC, which
@@ -387,6 +398,11 @@ impl<L: Lattice> LatticeBuffer<L> {
     /// Samples of the buffer's own lattice along each side of a cell: the
     /// side of the strata's grid when it keeps strata, else 1. OSTC's
     /// regions are laid over the kept samples ([`LatticeBuffer::regions`]).
+    /// OSTC's regions over the buffer (see [`lattice_region_size`]).
+    pub fn ostc_regions(&self, grid: Option<RegionGrid>, camera: (u32, u32)) -> RegionLayout {
+        self.regions(lattice_region_size(grid, camera, self.lattice_side()))
+    }
+
     pub fn lattice_side(&self) -> u32 {
         self.strata.as_ref().map_or(1, |strata| strata.side as u32)
     }

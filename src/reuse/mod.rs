@@ -37,7 +37,7 @@ use crate::sampling::PixelSamples;
 use crate::scene::Scene;
 use crate::shade::{RayCounts, Shader};
 use ostc::Ostc;
-use regions::{RegionLayout, RegionSet};
+use regions::{RegionGrid, RegionLayout, RegionSet};
 
 /// One output picture of a frame: the camera's image (named "") or an RSVP
 /// viewport.
@@ -248,6 +248,18 @@ impl std::fmt::Display for FullReason {
     }
 }
 
+/// What OSTC found a change can alter, as a store erases it.
+pub struct Dirty<'a> {
+    /// The layout of [`SampleStore::ostc_regions`].
+    pub layout: &'a RegionLayout,
+    /// Whole regions to null.
+    pub regions: &'a RegionSet,
+    /// Sample groups to null, by the keys they were recorded under (see
+    /// [`Ostc::dirty_groups_for`]); empty unless the store erases by
+    /// [`Erasure::Groups`].
+    pub groups: &'a [u128],
+}
+
 /// How finely OSTC nulls a store's samples when an object moves.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Erasure {
@@ -404,32 +416,20 @@ pub trait SampleStore {
     /// Why the store cannot serve `views`, if it cannot.
     fn unfit(&self, views: &[ViewportPose]) -> Option<Unfit>;
 
-    /// Samples of the store's lattice along each axis of a camera pixel
-    /// (a still camera keeping strata: the side of their grid), so regions
-    /// can be sized in the lattice's own samples.
-    fn lattice_side(&self) -> u32 {
-        1
-    }
+    /// OSTC's regions laid over everything the store can keep: `grid` (the
+    /// one asked for; None: the store's own default) cut from the scene
+    /// camera's screen of `camera` pixels, sized in the store's own
+    /// samples.
+    fn ostc_regions(&self, grid: Option<RegionGrid>, camera: (u32, u32)) -> RegionLayout;
 
-    /// OSTC regions of `size` samples laid over everything the store can
-    /// keep.
-    fn regions(&self, size: (i64, i64)) -> RegionLayout;
-
+    /// How finely the store is erased when an object moves.
     fn erasure(&self) -> Erasure {
         Erasure::Regions
     }
 
-    /// Nulls the samples in `regions` (of `layout`, from
-    /// [`SampleStore::regions`]); returns how many of them were traced.
-    fn erase(&mut self, layout: &RegionLayout, regions: &RegionSet) -> u64;
-
-    /// Nulls the sample groups recorded under `keys` (see
-    /// [`Ostc::dirty_groups_for`]); returns how many samples were traced.
-    /// Only stores that erase by [`Erasure::Groups`] are asked.
-    fn erase_groups(&mut self, keys: &[u128]) -> u64 {
-        debug_assert!(keys.is_empty(), "{} erases whole regions", self.name());
-        0
-    }
+    /// Nulls what `dirty` names; returns how many of the nulled samples
+    /// had been traced.
+    fn erase(&mut self, dirty: &Dirty) -> u64;
 
     /// Renders `views`, tracing (and recording into `ostc`) the samples
     /// they need that the store lacks.

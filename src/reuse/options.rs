@@ -97,7 +97,7 @@ impl Techniques {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct OstcSettings {
     /// The grid asked for; None: the one measured fastest for the store
-    /// that keeps the samples (see [`OstcSettings::region_size`]).
+    /// that keeps the samples (see [`super::SampleStore::ostc_regions`]).
     pub regions: Option<RegionGrid>,
     pub voxels: u32,
 }
@@ -108,22 +108,6 @@ impl Default for OstcSettings {
             regions: None,
             voxels: DEFAULT_VOXELS,
         }
-    }
-}
-
-impl OstcSettings {
-    /// Region width and height in samples for a `width` x `height` screen:
-    /// the grid asked for, else one sample group a region for the camera's
-    /// image and [`RegionGrid::PYRAMID`] for RSVP's buffer (`viewports`).
-    pub fn region_size(&self, width: u32, height: u32, viewports: bool) -> (i64, i64) {
-        let grid = self.regions.unwrap_or_else(|| {
-            if viewports {
-                RegionGrid::PYRAMID
-            } else {
-                RegionGrid::one_group(width, height)
-            }
-        });
-        grid.region_size(width, height)
     }
 }
 

@@ -10,9 +10,10 @@ use crate::camera::{Projection, RayTable, ViewportPose};
 use crate::render::{SampleGroup, GROUP_HEIGHT, GROUP_WIDTH};
 use crate::reuse::lattice_buffer::{Lattice, LatticeBuffer, Window};
 use crate::reuse::ostc::Ostc;
-use crate::reuse::regions::{RegionLayout, RegionSet};
+use crate::reuse::regions::{RegionGrid, RegionLayout};
 use crate::reuse::{
-    FrameMode, FullReason, Run, SampleStore, Serve, StoreFrame, StorePlan, Unfit, View, Wanted,
+    Dirty, FrameMode, FullReason, Run, SampleStore, Serve, StoreFrame, StorePlan, Unfit, View,
+    Wanted,
 };
 use crate::sampling::PixelSamples;
 use crate::shade::Shader;
@@ -134,16 +135,13 @@ impl SampleStore for StillStore {
         (own != camera).then_some(Unfit::CameraMoved(own.projection))
     }
 
-    fn lattice_side(&self) -> u32 {
-        self.buffer.lattice_side()
+    fn ostc_regions(&self, grid: Option<RegionGrid>, camera: (u32, u32)) -> RegionLayout {
+        self.buffer.ostc_regions(grid, camera)
     }
 
-    fn regions(&self, size: (i64, i64)) -> RegionLayout {
-        self.buffer.regions(size)
-    }
-
-    fn erase(&mut self, layout: &RegionLayout, regions: &RegionSet) -> u64 {
-        self.buffer.erase(layout, regions)
+    fn erase(&mut self, dirty: &Dirty) -> u64 {
+        debug_assert!(dirty.groups.is_empty(), "the buffer erases whole regions");
+        self.buffer.erase(dirty.layout, dirty.regions)
     }
 
     fn render(

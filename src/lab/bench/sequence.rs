@@ -14,6 +14,7 @@ use crate::clock;
 use crate::frame_loop::{Animator, FrameStats, Options, Techniques};
 use crate::metrics::{ImageError, REFERENCE_EVERY};
 use crate::pool::with_workers_awake;
+use crate::reuse::lattice_buffer::lattice_region_size;
 use crate::reuse::rsvp::RsvpKnobs;
 use crate::scene::Scene;
 use crate::shade::{RayCounts, Shader};
@@ -444,10 +445,10 @@ fn check_sequence(
     } else {
         1
     };
-    let (strata_wide, strata_high) = options.ostc.region_size(
-        scene.camera.width * side,
-        scene.camera.height * side,
-        check.has_viewports(),
+    let (strata_wide, strata_high) = lattice_region_size(
+        options.ostc.regions,
+        (scene.camera.width, scene.camera.height),
+        side,
     );
     let side_i = i64::from(side);
     let region_size = ((strata_wide / side_i).max(1), (strata_high / side_i).max(1));

@@ -33,8 +33,8 @@ use crate::ray::Ray;
 use crate::render::{PrimaryRays, SampleGroup, GROUP_HEIGHT, GROUP_WIDTH};
 use crate::reuse::lattice_buffer::{assembled, cells_traced, Lattice, LatticeBuffer, Window};
 use crate::reuse::ostc::Ostc;
-use crate::reuse::regions::{RegionLayout, RegionSet};
-use crate::reuse::{FrameMode, SampleStore, StoreFrame, Unfit, ViewWork, Wanted};
+use crate::reuse::regions::{RegionGrid, RegionLayout};
+use crate::reuse::{Dirty, FrameMode, SampleStore, StoreFrame, Unfit, ViewWork, Wanted};
 use crate::sampling::PixelSamples;
 use crate::shade::Shader;
 
@@ -435,16 +435,13 @@ impl SampleStore for PanStore {
         (moved && !self.pans).then_some(Unfit::MovedPanOff)
     }
 
-    fn lattice_side(&self) -> u32 {
-        self.buffer.lattice_side()
+    fn ostc_regions(&self, grid: Option<RegionGrid>, camera: (u32, u32)) -> RegionLayout {
+        self.buffer.ostc_regions(grid, camera)
     }
 
-    fn regions(&self, size: (i64, i64)) -> RegionLayout {
-        self.buffer.regions(size)
-    }
-
-    fn erase(&mut self, layout: &RegionLayout, regions: &RegionSet) -> u64 {
-        self.buffer.erase(layout, regions)
+    fn erase(&mut self, dirty: &Dirty) -> u64 {
+        debug_assert!(dirty.groups.is_empty(), "the buffer erases whole regions");
+        self.buffer.erase(dirty.layout, dirty.regions)
     }
 
     fn render(

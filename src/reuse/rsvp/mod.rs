@@ -55,8 +55,8 @@ use crate::clock::Stopwatch;
 use crate::color::srgb_table;
 use crate::render::{trace_each, trace_groups, Frame, PrimaryRays, SampleGroup, GROUP_WIDTH};
 use crate::reuse::ostc::Ostc;
-use crate::reuse::regions::{RegionLayout, RegionSet};
-use crate::reuse::{Erasure, FrameMode, SampleStore, StoreFrame, Unfit, ViewWork, Wanted};
+use crate::reuse::regions::{RegionGrid, RegionLayout, RegionSet};
+use crate::reuse::{Dirty, Erasure, FrameMode, SampleStore, StoreFrame, Unfit, ViewWork, Wanted};
 use crate::sampling::PixelSamples;
 use crate::shade::{RayCounts, Shader};
 use blocks::LevelBlocks;
@@ -587,20 +587,18 @@ impl SampleStore for RsvpStore {
         (self.buffer.lattice().position != eye).then_some(Unfit::EyeMoved)
     }
 
-    fn regions(&self, size: (i64, i64)) -> RegionLayout {
-        self.buffer.regions(size)
+    fn ostc_regions(&self, grid: Option<RegionGrid>, (width, height): (u32, u32)) -> RegionLayout {
+        let grid = grid.unwrap_or(RegionGrid::PYRAMID);
+        self.buffer.regions(grid.region_size(width, height))
     }
 
     fn erasure(&self) -> Erasure {
         Erasure::Groups
     }
 
-    fn erase(&mut self, layout: &RegionLayout, regions: &RegionSet) -> u64 {
-        self.buffer.erase(layout, regions) * GROUP_SAMPLES
-    }
-
-    fn erase_groups(&mut self, keys: &[u128]) -> u64 {
-        self.buffer.erase_groups(keys) * GROUP_SAMPLES
+    fn erase(&mut self, dirty: &Dirty) -> u64 {
+        let regions = self.buffer.erase(dirty.layout, dirty.regions);
+        (regions + self.buffer.erase_groups(dirty.groups)) * GROUP_SAMPLES
     }
 
     fn render(
