@@ -5,10 +5,11 @@
 //! Promises: a model loads or fails whole, naming the file and line of the
 //! first problem; what can be rendered around is a warning naming its file
 //! and line instead: bytes that are not UTF-8 (read with U+FFFD in their
-//! place), point and line elements (not surfaces: left out), a material
+//! place; UTF-16 with a byte-order mark is read as such), point and line
+//! elements (not surfaces: left out), vertex colours (ignored), a material
 //! library entry that does not parse (that material falls back to the
-//! default), a `usemtl` naming no material. tobj only ever sees text that
-//! has passed these checks.
+//! default), an `Ns` out of range, a `usemtl` naming no material or none.
+//! tobj only ever sees text that has passed these checks.
 
 use std::cell::RefCell;
 use std::collections::{HashMap, HashSet};
@@ -188,28 +189,58 @@ fn check_obj_text(path: &Path, text: &str) -> Result<(), SceneError> {
                     }
                 }
             }
-            // tobj refuses the whole file for a nameless `usemtl`.
-            "usemtl" if usemtl_name(line).is_empty() => {
-                return fail("usemtl", "expected a material name".into());
-            }
             _ => {}
         }
     }
     Ok(())
 }
 
-/// The name a `usemtl` line selects, as tobj reads it (everything after the
-/// first space, trimmed).
+/// The name a `usemtl` line selects: everything after the keyword, trimmed
+/// (tobj is handed `usemtl NAME` lines rewritten so that it reads the same).
 fn usemtl_name(line: &str) -> &str {
-    line.trim()
-        .split_once(' ')
-        .map_or("", |(_, name)| name.trim())
+    line.trim_start()
+        .strip_prefix("usemtl")
+        .map_or("", str::trim)
 }
 
-/// `bytes` as text; bytes that are not UTF-8 become U+FFFD, with a warning
-/// naming the first line that has any (so a Latin-1 material name still
-/// matches itself between the OBJ and the MTL).
+/// A nameless `usemtl` (Blender's) for tobj, which refuses the file for one:
+/// a name that always selects the default material.
+const NAMELESS_USEMTL: &str = "\u{0}retrace: nameless usemtl";
+
+/// `bytes` as text: UTF-16 after its byte-order mark (FF FE, FE FF), else
+/// UTF-8 (after its mark, if any). Bytes that are not UTF-8 (or UTF-16)
+/// become U+FFFD, with a warning naming the first line that has any (so a
+/// Latin-1 material name still matches itself between the OBJ and the MTL).
 fn decode_lossily(path: &Path, bytes: &[u8], problems: &mut Vec<String>) -> String {
+    let (bytes, unit): (_, fn([u8; 2]) -> u16) = match bytes {
+        [0xFF, 0xFE, rest @ ..] => (rest, u16::from_le_bytes),
+        [0xFE, 0xFF, rest @ ..] => (rest, u16::from_be_bytes),
+        [0xEF, 0xBB, 0xBF, rest @ ..] | rest => return decode_utf8(path, rest, problems),
+    };
+    // An odd last byte reads as an unpaired surrogate.
+    let units = bytes.chunks(2).map(|pair| match *pair {
+        [a, b] => unit([a, b]),
+        _ => 0xDC00,
+    });
+    let (mut text, mut line, mut first_bad) = (String::with_capacity(bytes.len() / 2), 1, None);
+    for c in char::decode_utf16(units) {
+        let c = c.unwrap_or_else(|_| {
+            first_bad.get_or_insert(line);
+            '\u{FFFD}'
+        });
+        line += usize::from(c == '\n');
+        text.push(c);
+    }
+    if let Some(line) = first_bad {
+        problems.push(format!(
+            "{}:{line}: not valid UTF-16: read with U+FFFD in place of the units that are not",
+            path.display()
+        ));
+    }
+    text
+}
+
+fn decode_utf8(path: &Path, bytes: &[u8], problems: &mut Vec<String>) -> String {
     match std::str::from_utf8(bytes) {
         Ok(text) => text.to_string(),
         Err(err) => {
@@ -230,12 +261,15 @@ fn decode_lossily(path: &Path, bytes: &[u8], problems: &mut Vec<String>) -> Stri
 
 /// The OBJ's text for tobj with point (`p`) and line (`l`) elements left out
 /// (they are not surfaces, and tobj would turn a `p` or `l` of three or more
-/// vertices into a face) and vertex colours dropped. Warns at the first; fails if no face remains.
+/// vertices into a face), vertex colours dropped and `usemtl` lines as
+/// [`usemtl_name`] reads them. Warns at the first of each; fails if no face
+/// remains.
 fn faces_only(path: &Path, text: &str, problems: &mut Vec<String>) -> Result<String, SceneError> {
     let mut kept = String::with_capacity(text.len());
     let mut left_out = 0;
     let mut first_left_out = None;
     let mut faces = 0;
+    let (mut first_coloured, mut nameless, mut first_nameless) = (None, 0, None);
     for (number, line) in text.lines().enumerate() {
         let mut words = line.split_whitespace();
         match words.next() {
@@ -243,14 +277,25 @@ fn faces_only(path: &Path, text: &str, problems: &mut Vec<String>) -> Result<Str
                 left_out += 1;
                 first_left_out.get_or_insert((number + 1, keyword));
             }
-            // Vertex colours are not used, and tobj refuses a model in
+            // Vertex colours are not used (a mesh has no colour attribute:
+            // colour is the material's), and tobj refuses a model in
             // which only some vertices have one.
             Some("v") if words.clone().count() == 6 => {
+                first_coloured.get_or_insert(number + 1);
                 kept.push('v');
                 for word in words.take(3) {
                     kept.push(' ');
                     kept.push_str(word);
                 }
+            }
+            Some("usemtl") => {
+                let mut name = usemtl_name(line);
+                if name.is_empty() {
+                    nameless += 1;
+                    first_nameless.get_or_insert(number + 1);
+                    name = NAMELESS_USEMTL;
+                }
+                kept.push_str(&format!("usemtl {name}"));
             }
             keyword => {
                 faces += usize::from(keyword == Some("f"));
@@ -258,6 +303,20 @@ fn faces_only(path: &Path, text: &str, problems: &mut Vec<String>) -> Result<Str
             }
         }
         kept.push('\n');
+    }
+    if let Some(line) = first_coloured {
+        problems.push(format!(
+            "{}:{line}: v: vertex colours (v x y z r g b) are not supported: ignored; \
+             the faces take their materials' colours",
+            path.display()
+        ));
+    }
+    if let Some(line) = first_nameless {
+        problems.push(format!(
+            "{}:{line}: usemtl: no material name ({nameless} in the file): \
+             the faces after it use the default material",
+            path.display()
+        ));
     }
     if let Some((line, keyword)) = first_left_out {
         problems.push(format!(
@@ -373,6 +432,14 @@ fn checked_mtl_text(
                         number + 1
                     ));
                 }
+                if let (Some(name), "Ns", Some(why)) = (&current, keyword, ns_problem(&values)) {
+                    problems.push(format!(
+                        "{}:{}: Ns {}: material '{name}': {why}",
+                        path.display(),
+                        number + 1,
+                        values[0]
+                    ));
+                }
                 if let (Some(name), "map_Kd" | "map_Ks") = (&current, keyword) {
                     texture_lines.insert(
                         (name.clone(), keyword.to_string()),
@@ -389,6 +456,23 @@ fn checked_mtl_text(
         kept.push('\n');
     }
     (kept, broken)
+}
+
+/// The largest `Ns` used as written: beyond it the highlight is narrower
+/// than any pixel.
+const MAX_NS: f32 = 10_000.0;
+
+/// How an MTL `Ns` (`values`, a finite number) is read when not as the
+/// Phong exponent it gives; `None` for 0 < Ns <= [`MAX_NS`].
+fn ns_problem(values: &[&str]) -> Option<&'static str> {
+    match values.first()?.parse::<f32>().ok()? {
+        ns if ns <= 0.0 => Some(
+            "an exponent of 0 or below lights the whole lit side at full Ks ((R.V)^Ns = 1), \
+             not a highlight: read as no highlight",
+        ),
+        ns if ns > MAX_NS => Some("an exponent above 10000 is clamped to 10000"),
+        _ => None,
+    }
 }
 
 /// Where a material's texture map (`map_Kd`, `map_Ks`) was written.
@@ -456,8 +540,15 @@ fn material_from_mtl(
     let rgb =
         |c: Option<[f32; 3]>, default: f32| c.map(Vec3::from_array).unwrap_or(Vec3::splat(default));
     let specular = rgb(m.specular, 0.0);
+    // `Ns 0` (3ds Max and others write it for no highlight) or below makes
+    // the Phong term (R.V)^Ns 1 at every lit point: Ks over the whole lit
+    // side, a wash-out. Read as no highlight, as meant (Blender's importer
+    // reads it as fully rough); an exponent of 1 would still spread Ks over
+    // the lit side. The mirror of illum 3, 5 and 7 keeps its Ks.
+    let highlight = m.shininess.map_or(true, |ns| ns > 0.0);
     // A specular map with no `Ks` shows the image's own colours.
     let mapped_specular = match (&specular_map, m.specular) {
+        _ if !highlight => Vec3::ZERO,
         (Some(_), None) => Vec3::ONE,
         _ => specular,
     };
@@ -468,14 +559,14 @@ fn material_from_mtl(
         diffuse: rgb(m.diffuse, 0.7).clamp(Vec3::ZERO, Vec3::ONE),
         checker: None,
         specular: mapped_specular.clamp(Vec3::ZERO, Vec3::ONE),
-        shininess: m.shininess.unwrap_or(32.0).clamp(0.0, 10_000.0),
+        shininess: m.shininess.unwrap_or(32.0).clamp(0.0, MAX_NS),
         reflectivity: if reflective {
             specular.max_element().clamp(0.0, 1.0)
         } else {
             0.0
         },
         diffuse_map,
-        specular_map,
+        specular_map: specular_map.filter(|_| highlight),
         glass: super::glass::glass_from_mtl(m),
     }
 }
@@ -544,7 +635,7 @@ pub fn load_obj_mesh_with(path: &Path, textures: &mut TextureCache) -> Result<Ob
     // Each material once (its texture loads once), by index.
     let mut converted: Vec<Option<Material>> = Vec::with_capacity(materials.len());
     for m in &materials {
-        if broken_materials.contains(&m.name) {
+        if broken_materials.contains(&m.name) || m.name == NAMELESS_USEMTL {
             converted.push(None);
             continue;
         }
@@ -616,7 +707,7 @@ fn warn_undefined_materials(
             continue;
         }
         let name = usemtl_name(line);
-        if !defined.contains(name) && told.insert(name) {
+        if !name.is_empty() && !defined.contains(name) && told.insert(name) {
             problems.push(format!(
                 "{}:{}: usemtl: material '{name}' is not defined in any material library; \
                  its faces use the default material",
@@ -845,9 +936,8 @@ mod tests {
         assert_eq!(err.line, Some(4));
         let err = check("v 0 0 inf\n").unwrap_err();
         assert_eq!(err.field.as_deref(), Some("v"));
-        // tobj would refuse the whole file, naming no line.
-        let err = check("v 0 0 0\nusemtl  \n").unwrap_err();
-        assert_eq!((err.line, err.field.as_deref()), (Some(2), Some("usemtl")));
+        // A nameless `usemtl` (Blender's) is left to `faces_only`.
+        check("v 0 0 0\nusemtl  \n").unwrap();
         assert!(check("# c\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf -3 -2 -1\nf 1/1/1 2//2 3\n").is_ok());
     }
 

@@ -1046,7 +1046,6 @@ mod obj_reader_hazards {
             // only when they are numbers.
             "f 1/x 2/x 3/x",
             "f 1/1/1/1 2 3",
-            "usemtl",
         ] {
             let obj = format!("{triangle}f 1 2 3\n{refused}\n");
             let err = refusal(&case(&[("m.obj", &obj)]));

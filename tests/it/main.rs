@@ -17,6 +17,7 @@ mod glass;
 mod layers;
 mod moving_spheres;
 mod normals;
+mod obj_exporters;
 mod obj_input;
 mod ostc;
 mod output_folders;
