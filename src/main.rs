@@ -4,7 +4,7 @@
 
 use std::process::ExitCode;
 
-use clap::{Parser, Subcommand};
+use clap::{CommandFactory, FromArgMatches, Parser, Subcommand};
 
 use cli::animate::{animate, AnimateArgs};
 #[cfg(feature = "lab")]
@@ -37,8 +37,9 @@ mod cli;
     about = "A ray tracer for animation that re-traces only what changed"
 )]
 struct Cli {
-    /// Worker threads (default: one per core).
-    #[arg(long, global = true)]
+    /// Worker threads, at most 4 a core or 256, whichever is more; 0 is
+    /// taken as 1 [default: one per core].
+    #[arg(long, global = true, allow_negative_numbers = true, value_parser = parse_threads)]
     threads: Option<usize>,
     #[command(subcommand)]
     command: Command,
@@ -102,23 +103,83 @@ fn error_text(err: &anyhow::Error) -> String {
     text
 }
 
+/// `--threads`'s value: a count, said so when it is not one (`-1` too,
+/// rather than clap's hint to write `-- -1`).
+fn parse_threads(s: &str) -> Result<usize, String> {
+    s.trim()
+        .parse()
+        .map_err(|_| format!("'{s}' is not a number of threads (0 or more)"))
+}
+
+/// The most worker threads `--threads` may ask for: four for each core
+/// this process may use, and never fewer than 256.
+///
+/// Rendering is CPU-bound: past one thread a core, threads only share the
+/// same cores, and the frame loop keeps every worker looking for work
+/// through a frame (`retrace::pool`), so each extra one costs. Four a core
+/// leaves room to measure oversubscription; the floor lets a count fixed in
+/// a script (a farm task's, a benchmark's) run on a small machine or in a
+/// container whose CPU quota makes it look like one or two cores. Beyond
+/// that, `--threads 100000` ran for minutes what takes a second, and a
+/// few thousand threads (each reserves a stack) can exhaust the process's
+/// memory or thread limits, which made the threads that failed to start
+/// panic.
+fn max_threads() -> usize {
+    let cores = std::thread::available_parallelism().map_or(1, std::num::NonZeroUsize::get);
+    cores.saturating_mul(4).max(256)
+}
+
+/// Sets up the global pool with `threads` workers (0 is taken as 1), or
+/// says why not: too many asked for, or the system refused them.
+fn set_up_threads(threads: usize) -> Result<(), String> {
+    let limit = max_threads();
+    if threads > limit {
+        return Err(format!(
+            "--threads {threads}: at most {limit} worker threads here (4 for each of the \
+             {} cores this process may use, and at least 256)",
+            std::thread::available_parallelism().map_or(1, std::num::NonZeroUsize::get)
+        ));
+    }
+    // A thread the system starts but cannot give a signal stack panics as
+    // it starts, before rayon sees the failure: its report would bury the
+    // error below. The pool's own error says what went wrong.
+    let report_panic = std::panic::take_hook();
+    std::panic::set_hook(Box::new(|_| {}));
+    let built = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads.max(1))
+        .build_global();
+    match built {
+        Ok(()) => {
+            std::panic::set_hook(report_panic);
+            Ok(())
+        }
+        // The hook stays quiet: the run stops here, and a thread that fails
+        // to start while the others are let go would still report.
+        Err(err) => Err(format!(
+            "--threads {threads}: the system would not start that many worker threads \
+             ({err}); ask for fewer"
+        )),
+    }
+}
+
 fn main() -> ExitCode {
-    let cli = Cli::parse();
+    let mut command = cli::finish_command(Cli::command());
+    let matches = command.clone().get_matches();
+    let cli = Cli::from_arg_matches(&matches).unwrap_or_else(|err| err.format(&mut command).exit());
+    // Before any work: a count of threads the machine cannot run is
+    // refused, not left to spin for minutes.
+    if let Some(threads) = cli.threads {
+        if let Err(err) = set_up_threads(threads) {
+            eprintln!("error: {err}");
+            return ExitCode::FAILURE;
+        }
+    }
     // Ctrl-C, or a scheduler's SIGTERM (or SIGHUP), stops at once, leaving
     // finished files and no unfinished ones (frames, GIFs, reports are
     // written under temporary names).
     let interrupted = ctrlc::set_handler(|| cli::interrupted());
     if let Err(err) = interrupted {
         eprintln!("warning: an interrupt will not clean up unfinished files: {err}");
-    }
-    if let Some(threads) = cli.threads {
-        if let Err(err) = rayon::ThreadPoolBuilder::new()
-            .num_threads(threads.max(1))
-            .build_global()
-        {
-            eprintln!("error: cannot set up {threads} worker threads: {err}");
-            return ExitCode::FAILURE;
-        }
     }
     let result = match cli.command {
         // The window's thread waits for input: run on one of the pool's
@@ -128,12 +189,29 @@ fn main() -> ExitCode {
         Command::View(args) => view(args),
         command => run_in_pool(command),
     };
+    say_removed_temporaries();
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(err) => {
             eprintln!("error: {}", error_text(&err));
             ExitCode::FAILURE
         }
+    }
+}
+
+/// Says which temporary files killed runs had left in the folders this
+/// run wrote into (and it removed).
+fn say_removed_temporaries() {
+    let removed = retrace::output::take_removed_temporaries();
+    if let Some(first) = removed.first() {
+        let more = match removed.len() {
+            1 => String::new(),
+            n => format!(" and {} more", n - 1),
+        };
+        eprintln!(
+            "note: removed {}{more}, left by a run that was killed before it could clean up",
+            first.display()
+        );
     }
 }
 

@@ -28,7 +28,7 @@ pub(crate) struct AnimateArgs {
     #[command(flatten)]
     backend: BackendArg,
     /// Frames to render: A-B (inclusive) or A; default: the whole animation.
-    #[arg(long)]
+    #[arg(long, allow_hyphen_values = true, value_parser = super::frame_range_text)]
     frames: Option<String>,
     /// Frame files (.png or .tga); a run of # becomes the zero-padded frame
     /// number. A scene with RSVP viewports writes one file per viewport,

@@ -40,7 +40,7 @@ pub(crate) struct BenchArgs {
     #[arg(long, value_delimiter = ',', default_value = "1,2,4,8,16")]
     chunk_counts: Vec<u32>,
     /// Frames of every experiment, `A-B` or `A` (default: all 100).
-    #[arg(long)]
+    #[arg(long, allow_hyphen_values = true, value_parser = super::frame_range_text)]
     frames: Option<String>,
     /// Also run the scaling rows (a scene of about a million triangles,
     /// and 1280x960) after the paper's table.

@@ -63,7 +63,7 @@ struct RunArgs {
     #[arg(short, long, default_value = "out/frame_####.png")]
     output: String,
     /// Frames to render: A-B (inclusive) or A; default: all.
-    #[arg(long)]
+    #[arg(long, allow_hyphen_values = true, value_parser = super::frame_range_text)]
     frames: Option<String>,
     /// Folder of the run's statistics, logs and assembled results
     /// [default: the frames' folder].

@@ -31,14 +31,14 @@ struct SceneArgs {
     /// Scene file (.toml) or OBJ model; the built-in paper scene if omitted.
     scene: Option<PathBuf>,
     /// Image width in pixels: the camera's (RSVP viewports keep their own
-    /// sizes; `bench` gives its viewport experiments' viewport this size too).
+    /// sizes).
     #[arg(long)]
     width: Option<u32>,
     /// Image height in pixels (as for --width).
     #[arg(long)]
     height: Option<u32>,
     /// Camera projection.
-    #[arg(long, value_parser = parse_projection)]
+    #[arg(long, value_parser = projection_parser())]
     camera: Option<Projection>,
     /// Horizontal field of view in degrees.
     #[arg(long, allow_negative_numbers = true)]
@@ -124,8 +124,43 @@ fn parse_resolution(s: &str) -> Result<[u32; 3], String> {
     Ok(resolution)
 }
 
-fn parse_projection(s: &str) -> Result<Projection, String> {
-    s.parse()
+/// The projections `--camera` takes, as `Projection` names them.
+const PROJECTIONS: [&str; 3] = ["perspective", "equal-angle", "fisheye"];
+
+/// `--camera`'s parser: `--help` and a wrong value list the projections.
+fn projection_parser() -> impl clap::builder::TypedValueParser<Value = Projection> {
+    use clap::builder::TypedValueParser as _;
+    clap::builder::PossibleValuesParser::new(PROJECTIONS).try_map(|s| s.parse::<Projection>())
+}
+
+/// What `bench`'s shared arguments say of it alone, added to the command
+/// line before it is parsed: its `--width` and `--height` size its
+/// viewports too.
+pub(crate) fn finish_command(command: clap::Command) -> clap::Command {
+    let bench = command.get_name() == "bench";
+    command
+        .mut_args(|arg| match arg.get_id().as_str() {
+            "width" if bench => {
+                arg.help("Image width in pixels: the camera's, and each RSVP viewport's too")
+            }
+            "height" if bench => arg.help("Image height in pixels (as for --width)"),
+            _ => arg,
+        })
+        .mut_subcommands(finish_command)
+}
+
+/// `--frames`'s value as given (every `--frames` takes one that starts
+/// with `-`, so `--frames -3` gets `parse_frame_range`'s words rather than
+/// clap's hint to write `-- -3`, which would not work either), unless it
+/// is a flag (`--frames --gif a.gif`: a usage error).
+fn frame_range_text(s: &str) -> Result<String, String> {
+    let after_dash = s.strip_prefix('-').map(|rest| rest.trim_start());
+    if after_dash.is_some_and(|rest| !rest.starts_with(|c: char| c.is_ascii_digit())) {
+        return Err(format!(
+            "'{s}' is a flag, not a frame range: give A-B (inclusive) or A, e.g. 0-49"
+        ));
+    }
+    Ok(s.to_string())
 }
 
 fn parse_backend(s: &str) -> Result<BackendKind, String> {
@@ -297,10 +332,18 @@ fn parse_frame_range(text: Option<&str>, count: u32) -> Result<std::ops::RangeIn
         return Ok(0..=count - 1);
     };
     let parse = |s: &str| -> Result<u32> {
+        if s.trim().starts_with('-') {
+            anyhow::bail!("--frames {text}: {NOT_NEGATIVE}");
+        }
         s.trim()
             .parse()
             .with_context(|| format!("--frames {text}: '{s}' is not a frame number"))
     };
+    const NOT_NEGATIVE: &str = "frames are numbered from 0, never below: give A-B (inclusive) \
+                                or A, e.g. 0-49";
+    if text.trim_start().starts_with('-') {
+        anyhow::bail!("--frames {text}: {NOT_NEGATIVE}");
+    }
     let (first, last) = match text.split_once('-') {
         Some((a, b)) => (parse(a)?, parse(b)?),
         None => {
@@ -381,7 +424,8 @@ fn folder_of(path: &Path) -> PathBuf {
         .map_or(PathBuf::from("."), Path::to_path_buf)
 }
 
-/// Fails early, before any rendering, if `dir` cannot take new files.
+/// Fails early, before any rendering, if `dir` cannot take new files
+/// (making it if it is not there).
 fn check_writable(dir: &Path) -> Result<()> {
     make_folder(dir, None)?;
     let probe = dir.join(format!(".retrace-probe-{}", std::process::id()));
@@ -489,5 +533,29 @@ impl Progress {
         if let Some(bar) = &self.bar {
             bar.finish_and_clear();
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_projection_listed_for_camera_parses_to_itself() {
+        for name in PROJECTIONS {
+            let projection: Projection = name.parse().unwrap();
+            assert_eq!(projection.to_string(), name);
+        }
+    }
+
+    #[test]
+    fn a_frame_range_may_start_with_a_dash_but_a_flag_may_not() {
+        assert_eq!(frame_range_text("-3").unwrap(), "-3");
+        assert_eq!(frame_range_text("2-5").unwrap(), "2-5");
+        assert!(frame_range_text("--gif").unwrap_err().contains("is a flag"));
+        let err = parse_frame_range(Some("-3"), 10).unwrap_err().to_string();
+        assert!(err.contains("numbered from 0"), "{err}");
+        let err = parse_frame_range(Some("2--1"), 10).unwrap_err().to_string();
+        assert!(err.contains("numbered from 0"), "{err}");
     }
 }

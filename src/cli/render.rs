@@ -9,7 +9,9 @@ use clap::Args;
 use retrace::output::save_image;
 use retrace::render::render_frame;
 
-use super::{check_parent, ensure_parent, load, scene_name, BackendArg, SceneArgs};
+use super::{
+    check_parent, check_writable, ensure_parent, folder_of, load, scene_name, BackendArg, SceneArgs,
+};
 
 #[derive(Args)]
 pub(crate) struct RenderArgs {
@@ -31,9 +33,11 @@ pub(crate) struct RenderArgs {
 }
 
 pub(crate) fn render(mut args: RenderArgs) -> Result<()> {
-    // Check the output name before any work: a typo should not cost a render.
+    // Check the output name, and that its folder takes files, before any
+    // work: a typo or a read-only folder should not cost a render.
     retrace::output::format_for(&args.output)?;
     check_parent(&args.output)?;
+    check_writable(&folder_of(&args.output))?;
     if args.reference {
         args.scene.spp = Some(retrace::sampling::REFERENCE_SAMPLES_PER_PIXEL);
     }

@@ -22,7 +22,7 @@ pub(crate) struct TradeoffArgs {
     #[arg(long, default_value = "out/tradeoff")]
     out: PathBuf,
     /// Frames of each experiment: A-B (inclusive) or A; default: all 100.
-    #[arg(long)]
+    #[arg(long, allow_hyphen_values = true, value_parser = super::frame_range_text)]
     frames: Option<String>,
 }
 

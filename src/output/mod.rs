@@ -7,10 +7,14 @@
 //! (Pillow's) refuse packets that run on into the next row.
 //!
 //! Every CSV file is written from serializable rows by [`csv_text`].
+//! Temporary files a killed run left are removed by the next run writing
+//! into the same folder ([`take_removed_temporaries`] says which).
 
 mod csv;
+mod stale;
 
 pub use csv::{csv_text, CsvError, Floats};
+pub use stale::take_removed_temporaries;
 
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -83,8 +87,10 @@ impl PendingFile {
             .file_name()
             .map(|n| n.to_string_lossy().into_owned())
             .unwrap_or_default();
+        stale::sweep_once(&dir);
         let temp = dir.join(format!(
-            ".{name}.{}.{}.tmp",
+            ".{name}.{}-{}.{}.tmp",
+            stale::host(),
             std::process::id(),
             NEXT.fetch_add(1, Ordering::Relaxed)
         ));

@@ -921,3 +921,65 @@ fn verify_measures_resampled_output_and_full_render_against_a_reference() {
     let said = String::from_utf8_lossy(&still.stdout);
     assert!(!said.contains("reference"), "{said}");
 }
+
+/// A killed run (SIGKILL: no chance to clean up) leaves its temporary
+/// files; the next run writing into the same folder removes them and says
+/// so.
+#[test]
+fn a_killed_runs_temporary_files_are_removed_by_the_next_run() {
+    use std::process::{Command, Stdio};
+    use std::time::{Duration, Instant};
+    let dir = tempfile::tempdir().unwrap();
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/paper-bounce.toml");
+    let run = |frames: &str| {
+        let mut command = Command::new(env!("CARGO_BIN_EXE_retrace"));
+        command
+            .arg("animate")
+            .args([scene.to_str().unwrap(), "--width", "160", "--height", "120"])
+            .args([
+                "--frames",
+                frames,
+                "-o",
+                "out/f_####.png",
+                "--gif",
+                "out/a.gif",
+            ])
+            .current_dir(dir.path())
+            .stdout(Stdio::null())
+            .stderr(Stdio::piped());
+        command
+    };
+    let temporaries = || -> Vec<String> {
+        std::fs::read_dir(dir.path().join("out"))
+            .map(|d| {
+                d.filter_map(|e| e.ok())
+                    .map(|e| e.file_name().to_string_lossy().into_owned())
+                    .filter(|n| n.ends_with(".tmp"))
+                    .collect()
+            })
+            .unwrap_or_default()
+    };
+    // The GIF is written under a temporary name from the first frame on.
+    let mut child = run("0-99").spawn().unwrap();
+    let start = Instant::now();
+    while temporaries().is_empty() {
+        assert!(child.try_wait().unwrap().is_none(), "finished too soon");
+        assert!(
+            start.elapsed() < Duration::from_secs(120),
+            "no temporary file"
+        );
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    child.kill().unwrap();
+    child.wait().unwrap();
+    let left = temporaries();
+    assert!(!left.is_empty(), "SIGKILL leaves its temporary files");
+    let again = run("0-1").output().unwrap();
+    let err = String::from_utf8_lossy(&again.stderr);
+    assert!(again.status.success(), "{err}");
+    assert_eq!(temporaries(), Vec::<String>::new());
+    assert!(
+        err.contains("note: removed ") && err.contains(&left[0]),
+        "{err}"
+    );
+}

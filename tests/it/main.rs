@@ -8,6 +8,7 @@ mod common;
 mod animate;
 mod antialiasing;
 mod cli;
+mod cli_limits;
 mod cli_messages;
 mod docs;
 mod extremes;
