@@ -301,3 +301,31 @@ fn a_scene_without_a_light_warns_and_renders() {
     );
     assert!(dir.path().join("out.png").exists());
 }
+
+/// An `include` after a table, and a model `file` that is a folder, say
+/// what is wrong rather than "unknown field" or "no such model file".
+#[test]
+fn a_late_include_and_a_folder_for_a_model_say_so() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("base.toml"), SCENE).unwrap();
+    std::fs::write(
+        dir.path().join("late.toml"),
+        "[render]\nwidth = 32\ninclude = \"base.toml\"\n",
+    )
+    .unwrap();
+    let out = retrace(&["render", "late.toml", "-o", "x.png"], dir.path());
+    let err = stderr(&out);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("late.toml:3") && err.contains("must come before the first table"),
+        "{err}"
+    );
+    std::fs::create_dir(dir.path().join("models")).unwrap();
+    let folder = format!("{SCENE}\n[[object]]\ntype = \"mesh\"\nfile = \"models\"\n");
+    std::fs::write(dir.path().join("folder.toml"), folder).unwrap();
+    let out = retrace(&["render", "folder.toml", "-o", "y.png"], dir.path());
+    let err = stderr(&out);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(err.contains("a folder, not a model file"), "{err}");
+    assert!(!dir.path().join("x.png").exists() && !dir.path().join("y.png").exists());
+}

@@ -266,11 +266,20 @@ fn assemble(text: &str, path: &Path, splice: &mut Splice) -> Result<Source, Scen
             preamble_lines += 1;
             &mut preamble
         };
-        let include = (!in_tables)
-            .then(|| trimmed.strip_prefix("include"))
-            .flatten()
+        let include_line = trimmed
+            .strip_prefix("include")
             .and_then(|rest| rest.trim_start().strip_prefix('='))
             .map(str::trim);
+        if in_tables && include_line.is_some() {
+            return Err(SceneError::new(
+                path,
+                "an include must come before the first table ([...]): it splices a \
+                 whole scene in, and after a table it would be read as that table's key",
+            )
+            .at_line(number + 1)
+            .field("include"));
+        }
+        let include = include_line.filter(|_| !in_tables);
         let Some(value) = include else {
             own.push_str(line);
             own.push('\n');

@@ -303,6 +303,12 @@ fn mesh_objects(
         .join(file);
     // A model that is not there is the scene's mistake: name its
     // line. (Errors inside the model name the model's own line.)
+    if obj_path.is_dir() {
+        return Err(err(
+            "file",
+            format!("{}: a folder, not a model file", obj_path.display()),
+        ));
+    }
     if !obj_path.is_file() {
         return Err(err(
             "file",
