@@ -213,10 +213,15 @@ for name in frames:
 print(f"{count} frames decode to the long run's pixels: {out}")
 EOF
 }
-# No temporary (unfinished) file anywhere in DIR.
+# No temporary (unfinished) file anywhere in DIR left by a process that
+# has ended. A task still running (the cancelled task's neighbours) may be
+# writing one: `.NAME.HOST-PID.N.tmp` names its writer.
 no_partial_files() {
-  local left
-  left=$(find "$1" -name '.*.tmp' -o -name '*.tmp.*')
+  local left="" file pid
+  while IFS= read -r file; do
+    pid=$(sed -nE 's/.*-([0-9]+)\.[0-9]+\.tmp$/\1/p' <<<"${file##*/}")
+    [[ -n $pid && -d /proc/$pid ]] || left+="$file "
+  done < <(find "$1" -name '.*.tmp' -o -name '*.tmp.*')
   [[ -z $left ]] || fail "unfinished files left in $1: $left"
 }
 
