@@ -265,3 +265,33 @@ fn the_readme_map_names_every_top_level_module() {
         missing.join(", ")
     );
 }
+
+/// The guide's `retrace tradeoff` table lists the oversampling settings the
+/// sweep runs, no more and no fewer.
+#[test]
+fn the_guides_tradeoff_table_lists_the_oversampling_swept() {
+    let guide = std::fs::read_to_string(root().join("docs/GUIDE.md")).unwrap();
+    let row = guide
+        .lines()
+        .find(|l| l.starts_with("| RSVP oversampling |"))
+        .expect("the tradeoff table has an oversampling row");
+    let listed: Vec<String> = row
+        .split('|')
+        .nth(3)
+        .unwrap()
+        .split(',')
+        .map(|s| s.replace("(default)", "").trim().to_string())
+        .collect();
+    let mut swept: Vec<String> = retrace::lab::tradeoff::rsvp_knob_settings()
+        .iter()
+        .map(|k| format!("{}x", k.oversample))
+        .collect();
+    swept.sort_by(|a, b| {
+        a.trim_end_matches('x')
+            .parse::<f64>()
+            .unwrap()
+            .total_cmp(&b.trim_end_matches('x').parse().unwrap())
+    });
+    swept.dedup();
+    assert_eq!(listed, swept, "{row}");
+}
