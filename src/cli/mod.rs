@@ -56,6 +56,11 @@ struct SceneArgs {
     /// [default: trilinear].
     #[arg(long, value_parser = str::parse::<TextureFilter>)]
     texture_filter: Option<TextureFilter>,
+    /// A bare OBJ model's up axis: y (most tools) or z (CAD, 3ds Max),
+    /// stood up as y [default: y]. A scene file turns its mesh objects
+    /// with `rotate`.
+    #[arg(long, value_parser = up_parser())]
+    up: Option<retrace::scene::UpAxis>,
 }
 
 impl SceneArgs {
@@ -69,6 +74,7 @@ impl SceneArgs {
             spp: self.spp,
             texture_memory_mb: self.texture_memory,
             texture_filter: self.texture_filter,
+            up: self.up,
         }
     }
 }
@@ -131,6 +137,12 @@ const PROJECTIONS: [&str; 3] = ["perspective", "equal-angle", "fisheye"];
 fn projection_parser() -> impl clap::builder::TypedValueParser<Value = Projection> {
     use clap::builder::TypedValueParser as _;
     clap::builder::PossibleValuesParser::new(PROJECTIONS).try_map(|s| s.parse::<Projection>())
+}
+
+/// `--up`'s parser: `--help` and a wrong value list the axes.
+fn up_parser() -> impl clap::builder::TypedValueParser<Value = retrace::scene::UpAxis> {
+    use clap::builder::TypedValueParser as _;
+    clap::builder::PossibleValuesParser::new(["y", "z"]).try_map(|s| s.parse())
 }
 
 /// What `bench`'s shared arguments say of it alone, added to the command

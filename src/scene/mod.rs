@@ -17,7 +17,7 @@ use crate::geometry::{Light, Object, Shape};
 use crate::texture::TextureRef;
 use crate::timeline::{Animation, ViewportTrack};
 
-pub use file::{parse_scene_str, SceneOverrides};
+pub use file::{parse_scene_str, SceneOverrides, UpAxis};
 pub use glass::Glass;
 pub use obj::{load_obj_mesh, load_obj_mesh_with, ObjMesh};
 
@@ -231,6 +231,13 @@ pub fn load_scene(path: &Path, overrides: &SceneOverrides) -> Result<Scene, Scen
         .is_some_and(|ext| ext.eq_ignore_ascii_case("obj"));
     if is_obj {
         return obj::scene_around_obj(path, overrides);
+    }
+    if let Some(up) = overrides.up {
+        return Err(SceneError::of_flags(
+            format!("--up {}", if up == UpAxis::Z { "z" } else { "y" }),
+            "turns a bare OBJ model; in a scene file, turn the mesh object itself \
+             (a Z-up model stands up with `rotate = [-90, 0, 0]`)",
+        ));
     }
     let is_mtl = path
         .extension()

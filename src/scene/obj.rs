@@ -17,7 +17,7 @@ use std::path::{Path, PathBuf};
 
 use glam::{DVec3, Vec2, Vec3};
 
-use super::file::SceneOverrides;
+use super::file::{SceneOverrides, UpAxis};
 use super::{Checker, Material, Scene, SceneError};
 use crate::camera::{yaw_pitch_toward, Camera, Projection};
 use crate::geometry::normals::{apply_crease_normals, DEFAULT_CREASE_ANGLE_DEG};
@@ -786,11 +786,24 @@ fn append_mesh(into: &mut TriangleMesh, mesh: TriangleMesh) {
 /// A scene for a bare model: the model (where the file has no normals,
 /// smooth only across edges below the default crease angle), a checkered ground plane under it, a key light, and a camera
 /// that frames its bounds.
+/// A Z-up model turned Y-up: -90 degrees about x, `(x, y, z)` to
+/// `(x, z, -y)`, as a scene file's `rotate = [-90, 0, 0]` turns it.
+fn stand_up_z(mesh: &mut TriangleMesh) {
+    let turn = |v: &mut Vec3| *v = Vec3::new(v.x, v.z, -v.y);
+    mesh.positions.iter_mut().for_each(turn);
+    mesh.normals.iter_mut().for_each(turn);
+}
+
 pub(super) fn scene_around_obj(
     path: &Path,
     overrides: &SceneOverrides,
 ) -> Result<Scene, SceneError> {
-    let loaded = load_obj_mesh_with(path, &mut overrides.texture_cache())?;
+    let mut loaded = load_obj_mesh_with(path, &mut overrides.texture_cache())?;
+    if overrides.up == Some(UpAxis::Z) {
+        for part in &mut loaded.parts {
+            stand_up_z(&mut part.mesh);
+        }
+    }
     let warnings = loaded.warnings(path);
     let bounds = loaded.bounds();
     if loaded.triangle_count() == 0 || !bounds.is_finite() {

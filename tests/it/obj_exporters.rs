@@ -222,3 +222,79 @@ fn obj_utf16_and_utf8_with_a_byte_order_mark_render_as_utf8() {
     assert!(err.contains("broken.obj:9:"), "{err}");
     assert!(err.contains("'x' is not a number"), "{err}");
 }
+
+/// A Z-up model (CAD, 3ds Max) stands up with `--up z`: it renders as
+/// its Y-up twin does, bit for bit; a scene file is told to use `rotate`.
+#[test]
+fn obj_up_z_stands_a_z_up_model_as_its_y_up_twin() {
+    let dir = tempfile::tempdir().unwrap();
+    // A post 0.4 x 0.4 x 2, along z; its twin along y: (x, y, z) written
+    // as (x, z, -y).
+    let corners = |twin: bool| -> String {
+        let mut text = String::new();
+        for z in [0.0, 2.0] {
+            for (x, y) in [(0.0, 0.0), (0.4, 0.0), (0.4, 0.4), (0.0, 0.4)] {
+                let (a, b, c) = if twin { (x, z, -y) } else { (x, y, z) };
+                text.push_str(&format!("v {a} {b} {c}\n"));
+            }
+        }
+        text
+    };
+    write(
+        dir.path(),
+        "zup.obj",
+        format!("{}{CUBE_FACES}", corners(false)).as_bytes(),
+    );
+    write(
+        dir.path(),
+        "yup.obj",
+        format!("{}{CUBE_FACES}", corners(true)).as_bytes(),
+    );
+    let (twin, _) = rendered(dir.path(), "yup.obj", "yup.png");
+    let lying = image::open({
+        assert!(render(dir.path(), "zup.obj", "lying.png").status.success());
+        dir.path().join("lying.png")
+    })
+    .unwrap()
+    .to_rgb8();
+    assert!(lying != twin, "without --up the post lies on its side");
+    let out = retrace(
+        &[
+            "render",
+            "zup.obj",
+            "--up",
+            "z",
+            "--width",
+            "32",
+            "--height",
+            "24",
+            "-o",
+            "standing.png",
+        ],
+        dir.path(),
+    );
+    assert!(out.status.success(), "{}", stderr(&out));
+    let standing = image::open(dir.path().join("standing.png"))
+        .unwrap()
+        .to_rgb8();
+    assert!(standing == twin, "--up z renders as the Y-up twin");
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/bunny.toml");
+    let refused = retrace(
+        &[
+            "render",
+            scene.to_str().unwrap(),
+            "--up",
+            "z",
+            "-o",
+            "x.png",
+        ],
+        dir.path(),
+    );
+    let err = stderr(&refused);
+    assert_eq!(refused.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("--up z") && err.contains("rotate = [-90, 0, 0]"),
+        "{err}"
+    );
+    assert!(!dir.path().join("x.png").exists());
+}

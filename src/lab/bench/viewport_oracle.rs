@@ -282,6 +282,7 @@ mod tests {
         spp: None,
         texture_memory_mb: None,
         texture_filter: None,
+        up: None,
     };
 
     fn oracle(scene: &Scene, frames: std::ops::Range<u32>) -> Vec<u64> {

@@ -60,6 +60,29 @@ pub struct SceneOverrides {
     pub texture_memory_mb: Option<u64>,
     /// How textures are filtered (`--texture-filter`).
     pub texture_filter: Option<TextureFilter>,
+    /// Which axis a bare OBJ model's up is (`--up`): most tools write Y
+    /// up, CAD and 3ds Max exports Z.
+    pub up: Option<UpAxis>,
+}
+
+/// The axis a model's author meant as up.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum UpAxis {
+    #[default]
+    Y,
+    Z,
+}
+
+impl std::str::FromStr for UpAxis {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<UpAxis, String> {
+        match s {
+            "y" | "Y" => Ok(UpAxis::Y),
+            "z" | "Z" => Ok(UpAxis::Z),
+            _ => Err(format!("'{s}' is not an axis: give y or z")),
+        }
+    }
 }
 
 impl SceneOverrides {
