@@ -16,11 +16,6 @@ impl Stopwatch {
     pub fn ms(&self) -> f64 {
         ms(self.0.elapsed())
     }
-
-    /// When it was started.
-    pub fn started(&self) -> Instant {
-        self.0
-    }
 }
 
 /// `duration` in milliseconds.

@@ -4,32 +4,12 @@
 //! naming the file (and line) where something is not used as written.
 
 use std::path::Path;
-use std::process::Output;
 
 use crate::common::retrace;
+use crate::obj_input::{render, stderr, write, CUBE_CORNERS};
 
-/// A unit cube, as OBJ lines 1-8 (corners) and its twelve faces.
-const CUBE_CORNERS: &str = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\n\
-                            v 0 0 1\nv 1 0 1\nv 1 1 1\nv 0 1 1\n";
+/// A unit cube's six faces, after [`CUBE_CORNERS`].
 const CUBE_FACES: &str = "f 1 4 3 2\nf 5 6 7 8\nf 1 2 6 5\nf 4 8 7 3\nf 1 5 8 4\nf 2 3 7 6\n";
-
-fn write(dir: &Path, name: &str, bytes: &[u8]) {
-    std::fs::write(dir.join(name), bytes).unwrap();
-}
-
-/// Renders `model` (in `dir`) at 32x24 to `output`.
-fn render(dir: &Path, model: &str, output: &str) -> Output {
-    retrace(
-        &[
-            "render", model, "--width", "32", "--height", "24", "-o", output,
-        ],
-        dir,
-    )
-}
-
-fn stderr(out: &Output) -> String {
-    String::from_utf8_lossy(&out.stderr).into_owned()
-}
 
 /// Renders `model` to `output`, requiring success; returns the image and
 /// the warnings.

@@ -9,15 +9,15 @@ use std::process::Output;
 use crate::common::retrace;
 
 /// Eight corners of a unit cube, as OBJ lines 1-8.
-const CUBE_CORNERS: &str = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\n\
+pub(crate) const CUBE_CORNERS: &str = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\n\
                             v 0 0 1\nv 1 0 1\nv 1 1 1\nv 0 1 1\n";
 
-fn write(dir: &Path, name: &str, bytes: &[u8]) {
+pub(crate) fn write(dir: &Path, name: &str, bytes: &[u8]) {
     std::fs::write(dir.join(name), bytes).unwrap();
 }
 
 /// Renders `model` (in `dir`) at 32x24 to `output`.
-fn render(dir: &Path, model: &str, output: &str) -> Output {
+pub(crate) fn render(dir: &Path, model: &str, output: &str) -> Output {
     retrace(
         &[
             "render", model, "--width", "32", "--height", "24", "-o", output,
@@ -26,7 +26,7 @@ fn render(dir: &Path, model: &str, output: &str) -> Output {
     )
 }
 
-fn stderr(out: &Output) -> String {
+pub(crate) fn stderr(out: &Output) -> String {
     String::from_utf8_lossy(&out.stderr).into_owned()
 }
 
