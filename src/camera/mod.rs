@@ -93,14 +93,25 @@ pub enum CameraError {
 }
 
 /// Degrees that went through radians, without the round trip's last-digit
-/// noise (500 rather than 500.00000000000006).
-fn tidy_degrees(degrees: f64) -> f64 {
+/// noise (500 rather than 500.00000000000006), and far from 1 in
+/// scientific notation rather than hundreds of digits.
+fn tidy_degrees(degrees: f64) -> String {
     let tidy = (degrees * 1e9).round() / 1e9;
     // Below a billionth of a degree the noise is all there is.
-    if tidy.is_finite() && (tidy != 0.0 || degrees == 0.0) {
+    readable_number(if tidy.is_finite() && (tidy != 0.0 || degrees == 0.0) {
         tidy
     } else {
         degrees
+    })
+}
+
+/// `value` as a message shows it: far from 1 in scientific notation
+/// (`1e300`, `1e-300`), not hundreds of digits.
+pub fn readable_number(value: f64) -> String {
+    if value != 0.0 && !(1e-6..1e9).contains(&value.abs()) {
+        format!("{value:e}")
+    } else {
+        value.to_string()
     }
 }
 

@@ -308,6 +308,8 @@ pub(crate) fn animate(args: AnimateArgs) -> Result<()> {
     }
     let mut accel = args.backend.build(&scene)?;
     let mut animator = Animator::new(&scene, &mut accel, options);
+    let memory = animator.memory_estimate();
+    super::check_memory(&memory)?;
     // What an interrupt says and saves: the frames finished so far, their
     // statistics, and how to resume.
     let finished = Arc::new(Mutex::new(Vec::<FrameStats>::new()));
@@ -347,6 +349,7 @@ pub(crate) fn animate(args: AnimateArgs) -> Result<()> {
     warn_ostc_refused(&animator);
     run_check.say_store()?;
     say_run(&args, &animator, &rendered, &all_stats);
+    super::say_memory(&memory);
     if args.verify && !all_stats.is_empty() {
         run_check.say(&animator, &rendered.names, &all_stats)?;
     }

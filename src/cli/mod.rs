@@ -41,7 +41,7 @@ struct SceneArgs {
     #[arg(long, value_parser = projection_parser())]
     camera: Option<Projection>,
     /// Horizontal field of view in degrees.
-    #[arg(long, allow_negative_numbers = true)]
+    #[arg(long, allow_negative_numbers = true, value_parser = finite_number)]
     fov: Option<f64>,
     /// Samples per pixel, 1 to 256 (antialiasing: stratified sub-pixel
     /// positions, box-filtered) [default: the scene's `[render] spp`, or 1].
@@ -139,6 +139,45 @@ fn projection_parser() -> impl clap::builder::TypedValueParser<Value = Projectio
     clap::builder::PossibleValuesParser::new(PROJECTIONS).try_map(|s| s.parse::<Projection>())
 }
 
+/// A number flag's parser: a value a 64-bit float cannot hold is refused
+/// as the user wrote it, where the parsed infinity (`1e400`) would be
+/// reported as `inf`. Each flag's own range is checked where its meaning
+/// is, with the value printed short (`1e300`).
+fn finite_number(text: &str) -> Result<f64, String> {
+    match text.trim().parse::<f64>() {
+        Ok(value) if value.is_finite() => Ok(value),
+        Ok(_) => Err("a finite number is needed (a 64-bit float holds at most ±1.8e308)".into()),
+        Err(_) => Err("not a number".into()),
+    }
+}
+
+/// Refuses a run whose `estimate` is more memory than the machine has
+/// available, before any work, with the figure and what lowers it.
+pub(crate) fn check_memory(estimate: &retrace::frame_loop::MemoryEstimate) -> Result<()> {
+    use retrace::frame_loop::{available_bytes, bytes_text};
+    match available_bytes() {
+        Some(available) if estimate.total() > available => anyhow::bail!(
+            "this run would need about {}, more than the {} this machine has available: \
+             lower --width and --height, or --spp",
+            estimate.describe(),
+            bytes_text(available)
+        ),
+        _ => Ok(()),
+    }
+}
+
+/// Says what the run held at its peak beside what was estimated before it.
+pub(crate) fn say_memory(estimate: &retrace::frame_loop::MemoryEstimate) {
+    use retrace::frame_loop::{bytes_text, peak_resident_bytes};
+    if let Some(peak) = peak_resident_bytes() {
+        say!(
+            "memory: {} at the peak (estimated {} before the run)",
+            bytes_text(peak),
+            bytes_text(estimate.total())
+        );
+    }
+}
+
 /// `--up`'s parser: `--help` and a wrong value list the axes.
 fn up_parser() -> impl clap::builder::TypedValueParser<Value = retrace::scene::UpAxis> {
     use clap::builder::TypedValueParser as _;
@@ -188,7 +227,7 @@ struct RsvpKnobArgs {
     /// RSVP: buffer samples per viewport pixel (per side) the pyramid level
     /// is chosen for, at least (0.01 to 8; with --spp N, per sub-pixel
     /// shift) [default: 0.71].
-    #[arg(long)]
+    #[arg(long, value_parser = finite_number)]
     oversample: Option<f64>,
     /// RSVP: pyramid levels added to the chosen one (negative: coarser;
     /// -4 to 4) [default: 0].
@@ -206,7 +245,7 @@ impl RsvpKnobArgs {
         // Finer than 8 samples a pixel, or 4 levels past the one chosen, a
         // pixel's reads land a tile of the store apart each: memory grows
         // with the spacing and bilinear reads gain nothing.
-        if !(oversample.is_finite() && (0.01..=8.0).contains(&oversample)) {
+        if !(0.01..=8.0).contains(&oversample) {
             anyhow::bail!("--oversample {oversample}: must be within 0.01..8");
         }
         if !(-4..=4).contains(&level_bias) {

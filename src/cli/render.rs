@@ -76,6 +76,13 @@ pub(crate) fn render(mut args: RenderArgs) -> Result<()> {
             Some(track.pose_at(&camera, 0))
         }
     };
+    let (width, height) = viewport
+        .as_ref()
+        .map_or((scene.camera.width, scene.camera.height), |pose| {
+            (pose.camera.width, pose.camera.height)
+        });
+    let memory = retrace::frame_loop::MemoryEstimate::picture(width, height);
+    super::check_memory(&memory)?;
     let accel = args.backend.build(&scene)?;
     let start = Instant::now();
     let (frame, rays) = match &viewport {

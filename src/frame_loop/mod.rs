@@ -23,10 +23,12 @@
 
 mod abandon;
 mod changes;
+mod memory;
 mod stats;
 
 pub use crate::reuse::{FullReason, Options, OstcSettings, Technique, Techniques, View};
 pub use changes::{swept_bounds, OstcRefusal, OSTC_LIMIT_BYTES};
+pub use memory::{available_bytes, bytes_text, peak_resident_bytes, MemoryEstimate};
 pub use stats::{
     stats_csv, stats_json, stats_rows, FrameCheck, FrameStats, OstcWork, Reason, Restart, StatsRows,
 };

@@ -137,6 +137,21 @@ pub trait StorePlan {
     /// Whether this plan's frames equal [`StorePlan::render_full`] bit for
     /// bit.
     fn exact(&self) -> bool;
+
+    /// About the most bytes the store of `views` will hold over `run`,
+    /// known before it is made.
+    fn store_bytes(&self, run: &Run, views: &[View]) -> f64;
+}
+
+/// The bytes of strata a camera store keeps for OSTC (which re-traces
+/// groups of them) over `pixels` pixels: none when OSTC keeps nothing.
+pub(crate) fn strata_bytes(run: &Run, pixels: f64) -> f64 {
+    if !run.ostc_keeps() || run.scene.samples.count() == 1 {
+        return 0.0;
+    }
+    let bytes =
+        pixels * f64::from(run.scene.samples.count()) * std::mem::size_of::<[f32; 3]>() as f64;
+    bytes.min(lattice_buffer::STRATA_LIMIT_BYTES)
 }
 
 /// The plan of `run`: RSVP's buffer for viewports; for the camera's image

@@ -90,6 +90,14 @@ impl StorePlan for StillPlan {
     fn exact(&self) -> bool {
         true
     }
+
+    fn store_bytes(&self, run: &Run, views: &[View]) -> f64 {
+        let camera = &views[0].pose.camera;
+        let pixels = f64::from(camera.width) * f64::from(camera.height);
+        // A colour and a traced flag a sample, and an OSTC marker a group.
+        pixels * (std::mem::size_of::<glam::Vec3>() + 4) as f64
+            + crate::reuse::strata_bytes(run, pixels)
+    }
 }
 
 /// A still camera's samples.

@@ -254,3 +254,135 @@ fn traced_images_of_full_renders_are_black_for_viewports_too() {
         assert!(traced.pixels().all(|p| p.0 == [0, 0, 0]), "{name}");
     }
 }
+
+/// Numbers past what the renderer holds are quoted as the user wrote them,
+/// with the real limit: not as the infinity, zero or hundreds of digits
+/// they parse to.
+#[test]
+fn numbers_out_of_range_are_quoted_as_written() {
+    let dir = tempfile::tempdir().unwrap();
+    let paper = std::fs::read_to_string(scene("paper.toml")).unwrap();
+    let digits = format!("1{}.0", "0".repeat(300));
+    let file_cases = [
+        (
+            "intensity = 0.75",
+            "intensity = 1e300",
+            "light[0].intensity",
+            "1e300 is too large",
+        ),
+        (
+            "intensity = 0.75",
+            "intensity = 1e-300",
+            "light[0].intensity",
+            "1e-300 is too near 0",
+        ),
+        (
+            "fov = 100.0",
+            &format!("fov = {digits}"),
+            "camera.fov",
+            "is too large",
+        ),
+        (
+            "width = 640",
+            "width = 1e30",
+            "render.width",
+            "expected a whole number, got 1e30",
+        ),
+    ];
+    for (from, to, field, needle) in file_cases {
+        let path = dir.path().join("numbers.toml");
+        std::fs::write(&path, paper.replacen(from, to, 1)).unwrap();
+        let out = retrace(&["render", "numbers.toml", "-o", "n.png"], dir.path());
+        let err = stderr(&out);
+        assert_eq!(out.status.code(), Some(1), "{to}: {err}");
+        assert!(err.contains(&format!(": {field}: ")), "{to}: {err}");
+        assert!(err.contains(needle), "{to}: expected '{needle}' in {err}");
+        assert!(err.len() < 300, "{to}: the number printed whole: {err}");
+        assert!(!dir.path().join("n.png").exists());
+    }
+    let flag_cases = [
+        ("1e300", "--fov 1e300: field of view 1e300 degrees"),
+        (
+            "1e400",
+            "invalid value '1e400' for '--fov <FOV>': a finite number is needed",
+        ),
+    ];
+    for (fov, needle) in flag_cases {
+        let out = retrace(
+            &["render", &scene("paper.toml"), "--fov", fov, "-o", "n.png"],
+            dir.path(),
+        );
+        let err = stderr(&out);
+        assert!(!out.status.success(), "{fov}: {err}");
+        assert!(err.contains(needle), "{fov}: expected '{needle}' in {err}");
+    }
+}
+
+/// A run too large for the machine is refused before any work, with the
+/// figure and what lowers it; a run that fits says what it held at its
+/// peak beside the estimate, and the two agree within a small factor.
+#[test]
+fn memory_is_estimated_before_the_run_and_measured_after() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = retrace(
+        &[
+            "animate",
+            &scene("paper-bounce.toml"),
+            "--width",
+            "16384",
+            "--height",
+            "16384",
+            "--spp",
+            "256",
+            "-o",
+            "huge_####.png",
+        ],
+        dir.path(),
+    );
+    let err = stderr(&out);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(err.contains("this run would need about "), "{err}");
+    assert!(
+        err.contains("lower --width and --height, or --spp"),
+        "{err}"
+    );
+    assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0);
+
+    for name in ["paper-bounce.toml", "paper-pan.toml", "paper-zoom-in.toml"] {
+        let out = retrace(
+            &[
+                "animate",
+                &scene(name),
+                "--width",
+                "640",
+                "--height",
+                "480",
+                "--spp",
+                "4",
+                "--frames",
+                "0-1",
+                "-o",
+                "f_####.png",
+            ],
+            dir.path(),
+        );
+        let text = stdout(&out);
+        assert!(out.status.success(), "{name}: {}", stderr(&out));
+        let megabytes = |after: &str| -> f64 {
+            let at = text
+                .find(after)
+                .unwrap_or_else(|| panic!("{name}: no '{after}' in {text}"));
+            let mut words = text[at + after.len()..].split(' ');
+            let number: f64 = words.next().unwrap().parse().unwrap();
+            match words.next() {
+                Some("GB") => number * 1e3,
+                _ => number,
+            }
+        };
+        let (peak, estimate) = (megabytes("memory: "), megabytes("(estimated "));
+        assert!(
+            (0.4..=2.5).contains(&(estimate / peak)),
+            "{name}: estimated {estimate} MB, peak {peak} MB"
+        );
+    }
+}

@@ -199,6 +199,14 @@ impl Ostc {
         light_sets + regions as f64 * per_region + grid
     }
 
+    /// The bytes of the segments recorded for `samples` samples traced:
+    /// only rays that cross a moving object's swept bounds are recorded,
+    /// about one in four samples' on the paper's bouncing ball (a scene
+    /// whose moving objects fill the screen records more).
+    pub fn recorded_bytes(samples: f64) -> f64 {
+        samples / 4.0 * std::mem::size_of::<RecordedSegment>() as f64
+    }
+
     /// Bookkeeping for a buffer tiled by `layout`: a grid of about `voxels`
     /// voxels over `swept` (the bounds every animated object passes through
     /// over the whole animation; None when no object moves), and the light

@@ -128,6 +128,19 @@ impl StorePlan for PanPlan {
     fn exact(&self) -> bool {
         self.fractional == FractionalPan::Snap
     }
+
+    fn store_bytes(&self, run: &Run, views: &[View]) -> f64 {
+        let camera = &views[0].pose.camera;
+        let pixels = f64::from(camera.width) * f64::from(camera.height);
+        // The buffer covers every row the timeline's views reach.
+        self.facts
+            .pan_buffer_bytes
+            .max(EqualAngleLattice::buffer_bytes(
+                camera,
+                i64::from(camera.height),
+            ))
+            + crate::reuse::strata_bytes(run, pixels)
+    }
 }
 
 /// What the timeline allows the pan lattice, found once for a run.

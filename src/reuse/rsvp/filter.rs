@@ -97,7 +97,7 @@ impl RsvpKnobs {
     /// four): the oversampling squared, at least one, times four for each
     /// level the box filter and a positive bias add. What a patch's box of
     /// samples is weighed against when choosing how to work on it.
-    pub(super) fn samples_per_pixel(&self) -> f64 {
+    pub(crate) fn samples_per_pixel(&self) -> f64 {
         let finer = self.level_bias.max(0) + i32::from(self.filter == Filter::Box);
         self.oversample.max(1.0).powi(2) * 4f64.powi(finer)
     }

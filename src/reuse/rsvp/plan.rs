@@ -42,4 +42,22 @@ impl StorePlan for RsvpPlan {
     fn exact(&self) -> bool {
         false
     }
+
+    /// The samples the viewports read, at the density the knobs choose,
+    /// rounded up to a power-of-two level (up to four times the samples:
+    /// a zoom's frames read the levels on both sides of their density),
+    /// over the levels a zoom passes through.
+    fn store_bytes(&self, run: &Run, views: &[View]) -> f64 {
+        let pixels: f64 = views
+            .iter()
+            .map(|view| f64::from(view.pose.camera.width) * f64::from(view.pose.camera.height))
+            .sum();
+        let per_pixel =
+            f64::from(run.scene.samples.count()) * run.options.rsvp.samples_per_pixel() * 4.0;
+        pixels * per_pixel * RSVP_BYTES_PER_SAMPLE
+    }
 }
+
+/// A kept sample's colour, and the coarser levels a zoom leaves behind
+/// (a third more).
+const RSVP_BYTES_PER_SAMPLE: f64 = 12.0 * 4.0 / 3.0;

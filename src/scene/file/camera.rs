@@ -88,7 +88,7 @@ fn camera_error(
             "--width" => overrides.width.map(|v| v.to_string()),
             "--height" => overrides.height.map(|v| v.to_string()),
             "--camera" => overrides.projection.map(|v| v.to_string()),
-            "--fov" => overrides.fov.map(|v| v.to_string()),
+            "--fov" => overrides.fov.map(crate::camera::readable_number),
             // A value only the file gives.
             _ => None,
         };
@@ -114,8 +114,8 @@ fn camera_error(
             at_fault
         }
         CameraError::FieldOfView { .. } => vec![("camera.fov", "--fov")],
-        // The field of view over the width.
-        CameraError::TooFine { .. } => vec![("camera.fov", "--fov"), ("render.width", "--width")],
+        // The field of view; the width only takes part (below).
+        CameraError::TooFine { .. } => vec![("camera.fov", "--fov")],
         // The pitch with the projection, field of view and height.
         CameraError::ElevationOutOfRange { .. } => vec![
             ("camera.pitch", ""),
@@ -127,18 +127,20 @@ fn camera_error(
             vec![(*field, "")]
         }
     };
-    let flags: Vec<String> = culprits.iter().filter_map(|(_, f)| flag_of(f)).collect();
+    let mut flags: Vec<String> = culprits.iter().filter_map(|(_, f)| flag_of(f)).collect();
+    // A wider image makes a field of view too fine sooner, but no width
+    // makes a field of view of 1e-14 degrees right: a width flag is named
+    // beside the field of view, never blamed in its place.
+    if matches!(err, CameraError::TooFine { .. }) {
+        flags.extend(flag_of("--width"));
+    }
     let from_file: Vec<&str> = culprits
         .iter()
         .filter(|(_, f)| flag_of(f).is_none())
         .map(|(field, _)| *field)
         .collect();
     let message = err.to_string();
-    // A field of view too fine for the width is the flag's doing when the
-    // command line gave either.
-    let flags_alone =
-        from_file.is_empty() || matches!(err, CameraError::TooFine { .. }) && !flags.is_empty();
-    if flags_alone {
+    if from_file.is_empty() {
         return SceneError::of_flags(flags.join(" "), message);
     }
     // The file's part, at the line of its first value at fault (found
@@ -193,6 +195,18 @@ mod tests {
         assert_eq!(
             with(CAMERA, overrides).field.as_deref(),
             Some("--fov 0.00001")
+        );
+        // The file's field of view is at fault whatever the width: the
+        // flag that took part is named beside it, not in its place.
+        let overrides = SceneOverrides {
+            width: Some(32),
+            ..SceneOverrides::default()
+        };
+        let err = with("[camera]\nposition = [0, 1, 5]\nfov = 1e-14\n", overrides);
+        assert_eq!(
+            (err.line, err.field.as_deref()),
+            (Some(3), Some("camera.fov with --width 32")),
+            "{err}"
         );
         // DESIGN's extreme: 0.01 degrees over 640 pixels.
         parse("[camera]\nposition = [0, 1, 5]\nfov = 0.01\n").unwrap();

@@ -217,6 +217,12 @@ pub(crate) fn parse_scene(
 ) -> Result<Scene, SceneError> {
     let source = splice(text, path, files)?;
     let text = source.text.as_str();
+    if let Some(number) = spans::first_unfit_number(text) {
+        let (file, line) = source.locate(line_of(text, number.span.start));
+        return Err(SceneError::new(file, number.message(text))
+            .at_line(line)
+            .field(number.path));
+    }
     let deserializer = toml::Deserializer::new(text);
     let file: SceneFile = serde_path_to_error::deserialize(deserializer).map_err(|err| {
         let field = user_path(err.path());

@@ -14,6 +14,8 @@ use serde::de::{Deserialize, Deserializer, IgnoredAny, MapAccess, SeqAccess, Vis
 /// A TOML value, reduced to where its parts were written.
 enum Node {
     Leaf,
+    /// A float, kept to check it fits the renderer's 32-bit numbers.
+    Float(f64),
     Table(Vec<(String, Located)>),
     Array(Vec<Located>),
 }
@@ -74,8 +76,11 @@ impl<'de> Visitor<'de> for LocatedVisitor {
         self.leaf()
     }
 
-    fn visit_f64<E>(self, _: f64) -> Result<Located, E> {
-        self.leaf()
+    fn visit_f64<E>(self, value: f64) -> Result<Located, E> {
+        Ok(Located {
+            span: None,
+            node: Node::Float(value),
+        })
     }
 
     fn visit_str<E>(self, _: &str) -> Result<Located, E> {
@@ -130,7 +135,7 @@ pub(super) fn value_span(text: &str, path: &str) -> Option<Range<usize>> {
     loop {
         rest = without_remark(rest);
         let child = match node {
-            Node::Leaf => break,
+            Node::Leaf | Node::Float(_) => break,
             Node::Table(entries) => {
                 let keys = rest.strip_prefix('.').unwrap_or(rest);
                 // The longest key that ends where a segment ends: a
@@ -168,6 +173,97 @@ pub(super) fn value_span(text: &str, path: &str) -> Option<Range<usize>> {
         node = &child.node;
     }
     found
+}
+
+/// A number written in a scene file that the renderer's 32-bit floats
+/// cannot hold: it would turn into infinity or zero, and the error that
+/// followed would report a value the file never wrote.
+#[derive(Debug, PartialEq)]
+pub(super) struct UnfitNumber {
+    /// The field path (`camera.position[2]`).
+    pub path: String,
+    /// Where the number was written.
+    pub span: Range<usize>,
+    /// Whether it is too large, rather than too near 0.
+    pub too_large: bool,
+    /// Its value, for a number too long to quote.
+    pub value: f64,
+}
+
+impl UnfitNumber {
+    /// The message, quoting the number as `text` wrote it (a long one in
+    /// scientific notation: `1e300` for 300 digits).
+    pub fn message(&self, text: &str) -> String {
+        let written = match text.get(self.span.clone()).map(str::trim) {
+            Some(written) if written.len() <= 24 => written.to_string(),
+            _ => format!("{:e}", self.value),
+        };
+        if self.too_large {
+            format!(
+                "{written} is too large: numbers in a scene are 32-bit floats, at most ±{:e}",
+                f32::MAX
+            )
+        } else {
+            format!(
+                "{written} is too near 0: numbers in a scene are 32-bit floats, the smallest \
+                 apart from 0 is ±{:e} (write 0 for zero)",
+                f32::MIN_POSITIVE
+            )
+        }
+    }
+}
+
+/// The first float of `text` (in the order written) that a 32-bit float
+/// cannot hold; None when all fit or the text does not parse (the parse
+/// error is then the one to report).
+pub(super) fn first_unfit_number(text: &str) -> Option<UnfitNumber> {
+    let root = Node::deserialize(toml::Deserializer::new(text)).ok()?;
+    let mut unfit = Vec::new();
+    collect_unfit(&root, None, &mut String::new(), &mut unfit);
+    unfit.into_iter().min_by_key(|number| number.span.start)
+}
+
+fn collect_unfit(
+    node: &Node,
+    span: Option<&Range<usize>>,
+    path: &mut String,
+    out: &mut Vec<UnfitNumber>,
+) {
+    let mut visit = |path: &mut String, segment: String, child: &Located| {
+        let length = path.len();
+        path.push_str(&segment);
+        collect_unfit(&child.node, child.span.as_ref().or(span), path, out);
+        path.truncate(length);
+    };
+    match node {
+        Node::Leaf => {}
+        &Node::Float(value) => {
+            let magnitude = value.abs();
+            // Infinity and NaN are written as such (`inf`, `nan`): the
+            // field's own check names them.
+            let too_large = magnitude.is_finite() && magnitude > f64::from(f32::MAX);
+            let too_small = magnitude != 0.0 && magnitude < f64::from(f32::MIN_POSITIVE);
+            if let (true, Some(span)) = (too_large || too_small, span) {
+                out.push(UnfitNumber {
+                    path: path.clone(),
+                    span: span.clone(),
+                    too_large,
+                    value,
+                });
+            }
+        }
+        Node::Table(entries) => {
+            for (key, child) in entries {
+                let dot = if path.is_empty() { "" } else { "." };
+                visit(path, format!("{dot}{key}"), child);
+            }
+        }
+        Node::Array(items) => {
+            for (index, child) in items.iter().enumerate() {
+                visit(path, format!("[{index}]"), child);
+            }
+        }
+    }
 }
 
 /// `rest` without a leading ` (remark)`.
@@ -209,5 +305,30 @@ mod tests {
             assert_eq!(line(text, path), expected, "{path}");
         }
         assert_eq!(line("[camera\n", "camera"), None);
+    }
+
+    #[test]
+    fn numbers_a_32_bit_float_cannot_hold_are_found_where_written() {
+        let text = "[camera]\nfov = 60.0\nposition = [0, 1e-30, 5]\n[[object]]\n\
+                    radius = 1e-300\n[[object]]\nradius = -1e39\n";
+        let unfit = super::first_unfit_number(text).expect("an unfit number");
+        assert_eq!(unfit.path, "object[0].radius");
+        assert!(!unfit.too_large);
+        assert_eq!(&text[unfit.span.clone()], "1e-300");
+        assert!(unfit.message(text).starts_with("1e-300 is too near 0"));
+
+        let text = "[render]\nambient = [0.1, 0.1, 1000000000000000000000000000000000000000.0]\n";
+        let unfit = super::first_unfit_number(text).expect("an unfit number");
+        assert_eq!(unfit.path, "render.ambient[2]");
+        assert!(unfit.too_large);
+        assert!(unfit.message(text).starts_with("1e39 is too large"));
+        assert!(unfit.message(text).ends_with("at most ±3.4028235e38"));
+
+        for fits in [
+            "a = 3.4e38\nb = -1.2e-38\nc = 0.0\nd = inf\ne = nan\nf = 7",
+            "a = [",
+        ] {
+            assert_eq!(super::first_unfit_number(fits), None, "{fits}");
+        }
     }
 }

@@ -36,6 +36,13 @@ pub(super) fn reworded(message: &str, field: &str, written: Option<&str>) -> Str
         None
     };
     match reworded {
+        // A number as the file wrote it (`1e30`), not as serde prints its
+        // parsed value (31 digits).
+        Some((expected, got))
+            if message.contains(" floating point `") || message.contains(" integer `") =>
+        {
+            format!("expected {expected}, got {}", written.unwrap_or(&got))
+        }
         Some((expected, got)) => format!("expected {expected}, got {got}"),
         None => message.to_string(),
     }
@@ -186,7 +193,22 @@ mod tests {
                 "invalid array\nexpected `]`",
             ),
         ] {
-            assert_eq!(reworded(message, field, Some("3")), words, "{message}");
+            let written = (message == "wanted string or table").then_some("3");
+            assert_eq!(reworded(message, field, written), words, "{message}");
         }
+    }
+
+    #[test]
+    fn numbers_are_quoted_as_written() {
+        let message =
+            "invalid type: floating point `1000000000000000000000000000000`, expected u32";
+        assert_eq!(
+            reworded(message, "render.width", Some("1e30")),
+            "expected a whole number, got 1e30"
+        );
+        assert_eq!(
+            reworded(message, "render.width", None),
+            "expected a whole number, got 1000000000000000000000000000000"
+        );
     }
 }
