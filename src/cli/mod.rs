@@ -470,6 +470,7 @@ enum OnInterrupt {
     Report(InterruptReport),
     /// Asks the command to stop: it ends by itself, writing what it was
     /// asked for and saying why (a second interrupt stops it at once).
+    #[cfg(feature = "view")]
     Stop(Box<dyn FnOnce() + Send>),
 }
 
@@ -502,6 +503,7 @@ pub(crate) fn interrupted() {
         .lock()
         .unwrap_or_else(std::sync::PoisonError::into_inner)
         .take();
+    #[cfg(feature = "view")]
     if let Some(OnInterrupt::Stop(stop)) = action {
         return stop();
     }

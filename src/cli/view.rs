@@ -170,8 +170,9 @@ fn write_window_stats(path: Option<&Path>, rows: &Mutex<Vec<EventStats>>) -> Res
     };
     let rows = rows.lock().unwrap_or_else(PoisonError::into_inner);
     save_text(path, &stats_csv(&rows)?)?;
+    let plural = if rows.len() == 1 { "" } else { "s" };
     say!(
-        "statistics of {} pictures written to {}",
+        "statistics of {} picture{plural} written to {}",
         rows.len(),
         path.display()
     );

@@ -6,7 +6,8 @@
 //! ```text
 //! drag DX DY      drag the picture by DX, DY window pixels (x right, y down)
 //! wheel N [X Y]   N wheel notches (positive: zoom in) about window point
-//!                 X Y (default: the centre)
+//!                 X Y (default: the centre), as N single notches: past a
+//!                 zoom limit the view stops there
 //! key K           a key as the window takes it: Left Right Up Down , . m t
 //!                 s v [ ] r Home q Escape (space plays only in a window:
 //!                 use play; the help and fullscreen are a window's)

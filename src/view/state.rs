@@ -563,27 +563,29 @@ impl Viewer {
         Effect::Changed
     }
 
-    /// `state` zoomed by `notches` about `at`, or as far as the view
-    /// allows: a wheel turned past a limit stops at it, rather than being
-    /// refused whole.
+    /// `state` zoomed by `notches` about `at`, a notch at a time, up to
+    /// the first notch the view refuses: a wheel turned past a limit
+    /// stops at it rather than being refused whole, and N notches at once
+    /// are N single ones.
     fn wheel(&self, state: &ViewState, notches: i32, at: DVec2) -> ViewState {
-        let current = self.notches_of(state);
-        let wanted = (current + notches).clamp(-MAX_NOTCHES, MAX_NOTCHES);
-        let back = -(wanted - current).signum();
-        let mut target = wanted;
-        while target != current {
-            let next = self.zoomed(state, target, at);
-            if self.check(&next).is_ok() {
-                return next;
+        let mut zoomed = state.clone();
+        for _ in 0..notches.unsigned_abs() {
+            let target = self.notches_of(&zoomed) + notches.signum();
+            if target.abs() > MAX_NOTCHES {
+                break;
             }
-            target += back;
+            let next = self.zoomed(&zoomed, target, at);
+            if self.check(&next).is_err() {
+                break;
+            }
+            zoomed = next;
         }
-        state.clone()
+        zoomed
     }
 
     /// The wheel notches the view shown is zoomed by: the scene
     /// viewport's adjustment, or the user's own view's.
-    fn notches_of(&self, state: &ViewState) -> i32 {
+    pub fn notches_of(&self, state: &ViewState) -> i32 {
         match state.scene_viewport {
             Some(_) => state.on_viewport.notches,
             None => state.notches,
@@ -600,15 +602,6 @@ impl Viewer {
             self.zoom_about(&mut next, notches, at);
         }
         next
-    }
-
-    /// The zoom of the view shown and whether it is at a limit, each way:
-    /// (magnification, no further in, no further out), about the centre.
-    pub fn zoom(&self, state: &ViewState) -> (f64, bool, bool) {
-        let (width, height) = self.picture_size(state);
-        let centre = DVec2::new(f64::from(width), f64::from(height)) * 0.5;
-        let stuck = |notches: i32| self.wheel(state, notches, centre) == *state;
-        (ZOOM_STEP.powi(self.notches_of(state)), stuck(1), stuck(-1))
     }
 
     /// The next frame of a playing timeline.
@@ -848,8 +841,6 @@ mod tests {
             Effect::Changed
         );
         assert_eq!(state, stepped);
-        let (_, closest, widest) = viewer.zoom(&state);
-        assert!(widest && !closest);
         assert_eq!(
             viewer.apply(&mut state, Input::Wheel { notches: -1, at }),
             Effect::Nothing
@@ -883,7 +874,6 @@ mod tests {
             state.notches
         );
         assert!(field(state.notches - 1) > MAX_PERSPECTIVE_FOV);
-        assert!(viewer.zoom(&state).2);
         // A wide scene camera keeps its own field: zooming in is allowed,
         // and back out to it.
         let wide = SceneOverrides {

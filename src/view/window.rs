@@ -37,7 +37,7 @@ use crate::clock;
 use crate::scene::Scene;
 
 use super::help;
-use super::state::{Effect, Input, Key, ViewState, Viewer};
+use super::state::{Effect, Input, Key, ViewState, Viewer, ZOOM_STEP};
 use super::worker::{Picture, RenderThread};
 
 /// What the window's owner does with presented pictures and saves.
@@ -247,6 +247,7 @@ pub fn run_window(
         focused: false,
         focus_given: false,
         wheel_release_due: false,
+        zoom_limited: false,
         shown_at: VecDeque::new(),
         reported: None,
     };
@@ -348,6 +349,8 @@ struct App<'h> {
     /// window events into wheel notches. True between a raw release and
     /// the wheel event it echoes.
     wheel_release_due: bool,
+    /// Whether the last wheel input stopped at the zoom limit.
+    zoom_limited: bool,
     /// When the pictures of the last second were presented.
     shown_at: VecDeque<Instant>,
     /// The picture and what was drawn over it when last reported.
@@ -425,7 +428,17 @@ impl App<'_> {
     }
 
     fn act(&mut self, event_loop: &ActiveEventLoop, input: Input) {
+        let before = self.viewer.notches_of(&self.state);
         let effect = self.viewer.apply(&mut self.state, input);
+        match input {
+            // Told in the title: a wheel that stopped short of its notches.
+            Input::Wheel { notches, .. } => {
+                self.zoom_limited = self.viewer.notches_of(&self.state) - before != notches;
+                self.show_title();
+            }
+            _ if effect == Effect::Changed => self.zoom_limited = false,
+            _ => {}
+        }
         match effect {
             Effect::Changed => self.ask(),
             Effect::Nothing => {}
@@ -486,13 +499,11 @@ impl App<'_> {
                 title.push_str(" playing");
             }
         }
-        let (zoom, closest, widest) = self.viewer.zoom(&self.state);
-        if zoom != 1.0 || closest || widest {
-            title.push_str(&format!(" | zoom {zoom:.2}x"));
-            if closest {
-                title.push_str(" (the closest)");
-            } else if widest {
-                title.push_str(" (the widest)");
+        let notches = self.viewer.notches_of(&self.state);
+        if notches != 0 || self.zoom_limited {
+            title.push_str(&format!(" | zoom {:.2}x", ZOOM_STEP.powi(notches)));
+            if self.zoom_limited {
+                title.push_str(" (the limit)");
             }
         }
         if let Some(rate) = self.pictures_per_second() {

@@ -120,6 +120,16 @@ fn one_wheel_click_is_one_notch() {
         });
         assert_eq!(field(&line, "notches"), notches, "{line}");
     }
+    // Far out, the wheel stops at the zoom limit, and the title says so.
+    x.run("xdotool", &["click", "--repeat", "40", "--delay", "5", "5"]);
+    x.run("xdotool", &["key", "h"]);
+    let line = viewer.wait_for("the help toggled", |l| {
+        l.starts_with("shown picture") && field(l, "help") == "on"
+    });
+    let notches: i32 = field(&line, "notches").parse().unwrap();
+    assert!(notches < 0 && notches > -40, "{line}");
+    let title = x.run("xdotool", &["getwindowname", &window]);
+    assert!(title.contains("(the limit)"), "{title}");
     x.run("xdotool", &["key", "q"]);
     let (code, err) = viewer.wait_exit();
     assert_eq!(code, Some(0), "{err}");
