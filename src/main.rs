@@ -176,8 +176,8 @@ fn main() -> ExitCode {
     }
     // Ctrl-C, or a scheduler's SIGTERM (or SIGHUP), stops at once, leaving
     // finished files and no unfinished ones (frames, GIFs, reports are
-    // written under temporary names).
-    let interrupted = ctrlc::set_handler(|| cli::interrupted());
+    // written under temporary names); the window winds down first.
+    let interrupted = ctrlc::set_handler(cli::interrupted);
     if let Err(err) = interrupted {
         eprintln!("warning: an interrupt will not clean up unfinished files: {err}");
     }

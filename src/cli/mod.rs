@@ -503,25 +503,51 @@ fn write_json(path: &Path, value: &impl serde::Serialize) -> Result<()> {
 /// What the running command says, and saves, if it is interrupted.
 type InterruptReport = Box<dyn FnMut() + Send>;
 
-static ON_INTERRUPT: std::sync::Mutex<Option<InterruptReport>> = std::sync::Mutex::new(None);
+/// What an interrupt does to the running command.
+enum OnInterrupt {
+    /// Says what was kept and saves it; then the run stops at once.
+    Report(InterruptReport),
+    /// Asks the command to stop: it ends by itself, writing what it was
+    /// asked for and saying why (a second interrupt stops it at once).
+    #[cfg(feature = "view")]
+    Stop(Box<dyn FnOnce() + Send>),
+}
+
+static ON_INTERRUPT: std::sync::Mutex<Option<OnInterrupt>> = std::sync::Mutex::new(None);
+
+fn set_on_interrupt(action: Option<OnInterrupt>) {
+    *ON_INTERRUPT
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner) = action;
+}
 
 /// Sets what an interrupt reports (the frames kept, how to resume) before
 /// it stops the run.
 fn on_interrupt(report: impl FnMut() + Send + 'static) {
-    *ON_INTERRUPT
-        .lock()
-        .unwrap_or_else(std::sync::PoisonError::into_inner) = Some(Box::new(report));
+    set_on_interrupt(Some(OnInterrupt::Report(Box::new(report))));
 }
 
-/// Ctrl-C, or a scheduler's SIGTERM or SIGHUP: says what was kept, then
-/// stops at once, leaving finished files and removing unfinished ones.
-pub(crate) fn interrupted() -> ! {
-    eprintln!("\ninterrupted");
-    let report = ON_INTERRUPT
+/// Sets how the next interrupt asks the running command to stop (None:
+/// it stops the run at once again).
+#[cfg(feature = "view")]
+fn stop_on_interrupt(stop: Option<Box<dyn FnOnce() + Send>>) {
+    set_on_interrupt(stop.map(OnInterrupt::Stop));
+}
+
+/// Ctrl-C, or a scheduler's SIGTERM or SIGHUP: asks a command that can
+/// wind down to stop; else says what was kept, then stops at once,
+/// leaving finished files and removing unfinished ones.
+pub(crate) fn interrupted() {
+    let action = ON_INTERRUPT
         .lock()
         .unwrap_or_else(std::sync::PoisonError::into_inner)
         .take();
-    if let Some(mut report) = report {
+    #[cfg(feature = "view")]
+    if let Some(OnInterrupt::Stop(stop)) = action {
+        return stop();
+    }
+    eprintln!("\ninterrupted");
+    if let Some(OnInterrupt::Report(mut report)) = action {
         report();
     }
     retrace::output::remove_unfinished_and_exit(130)

@@ -2,17 +2,19 @@
 //! input from a script without a display.
 
 use std::path::{Path, PathBuf};
+use std::sync::{Arc, Mutex, PoisonError};
 
 use anyhow::{Context, Result};
 use clap::Args;
 
 use retrace::output::{save_image, save_text};
 use retrace::sampling::MAX_SAMPLES_PER_PIXEL;
+use retrace::view::help::key_list;
 use retrace::view::refine::DEFAULT_REFINE_SPP;
 use retrace::view::script::{parse_script, run_script, stats_csv, EventStats};
-use retrace::view::window::{run_window, Hooks};
+use retrace::view::window::{run_window, Ending, Hooks, LastWords, Shown, Stop};
 use retrace::view::worker::{Abandoned, Stage};
-use retrace::view::{next_save_path, Picture, RenderThread, Viewer};
+use retrace::view::{next_save_path, Picture, RenderThread, ViewState, Viewer};
 
 use super::{check_writable, ensure_parent, load, scene_name, BackendArg, SceneArgs};
 
@@ -71,11 +73,17 @@ pub(crate) fn view(args: ViewArgs) -> Result<()> {
             .iter()
             .map(|t| t.viewport.name.as_str())
             .collect();
+        let then = match &names[1..] {
+            [] => "`v` shows the camera's image, and the viewport again".to_string(),
+            others => format!(
+                "`v` shows the next ({}), then the camera's image",
+                others.join(", ")
+            ),
+        };
         eprintln!(
             "note: the view opens on the scene's viewport {} as `retrace animate` renders it; \
-             `v` shows the next ({}), then the camera's image",
-            names[0],
-            names.join(", ")
+             {then}",
+            names[0]
         );
     }
     let name = scene_name(&args.scene);
@@ -110,27 +118,65 @@ pub(crate) fn view(args: ViewArgs) -> Result<()> {
             Ok(())
         }
         None => {
+            let rows = Arc::new(Mutex::new(Vec::new()));
             let mut hooks = WindowHooks {
                 viewer: Viewer::new(&scene),
                 print: args.print_pictures,
                 save_dir: args.save_dir.clone(),
-                rows: Vec::new(),
+                rows: Arc::clone(&rows),
+                stats: args.stats.clone(),
             };
-            run_window(
+            eprintln!("{}", key_list());
+            let ran = run_window(
                 scene,
                 &name,
                 args.backend.backend,
                 grid,
                 args.refine_spp,
                 &mut hooks,
-            )
-            .map_err(anyhow::Error::msg)?;
-            if let Some(path) = &args.stats {
-                save_text(path, &stats_csv(&hooks.rows)?)?;
+            );
+            super::stop_on_interrupt(None);
+            let ending = ran.map_err(anyhow::Error::msg)?;
+            // Whatever ended the window, the statistics asked for are
+            // written.
+            let written = write_window_stats(args.stats.as_deref(), &rows);
+            match ending {
+                Ending::Failed(err) => {
+                    if let Err(stats_err) = written {
+                        eprintln!("error: {}", crate::error_text(&stats_err));
+                    }
+                    Err(anyhow::Error::msg(err))
+                }
+                Ending::Interrupted => {
+                    written?;
+                    eprintln!("\ninterrupted");
+                    retrace::output::remove_unfinished_and_exit(130)
+                }
+                other => {
+                    written?;
+                    eprintln!("view ended: {}", other.why());
+                    Ok(())
+                }
             }
-            Ok(())
         }
     }
+}
+
+/// The window's statistics, a row per picture, if asked for; says where
+/// they went.
+fn write_window_stats(path: Option<&Path>, rows: &Mutex<Vec<EventStats>>) -> Result<()> {
+    let Some(path) = path else {
+        return Ok(());
+    };
+    let rows = rows.lock().unwrap_or_else(PoisonError::into_inner);
+    save_text(path, &stats_csv(&rows)?)?;
+    let plural = if rows.len() == 1 { "" } else { "s" };
+    say!(
+        "statistics of {} picture{plural} written to {}",
+        rows.len(),
+        path.display()
+    );
+    Ok(())
 }
 
 /// A script's run in a few lines: the pictures' times, and the pictures
@@ -191,7 +237,9 @@ struct WindowHooks {
     viewer: Viewer,
     print: bool,
     save_dir: PathBuf,
-    rows: Vec<EventStats>,
+    /// Shared with the last words on a lost X server, which write them.
+    rows: Arc<Mutex<Vec<EventStats>>>,
+    stats: Option<PathBuf>,
 }
 
 impl Hooks for WindowHooks {
@@ -221,10 +269,10 @@ impl Hooks for WindowHooks {
         if !picture.complete {
             return;
         }
+        let mut rows = self.rows.lock().unwrap_or_else(PoisonError::into_inner);
         if picture.stage == Stage::Refined {
             // The row of the request it refines.
-            if let Some(row) = self
-                .rows
+            if let Some(row) = rows
                 .last_mut()
                 .filter(|r| r.event == format!("picture {}", picture.generation))
             {
@@ -234,7 +282,7 @@ impl Hooks for WindowHooks {
             }
             return;
         }
-        self.rows.push(EventStats {
+        rows.push(EventStats {
             line: 0,
             event: format!("picture {}", picture.generation),
             frame: state.frame,
@@ -246,6 +294,37 @@ impl Hooks for WindowHooks {
             pixels: u64::from(picture.image.width()) * u64::from(picture.image.height()),
             picture: Some(picture.stats.clone()),
         });
+    }
+
+    fn redrawn(&mut self, picture: &Picture, asked: &ViewState, shown: Shown) {
+        if self.print {
+            let on = |on: bool| if on { "on" } else { "off" };
+            say!(
+                "shown picture {}: help {} overlay {} asking frame {} yaw {:.6} pitch {:.6} zoom notches {}",
+                picture.generation,
+                on(shown.help),
+                on(shown.overlay),
+                asked.frame,
+                asked.yaw.to_degrees(),
+                asked.pitch.to_degrees(),
+                asked.notches
+            );
+        }
+    }
+
+    fn opened(&mut self, stop: Stop) {
+        super::stop_on_interrupt(Some(stop));
+    }
+
+    fn when_display_lost(&mut self) -> LastWords {
+        let rows = Arc::clone(&self.rows);
+        let stats = self.stats.clone();
+        Box::new(move |why| {
+            eprintln!("error: {why}");
+            if let Err(err) = write_window_stats(stats.as_deref(), &rows) {
+                eprintln!("error: {}", crate::error_text(&err));
+            }
+        })
     }
 
     fn save(&mut self, image: &image::RgbImage) -> Result<String, String> {

@@ -5,8 +5,10 @@
 //! renders the latest state through the one frame loop, so a drag of an
 //! equal-angle camera is a Panimation pan, a zoom an RSVP viewport, and a
 //! moving object OSTC's; the window ([`window`]) or a script ([`script`])
-//! shows or saves what it finishes.
+//! shows or saves what it finishes, with its keys listed and drawn as
+//! help ([`help`]).
 
+pub mod help;
 pub mod refine;
 pub mod script;
 pub mod state;

@@ -6,9 +6,11 @@
 //! ```text
 //! drag DX DY      drag the picture by DX, DY window pixels (x right, y down)
 //! wheel N [X Y]   N wheel notches (positive: zoom in) about window point
-//!                 X Y (default: the centre)
+//!                 X Y (default: the centre), as N single notches: past a
+//!                 zoom limit the view stops there
 //! key K           a key as the window takes it: Left Right Up Down , . m t
-//!                 s v [ ] q Escape (space plays only in a window: use play)
+//!                 s v [ ] r Home q Escape (space plays only in a window:
+//!                 use play; the help and fullscreen are a window's)
 //! resize W H      the window resized to W x H pixels
 //! play N          the timeline's next N frames, each once the last is shown
 //! wait            until the frame loop's picture shows every command so far
@@ -17,8 +19,8 @@
 //! sleep MS        nothing for MS milliseconds (the thread refines meanwhile)
 //! save PATH       the picture of every command so far as PNG (or TGA): the
 //!                 frame loop's, or right after wait-converged the converged
-//!                 one; with the overlay on (key t), painted black where it
-//!                 traced
+//!                 one; with the overlay on (key t), the frame loop's picture
+//!                 painted black where it traced
 //! ```
 //!
 //! Commands are sent as fast as a hand could send them: a picture may
@@ -129,11 +131,16 @@ fn parse_command(content: &str, size: (u32, u32)) -> Result<Command, String> {
              `play N`"
                 .to_string(),
         ),
-        ["key", name] => Key::parse(name)
-            .map(|k| Command::Input(Input::Key(k)))
-            .ok_or_else(|| {
-                format!("key: unknown key '{name}' (Left Right Up Down , . m t s v [ ] q Escape)")
-            }),
+        ["key", name] => match Key::parse(name) {
+            Some(Key::Help | Key::Fullscreen) => Err(format!(
+                "key {name} shows the help or goes fullscreen, in a window; a script has \
+                 none (resize W H sets its size)"
+            )),
+            Some(key) => Ok(Command::Input(Input::Key(key))),
+            None => Err(format!(
+                "key: unknown key '{name}' (Left Right Up Down , . m t s v [ ] r Home q Escape)"
+            )),
+        },
         ["key", ..] => Err("key takes one key".to_string()),
         ["resize", w, h] => {
             let side = |name: &str, word: &str| {
@@ -246,7 +253,10 @@ pub fn run_script(
         match &line.command {
             Command::Input(input) => match viewer.apply(&mut state, *input) {
                 Effect::Changed => ask(&state, line, line.text.clone(), &mut generation),
-                Effect::Nothing | Effect::TogglePlay => converged = was_converged,
+                Effect::Nothing
+                | Effect::TogglePlay
+                | Effect::ToggleHelp
+                | Effect::ToggleFullscreen => converged = was_converged,
                 Effect::ToggleOverlay => {
                     overlay = !overlay;
                     converged = was_converged;
@@ -369,6 +379,8 @@ mod tests {
             ("wheel 1 2", "wheel takes N [X Y]"),
             ("key space", "play N"),
             ("key F5", "unknown key 'F5'"),
+            ("key h", "in a window"),
+            ("key F11", "in a window"),
             ("zoom 2", "unknown command 'zoom'"),
             ("drag inf 0", "not a number"),
             ("resize 0 10", "W '0' is not a number of pixels"),

@@ -35,6 +35,10 @@ pub const MAX_NOTCHES: i32 = 48;
 pub const ARROW_STEP: f64 = 32.0;
 /// `[` and `]` turn the view by this much, radians.
 pub const ROTATE_STEP: f64 = 5.0 * std::f64::consts::PI / 180.0;
+/// A perspective view zoomed out stops at this field of view across,
+/// radians (or at the camera's own, if wider): past it the picture is a
+/// few pixels of the scene stretched over many.
+pub const MAX_PERSPECTIVE_FOV: f64 = 120.0 * std::f64::consts::PI / 180.0;
 
 /// The name of the viewer's RSVP viewport (statistics name their view).
 pub const VIEWPORT_NAME: &str = "view";
@@ -165,12 +169,18 @@ pub enum Key {
     /// Turn the view counter-clockwise (`[`) or clockwise (`]`).
     RotateLeft,
     RotateRight,
+    /// Back to the view the window opened on (at the frame shown).
+    Reset,
+    /// The help over the picture, on or off (a window's only).
+    Help,
+    /// Fullscreen on or off (a window's only).
+    Fullscreen,
     Quit,
 }
 
 impl Key {
     /// The key a script or a window names: a character, or Left, Right,
-    /// Up, Down, Space, Escape.
+    /// Up, Down, Space, Home, F1, F11, Escape.
     pub fn parse(name: &str) -> Option<Key> {
         Some(match name {
             "Left" | "left" => Key::Left,
@@ -186,6 +196,9 @@ impl Key {
             "v" => Key::V,
             "[" => Key::RotateLeft,
             "]" => Key::RotateRight,
+            "r" | "Home" | "home" => Key::Reset,
+            "h" | "?" | "F1" => Key::Help,
+            "f" | "F11" => Key::Fullscreen,
             "q" | "Escape" | "escape" => Key::Quit,
             _ => return None,
         })
@@ -219,6 +232,8 @@ pub enum Effect {
     /// Show the picture, or the picture painted black where it traced
     /// (the paper's figure 4): the same picture, nothing to render.
     ToggleOverlay,
+    ToggleHelp,
+    ToggleFullscreen,
     Save,
     Quit,
 }
@@ -451,15 +466,24 @@ impl Viewer {
     }
 
     /// Whether `state` can be shown: its camera valid (an equal-angle
-    /// view within the poles) and its transform too.
+    /// view within the poles), its transform too, and a perspective view
+    /// no wider than [`MAX_PERSPECTIVE_FOV`] (or than unzoomed).
     pub fn check(&self, state: &ViewState) -> Result<(), String> {
         if let Some(index) = state.scene_viewport {
             let camera = self.timeline_camera(state.frame);
-            let transform = self.scene_view(state, index).pose.transform;
-            return self.viewports[index]
+            let pose = self.scene_view(state, index).pose;
+            self.viewports[index]
                 .viewport
-                .validate_transform(&camera, &transform)
-                .map_err(|e| format!("{}: {}", e.field, e.message));
+                .validate_transform(&camera, &pose.transform)
+                .map_err(|e| format!("{}: {}", e.field, e.message))?;
+            let keyed = self.scene_view(
+                &ViewState {
+                    on_viewport: Adjust::default(),
+                    ..state.clone()
+                },
+                index,
+            );
+            return check_field(&pose.camera, pose.transform.zoom, keyed.pose.transform.zoom);
         }
         let camera = self.camera(state);
         camera.validate().map_err(|e| e.to_string())?;
@@ -470,7 +494,8 @@ impl Viewer {
         };
         self.viewport(self.size_of(state))
             .validate_transform(&base, &Self::transform(state))
-            .map_err(|e| format!("{}: {}", e.field, e.message))
+            .map_err(|e| format!("{}: {}", e.field, e.message))?;
+        check_field(&base, ZOOM_STEP.powi(state.notches), 1.0)
     }
 
     /// `state` changed by `input`: a new state where the input changes
@@ -480,16 +505,7 @@ impl Viewer {
         let mut next = state.clone();
         match input {
             Input::Drag(delta) => self.drag(&mut next, delta),
-            Input::Wheel { notches, at } if state.scene_viewport.is_some() => {
-                let notches =
-                    (state.on_viewport.notches + notches).clamp(-MAX_NOTCHES, MAX_NOTCHES);
-                let size = self.picture_size(state);
-                next.on_viewport.zoom_about(notches, at, size);
-            }
-            Input::Wheel { notches, at } => {
-                let notches = (state.notches + notches).clamp(-MAX_NOTCHES, MAX_NOTCHES);
-                self.zoom_about(&mut next, notches, at);
-            }
+            Input::Wheel { notches, at } => next = self.wheel(state, notches, at),
             Input::Resize(width, height) => {
                 next.size = Some((width, height)).filter(|&size| size != self.size());
             }
@@ -524,7 +540,18 @@ impl Viewer {
                         self.settle(&mut next);
                     }
                 }
+                Key::Reset => {
+                    next = ViewState {
+                        frame: state.frame,
+                        reuse: state.reuse,
+                        size: state.size,
+                        scene_viewport: state.scene_viewport,
+                        ..ViewState::default()
+                    };
+                }
                 Key::Space => return Effect::TogglePlay,
+                Key::Help => return Effect::ToggleHelp,
+                Key::Fullscreen => return Effect::ToggleFullscreen,
                 Key::S => return Effect::Save,
                 Key::Quit => return Effect::Quit,
             },
@@ -534,6 +561,47 @@ impl Viewer {
         }
         *state = next;
         Effect::Changed
+    }
+
+    /// `state` zoomed by `notches` about `at`, a notch at a time, up to
+    /// the first notch the view refuses: a wheel turned past a limit
+    /// stops at it rather than being refused whole, and N notches at once
+    /// are N single ones.
+    fn wheel(&self, state: &ViewState, notches: i32, at: DVec2) -> ViewState {
+        let mut zoomed = state.clone();
+        for _ in 0..notches.unsigned_abs() {
+            let target = self.notches_of(&zoomed) + notches.signum();
+            if target.abs() > MAX_NOTCHES {
+                break;
+            }
+            let next = self.zoomed(&zoomed, target, at);
+            if self.check(&next).is_err() {
+                break;
+            }
+            zoomed = next;
+        }
+        zoomed
+    }
+
+    /// The wheel notches the view shown is zoomed by: the scene
+    /// viewport's adjustment, or the user's own view's.
+    pub fn notches_of(&self, state: &ViewState) -> i32 {
+        match state.scene_viewport {
+            Some(_) => state.on_viewport.notches,
+            None => state.notches,
+        }
+    }
+
+    /// `state` zoomed to `notches` about `at`.
+    fn zoomed(&self, state: &ViewState, notches: i32, at: DVec2) -> ViewState {
+        let mut next = state.clone();
+        if state.scene_viewport.is_some() {
+            let size = self.picture_size(state);
+            next.on_viewport.zoom_about(notches, at, size);
+        } else {
+            self.zoom_about(&mut next, notches, at);
+        }
+        next
     }
 
     /// The next frame of a playing timeline.
@@ -604,6 +672,24 @@ impl Viewer {
         }
         (camera.pitch + pitch).clamp(-limit, limit) - camera.pitch
     }
+}
+
+/// A perspective `camera`'s picture magnified by `zoom` is no wider
+/// than [`MAX_PERSPECTIVE_FOV`], or than at zoom `allowed` (the view the
+/// scene itself asks for may be wider).
+fn check_field(camera: &Camera, zoom: f64, allowed: f64) -> Result<(), String> {
+    if camera.projection != Projection::Perspective {
+        return Ok(());
+    }
+    let field = |zoom: f64| 2.0 * ((0.5 * camera.fov).tan() / zoom).atan();
+    if field(zoom) > MAX_PERSPECTIVE_FOV.max(field(allowed)) + 1e-12 {
+        return Err(format!(
+            "zoom: the perspective view would span {:.1} degrees across, more than {:.0}",
+            field(zoom).to_degrees(),
+            MAX_PERSPECTIVE_FOV.to_degrees()
+        ));
+    }
+    Ok(())
 }
 
 #[cfg(test)]
@@ -735,6 +821,97 @@ mod tests {
         let paper = paper();
         let mut plain = paper.opening();
         assert_eq!(paper.apply(&mut plain, Input::Key(Key::V)), Effect::Nothing);
+    }
+
+    #[test]
+    fn a_wheel_past_the_zoom_limit_stops_at_it() {
+        let viewer = paper();
+        let at = DVec2::new(100.0, 60.0);
+        // Notch by notch out, until the view refuses one.
+        let mut stepped = ViewState::default();
+        let mut steps = 0;
+        while viewer.apply(&mut stepped, Input::Wheel { notches: -1, at }) == Effect::Changed {
+            steps += 1;
+        }
+        assert!(steps > 0 && steps < MAX_NOTCHES, "{steps}");
+        // Twenty at once reach the same limit.
+        let mut state = ViewState::default();
+        assert_eq!(
+            viewer.apply(&mut state, Input::Wheel { notches: -20, at }),
+            Effect::Changed
+        );
+        assert_eq!(state, stepped);
+        assert_eq!(
+            viewer.apply(&mut state, Input::Wheel { notches: -1, at }),
+            Effect::Nothing
+        );
+    }
+
+    #[test]
+    fn a_perspective_view_zooms_out_no_wider_than_the_limit() {
+        let overrides = SceneOverrides {
+            projection: Some(Projection::Perspective),
+            fov: Some(60.0),
+            ..SceneOverrides::default()
+        };
+        let viewer = Viewer::new(&paper_scene(&overrides).unwrap());
+        let mut state = ViewState::default();
+        let at = DVec2::new(320.0, 240.0);
+        viewer.apply(
+            &mut state,
+            Input::Wheel {
+                notches: -MAX_NOTCHES,
+                at,
+            },
+        );
+        let field =
+            |notches: i32| 2.0 * ((30.0f64.to_radians()).tan() / ZOOM_STEP.powi(notches)).atan();
+        // The widest view within the limit, one notch short of past it.
+        assert!(state.notches < 0);
+        assert!(
+            field(state.notches) <= MAX_PERSPECTIVE_FOV,
+            "{}",
+            state.notches
+        );
+        assert!(field(state.notches - 1) > MAX_PERSPECTIVE_FOV);
+        // A wide scene camera keeps its own field: zooming in is allowed,
+        // and back out to it.
+        let wide = SceneOverrides {
+            fov: Some(150.0),
+            ..overrides
+        };
+        let viewer = Viewer::new(&paper_scene(&wide).unwrap());
+        let mut state = ViewState::default();
+        viewer.apply(&mut state, Input::Wheel { notches: 2, at });
+        assert_eq!(state.notches, 2);
+        viewer.apply(&mut state, Input::Wheel { notches: -5, at });
+        assert_eq!(state.notches, 0);
+    }
+
+    #[test]
+    fn reset_goes_back_to_the_opening_view_at_the_frame_shown() {
+        let viewer = paper();
+        let mut state = viewer.opening();
+        let at = DVec2::new(100.0, 60.0);
+        viewer.apply(&mut state, Input::Drag(DVec2::new(-24.0, 8.0)));
+        viewer.apply(&mut state, Input::Wheel { notches: 3, at });
+        viewer.apply(&mut state, Input::Key(Key::RotateLeft));
+        viewer.apply(&mut state, Input::Key(Key::M));
+        assert_eq!(
+            viewer.apply(&mut state, Input::Key(Key::Reset)),
+            Effect::Changed
+        );
+        assert_eq!(
+            state,
+            ViewState {
+                reuse: false,
+                ..viewer.opening()
+            }
+        );
+        assert_eq!(
+            viewer.apply(&mut state, Input::Key(Key::Reset)),
+            Effect::Nothing
+        );
     }
 
     #[test]

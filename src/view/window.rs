@@ -4,24 +4,40 @@
 //! the render thread, and presents the latest finished picture: input is
 //! never blocked by tracing, and with nothing asked and nothing playing
 //! the thread sleeps until the next event.
+//!
+//! Every way the window ends is an [`Ending`] handed back to its owner,
+//! who writes what it was asked for and says why, except one: on losing
+//! the X server, Xlib prints its own line and ends the process from inside
+//! the event loop. That exit runs the exiting thread's thread-local
+//! destructors (C++'s rule, which glibc follows), so a guard kept in one
+//! says the program's `error:` and has the owner write what it was asked
+//! for before the process goes.
 
+use std::cell::RefCell;
+use std::collections::VecDeque;
 use std::rc::Rc;
 use std::time::{Duration, Instant};
 
 use glam::DVec2;
 use winit::application::ApplicationHandler;
 use winit::dpi::PhysicalSize;
-use winit::event::{ElementState, MouseButton, MouseScrollDelta, StartCause, WindowEvent};
+use winit::event::{
+    DeviceEvent, DeviceId, ElementState, MouseButton, MouseScrollDelta, StartCause, WindowEvent,
+};
 use winit::event_loop::{ActiveEventLoop, ControlFlow, EventLoop, EventLoopProxy};
 use winit::keyboard::{Key as WinitKey, NamedKey};
 use winit::platform::x11::EventLoopBuilderExtX11;
-use winit::window::{Window, WindowId};
+use winit::window::{Fullscreen, Window, WindowId};
+use x11rb::connection::Connection as _;
+use x11rb::protocol::xproto::{ConnectionExt as _, EventMask, InputFocus};
+use x11rb::rust_connection::RustConnection;
 
 use crate::accel::BackendKind;
 use crate::clock;
 use crate::scene::Scene;
 
-use super::state::{Effect, Input, Key, ViewState, Viewer};
+use super::help;
+use super::state::{Effect, Input, Key, ViewState, Viewer, ZOOM_STEP};
 use super::worker::{Picture, RenderThread};
 
 /// What the window's owner does with presented pictures and saves.
@@ -31,17 +47,153 @@ pub trait Hooks {
     /// to the first picture shown for that input (a coarse one, or the
     /// complete one). Refined pictures of the same input follow it.
     fn presented(&mut self, picture: &Picture, latency_ms: f64, first_ms: f64, title: &str);
+    /// The picture shown was drawn again, or drawn with the help or the
+    /// overlay turned on or off (a new picture is [`Hooks::presented`]
+    /// first); `asked` is the view the window asks for now.
+    fn redrawn(&mut self, picture: &Picture, asked: &ViewState, shown: Shown);
     /// `s` was pressed: save `image` (the picture as shown); returns where
     /// it went.
     fn save(&mut self, image: &image::RgbImage) -> Result<String, String>;
+    /// The window is open: `stop` ends it ([`Ending::Interrupted`]) from
+    /// any thread, as an interrupt's handler does.
+    fn opened(&mut self, stop: Stop);
+    /// What to do if the X server is lost: called with the program's words
+    /// for it on the window's thread while the process exits (exit status
+    /// 1), it says them and writes what was asked for.
+    fn when_display_lost(&mut self) -> LastWords;
 }
 
-/// The render thread has finished a picture.
-struct Wake;
+/// Ends the window from another thread.
+pub type Stop = Box<dyn FnOnce() + Send>;
+
+/// Said and done as the process exits on losing the X server.
+pub type LastWords = Box<dyn FnOnce(&str)>;
+
+/// What is drawn over the picture.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Shown {
+    /// The help (`h`).
+    pub help: bool,
+    /// The picture painted where the last reuse picture traced (`t`).
+    pub overlay: bool,
+}
+
+/// Why the window ended.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum Ending {
+    /// `q` or Escape.
+    Quit,
+    /// Closed by its window manager (the user's close button).
+    Closed,
+    /// Destroyed by the window manager or another program.
+    Destroyed,
+    /// An interrupt (Ctrl-C, SIGTERM, SIGHUP) asked it to stop.
+    Interrupted,
+    /// It could not go on.
+    Failed(String),
+}
+
+impl Ending {
+    /// Why it ended, in words.
+    pub fn why(&self) -> String {
+        match self {
+            Ending::Quit => "q or Escape pressed".to_string(),
+            Ending::Closed => "the window was closed".to_string(),
+            Ending::Destroyed => {
+                "the window was destroyed (by its window manager or another program)".to_string()
+            }
+            Ending::Interrupted => "interrupted".to_string(),
+            Ending::Failed(err) => err.clone(),
+        }
+    }
+}
+
+/// What wakes the window's thread besides X.
+enum Wake {
+    /// The render thread has finished a picture.
+    Picture,
+    /// An interrupt: end the window.
+    Stop,
+}
+
+thread_local! {
+    /// Said if the process ends on this thread while the window runs.
+    static LAST_WORDS: RefCell<Option<Pending>> = const { RefCell::new(None) };
+}
+
+/// Words said when dropped, unless taken back first.
+struct Pending(Option<Box<dyn FnOnce()>>);
+
+impl Drop for Pending {
+    fn drop(&mut self) {
+        if let Some(say) = self.0.take() {
+            say();
+        }
+    }
+}
+
+/// Keeps the last words ready while it lives; returning or unwinding, it
+/// takes them back unsaid (a panic's exit is not a lost display).
+struct Armed;
+
+impl Armed {
+    fn new(say: Box<dyn FnOnce()>) -> Armed {
+        LAST_WORDS.with(|slot| *slot.borrow_mut() = Some(Pending(Some(say))));
+        Armed
+    }
+}
+
+impl Drop for Armed {
+    fn drop(&mut self) {
+        let _ = LAST_WORDS.try_with(|slot| {
+            if let Some(pending) = slot.borrow_mut().as_mut() {
+                pending.0 = None;
+            }
+        });
+    }
+}
+
+/// The window's own X connection where no window manager runs: without
+/// one nobody gives the window the keyboard's focus, nor a fullscreen
+/// window the screen's size, so the window does both itself.
+struct Unmanaged {
+    connection: RustConnection,
+}
+
+impl Unmanaged {
+    /// None where a window manager runs (the client that redirects the
+    /// root window's children to itself), or the display cannot be
+    /// reached this way.
+    fn find() -> Option<Unmanaged> {
+        let (connection, screen) = RustConnection::connect(None).ok()?;
+        let root = connection.setup().roots.get(screen)?.root;
+        let attributes = connection.get_window_attributes(root).ok()?.reply().ok()?;
+        if attributes
+            .all_event_masks
+            .contains(EventMask::SUBSTRUCTURE_REDIRECT)
+        {
+            return None;
+        }
+        Some(Unmanaged { connection })
+    }
+
+    /// Gives `window` the keyboard's focus; whether the server took it (a
+    /// window not mapped yet cannot have it).
+    fn focus(&self, window: &Window) -> bool {
+        let Ok(id) = u32::try_from(u64::from(window.id())) else {
+            return false;
+        };
+        self.connection
+            .set_input_focus(InputFocus::PARENT, id, x11rb::CURRENT_TIME)
+            .ok()
+            .and_then(|cookie| cookie.check().ok())
+            .is_some()
+    }
+}
 
 /// Opens the window on `scene` (its title starting `retrace view: NAME`)
-/// and runs until it is closed, `q` or Escape; idle, pictures are refined
-/// up to `refine_spp` samples a pixel.
+/// and runs until it ends ([`Ending`]); idle, pictures are refined up to
+/// `refine_spp` samples a pixel. An error: no window was opened.
 pub fn run_window(
     scene: Scene,
     name: &str,
@@ -49,14 +201,26 @@ pub fn run_window(
     grid_resolution: Option<[u32; 3]>,
     refine_spp: u32,
     hooks: &mut dyn Hooks,
-) -> Result<(), String> {
+) -> Result<Ending, String> {
     let event_loop = open_display()?;
     let proxy: EventLoopProxy<Wake> = event_loop.create_proxy();
     let viewer = Viewer::new(&scene);
+    let wake = proxy.clone();
     let notify = Box::new(move || {
-        let _ = proxy.send_event(Wake);
+        let _ = wake.send_event(Wake::Picture);
     });
     let thread = RenderThread::spawn(scene, backend, grid_resolution, false, refine_spp, notify)?;
+    hooks.opened(Box::new(move || {
+        let _ = proxy.send_event(Wake::Stop);
+    }));
+    let display = std::env::var("DISPLAY").unwrap_or_default();
+    let last_words = hooks.when_display_lost();
+    let armed = Armed::new(Box::new(move || {
+        last_words(&format!(
+            "lost the connection to the X server (DISPLAY {display}): it stopped, or closed \
+             this program's connection"
+        ))
+    }));
     let state = viewer.opening();
     let mut app = App {
         name: name.to_string(),
@@ -76,15 +240,28 @@ pub fn run_window(
         answered: None,
         surface_size: (0, 0),
         hooks,
-        error: None,
+        ending: None,
+        help: false,
+        windowed_size: None,
+        unmanaged: Unmanaged::find(),
+        focused: false,
+        focus_given: false,
+        wheel_release_due: false,
+        zoom_limited: false,
+        shown_at: VecDeque::new(),
+        reported: None,
     };
-    event_loop
-        .run_app(&mut app)
-        .map_err(|err| format!("the window's event loop failed: {err}"))?;
-    match app.error {
-        Some(err) => Err(err),
-        None => Ok(()),
-    }
+    let ran = event_loop.run_app(&mut app);
+    let ending = app.ending.take();
+    // The window goes before the last words are taken back: closing it on
+    // a lost server ends the process too.
+    drop(app);
+    drop(armed);
+    Ok(match (ran, ending) {
+        (Err(err), _) => Ending::Failed(format!("the window's event loop failed: {err}")),
+        (Ok(()), Some(ending)) => ending,
+        (Ok(()), None) => Ending::Closed,
+    })
 }
 
 /// The X11 event loop, or why there is none. A library missing at run
@@ -156,13 +333,88 @@ struct App<'h> {
     /// The window's drawing buffer, pixels.
     surface_size: (u32, u32),
     hooks: &'h mut dyn Hooks,
-    error: Option<String>,
+    /// Why the window is ending, once it is.
+    ending: Option<Ending>,
+    /// Showing the help over the picture.
+    help: bool,
+    /// The window's size before fullscreen, where the window sized itself
+    /// to the screen (no window manager).
+    windowed_size: Option<PhysicalSize<u32>>,
+    unmanaged: Option<Unmanaged>,
+    focused: bool,
+    /// Whether the window gave itself the focus once it was shown.
+    focus_given: bool,
+    /// X reports a wheel click as a press and a release of button 4 or 5,
+    /// each as a raw event and then the window's; winit 0.30 turns both
+    /// window events into wheel notches. True between a raw release and
+    /// the wheel event it echoes.
+    wheel_release_due: bool,
+    /// Whether the last wheel input stopped at the zoom limit.
+    zoom_limited: bool,
+    /// When the pictures of the last second were presented.
+    shown_at: VecDeque<Instant>,
+    /// The picture and what was drawn over it when last reported.
+    reported: Option<((u64, bool, u32), Shown)>,
 }
 
 impl App<'_> {
-    fn fail(&mut self, event_loop: &ActiveEventLoop, err: String) {
-        self.error.get_or_insert(err);
+    fn end(&mut self, event_loop: &ActiveEventLoop, ending: Ending) {
+        self.ending.get_or_insert(ending);
         event_loop.exit();
+    }
+
+    fn fail(&mut self, event_loop: &ActiveEventLoop, err: String) {
+        self.end(event_loop, Ending::Failed(err));
+    }
+
+    fn shown(&self) -> Shown {
+        Shown {
+            help: self.help,
+            overlay: self.overlay,
+        }
+    }
+
+    /// Pictures presented a second, over the last second (None: fewer
+    /// than two).
+    fn pictures_per_second(&self) -> Option<f64> {
+        let (first, last) = (self.shown_at.front()?, self.shown_at.back()?);
+        let seconds = last.duration_since(*first).as_secs_f64();
+        (self.shown_at.len() > 1 && seconds > 0.0)
+            .then(|| (self.shown_at.len() - 1) as f64 / seconds)
+    }
+
+    /// The keyboard's focus for the window where no window manager gives
+    /// it: once the window is shown, and when the pointer comes in.
+    fn take_focus(&mut self) {
+        if self.focused {
+            return;
+        }
+        if let (Some(unmanaged), Some(window)) = (&self.unmanaged, &self.window) {
+            self.focus_given |= unmanaged.focus(window);
+        }
+    }
+
+    fn toggle_fullscreen(&mut self) {
+        let Some(window) = &self.window else {
+            return;
+        };
+        if window.fullscreen().is_some() {
+            window.set_fullscreen(None);
+            if let Some(size) = self.windowed_size.take() {
+                let _ = window.request_inner_size(size);
+            }
+            return;
+        }
+        let size = window.inner_size();
+        window.set_fullscreen(Some(Fullscreen::Borderless(None)));
+        // A window manager sizes a fullscreen window; without one the
+        // window takes the screen's size itself.
+        if self.unmanaged.is_some() {
+            if let Some(monitor) = window.current_monitor() {
+                self.windowed_size = Some(size);
+                let _ = window.request_inner_size(monitor.size());
+            }
+        }
     }
 
     fn ask(&mut self) {
@@ -176,7 +428,18 @@ impl App<'_> {
     }
 
     fn act(&mut self, event_loop: &ActiveEventLoop, input: Input) {
-        match self.viewer.apply(&mut self.state, input) {
+        let before = self.viewer.notches_of(&self.state);
+        let effect = self.viewer.apply(&mut self.state, input);
+        match input {
+            // Told in the title: a wheel that stopped short of its notches.
+            Input::Wheel { notches, .. } => {
+                self.zoom_limited = self.viewer.notches_of(&self.state) - before != notches;
+                self.show_title();
+            }
+            _ if effect == Effect::Changed => self.zoom_limited = false,
+            _ => {}
+        }
+        match effect {
             Effect::Changed => self.ask(),
             Effect::Nothing => {}
             Effect::TogglePlay => {
@@ -187,12 +450,17 @@ impl App<'_> {
                 };
                 self.show_title();
             }
-            Effect::ToggleOverlay => {
-                self.overlay = !self.overlay;
+            Effect::ToggleOverlay | Effect::ToggleHelp => {
+                match effect {
+                    Effect::ToggleOverlay => self.overlay = !self.overlay,
+                    _ => self.help = !self.help,
+                }
+                self.show_title();
                 if let Some(window) = &self.window {
                     window.request_redraw();
                 }
             }
+            Effect::ToggleFullscreen => self.toggle_fullscreen(),
             Effect::Save => {
                 let Some(picture) = self.thread.latest() else {
                     return;
@@ -202,7 +470,7 @@ impl App<'_> {
                     Err(err) => self.fail(event_loop, err),
                 }
             }
-            Effect::Quit => event_loop.exit(),
+            Effect::Quit => self.end(event_loop, Ending::Quit),
         }
     }
 
@@ -230,6 +498,19 @@ impl App<'_> {
             if self.playing.is_some() {
                 title.push_str(" playing");
             }
+        }
+        let notches = self.viewer.notches_of(&self.state);
+        if notches != 0 || self.zoom_limited {
+            title.push_str(&format!(" | zoom {:.2}x", ZOOM_STEP.powi(notches)));
+            if self.zoom_limited {
+                title.push_str(" (the limit)");
+            }
+        }
+        if let Some(rate) = self.pictures_per_second() {
+            title.push_str(&format!(" | {rate:.1} fps"));
+        }
+        if self.overlay {
+            title.push_str(" | t: black where reuse traced");
         }
         title
     }
@@ -267,13 +548,26 @@ impl App<'_> {
                 *word = u32::from(p[0]) << 16 | u32::from(p[1]) << 8 | u32::from(p[2]);
             }
         }
+        if self.help {
+            help::draw(&mut buffer, width);
+        }
         if let Err(err) = buffer.present() {
             return self.fail(event_loop, format!("cannot draw the window: {err}"));
         }
+        self.take_focus();
         let key = (picture.generation, picture.complete, picture.samples);
-        if key > self.presented {
+        let new = key > self.presented;
+        if new {
             self.presented = key;
             let now = Instant::now();
+            self.shown_at.push_back(now);
+            while self
+                .shown_at
+                .front()
+                .is_some_and(|at| now.duration_since(*at) > Duration::from_secs(1))
+            {
+                self.shown_at.pop_front();
+            }
             let asked_at = match self.answered {
                 Some((g, at)) if g == picture.generation => Some(at),
                 _ => self
@@ -301,6 +595,11 @@ impl App<'_> {
             }
             self.hooks.presented(&picture, since, first, &title);
         }
+        let reported = (key, self.shown());
+        if !new || self.reported.is_some_and(|(_, shown)| shown != reported.1) {
+            self.hooks.redrawn(&picture, &self.state, reported.1);
+        }
+        self.reported = Some(reported);
     }
 }
 
@@ -353,7 +652,10 @@ impl ApplicationHandler<Wake> for App<'_> {
         let _ = event_loop;
     }
 
-    fn user_event(&mut self, event_loop: &ActiveEventLoop, _: Wake) {
+    fn user_event(&mut self, event_loop: &ActiveEventLoop, wake: Wake) {
+        if let Wake::Stop = wake {
+            return self.end(event_loop, Ending::Interrupted);
+        }
         if let Some(err) = self.thread.failure() {
             return self.fail(event_loop, err);
         }
@@ -364,7 +666,10 @@ impl ApplicationHandler<Wake> for App<'_> {
 
     fn window_event(&mut self, event_loop: &ActiveEventLoop, _: WindowId, event: WindowEvent) {
         match event {
-            WindowEvent::CloseRequested => event_loop.exit(),
+            WindowEvent::CloseRequested => self.end(event_loop, Ending::Closed),
+            WindowEvent::Destroyed => self.end(event_loop, Ending::Destroyed),
+            WindowEvent::Focused(focused) => self.focused = focused,
+            WindowEvent::CursorEntered { .. } => self.take_focus(),
             WindowEvent::RedrawRequested => self.present(event_loop),
             WindowEvent::Resized(size) => {
                 let (Some(width), Some(height)) = (
@@ -401,6 +706,9 @@ impl ApplicationHandler<Wake> for App<'_> {
                 ..
             } => self.dragging = state == ElementState::Pressed,
             WindowEvent::MouseWheel { delta, .. } => {
+                if std::mem::take(&mut self.wheel_release_due) {
+                    return;
+                }
                 let lines = match delta {
                     MouseScrollDelta::LineDelta(_, y) => f64::from(y),
                     // A touchpad's pixels: about a notch per 40.
@@ -429,6 +737,9 @@ impl ApplicationHandler<Wake> for App<'_> {
                     WinitKey::Named(NamedKey::ArrowDown) => Some(Key::Down),
                     WinitKey::Named(NamedKey::Space) => Some(Key::Space),
                     WinitKey::Named(NamedKey::Escape) => Some(Key::Quit),
+                    WinitKey::Named(NamedKey::Home) => Some(Key::Reset),
+                    WinitKey::Named(NamedKey::F1) => Some(Key::Help),
+                    WinitKey::Named(NamedKey::F11) => Some(Key::Fullscreen),
                     WinitKey::Character(text) => Key::parse(text),
                     _ => None,
                 };
@@ -438,6 +749,19 @@ impl ApplicationHandler<Wake> for App<'_> {
             }
             _ => {}
         }
+    }
+
+    fn device_event(&mut self, _: &ActiveEventLoop, _: DeviceId, event: DeviceEvent) {
+        // The raw event of a wheel button's release comes just before the
+        // window's (X sends a raw event before the event it becomes); any
+        // other raw event comes before the next input.
+        self.wheel_release_due = matches!(
+            event,
+            DeviceEvent::Button {
+                button: 4..=7,
+                state: ElementState::Released
+            }
+        );
     }
 
     fn about_to_wait(&mut self, event_loop: &ActiveEventLoop) {

@@ -65,7 +65,10 @@ pub struct Picture {
     pub generation: u64,
     pub state: ViewState,
     pub image: image::RgbImage,
-    /// The picture painted black where it traced (the paper's figure 4).
+    /// The picture painted black where it traced (the paper's figure 4);
+    /// for a refined picture, which traces every pixel, the frame loop's
+    /// picture of the same request: the overlay keeps showing what reuse
+    /// traced.
     pub traced: image::RgbImage,
     /// What it cost, as the frame loop records it (a coarse picture: at
     /// its own size; a refinement: its own trace of every pixel).
@@ -763,6 +766,11 @@ fn refine(serving: &Serving, animator: &mut Animator, generation: u64, state: &V
     let (scene, accel) = animator.posed_scene(state.frame);
     let shader = Shader::new(scene, accel);
     let stop = || asked_meanwhile(shared);
+    let reuse_traced = lock(&shared.outbox)
+        .frame_loop
+        .as_ref()
+        .filter(|p| p.generation == generation)
+        .map(|p| p.traced.clone());
     for (rung, &spp) in rungs.iter().enumerate() {
         let watch = Stopwatch::start();
         let samples = PixelSamples::new(spp).expect("the ladder's counts are checked");
@@ -803,8 +811,9 @@ fn refine(serving: &Serving, animator: &mut Animator, generation: u64, state: &V
             generation,
             state: state.clone(),
             image,
-            // Every pixel traced afresh.
-            traced: image::RgbImage::new(width, height),
+            traced: reuse_traced
+                .clone()
+                .unwrap_or_else(|| image::RgbImage::new(width, height)),
             stats,
             stage: Stage::Refined,
             done: Instant::now(),

@@ -1,12 +1,15 @@
 //! `retrace view`: scripted input against `retrace render` of the view it
-//! should show, and the window itself under Xvfb, driven by xdotool.
+//! should show; the window itself under Xvfb, driven by xdotool, in
+//! [`window`] and [`keys_and_exits`].
+
+mod keys_and_exits;
+mod window;
 
 use std::collections::HashMap;
-use std::io::{BufRead, BufReader, Read};
+use std::io::{BufRead, BufReader};
 use std::path::Path;
-use std::process::{Child, Command, Stdio};
-use std::sync::mpsc;
-use std::time::{Duration, Instant};
+use std::process::{Command, Stdio};
+use std::time::Duration;
 
 use crate::common::{retrace, retrace_ok};
 
@@ -733,511 +736,84 @@ fn once_converged_the_viewer_uses_no_cpu() {
 }
 
 #[test]
-fn without_a_display_the_window_is_a_clear_error() {
-    let dir = tempfile::tempdir().unwrap();
-    let out = Command::new(env!("CARGO_BIN_EXE_retrace"))
-        .args(["view"])
-        .current_dir(dir.path())
-        .env_remove("DISPLAY")
-        .env_remove("WAYLAND_DISPLAY")
-        .output()
-        .unwrap();
-    assert_eq!(out.status.code(), Some(1));
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert!(
-        err.contains("cannot open a window: DISPLAY is not set"),
-        "{err}"
-    );
-    assert!(!err.contains("panicked"), "{err}");
-}
-
-/// Whether the window tests can run: Xvfb, xdotool and ImageMagick's
-/// `import`. Missing, they are skipped with the reason, except under
-/// CI, where they must run.
-fn window_tools() -> bool {
-    let missing: Vec<&str> = ["Xvfb", "xdotool", "import"]
-        .into_iter()
-        .filter(|tool| {
-            Command::new("sh")
-                .args(["-c", &format!("command -v {tool}")])
-                .output()
-                .map_or(true, |o| !o.status.success())
-        })
-        .collect();
-    if missing.is_empty() {
-        return true;
-    }
-    let why = format!(
-        "window tests need {} (make test installs xvfb xdotool imagemagick)",
-        missing.join(", ")
-    );
-    crate::common::skip_unless_ci(&why);
-    false
-}
-
-/// An X server of its own, stopped when dropped.
-struct Xvfb {
-    child: Child,
-    display: String,
-}
-
-impl Xvfb {
-    fn start() -> Xvfb {
-        // -displayfd: Xvfb picks a free display and says which once it is
-        // ready, so tests run side by side.
-        let mut child = Command::new("Xvfb")
-            .args([
-                "-displayfd",
-                "1",
-                "-screen",
-                "0",
-                "1024x768x24",
-                "-nolisten",
-                "tcp",
-            ])
-            .stdout(Stdio::piped())
-            .stderr(Stdio::null())
-            .spawn()
-            .expect("start Xvfb");
-        let mut line = String::new();
-        BufReader::new(child.stdout.take().unwrap())
-            .read_line(&mut line)
-            .unwrap();
-        let number: u32 = line
-            .trim()
-            .parse()
-            .unwrap_or_else(|_| panic!("Xvfb said '{line}', not a display"));
-        Xvfb {
-            child,
-            display: format!(":{number}"),
-        }
-    }
-
-    fn run(&self, program: &str, args: &[&str]) -> String {
-        let out = Command::new("timeout")
-            .arg("20")
-            .arg(program)
-            .args(args)
-            .env("DISPLAY", &self.display)
-            .output()
-            .unwrap();
-        assert!(
-            out.status.success(),
-            "{program} {}: {}",
-            args.join(" "),
-            String::from_utf8_lossy(&out.stderr)
-        );
-        String::from_utf8_lossy(&out.stdout).into_owned()
-    }
-
-    fn screenshot(&self, window: &str, (width, height): (u32, u32)) -> image::RgbImage {
-        let out = Command::new("import")
-            .args(["-window", window, "-depth", "8", "rgb:-"])
-            .env("DISPLAY", &self.display)
-            .output()
-            .unwrap();
-        assert!(
-            out.status.success(),
-            "{}",
-            String::from_utf8_lossy(&out.stderr)
-        );
-        image::RgbImage::from_raw(width, height, out.stdout).expect("a screenshot of the window")
-    }
-}
-
-impl Drop for Xvfb {
-    fn drop(&mut self) {
-        let _ = self.child.kill();
-        let _ = self.child.wait();
-    }
-}
-
-/// `retrace view` in a window, its picture lines read as they come.
-struct Viewer {
-    child: Child,
-    lines: mpsc::Receiver<String>,
-    seen: Vec<String>,
-}
-
-impl Viewer {
-    /// The window on `scene`, refining idle pictures up to `refine_spp`
-    /// samples a pixel ("1": the frame loop's pictures only).
-    fn open(x: &Xvfb, dir: &Path, scene: &str, refine_spp: &str) -> Viewer {
-        let mut child = Command::new(env!("CARGO_BIN_EXE_retrace"))
-            .args(args(
-                &["view", scene],
-                &[
-                    "--print-pictures",
-                    "--save-dir",
-                    "saved",
-                    "--refine-spp",
-                    refine_spp,
-                ],
-            ))
-            .current_dir(dir)
-            .env("DISPLAY", &x.display)
-            .stdout(Stdio::piped())
-            .stderr(Stdio::piped())
-            .spawn()
-            .unwrap();
-        let stdout = child.stdout.take().unwrap();
-        let (send, lines) = mpsc::channel();
-        std::thread::spawn(move || {
-            for line in BufReader::new(stdout).lines() {
-                if send.send(line.unwrap()).is_err() {
-                    break;
-                }
-            }
-        });
-        Viewer {
-            child,
-            lines,
-            seen: Vec::new(),
-        }
-    }
-
-    /// Waits (at most 30 s) for a line the program prints that `wanted`
-    /// accepts.
-    fn wait_for(&mut self, what: &str, wanted: impl Fn(&str) -> bool) -> String {
-        let deadline = Instant::now() + Duration::from_secs(30);
-        loop {
-            let left = deadline.saturating_duration_since(Instant::now());
-            match self.lines.recv_timeout(left) {
-                Ok(line) => {
-                    self.seen.push(line.clone());
-                    if wanted(&line) {
-                        return line;
-                    }
-                }
-                Err(_) => panic!("no {what}; the viewer said:\n{}", self.seen.join("\n")),
-            }
-        }
-    }
-
-    /// Waits (at most 30 s) for the program to end; its exit code and
-    /// stderr.
-    fn wait_exit(mut self) -> (Option<i32>, String) {
-        let deadline = Instant::now() + Duration::from_secs(30);
-        loop {
-            if let Some(status) = self.child.try_wait().unwrap() {
-                let mut err = String::new();
-                self.child
-                    .stderr
-                    .take()
-                    .unwrap()
-                    .read_to_string(&mut err)
-                    .unwrap();
-                return (status.code(), err);
-            }
-            if Instant::now() > deadline {
-                let _ = self.child.kill();
-                panic!("the viewer did not end; it said:\n{}", self.seen.join("\n"));
-            }
-            std::thread::sleep(Duration::from_millis(20));
-        }
-    }
-}
-
-impl Drop for Viewer {
-    fn drop(&mut self) {
-        let _ = self.child.kill();
-        let _ = self.child.wait();
-    }
-}
-
-/// A field of a picture line: `... yaw 7.500000 ...` -> "7.500000".
-fn field<'a>(line: &'a str, name: &str) -> &'a str {
-    let words: Vec<&str> = line.split_whitespace().collect();
-    let at = words
-        .windows(2)
-        .position(|w| w[0] == name)
-        .unwrap_or_else(|| panic!("no {name} in '{line}'"));
-    words[at + 1]
-}
-
-#[test]
-fn the_window_pans_exactly_zooms_about_the_cursor_and_quits_on_q() {
-    if !window_tools() {
-        return;
-    }
-    let dir = tempfile::tempdir().unwrap();
-    let path = dir.path();
-    scene_and_turned(path);
-    retrace_ok(&args(&["render", "scene.toml"], &["-o", "open.png"]), path);
-    retrace_ok(
-        &args(&["render", "turned.toml"], &["-o", "turned.png"]),
-        path,
-    );
-    let x = Xvfb::start();
-    let mut viewer = Viewer::open(&x, path, "scene.toml", "1");
-    viewer.wait_for("first picture", |l| l.starts_with("picture 1:"));
-    let window = x.run("xdotool", &["search", "--sync", "--name", "^retrace view"]);
-    let window = window.lines().next().unwrap().to_string();
-    let size = (320, 240);
-    let before = x.screenshot(&window, size);
-    assert!(
-        differing(&before, &png(&path.join("open.png"))) == 0,
-        "the opened window"
-    );
-
-    // A drag of 24 pixels left and 8 down, in two moves.
-    x.run(
-        "xdotool",
-        &[
-            "mousemove",
-            "--window",
-            &window,
-            "--sync",
-            "200",
-            "100",
-            "mousedown",
-            "1",
-            "mousemove",
-            "--window",
-            &window,
-            "--sync",
-            "190",
-            "104",
-            "mousemove",
-            "--window",
-            &window,
-            "--sync",
-            "176",
-            "108",
-            "mouseup",
-            "1",
-        ],
-    );
-    let yaw = format!("{:.6}", 24.0 * STEP);
-    viewer.wait_for("the dragged picture", |l| {
-        l.starts_with("picture") && field(l, "yaw") == yaw && field(l, "pitch") == "2.500000"
-    });
-    let after = x.screenshot(&window, size);
-    assert!(
-        differing(&after, &png(&path.join("turned.png"))) == 0,
-        "the dragged window differs from a render of the turned camera"
-    );
-    // Moved by the drag, pixel for pixel: what was at (x + 24, y - 8) is
-    // now at (x, y).
-    for y in 8..240 {
-        for x in 0..320 - 24 {
-            assert_eq!(
-                after.get_pixel(x, y),
-                before.get_pixel(x + 24, y - 8),
-                "({x}, {y})"
-            );
-        }
-    }
-
-    // The wheel in, at (60, 50). winit 0.30 takes one click as one or two
-    // notches: the script below makes the same input, notch by notch.
-    x.run(
-        "xdotool",
-        &[
-            "mousemove",
-            "--window",
-            &window,
-            "--sync",
-            "60",
-            "50",
-            "click",
-            "4",
-        ],
-    );
-    viewer.wait_for("a zoomed picture", |l| {
-        l.starts_with("picture") && field(l, "notches") != "0"
-    });
-    std::thread::sleep(Duration::from_millis(500));
-    while let Ok(line) = viewer.lines.try_recv() {
-        viewer.seen.push(line);
-    }
-    let last = viewer
-        .seen
-        .iter()
-        .rev()
-        .find(|l| l.starts_with("picture"))
-        .unwrap()
-        .clone();
-    assert_eq!(field(&last, "mode"), "rsvp", "{last}");
-    let notches: usize = field(&last, "notches").parse().unwrap();
-    let zoomed = x.screenshot(&window, size);
-    assert!(
-        psnr(&zoomed, &after) < 30.0,
-        "the wheel barely changed the picture"
-    );
-    // The window's picture is the frame loop's for the same input, as a
-    // script gives it without X.
-    let script = format!(
-        "drag -10 4\ndrag -14 4\n{}save scripted.png\n",
-        "wheel 1 60 50\n".repeat(notches)
-    );
-    std::fs::write(path.join("same.txt"), script).unwrap();
-    retrace_ok(
-        &args(
-            &["view", "scene.toml"],
-            &["--script", "same.txt", "--refine-spp", "1"],
-        ),
-        path,
-    );
-    assert!(
-        differing(&zoomed, &png(&path.join("scripted.png"))) == 0,
-        "{notches} notches"
-    );
-
-    // `s` saves, `q` quits with 0; keys need the focus (no window manager).
-    x.run("xdotool", &["windowfocus", "--sync", &window]);
-    x.run("xdotool", &["key", "s"]);
-    viewer.wait_for("the save", |l| l.starts_with("saved "));
-    x.run("xdotool", &["key", "q"]);
-    let (code, err) = viewer.wait_exit();
-    assert_eq!(code, Some(0), "{err}");
-    assert!(differing(&png(&path.join("saved/view_0001.png")), &zoomed) == 0);
-}
-
-#[test]
-fn a_missing_xkbcommon_x11_is_a_clear_error() {
-    if !window_tools() {
-        return;
-    }
-    let dir = tempfile::tempdir().unwrap();
-    // An empty file where the loader looks first: the library cannot load.
-    let fake = dir.path().join("lib");
-    std::fs::create_dir(&fake).unwrap();
-    std::fs::write(fake.join("libxkbcommon-x11.so.0"), b"").unwrap();
-    std::fs::write(fake.join("libxkbcommon-x11.so"), b"").unwrap();
-    let x = Xvfb::start();
-    let out = Command::new("timeout")
-        .arg("20")
-        .arg(env!("CARGO_BIN_EXE_retrace"))
-        .arg("view")
-        .current_dir(dir.path())
-        .env("DISPLAY", &x.display)
-        .env("LD_LIBRARY_PATH", &fake)
-        .output()
-        .unwrap();
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(1), "{err}");
-    assert!(
-        err.contains("cannot open a window") && err.contains("libxkbcommon-x11"),
-        "{err}"
-    );
-    assert!(!err.contains("panicked"), "{err}");
-}
-
-#[test]
-fn a_resized_window_shows_more_at_the_same_angle_per_pixel() {
-    if !window_tools() {
-        return;
-    }
+fn a_scripted_wheel_past_the_zoom_limit_stops_at_it() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path();
     paper_on_lattice(path, "scene.toml", 0.0, ON_LATTICE_PITCH);
-    // Twice as wide keeps 0.3125 degrees a pixel: 200 degrees across
-    // (doubling is exact in floating point, so the fields of view agree
-    // to the bit).
-    retrace_ok(
-        &[
-            "render",
-            "scene.toml",
-            "--width",
-            "640",
-            "--height",
-            "360",
-            "--fov",
-            "200",
-            "-o",
-            "wide.png",
-        ],
-        path,
-    );
-    let x = Xvfb::start();
-    let mut viewer = Viewer::open(&x, path, "scene.toml", "1");
-    viewer.wait_for("first picture", |l| l.starts_with("picture 1:"));
-    let window = x.run("xdotool", &["search", "--sync", "--name", "^retrace view"]);
-    let window = window.lines().next().unwrap().to_string();
-    x.run("xdotool", &["windowsize", "--sync", &window, "640", "360"]);
-    viewer.wait_for("the resized picture", |l| {
-        l.starts_with("picture") && field(l, "size") == "640x360"
-    });
-    let wide = x.screenshot(&window, (640, 360));
-    assert!(
-        differing(&wide, &png(&path.join("wide.png"))) == 0,
-        "the resized window differs from a render at its size"
-    );
-    // A drag after the resize is still a pan of the wider camera.
-    x.run(
-        "xdotool",
-        &[
-            "mousemove",
-            "--window",
-            &window,
-            "--sync",
-            "300",
-            "100",
-            "mousedown",
-            "1",
-            "mousemove",
-            "--window",
-            &window,
-            "--sync",
-            "276",
-            "100",
-            "mouseup",
-            "1",
-        ],
-    );
-    let yaw = format!("{:.6}", 24.0 * STEP);
-    let line = viewer.wait_for("the dragged picture", |l| {
-        l.starts_with("picture") && field(l, "yaw") == yaw
-    });
-    assert_eq!(field(&line, "mode"), "pan", "{line}");
-    assert_eq!(field(&line, "size"), "640x360", "{line}");
-    x.run("xdotool", &["windowfocus", "--sync", &window]);
-    x.run("xdotool", &["key", "q"]);
-    let (code, err) = viewer.wait_exit();
-    assert_eq!(code, Some(0), "{err}");
+    // Twenty notches out at once, and one at a time: the view stops at
+    // the same limit either way (each notch past it is refused).
+    std::fs::write(
+        path.join("zoom.txt"),
+        "save open.png\nwheel -20\nsave at_once.png\n",
+    )
+    .unwrap();
+    std::fs::write(
+        path.join("notches.txt"),
+        format!("{}save one_by_one.png\n", "wheel -1\n".repeat(20)),
+    )
+    .unwrap();
+    for script in ["zoom.txt", "notches.txt"] {
+        retrace_ok(
+            &args(
+                &["view", "scene.toml"],
+                &["--script", script, "--refine-spp", "1"],
+            ),
+            path,
+        );
+    }
+    let at_once = png(&path.join("at_once.png"));
+    assert!(differing(&at_once, &png(&path.join("open.png"))) > 0);
+    assert!(differing(&at_once, &png(&path.join("one_by_one.png"))) == 0);
 }
 
 #[test]
-fn the_window_refines_an_idle_picture_and_shows_its_samples_a_pixel() {
-    if !window_tools() {
-        return;
-    }
+fn the_overlay_of_a_refined_picture_shows_what_reuse_traced() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path();
     paper_on_lattice(path, "scene.toml", 0.0, ON_LATTICE_PITCH);
+    std::fs::write(
+        path.join("mask.txt"),
+        "wait\nkey Left\nkey t\nsave pan.png\nwait-converged\nsave converged.png\n",
+    )
+    .unwrap();
     retrace_ok(
+        &args(&["view", "scene.toml"], &["--script", "mask.txt"]),
+        path,
+    );
+    // The pan traced a strip 32 pixels wide: black there, the picture
+    // elsewhere; refined to 16 spp, the overlay shows the same.
+    let pan = png(&path.join("pan.png"));
+    let black = pan.pixels().filter(|p| p.0 == [0, 0, 0]).count();
+    assert!(
+        (32 * 240..320 * 240 / 2).contains(&black),
+        "{black} black pixels"
+    );
+    assert!(differing(&png(&path.join("converged.png")), &pan) == 0);
+}
+
+#[test]
+fn a_scene_with_one_viewport_opens_saying_v_shows_the_camera() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path();
+    paper_on_lattice(path, "paper.toml", 0.0, -9.0);
+    std::fs::write(
+        path.join("one.toml"),
+        "include = \"paper.toml\"\n[[viewport]]\nname = \"only\"\nwidth = 96\nheight = 64\n",
+    )
+    .unwrap();
+    std::fs::write(path.join("wait.txt"), "wait\n").unwrap();
+    let out = retrace_ok(
         &args(
-            &["render", "scene.toml"],
-            &["--spp", "16", "-o", "open16.png"],
+            &["view", "one.toml"],
+            &["--script", "wait.txt", "--refine-spp", "1"],
         ),
         path,
     );
-    let x = Xvfb::start();
-    let mut viewer = Viewer::open(&x, path, "scene.toml", "16");
-    let line = viewer.wait_for("the converged picture", |l| {
-        l.starts_with("picture 1:") && field(l, "mode") == "refine" && field(l, "spp") == "16"
-    });
-    // The title says how many samples a pixel the shown picture has.
-    assert!(line.contains("| 16 spp |"), "{line}");
-    let rungs: Vec<&str> = viewer
-        .seen
-        .iter()
-        .filter(|l| l.starts_with("picture 1:"))
-        .map(|l| field(l, "spp"))
-        .collect();
-    assert_eq!(rungs.first(), Some(&"1"), "{:?}", viewer.seen);
-    let window = x.run("xdotool", &["search", "--sync", "--name", "^retrace view"]);
-    let window = window.lines().next().unwrap().to_string();
+    let said = String::from_utf8_lossy(&out.stderr);
     assert!(
-        differing(
-            &x.screenshot(&window, (320, 240)),
-            &png(&path.join("open16.png"))
-        ) == 0,
-        "the converged window differs from a 16-spp render"
+        said.contains("opens on the scene's viewport only"),
+        "{said}"
     );
-    x.run("xdotool", &["windowfocus", "--sync", &window]);
-    x.run("xdotool", &["key", "q"]);
-    let (code, err) = viewer.wait_exit();
-    assert_eq!(code, Some(0), "{err}");
+    assert!(said.contains("`v` shows the camera's image"), "{said}");
+    assert!(!said.contains("the next"), "{said}");
 }
