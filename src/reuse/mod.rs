@@ -31,8 +31,8 @@ pub mod still;
 
 pub use options::{Options, OstcSettings, Technique, Techniques};
 
-use crate::camera::{Camera, Projection, ViewportPose};
-use crate::render::Frame;
+use crate::camera::{Camera, Projection, RayTable, ViewportPose};
+use crate::render::{Frame, PrimaryRays};
 use crate::sampling::PixelSamples;
 use crate::scene::Scene;
 use crate::shade::{RayCounts, Shader};
@@ -137,6 +137,14 @@ pub trait StorePlan {
     /// Whether this plan's frames equal [`StorePlan::render_full`] bit for
     /// bit.
     fn exact(&self) -> bool;
+
+    /// One ray through the centre of each pixel of the picture a frame of
+    /// this plan shows of `view` (cell (x, y) for pixel (x, y)), whatever
+    /// the samples a pixel: what the arbitrary output variables are cast
+    /// through ([`crate::aov`]).
+    fn centre_rays<'v>(&self, view: &'v View) -> Box<dyn PrimaryRays + 'v> {
+        Box::new(RayTable::new(&view.pose.camera))
+    }
 }
 
 /// The plan of `run`: RSVP's buffer for viewports; for the camera's image
