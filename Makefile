@@ -5,7 +5,8 @@
 # Both install the Debian packages they need first (Embree, libclang for bindgen,
 # Pillow for the test that reads our TGA frames with another decoder, the X
 # libraries `retrace view` loads at run time, and an X server with xdotool and
-# ImageMagick for the window's tests).
+# ImageMagick for the window's tests); `make test` also the OBJ test models
+# and OpenImageIO's tools, which read our OpenEXR frames.
 
 VIEW_PACKAGES := libxkbcommon-x11-0 libx11-xcb1 libxcursor1 libxi6 \
 	xvfb xauth xdotool x11-apps imagemagick
@@ -57,9 +58,13 @@ test: lint test-deps
 	cargo build --lib --no-default-features
 	cargo test --lib --no-default-features
 
-# Debian's OBJ test models (the textured spider) for the test that renders them.
+# Debian's OBJ test models (the textured spider) for the test that renders
+# them; OpenImageIO's iinfo and oiiotool for the test that reads our OpenEXR
+# frames with programs written elsewhere (tests/it/exr.rs).
+TEST_PACKAGES := assimp-testmodels openimageio-tools
+
 test-deps:
-	@$(MAKE) --no-print-directory deps DEBIAN_PACKAGES="$(DEBIAN_PACKAGES) assimp-testmodels"
+	@$(MAKE) --no-print-directory deps DEBIAN_PACKAGES="$(DEBIAN_PACKAGES) $(TEST_PACKAGES)"
 
 
 # The property tests with sixteen times their cases (release build).
@@ -74,7 +79,7 @@ fuzz: deps
 # The whole suite against Embree 4 (Debian 13) in a chroot, with the same
 # packages the tests need here; see .ci/embree4.sh.
 test-embree4:
-	EMBREE4_EXTRA_PACKAGES="$(filter-out libembree-dev libclang-dev pkg-config,$(DEBIAN_PACKAGES)) assimp-testmodels" \
+	EMBREE4_EXTRA_PACKAGES="$(filter-out libembree-dev libclang-dev pkg-config,$(DEBIAN_PACKAGES)) $(TEST_PACKAGES)" \
 	  bash .ci/embree4.sh
 
 # The paper's table with the scaling rows, into out/bench (report.md).

@@ -11,6 +11,7 @@
 #![deny(unsafe_code)]
 
 pub mod accel;
+pub mod aov;
 pub mod camera;
 pub mod chunk;
 pub mod clock;

@@ -190,6 +190,28 @@ impl<P: PrimaryRays + ?Sized> PrimaryRays for Strata<'_, P> {
     }
 }
 
+/// A window of `width` x `height` cells onto `source`: cell (x, y) here
+/// is `source`'s cell (col + x, row + y), and there is no ray outside the
+/// window (a pan's picture on its lattice).
+pub struct Shifted<P> {
+    pub source: P,
+    pub col: i64,
+    pub row: i64,
+    pub width: u32,
+    pub height: u32,
+}
+
+impl<P: PrimaryRays> PrimaryRays for Shifted<P> {
+    fn primary(&self, x: i64, y: i64) -> Option<Ray> {
+        let inside =
+            (0..i64::from(self.width)).contains(&x) && (0..i64::from(self.height)).contains(&y);
+        if !inside {
+            return None;
+        }
+        self.source.primary(self.col + x, self.row + y)
+    }
+}
+
 /// The rays of `group`, one [`PrimaryRays::primary`] call per lane.
 #[inline(always)]
 fn gather_group<P: PrimaryRays + ?Sized>(source: &P, group: SampleGroup) -> (RayPacket, LaneMask) {

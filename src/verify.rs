@@ -8,10 +8,12 @@
 //!
 //! Promises:
 //! - An exact frame ([`Animator::is_exact`]) is compared with a full render
-//!   of the same frame both in linear colour and in the 8-bit bytes
-//!   written; where objects or lights move, also with a full render from a
-//!   scene and accelerator built afresh, which shares nothing the frame
-//!   loop posed.
+//!   of the same frame both in linear colour and in the values written:
+//!   8-bit bytes or, for an OpenEXR frame, its half floats and its
+//!   arbitrary output variables but `traced` (the reuse mask, which a full
+//!   render has all 1); where objects or lights move, also with a full
+//!   render from a scene and accelerator built afresh, which shares
+//!   nothing the frame loop posed.
 //! - A snapped pan's output is measured against the reference of the view
 //!   it shows and, besides, against the keyed camera's; any other output
 //!   against the keyed view's.
@@ -20,6 +22,7 @@ use std::collections::HashMap;
 use std::time::Instant;
 
 use crate::accel::AccelError;
+use crate::aov::{exr_picture, Aovs, TRACED_CHANNEL};
 use crate::clock;
 use crate::frame_loop::{Animator, FrameCheck, ViewOutput};
 use crate::metrics::{
@@ -37,6 +40,8 @@ pub enum VerifyError {
     Size(#[from] SizeMismatch),
     #[error("building the afresh reference's accelerator: {0}")]
     Accel(#[from] AccelError),
+    #[error(transparent)]
+    Exr(#[from] crate::output::ExrMismatch),
 }
 
 /// A picture as written against one made independently of it (a
@@ -48,6 +53,17 @@ pub fn written_differences(
     truth: &image::RgbImage,
 ) -> Result<u64, VerifyError> {
     Ok(count_byte_differences(picture, truth)?)
+}
+
+/// The pixels where `frame`'s OpenEXR picture differs from `truth`'s in
+/// any channel but `traced`.
+fn exr_differences(
+    (frame, aovs): (&Frame, Option<&Aovs>),
+    (truth, truth_aovs): (&Frame, Option<&Aovs>),
+) -> Result<u64, VerifyError> {
+    let written = exr_picture(frame, aovs);
+    let expected = exr_picture(truth, truth_aovs);
+    Ok(written.differing_pixels(&expected, &[TRACED_CHANNEL])?)
 }
 
 /// What to check of a view.
@@ -64,6 +80,10 @@ pub struct Checks {
     /// Measure the output and the full render at the run's samples
     /// against a converged reference.
     pub reference: bool,
+    /// The frame is written as OpenEXR: what is written is its half
+    /// floats and its AOVs, compared with the full render's in place of
+    /// 8-bit bytes.
+    pub exr: bool,
 }
 
 /// One view of one frame, checked.
@@ -71,11 +91,12 @@ pub struct Checks {
 pub struct ViewCheck {
     /// With [`Checks::full`]: what the frame was compared with (a full
     /// render where frames are exact, the view's own rays otherwise) and
-    /// how long it took.
+    /// how long it took (its AOVs' too, where the frame has some).
     pub full: Option<(Frame, f64)>,
     /// With [`Checks::full`]: pixels differing from it, in linear colour
     /// (the larger count of the two full renders where the scene moves)
-    /// and in the 8-bit image written.
+    /// and in what is written (the 8-bit image, or with [`Checks::exr`]
+    /// the OpenEXR picture, the larger count where the scene moves).
     pub differing: Option<(u64, u64)>,
     /// With [`Checks::own_rays`]: the error against the view's own rays,
     /// and whether every pixel equals them.
@@ -184,12 +205,29 @@ impl Verifier {
         if checks.full {
             let start = Instant::now();
             let (full, _) = animator.render_reference(frame, index);
+            let aovs = output.aovs.as_ref();
+            let full_aovs = aovs.map(|a| animator.render_aovs(frame, index, a.set));
             let full_ms = clock::ms(start.elapsed());
-            let (mut linear, written) = output_differences(image, &output.image, &full)?;
+            let (mut linear, mut written) = if checks.exr {
+                let written = exr_differences((image, aovs), (&full, full_aovs.as_ref()))?;
+                (count_differences(image, &full)?, written)
+            } else {
+                output_differences(image, &output.image, &full)?
+            };
             let moves = animator.animation().is_some_and(|a| a.moves_scene());
             if checks.afresh && exact && moves {
-                let (afresh, _) = animator.render_full_afresh(frame, index)?;
+                let set = aovs
+                    .filter(|_| checks.exr)
+                    .map(|a| a.set)
+                    .unwrap_or_default();
+                let (afresh, _, afresh_aovs) =
+                    animator.render_full_afresh_with_aovs(frame, index, set)?;
                 linear = linear.max(count_differences(image, &afresh)?);
+                if checks.exr {
+                    let differing =
+                        exr_differences((image, aovs), (&afresh, afresh_aovs.as_ref()))?;
+                    written = written.max(differing);
+                }
             }
             check.differing = Some((linear, written));
             check.full = Some((full, full_ms));
@@ -281,6 +319,7 @@ mod tests {
             afresh: true,
             own_rays: true,
             reference: false,
+            exr: false,
         };
         let mut verifier = Verifier::new(scene.samples);
         let check = verifier
@@ -305,5 +344,54 @@ mod tests {
             .check_view(&mut animator, 0, 0, &output, checks)
             .unwrap();
         assert_eq!(check.differing, Some((0, 1)));
+    }
+
+    #[test]
+    fn an_exr_frame_is_compared_in_its_half_floats_and_aovs_but_traced() {
+        let scene = paper_scene(&SceneOverrides {
+            width: Some(64),
+            height: Some(48),
+            ..SceneOverrides::default()
+        })
+        .unwrap();
+        let mut accel = Accelerator::build(BackendKind::Embree, &scene.objects).unwrap();
+        let options = Options {
+            aovs: crate::aov::AovSet::parse("depth,normal,albedo,object,traced").unwrap(),
+            ..Options::new(Techniques::AUTO, 0..1)
+        };
+        let mut animator = Animator::new(&scene, &mut accel, options);
+        let mut output = animator.render(0).remove(0);
+        let checks = Checks {
+            full: true,
+            exr: true,
+            ..Checks::default()
+        };
+        let mut verifier = Verifier::new(scene.samples);
+        let mut check = |output: &ViewOutput| {
+            verifier
+                .check_view(&mut animator, 0, 0, output, checks)
+                .unwrap()
+                .differing
+        };
+        assert_eq!(check(&output), Some((0, 0)));
+        // The 8-bit picture is not what an EXR frame writes.
+        output.image.get_pixel_mut(7, 3).0[1] ^= 0x10;
+        assert_eq!(check(&output), Some((0, 0)));
+        // Nor is a change within half precision.
+        let kept = output.frame.as_ref().unwrap().pixels[5];
+        output.frame.as_mut().unwrap().pixels[5] = kept * (1.0 + 1e-6);
+        assert_eq!(check(&output), Some((1, 0)));
+        output.frame.as_mut().unwrap().pixels[5] = kept * 1.01;
+        assert_eq!(check(&output), Some((1, 1)));
+        output.frame.as_mut().unwrap().pixels[5] = kept;
+        // Every AOV but the reuse mask is compared.
+        let aovs = output.aovs.as_mut().unwrap();
+        aovs.traced[9] = !aovs.traced[9];
+        assert_eq!(check(&output), Some((0, 0)));
+        let hit = output.aovs.as_mut().unwrap().first_hits[40 * 64 + 10]
+            .as_mut()
+            .expect("the ground at the bottom of the picture");
+        hit.distance *= 1.01;
+        assert_eq!(check(&output), Some((0, 1)));
     }
 }

@@ -12,13 +12,13 @@ use retrace::clock;
 use retrace::frame_loop::{
     stats_csv, stats_json, stats_rows, Animator, FrameStats, Options, Techniques,
 };
-use retrace::output::{save_image, PendingFile};
+use retrace::output::{save_image, FrameFormat, PendingFile};
 
 use super::verify::RunCheck;
 use super::{
     check_writable, ensure_parent, folder_of, frame_pattern, idle_flag, load, on_interrupt,
-    parse_frame_range, scene_name, BackendArg, FramePattern, OstcArgs, Progress, RsvpKnobArgs,
-    SceneArgs,
+    parse_frame_range, read_frame_back, save_view, scene_name, AovArgs, BackendArg, FramePattern,
+    OstcArgs, Progress, RsvpKnobArgs, SceneArgs,
 };
 
 #[derive(Args)]
@@ -30,11 +30,13 @@ pub(crate) struct AnimateArgs {
     /// Frames to render: A-B (inclusive) or A; default: the whole animation.
     #[arg(long, allow_hyphen_values = true, value_parser = super::frame_range_text)]
     frames: Option<String>,
-    /// Frame files (.png or .tga); a run of # becomes the zero-padded frame
-    /// number. A scene with RSVP viewports writes one file per viewport,
+    /// Frame files (.png, .tga, or .exr: linear half floats, with --aov's
+    /// layers); a run of # becomes the zero-padded frame number. A scene with RSVP viewports writes one file per viewport,
     /// its name added before the extension: out/frame_0007_zoomed.png.
     #[arg(short, long, default_value = "out/frame_####.png")]
     output: String,
+    #[command(flatten)]
+    aov: AovArgs,
     /// RSVP: also write the camera's sample buffer per frame (e.g.
     /// out/buffer_####.png), never-traced samples black (paper, figure 5a).
     #[arg(long)]
@@ -130,9 +132,9 @@ impl GifWriter {
     /// A frame written by an earlier run (`--skip-existing`), read back so
     /// that the GIF still shows every frame.
     pub(crate) fn add_file(&mut self, path: &Path) -> Result<()> {
-        let image = image::open(path)
+        let image = read_frame_back(path)
             .with_context(|| format!("cannot read {} back for the GIF", path.display()))?;
-        self.add(&image.to_rgb8())
+        self.add(&image)
     }
 
     pub(crate) fn finish(mut self) -> Result<()> {
@@ -277,6 +279,8 @@ fn check_outputs(args: &AnimateArgs, stats: Option<&Path>) -> Result<()> {
 
 pub(crate) fn animate(args: AnimateArgs) -> Result<()> {
     let mut files = OutputFiles::parse(&args)?;
+    let exr = files.frames.format() == FrameFormat::Exr;
+    let aovs = args.aov.set(&args.output, files.frames.format())?;
     let scene = load(&args.scene)?;
     if scene.animation.is_none() {
         eprintln!(
@@ -295,11 +299,12 @@ pub(crate) fn animate(args: AnimateArgs) -> Result<()> {
     let options = Options {
         techniques: args.mode,
         frames: *range.start()..*range.end() + 1,
-        linear: args.verify,
+        linear: args.verify || exr,
         fractional_pan: args.fractional_pan.unwrap_or_default(),
         ostc: args.ostc.settings(),
         rsvp: args.rsvp.knobs(scene.samples)?,
         traced_images: files.traced.is_some(),
+        aovs,
     };
     refuse_idle_flags(&args, &scene, &options, files.store.is_some())?;
     check_outputs(&args, stats_path.as_deref())?;
@@ -322,6 +327,7 @@ pub(crate) fn animate(args: AnimateArgs) -> Result<()> {
         1,
     );
     let mut run_check = RunCheck::new(scene.samples, (*range.start(), *range.end()), region_size);
+    run_check.exr = exr;
     let rendered = render_frames(
         &args,
         &mut animator,
@@ -369,7 +375,8 @@ impl OutputFiles {
     /// The file patterns the flags name, checked before any work (the GIF
     /// is created once the run is known to go ahead).
     fn parse(args: &AnimateArgs) -> Result<OutputFiles> {
-        let pattern = |flag: &Option<String>| flag.as_deref().map(FramePattern::parse).transpose();
+        let pattern =
+            |flag: &Option<String>| flag.as_deref().map(FramePattern::parse_picture).transpose();
         let extension = |path: &Path| path.extension().map(|e| e.to_string_lossy().to_lowercase());
         if let Some(path) = &args.stats {
             if !matches!(extension(path).as_deref(), Some("csv" | "json")) {
@@ -466,7 +473,7 @@ fn render_frames(
                 run_check.check_view(animator, frame, index, &mut output)?;
             }
             let write_start = Instant::now();
-            save_image(&files.frames.path(frame, &output.name), &output.image)?;
+            save_view(&files.frames.path(frame, &output.name), &output)?;
             if let (Some(traced_files), Some(traced)) = (&files.traced, &output.traced_image) {
                 save_image(&traced_files.path(frame, &output.name), traced)?;
             }

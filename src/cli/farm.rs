@@ -17,6 +17,7 @@ use retrace::scene::SceneOverrides;
 use super::animate::GifWriter;
 use super::{folder_of, frame_pattern, make_folder, parse_frame_range, FramePattern};
 use retrace::frame_loop::{stats_csv, stats_json};
+use retrace::output::{frame_format_for, FrameFormat};
 
 /// The batch scripts, carried in the binary so that an installed retrace
 /// submits the same scripts as the repository's `farm/slurm/`.
@@ -519,8 +520,16 @@ fn mp4(
     let path = dir.join("animation.mp4");
     let pending = retrace::output::PendingFile::beside(&path);
     let temp = pending.temp().with_extension("mp4");
+    // OpenEXR frames hold linear light: ffmpeg encodes it to sRGB, as the
+    // PNG frames are.
+    let linear = frame_format_for(Path::new(&input))? == FrameFormat::Exr;
     let status = Command::new("ffmpeg")
         .args(["-loglevel", "error", "-y", "-framerate", &fps.to_string()])
+        .args(if linear {
+            &["-apply_trc", "iec61966_2_1"][..]
+        } else {
+            &[]
+        })
         .args(["-start_number", &range.start().to_string(), "-i", &input])
         .args(["-frames:v", &(range.end() - range.start() + 1).to_string()])
         // H.264 in yuv420p (what players expect) needs even sides.

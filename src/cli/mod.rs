@@ -21,7 +21,10 @@ use anyhow::{Context, Result};
 use clap::Args;
 
 use retrace::accel::{Accelerator, BackendKind};
+use retrace::aov::{exr_picture, Aov, AovSet};
 use retrace::camera::Projection;
+use retrace::frame_loop::ViewOutput;
+use retrace::output::{frame_format_for, read_exr, save_exr, save_image, FrameFormat};
 use retrace::sampling::PixelSamples;
 use retrace::scene::{load_scene, paper_scene, Scene, SceneOverrides};
 use retrace::texture::TextureFilter;
@@ -421,17 +424,34 @@ pub(crate) struct FramePattern {
 }
 
 impl FramePattern {
-    /// `pattern`, checked: one run of `#` in the file name, and an image
-    /// format the extension names.
+    /// `pattern` of rendered frames, checked: one run of `#` in the file
+    /// name, and a frame format the extension names (PNG, TGA or EXR).
     pub(crate) fn parse(pattern: &str) -> Result<FramePattern> {
+        let parsed = Self::split(pattern)?;
+        frame_format_for(&parsed.path(0, ""))?;
+        Ok(parsed)
+    }
+
+    /// `pattern` of 8-bit pictures (PNG or TGA), checked as
+    /// [`FramePattern::parse`] checks frames.
+    pub(crate) fn parse_picture(pattern: &str) -> Result<FramePattern> {
+        let parsed = Self::split(pattern)?;
+        retrace::output::format_for(&parsed.path(0, ""))?;
+        Ok(parsed)
+    }
+
+    fn split(pattern: &str) -> Result<FramePattern> {
         let (prefix, digits, suffix) = frame_pattern(pattern)?;
-        let pattern = FramePattern {
+        Ok(FramePattern {
             prefix,
             digits,
             suffix,
-        };
-        retrace::output::format_for(&pattern.path(0, ""))?;
-        Ok(pattern)
+        })
+    }
+
+    /// What the files are written as.
+    pub(crate) fn format(&self) -> FrameFormat {
+        frame_format_for(&self.path(0, "")).expect("checked when parsed")
     }
 
     /// The file of view `view` (empty: the camera's image) at `frame`.
@@ -446,6 +466,70 @@ impl FramePattern {
         };
         PathBuf::from(format!("{prefix}{frame:0digits$}{stem}_{view}{ext}"))
     }
+}
+
+/// `--aov`, which `render` and `animate` share.
+#[derive(Args)]
+struct AovArgs {
+    /// Arbitrary output variables, written as layers of an OpenEXR frame
+    /// (-o NAME.exr): a comma list of depth, normal, albedo, object,
+    /// traced (see the user's guide for what each holds).
+    #[arg(long, value_name = "LIST", value_parser = AovSet::parse)]
+    aov: Option<AovSet>,
+}
+
+impl AovArgs {
+    /// The AOVs asked for; refused unless the frames are OpenEXR files.
+    fn set(&self, output: &str, format: FrameFormat) -> Result<AovSet> {
+        let Some(set) = self.aov else {
+            return Ok(AovSet::NONE);
+        };
+        if format != FrameFormat::Exr {
+            let names: Vec<&str> = Aov::ALL
+                .into_iter()
+                .filter(|&a| set.has(a))
+                .map(Aov::name)
+                .collect();
+            anyhow::bail!(
+                "--aov {}: AOVs are layers of an OpenEXR frame, and -o {output} is not one: \
+                 name the output .exr (e.g. -o out/frame_####.exr)",
+                names.join(",")
+            );
+        }
+        Ok(set)
+    }
+}
+
+/// Writes a rendered view to `path` in the format its extension names:
+/// the 8-bit picture, or the linear colours (which the animator must have
+/// been asked for) with the view's AOVs as OpenEXR.
+fn save_view(path: &Path, view: &ViewOutput) -> Result<()> {
+    match frame_format_for(path)? {
+        FrameFormat::Picture(_) => save_image(path, &view.image)?,
+        FrameFormat::Exr => {
+            let colours = view
+                .frame
+                .as_ref()
+                .expect("OpenEXR frames are rendered in linear colour");
+            save_exr(path, &exr_picture(colours, view.aovs.as_ref()))?;
+        }
+    }
+    Ok(())
+}
+
+/// A frame file written earlier (`--skip-existing`), read back as the
+/// 8-bit picture a run shows (an OpenEXR frame's colours encoded as its
+/// PNG would be, from its half floats).
+fn read_frame_back(path: &Path) -> Result<image::RgbImage> {
+    if frame_format_for(path)? == FrameFormat::Exr {
+        let picture = read_exr(path)?;
+        let colours = retrace::aov::colours_of(&picture)
+            .with_context(|| format!("{}: no R, G and B channels", path.display()))?;
+        return Ok(colours.to_rgb8());
+    }
+    Ok(image::open(path)
+        .with_context(|| format!("cannot read {}", path.display()))?
+        .to_rgb8())
 }
 
 /// Splits a frame pattern around its run of `#`.

@@ -6,11 +6,17 @@ use std::time::Instant;
 use anyhow::Result;
 use clap::Args;
 
-use retrace::output::save_image;
-use retrace::render::render_frame;
+use retrace::aov::{exr_picture, Aovs};
+use retrace::camera::RayTable;
+use retrace::output::{frame_format_for, save_exr, save_image, FrameFormat};
+use retrace::render::{render_frame, PrimaryRays};
+use retrace::reuse::rsvp::ViewportRays;
+use retrace::sampling::PixelSamples;
+use retrace::shade::Shader;
 
 use super::{
-    check_parent, check_writable, ensure_parent, folder_of, load, scene_name, BackendArg, SceneArgs,
+    check_parent, check_writable, ensure_parent, folder_of, load, scene_name, AovArgs, BackendArg,
+    SceneArgs,
 };
 
 #[derive(Args)]
@@ -19,9 +25,12 @@ pub(crate) struct RenderArgs {
     scene: SceneArgs,
     #[command(flatten)]
     backend: BackendArg,
-    /// Output image (.png or .tga).
+    /// Output image (.png, .tga, or .exr: linear half floats, with
+    /// --aov's layers).
     #[arg(short, long, default_value = "out/render.png")]
     output: PathBuf,
+    #[command(flatten)]
+    aov: AovArgs,
     /// Render the scene's RSVP viewport of this name (at frame 0, through
     /// its own rays) instead of the camera's image.
     #[arg(long)]
@@ -35,7 +44,8 @@ pub(crate) struct RenderArgs {
 pub(crate) fn render(mut args: RenderArgs) -> Result<()> {
     // Check the output name, and that its folder takes files, before any
     // work: a typo or a read-only folder should not cost a render.
-    retrace::output::format_for(&args.output)?;
+    let format = frame_format_for(&args.output)?;
+    let aov_set = args.aov.set(&args.output.display().to_string(), format)?;
     check_parent(&args.output)?;
     check_writable(&folder_of(&args.output))?;
     if args.reference {
@@ -91,9 +101,31 @@ pub(crate) fn render(mut args: RenderArgs) -> Result<()> {
             retrace::reuse::rsvp::render_direct(&retrace::shade::Shader::new(&scene, &accel), pose)
         }
     };
+    // A still render traces every pixel: its `traced` mask is all 1.
+    let aovs = (!aov_set.is_empty()).then(|| {
+        let shader = Shader::new(&scene, &accel);
+        let centre_rays: Box<dyn PrimaryRays> = match &viewport {
+            None => Box::new(RayTable::new(&scene.camera)),
+            Some(pose) => Box::new(ViewportRays {
+                pose,
+                samples: PixelSamples::ONE,
+            }),
+        };
+        let pixels = frame.width as usize * frame.height as usize;
+        Aovs::trace(
+            &shader,
+            &*centre_rays,
+            (frame.width, frame.height),
+            aov_set,
+            || vec![true; pixels],
+        )
+    });
     let elapsed = start.elapsed();
     ensure_parent(&args.output)?;
-    save_image(&args.output, &frame.to_rgb8())?;
+    match format {
+        FrameFormat::Picture(_) => save_image(&args.output, &frame.to_rgb8())?,
+        FrameFormat::Exr => save_exr(&args.output, &exr_picture(&frame, aovs.as_ref()))?,
+    }
     let seconds = elapsed.as_secs_f64();
     let spp = scene.samples.count();
     say!(

@@ -29,6 +29,9 @@ pub(super) struct RunCheck {
     /// The store's samples re-traced: (frames, samples compared, samples
     /// differing).
     store: (u32, u64, u64),
+    /// The frames are written as OpenEXR: their half floats and AOVs are
+    /// what is compared as written.
+    pub(super) exr: bool,
 }
 
 impl RunCheck {
@@ -46,6 +49,7 @@ impl RunCheck {
             failed_frames: Vec::new(),
             references: Vec::new(),
             store: (0, 0, 0),
+            exr: false,
         }
     }
 
@@ -68,6 +72,7 @@ impl RunCheck {
             afresh: true,
             own_rays: true,
             reference: sampled && approximate,
+            exr: self.exr,
         };
         let check = self
             .verifier

@@ -38,6 +38,7 @@ use std::sync::atomic::AtomicBool;
 use glam::Affine3A;
 
 use crate::accel::{Accelerator, Intersector};
+use crate::aov::{AovSet, Aovs};
 use crate::camera::{Camera, ViewTransform, ViewportPose};
 use crate::clock::Stopwatch;
 use crate::geometry::Placement;
@@ -64,6 +65,9 @@ pub struct ViewOutput {
     /// when [`Options::traced_images`] asks for it (a full render: all
     /// black).
     pub traced_image: Option<image::RgbImage>,
+    /// The arbitrary output variables [`Options::aovs`] asks for (None:
+    /// none asked for).
+    pub aovs: Option<Aovs>,
 }
 
 /// The samples kept from earlier frames and what goes with them.
@@ -276,6 +280,19 @@ impl<'a> Animator<'a> {
         frame: u32,
         index: usize,
     ) -> Result<(Frame, RayCounts), crate::accel::AccelError> {
+        let (image, rays, _) = self.render_full_afresh_with_aovs(frame, index, AovSet::NONE)?;
+        Ok((image, rays))
+    }
+
+    /// As [`Animator::render_full_afresh`], with the arbitrary output
+    /// variables `set` as [`Animator::render_aovs`] gives them (None when
+    /// `set` is empty), from the same scene and accelerator built afresh.
+    pub fn render_full_afresh_with_aovs(
+        &self,
+        frame: u32,
+        index: usize,
+        set: AovSet,
+    ) -> Result<(Frame, RayCounts, Option<Aovs>), crate::accel::AccelError> {
         let mut scene = self.base.clone();
         if let Some(animation) = self.animation() {
             animation.pose(&mut scene.objects, &mut scene.lights, frame);
@@ -283,7 +300,19 @@ impl<'a> Animator<'a> {
         let accel = Accelerator::build(self.accel.kind(), &scene.objects)?;
         let view = self.views(frame).swap_remove(index);
         let shader = Shader::new(&scene, &accel);
-        Ok(self.plan.render_full(&shader, &view, scene.samples))
+        let (image, rays) = self.plan.render_full(&shader, &view, scene.samples);
+        let aovs = (!set.is_empty()).then(|| full_aovs(&shader, self.plan.as_ref(), &view, set));
+        Ok((image, rays, aovs))
+    }
+
+    /// View `index` of `frame`'s arbitrary output variables `set` as its
+    /// full render ([`Animator::render_full`]) writes them: `traced` is 1
+    /// everywhere. A reused frame's equal them but for `traced`.
+    pub fn render_aovs(&mut self, frame: u32, index: usize, set: AovSet) -> Aovs {
+        self.pose(frame);
+        let view = self.views(frame).swap_remove(index);
+        let shader = Shader::new(&self.scene, &*self.accel);
+        full_aovs(&shader, self.plan.as_ref(), &view, set)
     }
 
     /// View `index` of `frame` through its own, unsnapped rays at
@@ -467,7 +496,19 @@ impl<'a> Animator<'a> {
         };
         let mode = kept.store.mode(kept.ostc.is_some());
         let mut outputs = Vec::with_capacity(views.len());
-        for (view, made) in views.into_iter().zip(frames) {
+        for (view, mut made) in views.into_iter().zip(frames) {
+            let aovs = (!self.options.aovs.is_empty()).then(|| {
+                let watch = Stopwatch::start();
+                let shader = Shader::new(&self.scene, &*self.accel);
+                let rays = self.plan.centre_rays(&view);
+                let store = kept.store.as_ref();
+                let index = outputs.len();
+                let aovs = Aovs::trace(&shader, &*rays, size(&view), self.options.aovs, || {
+                    traced_mask(store, index, &view.pose)
+                });
+                made.work.assembly_ms += watch.ms();
+                aovs
+            });
             let stats = FrameStats {
                 frame,
                 view: view.name.clone(),
@@ -489,6 +530,7 @@ impl<'a> Animator<'a> {
                 image: made.image,
                 stats,
                 traced_image,
+                aovs,
             });
         }
         Some(outputs)
@@ -520,6 +562,10 @@ impl<'a> Animator<'a> {
             }
             let trace_ms = watch.ms();
             let rgb = image.to_rgb8();
+            let aovs = (!self.options.aovs.is_empty()).then(|| {
+                let shader = Shader::new(&self.scene, &*self.accel);
+                full_aovs(&shader, self.plan.as_ref(), &view, self.options.aovs)
+            });
             let stats = FrameStats {
                 frame,
                 view: view.name.clone(),
@@ -545,10 +591,39 @@ impl<'a> Animator<'a> {
                 image: rgb,
                 stats,
                 traced_image,
+                aovs,
             });
         }
         Some(outputs)
     }
+}
+
+/// The AOVs `set` of `view` as a full render of `plan` writes them: every
+/// pixel traced.
+fn full_aovs(shader: &Shader, plan: &dyn StorePlan, view: &View, set: AovSet) -> Aovs {
+    let rays = plan.centre_rays(view);
+    let (width, height) = size(view);
+    Aovs::trace(shader, &*rays, (width, height), set, || {
+        vec![true; width as usize * height as usize]
+    })
+}
+
+/// Which pixels of view `index` (`pose`) the store's last render traced:
+/// those its traced picture ([`SampleStore::paint_traced`]) paints black
+/// on a white one.
+fn traced_mask(store: &dyn SampleStore, index: usize, pose: &ViewportPose) -> Vec<bool> {
+    let (width, height) = (pose.camera.width, pose.camera.height);
+    let white = image::RgbImage::from_pixel(width, height, image::Rgb([255; 3]));
+    store
+        .paint_traced(index, pose, &white)
+        .pixels()
+        .map(|p| p.0 == [0; 3])
+        .collect()
+}
+
+/// A view's width and height in pixels.
+fn size(view: &View) -> (u32, u32) {
+    (view.pose.camera.width, view.pose.camera.height)
 }
 
 /// A view's pixel count.

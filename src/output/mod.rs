@@ -1,5 +1,6 @@
-//! Writing images: the format comes from the extension (PNG or TGA), and the
-//! file appears only when complete (written to a temporary name beside it,
+//! Writing images: the format comes from the extension (PNG or TGA; a
+//! frame may be an OpenEXR file too, [`exr`]), and the file appears only
+//! when complete (written to a temporary name beside it,
 //! then renamed), so an interrupted run leaves no half-written frame.
 //!
 //! TGA files are run-length encoded with every packet inside one row, as
@@ -11,9 +12,11 @@
 //! into the same folder ([`take_removed_temporaries`] says which).
 
 mod csv;
+pub mod exr;
 mod stale;
 
 pub use csv::{csv_text, CsvError, Floats};
+pub use exr::{read_exr, save_exr, ExrChannel, ExrMismatch, ExrPicture, ExrSamples};
 pub use stale::take_removed_temporaries;
 
 use std::path::{Path, PathBuf};
@@ -26,8 +29,11 @@ use image::ImageFormat;
 pub enum OutputError {
     #[error(transparent)]
     Csv(#[from] CsvError),
-    #[error("{path}: unsupported image format (use .png or .tga)")]
-    UnsupportedFormat { path: PathBuf },
+    #[error("{path}: unsupported image format (use {allowed})")]
+    UnsupportedFormat {
+        path: PathBuf,
+        allowed: &'static str,
+    },
     #[error("{path}: cannot write: {source}")]
     Write {
         path: PathBuf,
@@ -40,6 +46,8 @@ pub enum OutputError {
         width: u32,
         height: u32,
     },
+    #[error("{path}: cannot encode or decode OpenEXR: {message}")]
+    Exr { path: PathBuf, message: String },
     #[error("{path}: cannot encode image: {source}")]
     Encode {
         path: PathBuf,
@@ -48,14 +56,46 @@ pub enum OutputError {
     },
 }
 
-/// The image format for `path`, from its extension.
+/// The image format for an 8-bit picture at `path`, from its extension.
 pub fn format_for(path: &Path) -> Result<ImageFormat, OutputError> {
     match ImageFormat::from_path(path) {
         Ok(format @ (ImageFormat::Png | ImageFormat::Tga)) => Ok(format),
         _ => Err(OutputError::UnsupportedFormat {
             path: path.to_path_buf(),
+            allowed: if is_exr(path) {
+                ".png or .tga: this picture is 8-bit; only rendered frames are written as .exr"
+            } else {
+                ".png or .tga"
+            },
         }),
     }
+}
+
+/// What a rendered frame is written as.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FrameFormat {
+    /// 8-bit sRGB.
+    Picture(ImageFormat),
+    /// Linear half floats, with the arbitrary output variables asked for.
+    Exr,
+}
+
+/// The format of a rendered frame at `path`, from its extension.
+pub fn frame_format_for(path: &Path) -> Result<FrameFormat, OutputError> {
+    if is_exr(path) {
+        return Ok(FrameFormat::Exr);
+    }
+    format_for(path)
+        .map(FrameFormat::Picture)
+        .map_err(|_| OutputError::UnsupportedFormat {
+            path: path.to_path_buf(),
+            allowed: ".png, .tga or .exr",
+        })
+}
+
+fn is_exr(path: &Path) -> bool {
+    path.extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("exr"))
 }
 
 /// The temporary files being written now, so that an interrupt can remove

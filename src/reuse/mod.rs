@@ -31,8 +31,8 @@ pub mod still;
 
 pub use options::{Options, OstcSettings, Technique, Techniques};
 
-use crate::camera::{Camera, Projection, ViewportPose};
-use crate::render::Frame;
+use crate::camera::{Camera, Projection, RayTable, ViewportPose};
+use crate::render::{Frame, PrimaryRays};
 use crate::sampling::PixelSamples;
 use crate::scene::Scene;
 use crate::shade::{RayCounts, Shader};
@@ -141,6 +141,14 @@ pub trait StorePlan {
     /// About the most bytes the store of `views` will hold over `run`,
     /// known before it is made.
     fn store_bytes(&self, run: &Run, views: &[View]) -> f64;
+
+    /// One ray through the centre of each pixel of the picture a frame of
+    /// this plan shows of `view` (cell (x, y) for pixel (x, y)), whatever
+    /// the samples a pixel: what the arbitrary output variables are cast
+    /// through ([`crate::aov`]).
+    fn centre_rays<'v>(&self, view: &'v View) -> Box<dyn PrimaryRays + 'v> {
+        Box::new(RayTable::new(&view.pose.camera))
+    }
 }
 
 /// The bytes of strata a camera store keeps for OSTC (which re-traces

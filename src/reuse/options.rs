@@ -5,6 +5,7 @@ use super::ostc::DEFAULT_VOXELS;
 use super::pan::FractionalPan;
 use super::regions::RegionGrid;
 use super::rsvp::RsvpKnobs;
+use crate::aov::AovSet;
 
 /// One reuse technique.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -127,6 +128,9 @@ pub struct Options {
     /// Whether each view also comes with its picture painted black where
     /// the frame traced samples (the paper's figure 4).
     pub traced_images: bool,
+    /// The arbitrary output variables each view comes with (none: no work
+    /// at all for them).
+    pub aovs: AovSet,
 }
 
 impl Options {
@@ -141,6 +145,7 @@ impl Options {
             ostc: OstcSettings::default(),
             rsvp: RsvpKnobs::default(),
             traced_images: false,
+            aovs: AovSet::NONE,
         }
     }
 }

@@ -7,6 +7,7 @@
 //! repeats (the reuse algorithms) always trace the same groups of samples.
 
 mod cones;
+mod first_hit;
 mod lanes;
 
 use glam::{Affine3A, Mat3A, Vec3};
@@ -19,6 +20,8 @@ use crate::geometry::{
 use crate::ray::{lanes, offset_origin, Hit, LaneMask, Ray, RayPacket, PACKET_WIDTH};
 use crate::scene::{Material, Scene};
 use crate::texture::{cone_level_of_detail, Texture};
+pub use first_hit::FirstHit;
+
 use cones::{reflected_spread, refracted_spread, sample_spread, RayCones};
 use lanes::{lane_flags, lanes_where, AnalyticHits, HitLanes, Lanes, RayColumns, Vec3Lanes};
 

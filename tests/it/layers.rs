@@ -18,6 +18,7 @@ const LAYERS: &[&[&str]] = &[
     &["accel"],
     &["shade"],
     &["render"],
+    &["aov"],
     &["metrics"],
     &["reuse"],
     &["frame_loop"],

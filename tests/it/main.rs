@@ -11,6 +11,7 @@ mod cli;
 mod cli_limits;
 mod cli_messages;
 mod docs;
+mod exr;
 mod extremes;
 mod farm;
 mod fuzz;

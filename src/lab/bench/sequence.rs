@@ -481,6 +481,7 @@ fn check_sequence(
                 afresh: false,
                 own_rays: measure.error,
                 reference: referenced,
+                exr: false,
             };
             // A view and its own rays are one size: a bug otherwise.
             let view = verifier

@@ -11,8 +11,8 @@
 use std::collections::HashMap;
 
 use super::{EqualAngleLattice, FractionalPan, PanStore};
-use crate::camera::{Camera, Projection};
-use crate::render::Frame;
+use crate::camera::{Camera, Projection, RayTable};
+use crate::render::{Frame, PrimaryRays, Shifted};
 use crate::reuse::lattice_buffer::render_window;
 use crate::reuse::{FullReason, Idle, Run, SampleStore, Serve, StorePlan, View};
 use crate::sampling::PixelSamples;
@@ -140,6 +140,24 @@ impl StorePlan for PanPlan {
                 i64::from(camera.height),
             ))
             + crate::reuse::strata_bytes(run, pixels)
+    }
+
+    /// A snapped pan shows the lattice's window; a resampled one, the
+    /// camera's own view.
+    fn centre_rays<'v>(&self, view: &'v View) -> Box<dyn PrimaryRays + 'v> {
+        let camera = &view.pose.camera;
+        if !self.exact() {
+            return Box::new(RayTable::new(camera));
+        }
+        let lattice = EqualAngleLattice::for_camera(camera);
+        let window = lattice.window(camera);
+        Box::new(Shifted {
+            source: lattice,
+            col: window.col,
+            row: window.row,
+            width: window.width,
+            height: window.height,
+        })
     }
 }
 

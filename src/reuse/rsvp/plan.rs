@@ -2,8 +2,8 @@
 //! sample buffer around the eye, which follows the camera's pans and zooms
 //! by itself.
 
-use super::{render_direct_sampled, RsvpStore, SampleLattice};
-use crate::render::Frame;
+use super::{render_direct_sampled, RsvpStore, SampleLattice, ViewportRays};
+use crate::render::{Frame, PrimaryRays};
 use crate::reuse::{Run, SampleStore, Serve, StorePlan, View};
 use crate::sampling::PixelSamples;
 use crate::shade::{RayCounts, Shader};
@@ -55,6 +55,14 @@ impl StorePlan for RsvpPlan {
         let per_pixel =
             f64::from(run.scene.samples.count()) * run.options.rsvp.samples_per_pixel() * 4.0;
         pixels * per_pixel * RSVP_BYTES_PER_SAMPLE
+    }
+
+    /// A viewport's own rays, as its direct render traces them.
+    fn centre_rays<'v>(&self, view: &'v View) -> Box<dyn PrimaryRays + 'v> {
+        Box::new(ViewportRays {
+            pose: &view.pose,
+            samples: PixelSamples::ONE,
+        })
     }
 }
 
