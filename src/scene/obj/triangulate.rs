@@ -279,7 +279,7 @@ fn is_convex(flat: &[DVec2]) -> bool {
         let incoming = corners[i] - corners[(i + n - 1) % n];
         let outgoing = corners[(i + 1) % n] - corners[i];
         let turn = incoming.perp_dot(outgoing).atan2(incoming.dot(outgoing));
-        if turn < -STRAIGHT || turn > std::f64::consts::PI - STRAIGHT {
+        if !(-STRAIGHT..=std::f64::consts::PI - STRAIGHT).contains(&turn) {
             return false;
         }
         total += turn;
