@@ -12,13 +12,13 @@ use retrace::clock;
 use retrace::frame_loop::{
     stats_csv, stats_json, stats_rows, Animator, FrameStats, Options, Techniques,
 };
-use retrace::output::{save_image, FrameFormat, PendingFile};
+use retrace::output::{csv_records, save_image_pending, FrameFormat, PendingFile};
 
 use super::verify::RunCheck;
 use super::{
     check_writable, ensure_parent, folder_of, frame_pattern, idle_flag, load, on_interrupt,
-    parse_frame_range, read_frame_back, save_view, scene_name, AovArgs, BackendArg, FramePattern,
-    OstcArgs, Progress, RsvpKnobArgs, SceneArgs,
+    parse_frame_range, read_frame_back, save_view_pending, scene_name, AovArgs, BackendArg,
+    FramePattern, OstcArgs, Progress, RsvpKnobArgs, SceneArgs,
 };
 
 #[derive(Args)]
@@ -147,24 +147,48 @@ impl GifWriter {
 fn write_stats(
     path: &Path,
     stats: &[retrace::frame_loop::FrameStats],
-    earlier: &[serde_json::Value],
+    earlier: &EarlierRows,
 ) -> Result<()> {
-    let text = if is_json(path) {
-        let rows = stats_rows(stats);
-        let frames: std::collections::HashSet<u32> = stats.iter().map(|s| s.frame).collect();
-        let kept = earlier
-            .iter()
-            .filter(|row| {
-                row.get("frame")
-                    .and_then(serde_json::Value::as_u64)
-                    .is_some_and(|f| !u32::try_from(f).is_ok_and(|f| frames.contains(&f)))
-            })
-            .cloned()
-            .collect();
-        let rows = retrace::chunk::merge_stats(vec![kept, rows]).map_err(anyhow::Error::msg)?;
-        stats_json(&rows)
-    } else {
-        stats_csv(&stats_rows(stats))?
+    let frames: std::collections::HashSet<u32> = stats.iter().map(|s| s.frame).collect();
+    let text = match earlier {
+        EarlierRows::Json(earlier) => {
+            let rows = stats_rows(stats);
+            let kept = earlier
+                .iter()
+                .filter(|row| {
+                    row.get("frame")
+                        .and_then(serde_json::Value::as_u64)
+                        .is_some_and(|f| !u32::try_from(f).is_ok_and(|f| frames.contains(&f)))
+                })
+                .cloned()
+                .collect();
+            let rows = retrace::chunk::merge_stats(vec![kept, rows]).map_err(anyhow::Error::msg)?;
+            stats_json(&rows)
+        }
+        EarlierRows::Csv(earlier) => {
+            let text = stats_csv(&stats_rows(stats))?;
+            let records = csv_records(&text);
+            // One record a row, after the header.
+            let mut rows: Vec<(u32, &str)> = stats
+                .iter()
+                .map(|s| s.frame)
+                .zip(records[1..].iter().copied())
+                .collect();
+            rows.extend(
+                earlier
+                    .iter()
+                    .filter(|(frame, _)| !frames.contains(frame))
+                    .map(|(frame, record)| (*frame, record.as_str())),
+            );
+            // Stable: a frame's views keep their order.
+            rows.sort_by_key(|(frame, _)| *frame);
+            let mut merged = format!("{}\n", records[0]);
+            for (_, record) in rows {
+                merged.push_str(record);
+                merged.push('\n');
+            }
+            merged
+        }
     };
     ensure_parent(path)?;
     retrace::output::save_text(path, &text)?;
@@ -176,21 +200,50 @@ fn is_json(path: &Path) -> bool {
         .is_some_and(|e| e.eq_ignore_ascii_case("json"))
 }
 
-/// The rows of a JSON statistics file an earlier run of the same frames
+/// The rows of the statistics file an earlier run of the same frames
 /// wrote: a resumed run (`--skip-existing`, a requeued farm task) keeps
 /// those of the frames it skips, so the file still covers every frame.
-fn earlier_stats(args: &AnimateArgs, path: Option<&Path>) -> Result<Vec<serde_json::Value>> {
-    let Some(path) = path.filter(|p| args.skip_existing && is_json(p) && p.is_file()) else {
-        return Ok(Vec::new());
+enum EarlierRows {
+    Json(Vec<serde_json::Value>),
+    /// Each row's frame and its record as written.
+    Csv(Vec<(u32, String)>),
+}
+
+fn earlier_stats(args: &AnimateArgs, path: Option<&Path>) -> Result<EarlierRows> {
+    let json = path.is_some_and(is_json);
+    let none = if json {
+        EarlierRows::Json(Vec::new())
+    } else {
+        EarlierRows::Csv(Vec::new())
+    };
+    let Some(path) = path.filter(|p| args.skip_existing && p.is_file()) else {
+        return Ok(none);
     };
     let text = std::fs::read_to_string(path)
         .with_context(|| format!("cannot read {} to keep its rows", path.display()))?;
-    serde_json::from_str(&text).with_context(|| {
+    let not_stats = || {
         format!(
             "{}: not a statistics file of an earlier run (--skip-existing keeps its rows)",
             path.display()
         )
-    })
+    };
+    if json {
+        return Ok(EarlierRows::Json(
+            serde_json::from_str(&text).with_context(not_stats)?,
+        ));
+    }
+    let header = stats_csv(&[])?;
+    let records = csv_records(&text);
+    if records.first() != csv_records(&header).first() {
+        anyhow::bail!("{}: its columns are not this version's", not_stats());
+    }
+    let rows = records[1..].iter().map(|record| {
+        let frame = record.split(',').next().and_then(|f| f.parse().ok());
+        frame
+            .map(|frame| (frame, record.to_string()))
+            .with_context(not_stats)
+    });
+    Ok(EarlierRows::Csv(rows.collect::<Result<_>>()?))
 }
 
 /// The frames this task renders and where its statistics go: all of
@@ -317,7 +370,7 @@ pub(crate) fn animate(args: AnimateArgs) -> Result<()> {
     super::check_memory(&memory)?;
     // What an interrupt says and saves: the frames finished so far, their
     // statistics, and how to resume.
-    let finished = Arc::new(Mutex::new(Vec::<FrameStats>::new()));
+    let finished = Arc::new(Mutex::new(Finished::default()));
     let earlier = Arc::new(earlier_stats(&args, stats_path.as_deref())?);
     save_on_interrupt(&finished, &earlier, stats_path.clone(), *range.start());
     // The camera image's regions, where the frames truly changed.
@@ -336,7 +389,13 @@ pub(crate) fn animate(args: AnimateArgs) -> Result<()> {
         &finished,
         &mut run_check,
     )?;
-    let all_stats = std::mem::take(&mut *finished.lock().unwrap_or_else(PoisonError::into_inner));
+    // A copy: an interrupt from here on still counts (and saves) every
+    // frame, which are all on disk.
+    let all_stats = finished
+        .lock()
+        .unwrap_or_else(PoisonError::into_inner)
+        .stats
+        .clone();
     if let Some(gif) = files.gif {
         gif.finish()?;
     }
@@ -397,17 +456,54 @@ impl OutputFiles {
     }
 }
 
+/// The frames of a run whose files are all in place, with their
+/// statistics: what an interrupt counts and saves. The interrupt closes it,
+/// and no frame's files are put in place after that, so that the count,
+/// the statistics and the files agree.
+#[derive(Default)]
+struct Finished {
+    stats: Vec<FrameStats>,
+    /// Counted by an interrupt, which is ending the process.
+    closed: bool,
+}
+
+/// Puts a frame's `files` in place and adds its `stats` to `finished`, as
+/// one step for an interrupt: before it, neither; after it, both. Once an
+/// interrupt has counted the frames, the files are never put in place and
+/// the thread waits for the process to end.
+fn keep_frame(
+    finished: &Mutex<Finished>,
+    files: Vec<PendingFile>,
+    stats: Vec<FrameStats>,
+) -> Result<()> {
+    let mut finished = finished.lock().unwrap_or_else(PoisonError::into_inner);
+    if finished.closed {
+        drop(finished);
+        drop(files);
+        loop {
+            std::thread::park();
+        }
+    }
+    for file in files {
+        file.commit()?;
+    }
+    finished.stats.extend(stats);
+    Ok(())
+}
+
 /// On an interrupt, says which frames were kept and how to resume, and
 /// writes the statistics of the `finished` frames.
 fn save_on_interrupt(
-    finished: &Arc<Mutex<Vec<FrameStats>>>,
-    earlier: &Arc<Vec<serde_json::Value>>,
+    finished: &Arc<Mutex<Finished>>,
+    earlier: &Arc<EarlierRows>,
     stats_path: Option<PathBuf>,
     first: u32,
 ) {
     let (finished, earlier) = (Arc::clone(finished), Arc::clone(earlier));
     on_interrupt(move || {
-        let stats = finished.lock().unwrap_or_else(PoisonError::into_inner);
+        let mut finished = finished.lock().unwrap_or_else(PoisonError::into_inner);
+        finished.closed = true;
+        let stats = &finished.stats;
         let mut frames: Vec<u32> = stats.iter().map(|s| s.frame).collect();
         frames.dedup();
         eprintln!(
@@ -421,7 +517,7 @@ fn save_on_interrupt(
         );
         if let Some(path) = &stats_path {
             if !stats.is_empty() {
-                match write_stats(path, &stats, &earlier) {
+                match write_stats(path, stats, &earlier) {
                     Ok(()) => eprintln!("statistics of those frames: {}", path.display()),
                     Err(err) => eprintln!("cannot write {}: {err}", path.display()),
                 }
@@ -440,14 +536,14 @@ struct Rendered {
 }
 
 /// Renders the frames of `range`, writes their files, checks them with
-/// `--verify`, and keeps each view's statistics in `finished` as it is
-/// done.
+/// `--verify`, and keeps each frame's statistics in `finished` as its
+/// files are put in place.
 fn render_frames(
     args: &AnimateArgs,
     animator: &mut Animator,
     range: &std::ops::RangeInclusive<u32>,
     files: &mut OutputFiles,
-    finished: &Mutex<Vec<FrameStats>>,
+    finished: &Mutex<Finished>,
     run_check: &mut RunCheck,
 ) -> Result<Rendered> {
     let names: Vec<String> = animator
@@ -468,14 +564,20 @@ fn render_frames(
         }
         let outputs = animator.render(frame);
         let (mut frame_ms, mut frame_samples) = (0.0, 0);
+        // Written whole, put in place at once when the frame is counted.
+        let (mut written, mut frame_stats) = (Vec::new(), Vec::new());
         for (index, mut output) in outputs.into_iter().enumerate() {
             if args.verify {
                 run_check.check_view(animator, frame, index, &mut output)?;
             }
             let write_start = Instant::now();
-            save_view(&files.frames.path(frame, &output.name), &output)?;
+            let path = files.frames.path(frame, &output.name);
+            written.push(save_view_pending(&path, &output)?);
             if let (Some(traced_files), Some(traced)) = (&files.traced, &output.traced_image) {
-                save_image(&traced_files.path(frame, &output.name), traced)?;
+                written.push(save_image_pending(
+                    &traced_files.path(frame, &output.name),
+                    traced,
+                )?);
             }
             if index == 0 {
                 if let Some(gif) = &mut files.gif {
@@ -485,18 +587,16 @@ fn render_frames(
             write_ms += clock::ms(write_start.elapsed());
             frame_ms += output.stats.total_ms();
             frame_samples += output.stats.work.samples_traced;
-            finished
-                .lock()
-                .unwrap_or_else(PoisonError::into_inner)
-                .push(output.stats);
+            frame_stats.push(output.stats);
         }
         if let Some(store_files) = &files.store {
             if let Some(picture) = animator.store_picture(frame) {
                 let write_start = Instant::now();
-                save_image(&store_files.path(frame, ""), &picture)?;
+                written.push(save_image_pending(&store_files.path(frame, ""), &picture)?);
                 write_ms += clock::ms(write_start.elapsed());
             }
         }
+        keep_frame(finished, written, frame_stats)?;
         if args.verify {
             run_check.check_store(animator);
         }

@@ -24,7 +24,9 @@ use retrace::accel::{Accelerator, BackendKind};
 use retrace::aov::{exr_picture, Aov, AovSet};
 use retrace::camera::Projection;
 use retrace::frame_loop::ViewOutput;
-use retrace::output::{frame_format_for, read_exr, save_exr, save_image, FrameFormat};
+use retrace::output::{
+    frame_format_for, read_exr, save_exr_pending, save_image_pending, FrameFormat, PendingFile,
+};
 use retrace::sampling::PixelSamples;
 use retrace::scene::{load_scene, paper_scene, Scene, SceneOverrides};
 use retrace::texture::TextureFilter;
@@ -500,21 +502,22 @@ impl AovArgs {
     }
 }
 
-/// Writes a rendered view to `path` in the format its extension names:
-/// the 8-bit picture, or the linear colours (which the animator must have
-/// been asked for) with the view's AOVs as OpenEXR.
-fn save_view(path: &Path, view: &ViewOutput) -> Result<()> {
-    match frame_format_for(path)? {
-        FrameFormat::Picture(_) => save_image(path, &view.image)?,
+/// Writes a rendered view for `path` in the format its extension names
+/// (the 8-bit picture, or the linear colours, which the animator must
+/// have been asked for, with the view's AOVs as OpenEXR) under a
+/// temporary name: it appears at `path` only once committed, so a run
+/// puts a frame's files in place together with counting it.
+fn save_view_pending(path: &Path, view: &ViewOutput) -> Result<PendingFile> {
+    Ok(match frame_format_for(path)? {
+        FrameFormat::Picture(_) => save_image_pending(path, &view.image)?,
         FrameFormat::Exr => {
             let colours = view
                 .frame
                 .as_ref()
                 .expect("OpenEXR frames are rendered in linear colour");
-            save_exr(path, &exr_picture(colours, view.aovs.as_ref()))?;
+            save_exr_pending(path, &exr_picture(colours, view.aovs.as_ref()))?
         }
-    }
-    Ok(())
+    })
 }
 
 /// A frame file written earlier (`--skip-existing`), read back as the

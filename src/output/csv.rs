@@ -92,6 +92,28 @@ pub fn csv_text<T: Serialize>(
 }
 
 /// Whether `header` has columns `column.…`, nested in `column`.
+/// The records of CSV `text` (as [`csv_text`] writes it) as written, each
+/// without its line end: a line break inside a quoted cell belongs to its
+/// record.
+pub fn csv_records(text: &str) -> Vec<&str> {
+    let (mut records, mut start, mut quoted) = (Vec::new(), 0, false);
+    for (i, c) in text.char_indices() {
+        match c {
+            // A doubled quote inside a quoted cell flips twice.
+            '"' => quoted = !quoted,
+            '\n' if !quoted => {
+                records.push(text[start..i].trim_end_matches('\r'));
+                start = i + 1;
+            }
+            _ => {}
+        }
+    }
+    if start < text.len() {
+        records.push(&text[start..]);
+    }
+    records
+}
+
 fn has_nested(header: &[String], column: &str) -> bool {
     let prefix = format!("{column}.");
     header.iter().any(|h| h.starts_with(&prefix))
@@ -351,6 +373,38 @@ struct_ser!(SerializeStruct, SerializeStructVariant);
 mod tests {
     use super::*;
     use serde::Serialize;
+
+    #[test]
+    fn records_are_split_at_line_ends_outside_quotes() {
+        #[derive(Serialize)]
+        struct Row {
+            frame: u32,
+            view: &'static str,
+        }
+        let rows = [
+            Row {
+                frame: 0,
+                view: "a",
+            },
+            Row {
+                frame: 1,
+                view: "two\nlines, \"quoted\"",
+            },
+            Row { frame: 2, view: "" },
+        ];
+        let text = csv_text(&rows, &rows[0], Floats::Shortest).unwrap();
+        let records = csv_records(&text);
+        assert_eq!(
+            records,
+            [
+                "frame,view",
+                "0,a",
+                "1,\"two\nlines, \"\"quoted\"\"\"",
+                "2,"
+            ]
+        );
+        assert_eq!(csv_records("a\r\nb"), ["a", "b"]);
+    }
 
     #[derive(Serialize)]
     struct Point {

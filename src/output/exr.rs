@@ -14,7 +14,7 @@ use exr::prelude::{
 
 pub use exr::prelude::f16;
 
-use super::{write_atomically, OutputError};
+use super::{write_pending, OutputError, PendingFile};
 
 /// One channel's samples, row by row from the top left.
 #[derive(Clone, Debug, PartialEq)]
@@ -140,6 +140,12 @@ impl ExrPicture {
 
 /// Writes `picture` to `path` atomically.
 pub fn save_exr(path: &Path, picture: &ExrPicture) -> Result<(), OutputError> {
+    save_exr_pending(path, picture)?.commit()
+}
+
+/// [`save_exr`] but for the rename: the file whole under a temporary
+/// name, appearing at `path` only once committed.
+pub fn save_exr_pending(path: &Path, picture: &ExrPicture) -> Result<PendingFile, OutputError> {
     let pixels = picture.width as usize * picture.height as usize;
     if let Some(channel) = picture.channels.iter().find(|c| c.samples.len() != pixels) {
         panic!(
@@ -167,7 +173,7 @@ pub fn save_exr(path: &Path, picture: &ExrPicture) -> Result<(), OutputError> {
         AnyChannels::sort(channels),
     );
     let image = Image::from_layer(layer);
-    write_atomically(path, |temp| {
+    write_pending(path, |temp| {
         image
             .write()
             .to_file(temp)

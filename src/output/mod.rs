@@ -15,8 +15,10 @@ mod csv;
 pub mod exr;
 mod stale;
 
-pub use csv::{csv_text, CsvError, Floats};
-pub use exr::{read_exr, save_exr, ExrChannel, ExrMismatch, ExrPicture, ExrSamples};
+pub use csv::{csv_records, csv_text, CsvError, Floats};
+pub use exr::{
+    read_exr, save_exr, save_exr_pending, ExrChannel, ExrMismatch, ExrPicture, ExrSamples,
+};
 pub use stale::take_removed_temporaries;
 
 use std::path::{Path, PathBuf};
@@ -198,9 +200,19 @@ pub fn write_atomically(
     path: &Path,
     write: impl FnOnce(&Path) -> Result<(), OutputError>,
 ) -> Result<(), OutputError> {
+    write_pending(path, write)?.commit()
+}
+
+/// Runs `write` against a temporary file next to `path`, to be renamed into
+/// place by [`PendingFile::commit`]; on any error the temporary file is
+/// removed.
+pub fn write_pending(
+    path: &Path,
+    write: impl FnOnce(&Path) -> Result<(), OutputError>,
+) -> Result<PendingFile, OutputError> {
     let pending = PendingFile::beside(path);
     write(pending.temp())?;
-    pending.commit()
+    Ok(pending)
 }
 
 /// Writes `text` to `path` atomically.
@@ -214,6 +226,16 @@ pub fn save_text(path: &Path, text: &str) -> Result<(), OutputError> {
 }
 
 pub fn save_image(path: &Path, image: &image::RgbImage) -> Result<(), OutputError> {
+    save_image_pending(path, image)?.commit()
+}
+
+/// [`save_image`] but for the rename: the image whole under a temporary
+/// name, appearing at `path` only once committed (so a run can put a
+/// frame's files in place together with counting it).
+pub fn save_image_pending(
+    path: &Path,
+    image: &image::RgbImage,
+) -> Result<PendingFile, OutputError> {
     let format = format_for(path)?;
     if format == ImageFormat::Tga {
         let bytes = encode_tga(image).ok_or_else(|| OutputError::TooLargeForTga {
@@ -221,14 +243,14 @@ pub fn save_image(path: &Path, image: &image::RgbImage) -> Result<(), OutputErro
             width: image.width(),
             height: image.height(),
         })?;
-        return write_atomically(path, |temp| {
+        return write_pending(path, |temp| {
             std::fs::write(temp, bytes).map_err(|source| OutputError::Write {
                 path: path.to_path_buf(),
                 source,
             })
         });
     }
-    write_atomically(path, |temp| {
+    write_pending(path, |temp| {
         image
             .save_with_format(temp, format)
             .map_err(|source| match source {

@@ -16,6 +16,7 @@ mod extremes;
 mod farm;
 mod fuzz;
 mod glass;
+mod interrupt;
 mod layers;
 mod moving_spheres;
 mod normals;

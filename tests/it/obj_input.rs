@@ -204,3 +204,93 @@ fn usemtl_naming_no_material_warns_with_its_line() {
     );
     assert!(!err.contains("'shiny'"), "{err}");
 }
+
+/// Pixels of `a` and `b` whose channels differ by more than 8 levels.
+fn differing_pixels(a: &image::RgbImage, b: &image::RgbImage) -> usize {
+    a.pixels()
+        .zip(b.pixels())
+        .filter(|(p, q)| p.0.iter().zip(q.0).any(|(&x, y)| x.abs_diff(y) > 8))
+        .count()
+}
+
+#[test]
+fn concave_faces_keep_their_notches_and_holes_open() {
+    // Each face against the same shape in explicit triangles (the same
+    // bounds, so the same framing) and against its outline filled, as a
+    // fan from its first vertex filled it.
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    // A 4x4 square with a 2x2 hole, facing the camera; lines 1-8, and 9-10
+    // copies of 1 and 5 as exporters write a slit (no vertex twice in a
+    // face).
+    let ring = "v 0 0 0\nv 4 0 0\nv 4 4 0\nv 0 4 0\nv 1 1 0\nv 3 1 0\nv 3 3 0\nv 1 3 0\n\
+                v 0 0 0\nv 1 1 0\n";
+    let ring_in_triangles = "f 1 2 6\nf 1 6 5\nf 2 3 7\nf 2 7 6\n\
+                             f 3 4 8\nf 3 8 7\nf 4 1 5\nf 4 5 8\n";
+    // An L from a corner that cannot see all of it: its fan covered part of
+    // the notch (x > 1, y > 1).
+    let l = "v 2 1 0\nv 1 1 0\nv 1 2 0\nv 0 2 0\nv 0 0 0\nv 2 0 0\n";
+    let l_in_triangles = "f 1 2 5\nf 1 5 6\nf 2 3 4\nf 2 4 5\n";
+    let cases = [
+        // Round the outside, in along the slit, round the hole the other
+        // way, back out: the same vertex twice at each end of the slit...
+        (
+            "ring",
+            ring,
+            "f 1 2 3 4 1 5 8 7 6 5\n",
+            ring_in_triangles,
+            "f 1 2 3 4\n",
+        ),
+        // ...or its copy.
+        (
+            "slit",
+            ring,
+            "f 1 2 3 4 9 5 8 7 6 10\n",
+            ring_in_triangles,
+            "f 1 2 3 4\n",
+        ),
+        ("l", l, "f 1 2 3 4 5 6\n", l_in_triangles, "f 4 5 6 1 3\n"),
+    ];
+    for (name, corners, face, triangles, outline) in cases {
+        for (suffix, faces) in [("", face), ("-triangles", triangles), ("-filled", outline)] {
+            let file = format!("{name}{suffix}.obj");
+            write(d, &file, format!("{corners}{faces}").as_bytes());
+        }
+        let out = render(d, &format!("{name}.obj"), &format!("{name}.png"));
+        let err = stderr(&out);
+        assert!(out.status.success(), "{name}: {err}");
+        let image = image::open(d.join(format!("{name}.png")))
+            .unwrap()
+            .to_rgb8();
+        let reference = renders_warning(d, &format!("{name}-triangles.obj"), "t.png", &[]);
+        let filled = renders_warning(d, &format!("{name}-filled.obj"), "f.png", &[]);
+        assert!(
+            differing_pixels(&reference, &filled) >= 4,
+            "{name}: the hole or notch does not show at this size"
+        );
+        assert_eq!(
+            differing_pixels(&image, &reference),
+            0,
+            "{name}: not the shape its triangles make"
+        );
+        assert!(err.is_empty(), "{name}: {err}");
+    }
+}
+
+#[test]
+fn a_face_whose_edges_cross_warns_with_its_line() {
+    let dir = tempfile::tempdir().unwrap();
+    // A good quad, then a bow-tie on line 7 and another on line 8.
+    let obj = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 3 2 0\nf 1 2 3 4\n\
+               f 1 5 2 4\nf 1 3 2 4\n";
+    write(dir.path(), "bowtie.obj", obj.as_bytes());
+    renders_warning(
+        dir.path(),
+        "bowtie.obj",
+        "out.png",
+        &[
+            "bowtie.obj:7: f: the face's edges cross each other",
+            "filled as a fan from its first vertex (2 such face(s) in the file)",
+        ],
+    );
+}

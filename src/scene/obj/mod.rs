@@ -8,7 +8,9 @@
 //! place; UTF-16 with a byte-order mark is read as such), point and line
 //! elements (not surfaces: left out), vertex colours (ignored), a material
 //! library entry that does not parse (that material falls back to the
-//! default), an `Ns` out of range, a `usemtl` naming no material or none.
+//! default), an `Ns` out of range, a `usemtl` naming no material or none,
+//! a face whose edges cross (filled as a fan; concave faces are cut in
+//! their plane, in `triangulate`).
 //! tobj only ever sees text that has passed these checks.
 
 use std::cell::RefCell;
@@ -26,6 +28,9 @@ use crate::geometry::{Aabb, Object, Placement, Plane, Shape, TriangleMesh, WORLD
 use crate::texture::load::{TextureCache, TextureProblem};
 use crate::texture::path::{mtl_file_name, resolve, shown};
 use crate::texture::TextureRef;
+use triangulate::FaceCutter;
+
+mod triangulate;
 
 /// One material's worth of an OBJ file.
 #[derive(Clone, Debug)]
@@ -587,8 +592,10 @@ pub fn load_obj_mesh_with(path: &Path, textures: &mut TextureCache) -> Result<Ob
     let text = decode_lossily(path, &bytes, &mut problems);
     check_obj_text(path, &text)?;
     let faces = faces_only(path, &text, &mut problems)?;
+    // Faces as the file gives them: tobj would fan them, filling concave
+    // ones past their edges.
     let options = tobj::LoadOptions {
-        triangulate: true,
+        triangulate: false,
         single_index: true,
         ignore_points: true,
         ignore_lines: true,
@@ -656,9 +663,11 @@ pub fn load_obj_mesh_with(path: &Path, textures: &mut TextureCache) -> Result<Ob
     let mut dropped_degenerate = 0;
     let mut untextured: HashSet<String> = HashSet::new();
     let mut parts: Vec<ObjPart> = Vec::new();
+    // tobj keeps the file's order of faces, model after model.
+    let mut faces = FaceCutter::new(&text);
     for model in models {
         let m = &model.mesh;
-        let mesh = model_mesh(m, &mut dropped_degenerate);
+        let mesh = model_mesh(m, &mut faces, &mut dropped_degenerate);
         let texcoords_missing = mesh.texcoords.is_empty();
         let material = m
             .material_id
@@ -684,6 +693,7 @@ pub fn load_obj_mesh_with(path: &Path, textures: &mut TextureCache) -> Result<Ob
             None => parts.push(ObjPart { mesh, material }),
         }
     }
+    problems.extend(faces.warnings(path));
     Ok(ObjMesh {
         parts,
         dropped_degenerate,
@@ -718,10 +728,14 @@ fn warn_undefined_materials(
     }
 }
 
-/// One model of tobj's as a triangle mesh: zero-area triangles dropped
-/// (counted in `dropped_degenerate`), normals and texture coordinates kept
-/// only where every vertex has them.
-fn model_mesh(m: &tobj::Mesh, dropped_degenerate: &mut usize) -> TriangleMesh {
+/// One model of tobj's as a triangle mesh: its faces cut by `faces`,
+/// zero-area triangles dropped (counted in `dropped_degenerate`), normals
+/// and texture coordinates kept only where every vertex has them.
+fn model_mesh(
+    m: &tobj::Mesh,
+    faces: &mut FaceCutter,
+    dropped_degenerate: &mut usize,
+) -> TriangleMesh {
     let positions: Vec<Vec3> = m
         .positions
         .chunks_exact(3)
@@ -744,11 +758,12 @@ fn model_mesh(m: &tobj::Mesh, dropped_degenerate: &mut usize) -> TriangleMesh {
     if texcoords.len() != positions.len() {
         texcoords.clear();
     }
-    let mut triangles = Vec::with_capacity(m.indices.len() / 3);
-    for t in m.indices.chunks_exact(3) {
-        let [a, b, c] = [t[0], t[1], t[2]].map(|i| positions[i as usize]);
+    let cut = faces.cut(&positions, &m.indices, &m.face_arities);
+    let mut triangles = Vec::with_capacity(cut.len());
+    for t in cut {
+        let [a, b, c] = t.map(|i| positions[i as usize]);
         if (b - a).cross(c - a).length_squared() > 0.0 {
-            triangles.push([t[0], t[1], t[2]]);
+            triangles.push(t);
         } else {
             *dropped_degenerate += 1;
         }

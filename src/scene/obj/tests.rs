@@ -95,3 +95,45 @@ fn a_material_value_that_is_not_a_number_falls_back_to_the_default() {
     let mesh = load_obj_mesh(&obj).unwrap();
     assert_eq!(mesh.parts[0].material.as_ref().unwrap().shininess, 20.0);
 }
+
+/// Every model the project ships (all of convex faces) is cut into the
+/// triangles, and vertices, tobj's fan gave: their pictures do not change.
+#[test]
+fn shipped_models_are_cut_as_tobj_fanned_them() {
+    let scenes = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes");
+    let mut models = vec![scenes.join("bunny.obj"), scenes.join("prism/prism.obj")];
+    for name in ["floor", "sphere", "crate"] {
+        models.push(scenes.join(format!("textured/{name}.obj")));
+    }
+    for path in models {
+        let load = |triangulate| {
+            let options = tobj::LoadOptions {
+                triangulate,
+                single_index: true,
+                ..Default::default()
+            };
+            tobj::load_obj(&path, &options).unwrap().0
+        };
+        let (fanned, faces) = (load(true), load(false));
+        let text = std::fs::read_to_string(&path).unwrap();
+        let mut cutter = FaceCutter::new(&text);
+        assert_eq!(fanned.len(), faces.len());
+        for (fanned, faces) in fanned.iter().zip(&faces) {
+            let (fanned, faces) = (&fanned.mesh, &faces.mesh);
+            assert_eq!(fanned.positions, faces.positions, "{}", path.display());
+            let positions: Vec<Vec3> = faces
+                .positions
+                .chunks_exact(3)
+                .map(|c| Vec3::new(c[0], c[1], c[2]))
+                .collect();
+            let cut = cutter.cut(&positions, &faces.indices, &faces.face_arities);
+            let fan: Vec<[u32; 3]> = fanned
+                .indices
+                .chunks_exact(3)
+                .map(|t| [t[0], t[1], t[2]])
+                .collect();
+            assert_eq!(cut, fan, "{}", path.display());
+        }
+        assert!(cutter.warnings(&path).is_empty());
+    }
+}
