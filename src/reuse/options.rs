@@ -127,6 +127,10 @@ pub struct Options {
     /// Whether each view also comes with its picture painted black where
     /// the frame traced samples (the paper's figure 4).
     pub traced_images: bool,
+    /// The most bytes a store's kept samples may take (None: no cap).
+    /// RSVP's buffer then evicts the samples read least recently, traced
+    /// again, the same, when read again.
+    pub sample_memory: Option<u64>,
 }
 
 impl Options {
@@ -141,6 +145,7 @@ impl Options {
             ostc: OstcSettings::default(),
             rsvp: RsvpKnobs::default(),
             traced_images: false,
+            sample_memory: None,
         }
     }
 }

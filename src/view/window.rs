@@ -48,6 +48,7 @@ pub fn run_window(
     backend: BackendKind,
     grid_resolution: Option<[u32; 3]>,
     refine_spp: u32,
+    sample_memory: Option<u64>,
     hooks: &mut dyn Hooks,
 ) -> Result<(), String> {
     let event_loop = open_display()?;
@@ -56,7 +57,15 @@ pub fn run_window(
     let notify = Box::new(move || {
         let _ = proxy.send_event(Wake);
     });
-    let thread = RenderThread::spawn(scene, backend, grid_resolution, false, refine_spp, notify)?;
+    let thread = RenderThread::spawn(
+        scene,
+        backend,
+        grid_resolution,
+        false,
+        refine_spp,
+        sample_memory,
+        notify,
+    )?;
     let state = viewer.opening();
     let mut app = App {
         name: name.to_string(),

@@ -33,3 +33,4 @@ mod tradeoff;
 mod validate;
 mod validate_seeds;
 mod view;
+mod view_memory;

@@ -339,6 +339,7 @@ fn a_converged_zoomed_view_equals_the_direct_render_of_its_viewport() {
         None,
         true,
         16,
+        None,
         Box::new(|| {}),
     )
     .unwrap();
@@ -389,6 +390,7 @@ fn input_during_refinement_abandons_it_and_no_stale_picture_follows() {
         None,
         true,
         16,
+        None,
         Box::new(|| {}),
     )
     .unwrap();
@@ -486,6 +488,7 @@ fn input_during_a_full_render_abandons_it_and_the_next_picture_is_exact() {
         None,
         true,
         1,
+        None,
         Box::new(|| {}),
     )
     .unwrap();

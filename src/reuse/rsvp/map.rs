@@ -407,7 +407,10 @@ impl SampleBuffer {
         let samples = &self.levels[owner.index()];
         let columns = self.lattice.slot_columns(owner);
         tile_spans(columns, row, c_from, c_to, |key, wanted| {
-            let traced = samples.tile(key).map_or(0, |t| samples.traced[t as usize]);
+            let traced = samples.tile(key).map_or(0, |t| {
+                samples.mark_used(t, self.frame);
+                samples.traced[t as usize]
+            });
             traced & wanted == wanted
         })
     }
@@ -581,11 +584,11 @@ impl<'a> GroupRequests<'a> {
         let slot = &mut self.cached[slot_index];
         if (slot.0, slot.1) != (index, key) {
             let samples = &self.buffer.levels[index];
-            *slot = (
-                index,
-                key,
-                samples.tile(key).map_or(0, |t| samples.traced[t as usize]),
-            );
+            let traced = samples.tile(key).map_or(0, |t| {
+                samples.mark_used(t, self.buffer.frame);
+                samples.traced[t as usize]
+            });
+            *slot = (index, key, traced);
         }
         &mut slot.2
     }

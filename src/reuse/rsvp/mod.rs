@@ -25,9 +25,12 @@
 //! - Pass 2 reads copies: each level's samples at all its positions,
 //!   assembled from their owners into blocks that take every group traced
 //!   after them, so they always equal the stores (`verify` checks that too).
-//! - A sample is traced at most once and kept for every later frame; all
-//!   null samples the viewports of a frame touch are traced in one batch per
-//!   level through [`crate::render::trace_groups`].
+//! - A sample is traced once and kept for every later frame, unless the
+//!   buffer's memory cap ([`SampleBuffer::set_memory_cap`]) evicts its
+//!   tile, the least recently read first: it is then traced again when a
+//!   frame reads it, the same bit for bit. All null samples the viewports
+//!   of a frame touch are traced in one batch per level through
+//!   [`crate::render::trace_groups`].
 //! - Resampling is an approximation: its error against the viewport's own
 //!   rays is measured (`--verify`, `bench --only E2`), never assumed.
 
@@ -60,13 +63,14 @@ use crate::reuse::{Dirty, Erasure, FrameMode, SampleStore, StoreFrame, Unfit, Vi
 use crate::sampling::PixelSamples;
 use crate::shade::{RayCounts, Shader};
 use blocks::LevelBlocks;
+use blocks::BLOCK_BYTES;
 use filter::filter_reads;
 use filter::SampleCode;
 use lattice::wrap;
 use map::nan_filled;
 use tiles::{
-    group_key, key_group, tile_key, traced_groups, LevelSamples, TracedGroups, TILE_COLS,
-    TILE_COL_SHIFT, TILE_ROW_SHIFT,
+    group_key, key_group, tile_key, traced_groups, LevelSamples, TracedGroups, TILE_BYTES,
+    TILE_COLS, TILE_COL_SHIFT, TILE_ROW_SHIFT,
 };
 use viewport::PixelMap;
 
@@ -88,9 +92,13 @@ pub struct SampleBuffer {
     blocks: Vec<LevelBlocks>,
     /// Blocks given up, for new ones to reuse.
     spare_blocks: Vec<Box<[SampleCode]>>,
-    /// Frames rendered: when each block was last read.
+    /// Frames rendered: when each tile was last used and each block last
+    /// read.
     frame: u64,
     samples_traced: u64,
+    samples_evicted: u64,
+    /// The most bytes the tiles and blocks may take (None: no cap).
+    memory_cap: Option<u64>,
     /// The groups the last [`SampleBuffer::render`] traced, sorted as
     /// `missing` is: what [`SampleBuffer::fresh_image`] paints.
     fresh: Vec<(Level, SampleGroup)>,
@@ -105,8 +113,118 @@ impl SampleBuffer {
             spare_blocks: Vec::new(),
             frame: 0,
             samples_traced: 0,
+            samples_evicted: 0,
+            memory_cap: None,
             fresh: Vec::new(),
         }
+    }
+
+    /// Caps the memory the buffer keeps at `bytes` (None: no cap). Past
+    /// it, before a frame keeps new tiles, the tiles no view of the frame
+    /// reads go, least recently used first, until the buffer holds three
+    /// quarters of the cap (so that the next frames need not evict again
+    /// at once); samples they held are traced again when read, the same
+    /// bit for bit. What one frame reads always stays, cap or not.
+    pub fn set_memory_cap(&mut self, bytes: Option<u64>) {
+        self.memory_cap = bytes;
+    }
+
+    /// Bytes the buffer keeps: its tiles of samples and pass 2's blocks,
+    /// with their bookkeeping.
+    pub fn kept_bytes(&self) -> u64 {
+        let tiles: usize = self.levels.iter().map(LevelSamples::tile_count).sum();
+        let blocks =
+            self.blocks.iter().map(LevelBlocks::count).sum::<usize>() + self.spare_blocks.len();
+        tiles as u64 * TILE_BYTES + blocks as u64 * BLOCK_BYTES
+    }
+
+    /// Evicts the least recently used tiles until the buffer keeps at most
+    /// `bytes` (or nothing); between frames, when no frame reads any.
+    pub fn trim(&mut self, bytes: u64) {
+        if self.kept_bytes() <= bytes {
+            return;
+        }
+        // Every tile was last used by a frame before the next.
+        self.frame += 1;
+        self.samples_evicted += self.evict_to(bytes);
+    }
+
+    /// Makes the tiles the traced `groups` (sorted as `trace` sorts them)
+    /// go into, first evicting tiles if they and the blocks the frame
+    /// reads (`blocks`: how many, how many of them not assembled yet)
+    /// would take the buffer past its cap. Returns the samples evicted.
+    fn make_tiles(
+        &mut self,
+        groups: &[(Level, SampleGroup, usize)],
+        (blocks_read, fresh_blocks): (usize, usize),
+    ) -> u64 {
+        // A tile is one row of groups: a row's groups, in column order,
+        // share their tiles in turn.
+        let mut new: Vec<(usize, (i64, i64))> = Vec::new();
+        let mut last = None;
+        for &(level, group, _) in groups {
+            let (key, _, _) = tile_key(group.col, group.row);
+            let at = (level.index(), key);
+            if last != Some(at) && self.levels[at.0].tile(key).is_none() {
+                new.push(at);
+            }
+            last = Some(at);
+        }
+        let new_bytes = new.len() as u64 * TILE_BYTES;
+        // Assembling takes the fresh blocks from those given up when it
+        // can: at most this many more.
+        let more_blocks = fresh_blocks as u64 * BLOCK_BYTES;
+        let evicted = match self.memory_cap {
+            Some(cap) if self.kept_bytes() + new_bytes + more_blocks > cap => {
+                // Evicting frees every block: the frame assembles all it
+                // reads afresh.
+                let frame_bytes = new_bytes + blocks_read as u64 * BLOCK_BYTES;
+                self.evict_to((cap / 4 * 3).saturating_sub(frame_bytes))
+            }
+            _ => 0,
+        };
+        for (index, key) in new {
+            self.levels[index].tile_or_insert(key, self.frame);
+        }
+        evicted
+    }
+
+    /// Frees pass 2's blocks (copies of the tiles, assembled again as
+    /// frames read them), then evicts the least recently used tiles this
+    /// frame does not read until the tiles take at most `target` bytes, or
+    /// none is left to evict. Returns the samples evicted.
+    fn evict_to(&mut self, target: u64) -> u64 {
+        for blocks in &mut self.blocks {
+            blocks.clear();
+        }
+        self.spare_blocks = Vec::new();
+        let tiles: usize = self.levels.iter().map(LevelSamples::tile_count).sum();
+        let excess = (tiles as u64 * TILE_BYTES).saturating_sub(target);
+        if excess == 0 {
+            return 0;
+        }
+        let now = self.frame;
+        let mut unused: Vec<(u64, usize, u32)> = self
+            .levels
+            .iter()
+            .enumerate()
+            .flat_map(|(index, store)| {
+                store
+                    .unused_since(now)
+                    .map(move |(used, tile)| (used, index, tile))
+            })
+            .collect();
+        let count = (excess.div_ceil(TILE_BYTES) as usize).min(unused.len());
+        if count < unused.len() {
+            unused.select_nth_unstable(count);
+        }
+        let mut evicted = 0;
+        for &(_, index, tile) in &unused[..count] {
+            let store = &mut self.levels[index];
+            evicted += u64::from(store.traced[tile as usize].count_ones()) * GROUP_SAMPLES;
+            store.evict(tile);
+        }
+        evicted
     }
 
     /// Regions of `size` level-0 samples tiling the whole buffer (a whole
@@ -244,6 +362,12 @@ impl SampleBuffer {
         self.samples_traced
     }
 
+    /// Traced samples evicted (to keep within the memory cap) since the
+    /// buffer was made.
+    pub fn samples_evicted(&self) -> u64 {
+        self.samples_evicted
+    }
+
     /// The colour of sample (col, row) of `level`, if traced.
     pub fn sample(&self, level: Level, col: i64, row: i64) -> Option<Vec3> {
         let (owner, col, row) = self.lattice.owner(level, col, row);
@@ -260,14 +384,17 @@ impl SampleBuffer {
 
     /// Traces the missing groups of every level in one parallel batch and
     /// keeps them, their rays recorded into `ostc` (built over
-    /// [`SampleBuffer::regions`]) when given. Returns the samples and rays
-    /// traced for each request list.
+    /// [`SampleBuffer::regions`]) when given; `blocks` (read, not yet
+    /// assembled) are the blocks the frame will then read. Returns the
+    /// samples and rays traced for each request list, and the samples
+    /// evicted to make room.
     fn trace(
         &mut self,
         shader: &Shader,
         requests: &[Vec<(Level, SampleGroup)>],
         ostc: Option<&Ostc>,
-    ) -> Vec<(u64, RayCounts, f64)> {
+        blocks: (usize, usize),
+    ) -> (Vec<(u64, RayCounts, f64)>, u64) {
         let mut all: Vec<(Level, SampleGroup, usize)> = Vec::new();
         for (who, list) in requests.iter().enumerate() {
             all.extend(list.iter().map(|&(l, g)| (l, g, who)));
@@ -286,7 +413,7 @@ impl SampleBuffer {
         self.fresh
             .extend(all.iter().map(|&(level, group, _)| (level, group)));
         if all.is_empty() {
-            return out;
+            return (out, self.make_tiles(&all, blocks));
         }
         // One batch rather than one per level: a frame that refines a few
         // levels would otherwise wait for each level's last group in turn.
@@ -303,6 +430,10 @@ impl SampleBuffer {
             let marker = ostc.map(|o| o.marker_in(region(o), group_key(level, group)));
             (&sources[level.index()] as &dyn PrimaryRays, group, marker)
         });
+        // On this thread, before the levels keep their groups on theirs:
+        // the memory evicted tiles give back is then the next tiles'.
+        let evicted = self.make_tiles(&all, blocks);
+        self.samples_evicted += evicted;
         // Each level's store keeps its own groups, on its own thread: a
         // first frame grows the stores by many fresh pages, each a fault,
         // and the levels take theirs in parallel. The blocks follow the
@@ -343,7 +474,7 @@ impl SampleBuffer {
         for &(_, _, who) in &all {
             out[who].2 += per_group;
         }
-        out
+        (out, evicted)
     }
 
     /// Renders every viewport of a frame: maps their pixels, traces the
@@ -357,6 +488,7 @@ impl SampleBuffer {
         linear: bool,
         ostc: Option<&Ostc>,
     ) -> Vec<StoreFrame> {
+        self.frame += 1;
         let mut mapped = Vec::with_capacity(poses.len());
         let mut map_ms = Vec::with_capacity(poses.len());
         for pose in poses {
@@ -368,41 +500,51 @@ impl SampleBuffer {
             .iter_mut()
             .map(|m| std::mem::take(&mut m.missing))
             .collect();
-        let traced = self.trace(shader, &requests, ostc);
         // Pass 2 reads assembled blocks; assembling new ones is its cost,
         // shared between the viewports.
         let watch = Stopwatch::start();
-        self.assemble_blocks(mapped.iter().flat_map(|m| {
+        let (blocks, fresh_blocks) = self.blocks_read(mapped.iter().flat_map(|m| {
             m.patches
                 .iter()
                 .filter_map(|p| p.blocks.map(|b| (p.level, b)))
         }));
-        let assembly_ms = watch.ms() / poses.len().max(1) as f64;
+        let mut assembly_ms = watch.ms();
+        let (traced, evicted) = self.trace(shader, &requests, ostc, (blocks.len(), fresh_blocks));
+        let watch = Stopwatch::start();
+        self.assemble_blocks(&blocks);
+        assembly_ms = (assembly_ms + watch.ms()) / poses.len().max(1) as f64;
+        let kept_bytes = self.kept_bytes();
         poses
             .iter()
             .zip(&mapped)
             .zip(traced.into_iter().zip(map_ms))
-            .map(|((pose, mapped), ((samples, rays, trace_ms), map_ms))| {
-                let watch = Stopwatch::start();
-                let (frame, image) = self.gather(pose, mapped, knobs.filter, linear);
-                let gather_ms = watch.ms() + assembly_ms;
-                let levels = mapped.patches.iter().fold((u32::MAX, 0), |(lo, hi), p| {
-                    (lo.min(p.level.finest()), hi.max(p.level.finest()))
-                });
-                StoreFrame {
-                    frame,
-                    image,
-                    work: ViewWork {
-                        samples_traced: samples,
-                        pixels_reused: pixels(pose).saturating_sub(samples),
-                        rays,
-                        trace_ms,
-                        assembly_ms: map_ms + gather_ms,
-                        snap_error: None,
-                        levels: Some(levels),
-                    },
-                }
-            })
+            .enumerate()
+            .map(
+                |(index, ((pose, mapped), ((samples, rays, trace_ms), map_ms)))| {
+                    let watch = Stopwatch::start();
+                    let (frame, image) = self.gather(pose, mapped, knobs.filter, linear);
+                    let gather_ms = watch.ms() + assembly_ms;
+                    let levels = mapped.patches.iter().fold((u32::MAX, 0), |(lo, hi), p| {
+                        (lo.min(p.level.finest()), hi.max(p.level.finest()))
+                    });
+                    StoreFrame {
+                        frame,
+                        image,
+                        work: ViewWork {
+                            samples_traced: samples,
+                            pixels_reused: pixels(pose).saturating_sub(samples),
+                            rays,
+                            trace_ms,
+                            assembly_ms: map_ms + gather_ms,
+                            snap_error: None,
+                            levels: Some(levels),
+                            kept_bytes: Some(kept_bytes),
+                            // The frame's, on its first view's row.
+                            samples_evicted: if index == 0 { evicted } else { 0 },
+                        },
+                    }
+                },
+            )
             .collect()
     }
 
@@ -679,6 +821,18 @@ impl SampleStore for RsvpStore {
 
     fn verify(&self, shader: &Shader) -> Option<(u64, u64)> {
         Some(self.buffer.verify(shader))
+    }
+
+    fn set_memory_cap(&mut self, bytes: Option<u64>) {
+        self.buffer.set_memory_cap(bytes);
+    }
+
+    fn kept_bytes(&self) -> u64 {
+        self.buffer.kept_bytes()
+    }
+
+    fn trim(&mut self, bytes: u64) {
+        self.buffer.trim(bytes);
     }
 }
 
