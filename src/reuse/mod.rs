@@ -380,7 +380,7 @@ pub struct ViewWork {
     pub snap_error: Option<(f64, f64)>,
     /// RSVP: the coarsest and finest pyramid level the view read (by
     /// [`rsvp::Level::finest`]).
-    pub levels: Option<(u32, u32)>,
+    pub levels: Option<(i32, i32)>,
     /// RSVP: the bytes its buffer keeps after the frame (see
     /// [`rsvp::SampleBuffer::kept_bytes`]).
     pub kept_bytes: Option<u64>,

@@ -237,18 +237,19 @@ impl SampleBuffer {
     /// along it, each coarser azimuth level owns every 2^k-th sample, so
     /// each owner's slots go straight into `out` at their stride.
     fn copy_row(&self, cache: &mut TileCache, level: Level, col: i64, row: i64, out: &mut [Vec3]) {
-        let sy = row.trailing_zeros().min(level.y);
-        let oy = level.y - sy;
-        let slot_row = (row >> sy) >> u32::from(oy > 0);
+        let base = self.lattice.base(level);
+        let sy = row.trailing_zeros().min((level.y - base.y) as u32);
+        let oy = level.y - sy as i32;
+        let slot_row = (row >> sy) >> u32::from(oy > base.y);
         let n = out.len() as i64;
-        for ox in 0..=level.x {
+        for ox in base.x..=level.x {
             let sx = level.x - ox;
-            let (period, offset) = owned_positions(level.x, ox);
+            let (period, offset) = owned_positions((level.x - base.x) as u32, (ox - base.x) as u32);
             let first = col + ((offset - col) & (period - 1));
             if first - col >= n {
                 continue;
             }
-            let slot = (first >> sx) >> u32::from(ox > 0);
+            let slot = (first >> sx) >> u32::from(ox > base.x);
             let owner = Level::new(ox, oy);
             let out = &mut out[(first - col) as usize..];
             self.copy_run(cache, owner, slot, slot_row, out, period as usize);
@@ -394,9 +395,12 @@ pub(super) fn follow_traced(
         .filter(|(_, blocks)| !blocks.index.is_empty())
         .for_each(|(index, blocks)| {
             let level = Level::from_index(index);
+            let base = lattice.base(level);
             let mut recent = ((i64::MIN, i64::MIN), None);
             for (&(owner, group, _), codes) in groups.iter().zip(&codes) {
-                if owner.x > level.x || owner.y > level.y {
+                // Only the owners of its pyramid hold a level's samples.
+                if !(base.x..=level.x).contains(&owner.x) || !(base.y..=level.y).contains(&owner.y)
+                {
                     continue;
                 }
                 let (sx, sy) = (level.x - owner.x, level.y - owner.y);
@@ -405,8 +409,8 @@ pub(super) fn follow_traced(
                 // go in at fixed steps, with no lookup each.
                 let (c0, r0) = lattice.slot_position(owner, group.col, group.row);
                 let (col, row) = (c0 << sx, r0 << sy);
-                let step = |k: u32, s: u32| (1usize + usize::from(k > 0)) << s;
-                let (step_x, step_y) = (step(owner.x, sx), step(owner.y, sy));
+                let step = |finer: bool, s: i32| (1usize + usize::from(finer)) << s;
+                let (step_x, step_y) = (step(owner.x > base.x, sx), step(owner.y > base.y, sy));
                 let (key, first) = block_key(col, row);
                 let width = (GROUP_WIDTH - 1) as usize;
                 let (corner, _) = block_key(col + (width * step_x) as i64, row + step_y as i64);

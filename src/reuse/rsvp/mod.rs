@@ -12,16 +12,23 @@
 //!   with a whole number of columns per turn (a multiple of the group
 //!   width): the azimuth wraps, the rows end at the poles. The axes refine
 //!   independently, because a wide perspective view squeezes azimuth at
-//!   its sides long before elevation. Halving a step is exact in floating
-//!   point, so level (x+1, y)'s sample (2c, r) has bit for bit level
-//!   (x, y)'s direction, and likewise for rows: the levels nest.
-//! - Every sample belongs to the coarsest level that has it (on each axis),
-//!   is stored only there, and is traced only there. A level finer than 0
-//!   on an axis owns the odd positions on it; its samples are stored and
-//!   traced by slot (the odd positions numbered densely), in aligned 4x2
-//!   groups of slots, so every lane of a packet is a sample the level owns.
-//!   A sample's colour never depends on which level or viewport asked
-//!   first, and a fresh trace of the same group reproduces it bit for bit.
+//!   its sides long before elevation. Levels below 0 (down to
+//!   [`COARSEST_LEVEL`]) serve zoomed-out views, whose pixels are wider
+//!   than level 0's samples. Halving a step is exact in floating point, so
+//!   level (x+1, y)'s sample (2c, r) has bit for bit level (x, y)'s
+//!   direction, and likewise for rows: the levels nest.
+//! - Level 0 and the finer levels form one pyramid, the coarser ones
+//!   another ([`SampleLattice::base`]): a view that is not zoomed out reads
+//!   and traces exactly what it would without the coarser levels. Every
+//!   sample belongs to the coarsest level of its pyramid that has it (on
+//!   each axis), is stored only there, and is traced only there. A level
+//!   finer than its pyramid's coarsest on an axis owns the odd positions on
+//!   it; its samples are stored and traced by slot (the odd positions
+//!   numbered densely), in aligned 4x2 groups of slots, so every lane of a
+//!   packet is a sample the level owns. A sample's colour never depends on
+//!   which level or viewport asked first, and a fresh trace of the same
+//!   group reproduces it bit for bit (a sample of both pyramids is traced
+//!   in each, the same).
 //! - Pass 2 reads copies: each level's samples at all its positions,
 //!   assembled from their owners into blocks that take every group traced
 //!   after them, so they always equal the stores (`verify` checks that too).
@@ -76,7 +83,12 @@ use viewport::PixelMap;
 
 /// Finest pyramid level: 2^16 times the camera's angular resolution, enough
 /// for a zoom of 1000 with room for oversampling and level bias.
-pub const MAX_LEVEL: u32 = 16;
+pub const MAX_LEVEL: i32 = 16;
+
+/// Coarsest pyramid level: 2^-8 times the camera's angular resolution, for
+/// views zoomed out as far as the viewer goes (1/97) and their widest
+/// pixels (where azimuth lets it: see [`SampleLattice::coarsest`]).
+pub const COARSEST_LEVEL: i32 = -8;
 
 /// Viewport pixels per side of a patch: a square whose pixels all read
 /// one pyramid level.
@@ -232,7 +244,9 @@ impl SampleBuffer {
     /// its position on level 0: a group of slots spans 8 columns and 4 rows
     /// at a level finer than 0 on that axis, aligned, which is 4 or fewer
     /// level-0 columns and 2 or fewer rows; regions a multiple of 4 wide and
-    /// 2 tall (40 x 30 samples) so never cut a group.
+    /// 2 tall (40 x 30 samples) so never cut a group. A coarser level's
+    /// group may span regions: it is recorded into, and erased with, the
+    /// region of its first sample.
     pub fn regions(&self, size: (i64, i64)) -> RegionLayout {
         RegionLayout::new(
             size,
@@ -250,8 +264,9 @@ impl SampleBuffer {
         group: SampleGroup,
     ) -> usize {
         let (col, row) = lattice.slot_position(level, group.col, group.row);
-        let col = lattice.wrap_column(level.x, col) >> level.x;
-        let row = (row >> level.y).clamp(0, lattice.last_row(0));
+        let to_level_0 = |v: i64, k: i32| if k >= 0 { v >> k } else { v << -k };
+        let col = to_level_0(lattice.wrap_column(level.x, col), level.x);
+        let row = to_level_0(row, level.y).clamp(0, lattice.last_row(0));
         layout.region_of(col, row)
     }
 
@@ -524,9 +539,12 @@ impl SampleBuffer {
                     let watch = Stopwatch::start();
                     let (frame, image) = self.gather(pose, mapped, knobs.filter, linear);
                     let gather_ms = watch.ms() + assembly_ms;
-                    let levels = mapped.patches.iter().fold((u32::MAX, 0), |(lo, hi), p| {
-                        (lo.min(p.level.finest()), hi.max(p.level.finest()))
-                    });
+                    let levels = mapped
+                        .patches
+                        .iter()
+                        .fold((i32::MAX, i32::MIN), |(lo, hi), p| {
+                            (lo.min(p.level.finest()), hi.max(p.level.finest()))
+                        });
                     StoreFrame {
                         frame,
                         image,
@@ -625,29 +643,32 @@ impl SampleBuffer {
     /// sample): traced samples in colour, never-traced ones black (the
     /// paper's figure 5a). Where level 0 is null but a finer level traced
     /// inside the sample's cell, that sample shows, so what a zoomed
-    /// viewport traced appears solid.
+    /// viewport traced appears solid; failing that, a coarser level's
+    /// sample whose cell holds it (what a zoomed-out viewport traced).
     pub fn buffer_image(&self, camera: &Camera, width: u32, height: u32) -> image::RgbImage {
         let col0 = (camera.yaw / self.lattice.step - 0.5 * f64::from(width)).round() as i64;
         let row0 = ((FRAC_PI_2 - camera.pitch) / self.lattice.step - 0.5 * f64::from(height))
             .round() as i64;
         let srgb = srgb_table();
-        // Coarser levels first: fewer halvings in all come first.
+        // Level 0 and the finer ones first, fewer halvings in all first;
+        // then the coarser, the least coarse first.
         let mut levels: Vec<Level> = (0..Level::COUNT)
             .filter(|&i| !self.levels[i].traced.is_empty())
             .map(Level::from_index)
             .collect();
-        levels.sort_by_key(|l| (l.x + l.y, *l));
+        levels.sort_by_key(|l| (l.x < 0 || l.y < 0, l.x.abs() + l.y.abs(), *l));
+        // On a finer axis, the cell's first position the level owns (an
+        // odd one); on a coarser axis, the position whose cell holds it.
+        let cell = |k: i32, v: i64| match k {
+            0 => v,
+            k if k > 0 => (v << k) + 1,
+            k => v >> -k,
+        };
         image::RgbImage::from_fn(width, height, |x, y| {
             let (c, r) = (col0 + i64::from(x), row0 + i64::from(y));
-            let colour = levels.iter().find_map(|&level| {
-                // The first sample of the cell this level owns.
-                let (col, row) = self.lattice.slot_position(
-                    level,
-                    c << level.x.saturating_sub(1),
-                    r << level.y.saturating_sub(1),
-                );
-                self.sample(level, col, row)
-            });
+            let colour = levels
+                .iter()
+                .find_map(|&level| self.sample(level, cell(level.x, c), cell(level.y, r)));
             image::Rgb(colour.map_or([0; 3], |c| c.to_array().map(|v| srgb.encode(v))))
         })
     }
