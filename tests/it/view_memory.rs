@@ -7,20 +7,21 @@ use std::process::{Command, Stdio};
 use std::time::Duration;
 
 /// The cap asked for, in MB.
-const CAP_MB: u64 = 16;
+const CAP_MB: u64 = 8;
 
-/// What the viewer of the paper scene at 128x96 takes besides the samples
+/// What the viewer of the paper scene at 160x120 takes besides the samples
 /// it keeps, with room to spare: the program, the scene, Embree, the
-/// threads and pictures took 28 MB measured.
+/// threads and pictures took 24 MB measured. (The same zoom without a cap
+/// keeps 38 MB of samples and peaks at 64 MB.)
 const BESIDES_MB: u64 = 40;
 
-/// Eight cycles of 30 steps in and 35 out (two notches each, every
-/// picture waited for) about points spread over a 128x96 picture, then
+/// Twelve cycles of 30 steps in and 35 out (two notches each, every
+/// picture waited for) about points spread over a 160x120 picture, then
 /// a pause that keeps the process alive while its peak is read.
 fn long_zoom() -> String {
     let mut script = String::new();
-    for cycle in 0..8u32 {
-        let (x, y) = (7 + cycle * 37 % 120, 5 + cycle * 29 % 90);
+    for cycle in 0..12u32 {
+        let (x, y) = (7 + cycle * 37 % 150, 5 + cycle * 29 % 110);
         script += &format!("wheel 2 {x} {y}\nwait\n").repeat(30);
         script += &format!("wheel -2 {x} {y}\nwait\n").repeat(35);
     }
@@ -45,9 +46,9 @@ fn a_long_zoom_keeps_its_samples_within_the_cap() {
         .args([
             "view",
             "--width",
-            "128",
+            "160",
             "--height",
-            "96",
+            "120",
             "--refine-spp",
             "1",
         ])
@@ -84,7 +85,7 @@ fn a_long_zoom_keeps_its_samples_within_the_cap() {
     let cell =
         |line: &str, at: usize| -> u64 { line.split(',').nth(at).unwrap().parse().unwrap_or(0) };
     let rows: Vec<&str> = text.lines().skip(1).collect();
-    assert!(rows.len() > 300, "{} rows", rows.len());
+    assert!(rows.len() > 500, "{} rows", rows.len());
     let cap_bytes = CAP_MB << 20;
     let most = rows.iter().map(|row| cell(row, kept)).max().unwrap();
     assert!(

@@ -579,9 +579,22 @@ mod tests {
     #[test]
     fn slots_are_the_samples_a_level_owns() {
         let lattice = lattice();
-        for (x, y) in [(0, 0), (1, 0), (0, 1), (2, 3), (7, 7)] {
+        let levels = [
+            (0, 0),
+            (1, 0),
+            (0, 1),
+            (2, 3),
+            (7, 7),
+            (-6, -8),
+            (-1, -1),
+            (2, -3),
+        ];
+        for (x, y) in levels {
             let level = Level::new(x, y);
-            for (col, row) in [(0, 0), (1, 2), (5, 9), (1151, 7)] {
+            let base = lattice.base(level);
+            // Within the turn of the coarsest levels' 36 slot columns too.
+            let last_col = lattice.slot_columns(level) - 1;
+            for (col, row) in [(0, 0), (1, 2), (5, 9), (last_col, 3)] {
                 let (c, r) = lattice.slot_position(level, col, row);
                 assert_eq!(lattice.owner(level, c, r), (level, col, row), "{level}");
             }
@@ -593,14 +606,18 @@ mod tests {
                 level,
             };
             // Slot rows straddling the last row (slot v is row 2v + 1 on a
-            // finer level).
-            let pole = if y == 0 {
-                lattice.last_row(0)
+            // level finer than its pyramid's coarsest).
+            let pole = if y == base.y {
+                lattice.last_row(y)
             } else {
                 lattice.last_row(y) / 2 - 1
             };
+            // Level -8 has five rows.
             for group in [
-                SampleGroup { col: 8, row: 6 },
+                SampleGroup {
+                    col: 8,
+                    row: 6.min(pole - 2),
+                },
                 SampleGroup { col: -4, row: 2 },
                 SampleGroup { col: 16, row: pole },
             ] {

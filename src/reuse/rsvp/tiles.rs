@@ -15,15 +15,18 @@ use crate::render::{SampleGroup, GROUP_HEIGHT, GROUP_WIDTH};
 use crate::shade::RayCounts;
 
 /// Samples per side of a storage tile (a multiple of both group sides).
-/// A tile is one row of groups, 256 samples wide: a viewport row reads
-/// long contiguous runs, which the hardware prefetcher follows (with
-/// square tiles the sample loads would miss the cache every few pixels).
-pub(super) const TILE_COLS: i64 = 256;
-pub(super) const TILE_COL_SHIFT: u32 = 8;
+/// A tile is one row of groups, 64 samples wide: pass 2 reads assembled
+/// blocks 64 wide, each row of which one tile gives; and where a view's
+/// pixels read samples far apart (zoomed far out, or slivers of pixels
+/// tilted to the lattice) each group takes a tile of its own, whose
+/// memory is mostly unused: 256-wide tiles kept three times the memory at
+/// the viewer's zoom-out limit, and were no faster.
+pub(super) const TILE_COLS: i64 = 64;
+pub(super) const TILE_COL_SHIFT: u32 = 6;
 const TILE_ROWS: i64 = GROUP_HEIGHT as i64;
 pub(super) const TILE_ROW_SHIFT: u32 = 1;
 pub(super) const TILE_SAMPLES: usize = (TILE_COLS * TILE_ROWS) as usize;
-const _: () = assert!(TILE_COLS / GROUP_WIDTH as i64 == 64);
+const _: () = assert!(TILE_COLS / GROUP_WIDTH as i64 <= 64);
 const _: () = assert!(1 << TILE_COL_SHIFT == TILE_COLS && 1 << TILE_ROW_SHIFT == TILE_ROWS);
 
 /// The memory a tile takes: its samples, and an estimate of its share of
