@@ -428,7 +428,9 @@ impl SampleBuffer {
         self.fresh
             .extend(all.iter().map(|&(level, group, _)| (level, group)));
         if all.is_empty() {
-            return (out, self.make_tiles(&all, blocks));
+            let evicted = self.make_tiles(&all, blocks);
+            self.samples_evicted += evicted;
+            return (out, evicted);
         }
         // One batch rather than one per level: a frame that refines a few
         // levels would otherwise wait for each level's last group in turn.
