@@ -358,6 +358,7 @@ pub(crate) fn animate(args: AnimateArgs) -> Result<()> {
         rsvp: args.rsvp.knobs(scene.samples)?,
         traced_images: files.traced.is_some(),
         aovs,
+        sample_memory: None,
     };
     refuse_idle_flags(&args, &scene, &options, files.store.is_some())?;
     check_outputs(&args, stats_path.as_deref())?;

@@ -48,6 +48,34 @@ pub(crate) struct ViewArgs {
     #[arg(long, default_value_t = DEFAULT_REFINE_SPP,
           value_parser = clap::value_parser!(u32).range(1..=i64::from(MAX_SAMPLES_PER_PIXEL)))]
     refine_spp: u32,
+    /// The most memory, in MB, the samples kept for zoomed and turned views
+    /// may take; past it, those read least recently are dropped and traced
+    /// again when needed [default: 1024, or a quarter of the machine's
+    /// memory if that is less].
+    #[arg(long, value_name = "MB",
+          value_parser = clap::value_parser!(u64).range(1..=MAX_SAMPLE_MEMORY_MB))]
+    sample_memory: Option<u64>,
+}
+
+/// The largest `--sample-memory`: 16 TB, which no byte count overflows.
+const MAX_SAMPLE_MEMORY_MB: u64 = 1 << 24;
+
+/// The cap on the kept samples unless `--sample-memory` says otherwise:
+/// 1024 MB, or a quarter of the machine's memory if that is less (1024 MB
+/// where /proc/meminfo does not say).
+fn default_sample_memory() -> u64 {
+    const DEFAULT: u64 = 1 << 30;
+    let total = std::fs::read_to_string("/proc/meminfo")
+        .ok()
+        .and_then(|text| mem_total_bytes(&text));
+    total.map_or(DEFAULT, |total| DEFAULT.min(total / 4))
+}
+
+/// The `MemTotal:` line of /proc/meminfo, in bytes.
+fn mem_total_bytes(meminfo: &str) -> Option<u64> {
+    let line = meminfo.lines().find_map(|l| l.strip_prefix("MemTotal:"))?;
+    let kb = line.trim().strip_suffix("kB")?.trim().parse::<u64>().ok()?;
+    kb.checked_mul(1024).filter(|&bytes| bytes > 0)
 }
 
 pub(crate) fn view(args: ViewArgs) -> Result<()> {
@@ -88,6 +116,10 @@ pub(crate) fn view(args: ViewArgs) -> Result<()> {
     }
     let name = scene_name(&args.scene);
     let grid = args.backend.grid_resolution()?;
+    let sample_memory = Some(
+        args.sample_memory
+            .map_or_else(default_sample_memory, |mb| mb << 20),
+    );
     match script {
         Some((path, text)) => {
             let viewer = Viewer::new(&scene);
@@ -98,6 +130,7 @@ pub(crate) fn view(args: ViewArgs) -> Result<()> {
                 grid,
                 true,
                 args.refine_spp,
+                sample_memory,
                 Box::new(|| {}),
             )
             .map_err(anyhow::Error::msg)?;
@@ -133,6 +166,7 @@ pub(crate) fn view(args: ViewArgs) -> Result<()> {
                 args.backend.backend,
                 grid,
                 args.refine_spp,
+                sample_memory,
                 &mut hooks,
             );
             super::stop_on_interrupt(None);
@@ -333,5 +367,26 @@ impl Hooks for WindowHooks {
         save_image(&path, image).map_err(|e| e.to_string())?;
         say!("saved {}", path.display());
         Ok(path.display().to_string())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_machine_s_memory_is_read_from_meminfo() {
+        let meminfo = "MemTotal:       24731184 kB\nMemFree:          190632 kB\n";
+        assert_eq!(mem_total_bytes(meminfo), Some(24_731_184 * 1024));
+        for bad in [
+            "",
+            "MemFree: 10 kB\n",
+            "MemTotal: lots kB\n",
+            "MemTotal: 0 kB\n",
+        ] {
+            assert_eq!(mem_total_bytes(bad), None, "{bad:?}");
+        }
+        let default = default_sample_memory();
+        assert!(default > 0 && default <= 1 << 30, "{default}");
     }
 }

@@ -85,6 +85,20 @@ struct Kept {
 /// switching between kinds of view, one animator at a time.
 pub struct KeptSamples(Kept);
 
+impl KeptSamples {
+    /// The bytes of kept samples a memory cap bounds
+    /// ([`Options::sample_memory`]).
+    pub fn kept_bytes(&self) -> u64 {
+        self.0.store.kept_bytes()
+    }
+
+    /// Drops kept samples, least recently used first, until those a memory
+    /// cap bounds take at most `bytes`.
+    pub fn trim(&mut self, bytes: u64) {
+        self.0.store.trim(bytes);
+    }
+}
+
 /// Renders the frames of one animation, reusing what it may.
 pub struct Animator<'a> {
     /// The scene as loaded.
@@ -165,6 +179,21 @@ impl<'a> Animator<'a> {
         self.kept.map(KeptSamples)
     }
 
+    /// Caps the bytes its kept samples may take from the next frame on
+    /// ([`Options::sample_memory`]).
+    pub fn set_sample_memory(&mut self, bytes: Option<u64>) {
+        self.options.sample_memory = bytes;
+        if let Some(kept) = &mut self.kept {
+            kept.store.set_memory_cap(bytes);
+        }
+    }
+
+    /// The bytes of its kept samples a memory cap bounds (0 with nothing
+    /// kept).
+    pub fn kept_bytes(&self) -> u64 {
+        self.kept.as_ref().map_or(0, |kept| kept.store.kept_bytes())
+    }
+
     /// Goes on from `kept`, which an animator of this scene with these
     /// options kept. Its samples stay exact: the next frame checks them
     /// against the views and the scene's pose as it checks its own (a
@@ -172,7 +201,9 @@ impl<'a> Animator<'a> {
     /// re-trace through OSTC), and the first pose places every animated
     /// object in the accelerator.
     pub fn resume(&mut self, kept: KeptSamples) {
-        self.kept = Some(kept.0);
+        let mut kept = kept.0;
+        kept.store.set_memory_cap(self.options.sample_memory);
+        self.kept = Some(kept);
     }
 
     pub fn animation(&self) -> Option<&'a Animation> {

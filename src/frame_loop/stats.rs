@@ -119,7 +119,7 @@ pub struct FrameCheck {
 impl FrameStats {
     /// The columns of a statistics file, in order (`error` stands for its
     /// fields, `error.max_abs` ...).
-    pub const COLUMNS: [&'static str; 27] = [
+    pub const COLUMNS: [&'static str; 29] = [
         "frame",
         "mode",
         "reason",
@@ -155,6 +155,10 @@ impl FrameStats {
         // level's number is its finer axis's, rsvp::Level::finest).
         "finest_level",
         "coarsest_level",
+        // RSVP: the bytes its buffer keeps after the frame, and the traced
+        // samples it evicted to stay within its memory cap.
+        "kept_bytes",
+        "samples_evicted",
     ];
 
     /// A row with every optional value present: optional nested values are
@@ -263,7 +267,7 @@ impl serde::Serialize for FrameStats {
         let check = self.check.as_ref();
         let levels = self.work.levels;
         let mut row = serializer.serialize_struct("FrameStats", Self::COLUMNS.len())?;
-        let [frame, mode, reason, pixels, pixels_reused, samples_traced, primary_rays, shadow_rays, reflection_rays, refraction_rays, dirty_regions, samples_nulled, voxels_walked, bookkeeping_ms, trace_ms, copy_ms, total_ms, yaw_error_deg, pitch_error_deg, full_ms, speedup, differing_pixels, changed_regions, error, viewport, finest_level, coarsest_level] =
+        let [frame, mode, reason, pixels, pixels_reused, samples_traced, primary_rays, shadow_rays, reflection_rays, refraction_rays, dirty_regions, samples_nulled, voxels_walked, bookkeeping_ms, trace_ms, copy_ms, total_ms, yaw_error_deg, pitch_error_deg, full_ms, speedup, differing_pixels, changed_regions, error, viewport, finest_level, coarsest_level, kept_bytes, samples_evicted] =
             Self::COLUMNS;
         row.serialize_field(frame, &self.frame)?;
         row.serialize_field(mode, &self.mode)?;
@@ -294,6 +298,8 @@ impl serde::Serialize for FrameStats {
         row.serialize_field(viewport, &self.view)?;
         row.serialize_field(finest_level, &levels.map(|l| l.1))?;
         row.serialize_field(coarsest_level, &levels.map(|l| l.0))?;
+        row.serialize_field(kept_bytes, &self.work.kept_bytes)?;
+        row.serialize_field(samples_evicted, &self.work.samples_evicted)?;
         row.end()
     }
 }

@@ -403,7 +403,12 @@ pub struct ViewWork {
     pub snap_error: Option<(f64, f64)>,
     /// RSVP: the coarsest and finest pyramid level the view read (by
     /// [`rsvp::Level::finest`]).
-    pub levels: Option<(u32, u32)>,
+    pub levels: Option<(i32, i32)>,
+    /// RSVP: the bytes its buffer keeps after the frame (see
+    /// [`rsvp::SampleBuffer::kept_bytes`]).
+    pub kept_bytes: Option<u64>,
+    /// Traced samples the store evicted to stay within its memory cap.
+    pub samples_evicted: u64,
 }
 
 impl ViewWork {
@@ -424,6 +429,8 @@ impl ViewWork {
                     (Some(a), Some(b)) => Some((a.0.min(b.0), a.1.max(b.1))),
                     (a, b) => a.or(b),
                 },
+                kept_bytes: sum.kept_bytes.max(part.kept_bytes),
+                samples_evicted: sum.samples_evicted + part.samples_evicted,
             })
     }
 }
@@ -487,4 +494,18 @@ pub trait SampleStore {
     fn verify(&self, _shader: &Shader) -> Option<(u64, u64)> {
         None
     }
+
+    /// Caps the bytes the store's kept samples may take (None: no cap), for
+    /// stores that can keep within one ([`Options::sample_memory`]).
+    fn set_memory_cap(&mut self, _bytes: Option<u64>) {}
+
+    /// The bytes of kept samples the cap bounds (0 for stores without
+    /// one).
+    fn kept_bytes(&self) -> u64 {
+        0
+    }
+
+    /// Drops kept samples, least recently used first, until those the cap
+    /// bounds take at most `bytes` (stores without a cap keep theirs).
+    fn trim(&mut self, _bytes: u64) {}
 }

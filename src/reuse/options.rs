@@ -131,6 +131,10 @@ pub struct Options {
     /// The arbitrary output variables each view comes with (none: no work
     /// at all for them).
     pub aovs: AovSet,
+    /// The most bytes a store's kept samples may take (None: no cap).
+    /// RSVP's buffer then evicts the samples read least recently, traced
+    /// again, the same, when read again.
+    pub sample_memory: Option<u64>,
 }
 
 impl Options {
@@ -146,6 +150,7 @@ impl Options {
             rsvp: RsvpKnobs::default(),
             traced_images: false,
             aovs: AovSet::NONE,
+            sample_memory: None,
         }
     }
 }

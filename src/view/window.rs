@@ -200,6 +200,7 @@ pub fn run_window(
     backend: BackendKind,
     grid_resolution: Option<[u32; 3]>,
     refine_spp: u32,
+    sample_memory: Option<u64>,
     hooks: &mut dyn Hooks,
 ) -> Result<Ending, String> {
     let event_loop = open_display()?;
@@ -209,7 +210,15 @@ pub fn run_window(
     let notify = Box::new(move || {
         let _ = wake.send_event(Wake::Picture);
     });
-    let thread = RenderThread::spawn(scene, backend, grid_resolution, false, refine_spp, notify)?;
+    let thread = RenderThread::spawn(
+        scene,
+        backend,
+        grid_resolution,
+        false,
+        refine_spp,
+        sample_memory,
+        notify,
+    )?;
     hooks.opened(Box::new(move || {
         let _ = proxy.send_event(Wake::Stop);
     }));

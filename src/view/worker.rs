@@ -225,12 +225,15 @@ impl RenderThread {
     /// waits for requests. `log`: keep every finished picture's timing.
     /// `refine_spp`: refine complete pictures in idle time up to this many
     /// samples a pixel (no more than the scene's: no refinement).
+    /// `sample_memory`: the most bytes the samples kept for every kind of
+    /// view together may take (None: no cap).
     pub fn spawn(
         scene: Scene,
         backend: BackendKind,
         grid_resolution: Option<[u32; 3]>,
         log: bool,
         refine_spp: u32,
+        sample_memory: Option<u64>,
         notify: Notify,
     ) -> Result<RenderThread, String> {
         let shared = Arc::new(Shared {
@@ -267,7 +270,7 @@ impl RenderThread {
                             };
                         let _ = ready_tx.send(Ok(()));
                         let rungs = ladder(scene.samples.count(), refine_spp);
-                        serve(&shared, &scene, accel, &rungs, &notify);
+                        serve(&shared, &scene, accel, &rungs, sample_memory, &notify);
                     })
                 }))
                 .err()
@@ -622,7 +625,14 @@ pub const REFINE_MODE: &str = "refine";
 
 /// The render loop: waits for a request, renders the latest, repeats
 /// until told to quit. Each window size has its own scenes and animators.
-fn serve(shared: &Shared, scene: &Scene, mut accel: Accelerator, rungs: &[u32], notify: &Notify) {
+fn serve(
+    shared: &Shared,
+    scene: &Scene,
+    mut accel: Accelerator,
+    rungs: &[u32],
+    sample_memory: Option<u64>,
+    notify: &Notify,
+) {
     let viewer = Viewer::new(scene);
     let mut pending = next_request(shared);
     while let Some(request) = pending {
@@ -632,6 +642,7 @@ fn serve(shared: &Shared, scene: &Scene, mut accel: Accelerator, rungs: &[u32], 
             viewer: &viewer,
             scenes: &scenes,
             rungs,
+            sample_memory,
             notify,
         };
         pending = serve_size(&serving, &mut accel, request);
@@ -645,6 +656,9 @@ struct Serving<'a> {
     scenes: &'a Scenes,
     /// The refinement ladder's samples a pixel (empty: no refinement).
     rungs: &'a [u32],
+    /// The most bytes the kept samples of every kind of view together may
+    /// take (None: no cap).
+    sample_memory: Option<u64>,
     notify: &'a Notify,
 }
 
@@ -660,6 +674,7 @@ fn serve_size(
         viewer,
         scenes,
         rungs,
+        sample_memory,
         notify,
     } = *serving;
     let options = |kind: AnimatorKind, scene: &Scene| Options {
@@ -672,6 +687,7 @@ fn serve_size(
         linear: false,
         rsvp: RsvpKnobs::default_for(scene.samples),
         traced_images: true,
+        sample_memory,
         ..Options::new(Techniques::FULL, 0..1)
     };
     let mut current: Option<(AnimatorKind, Animator)> = None;
@@ -691,6 +707,16 @@ fn serve_size(
                 if let Some(kept) = old.into_kept() {
                     stashed.retain(|(k, _)| *k != old_kind);
                     stashed.push((old_kind, kept));
+                }
+                // Under a cap, what the other kinds of view kept takes at
+                // most half of it (the latest left keeps the most), and
+                // the view shown the rest.
+                if let Some(cap) = sample_memory {
+                    let mut left = cap / 2;
+                    for (_, kept) in stashed.iter_mut().rev() {
+                        kept.trim(left);
+                        left = left.saturating_sub(kept.kept_bytes());
+                    }
                 }
             }
             if let Some(at) = stashed.iter().position(|(k, _)| *k == kind) {
@@ -729,6 +755,8 @@ fn serve_size(
             ));
         }
         let (_, animator) = current.as_mut().expect("an animator for the state");
+        let stashed_bytes: u64 = stashed.iter().map(|(_, k)| k.kept_bytes()).sum();
+        animator.set_sample_memory(sample_memory.map(|cap| cap.saturating_sub(stashed_bytes)));
         let Some(mut picture) = render(
             animator,
             viewer,

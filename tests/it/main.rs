@@ -35,3 +35,4 @@ mod tradeoff;
 mod validate;
 mod validate_seeds;
 mod view;
+mod view_memory;

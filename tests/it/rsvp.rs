@@ -418,3 +418,77 @@ fn verify_checks_the_buffer_after_every_frame() {
         "{stdout}"
     );
 }
+
+/// A buffer capped far below what a zooming session reads evicts the tiles
+/// no frame reads, traces them again when a view comes back to them, and
+/// shows every frame exactly as an uncapped buffer does: samples are pure
+/// functions of their direction. It keeps within its cap, and its samples
+/// stay a fresh trace's, bit for bit.
+#[test]
+fn a_capped_buffer_shows_what_an_uncapped_one_does() {
+    let scene = paper_with("").unwrap();
+    let accel = Accelerator::build(retrace::accel::BackendKind::default(), &scene.objects).unwrap();
+    let shader = Shader::new(&scene, &accel);
+    let knobs = RsvpKnobs::default();
+    let mut uncapped = SampleBuffer::new(lattice_for(&scene));
+    let mut capped = SampleBuffer::new(lattice_for(&scene));
+    let cap = 3 << 20;
+    capped.set_memory_cap(Some(cap));
+    // Zooming in about three points in turn from zoomed out (levels
+    // coarser than 0 too), then about the first again: its tiles were
+    // evicted meanwhile.
+    let points = [[-20.0, -12.0], [18.0, 10.0], [25.0, -15.0], [-20.0, -12.0]];
+    let mut frames = 0;
+    for translate in points {
+        for notches in -10..30 {
+            let zoom = 1.25f64.powi(notches);
+            let transform = ViewTransform {
+                zoom,
+                rotate: 0.2,
+                translate: [
+                    translate[0] * (1.0 - 1.0 / zoom),
+                    translate[1] * (1.0 - 1.0 / zoom),
+                ],
+                ..ViewTransform::default()
+            };
+            let poses = [pose(&scene, Projection::Perspective, transform)];
+            let want = uncapped.render(&shader, &poses, &knobs, true, None);
+            let got = capped.render(&shader, &poses, &knobs, true, None);
+            assert_eq!(
+                got[0].image.as_raw(),
+                want[0].image.as_raw(),
+                "{translate:?} zoom {zoom}"
+            );
+            let linear = |frame: &Option<retrace::render::Frame>| {
+                frame
+                    .as_ref()
+                    .unwrap()
+                    .pixels
+                    .iter()
+                    .map(|&c| bits(c))
+                    .collect::<Vec<_>>()
+            };
+            assert_eq!(linear(&got[0].frame), linear(&want[0].frame));
+            assert!(
+                capped.kept_bytes() <= cap,
+                "{} bytes kept",
+                capped.kept_bytes()
+            );
+            assert_eq!(got[0].work.kept_bytes, Some(capped.kept_bytes()));
+            frames += 1;
+        }
+    }
+    assert!(
+        uncapped.kept_bytes() > 3 * cap,
+        "the uncapped buffer kept only {}",
+        uncapped.kept_bytes()
+    );
+    assert!(capped.samples_evicted() > 0);
+    // The way back to the first point traced again what it had evicted.
+    assert!(capped.samples_traced() > uncapped.samples_traced());
+    let (compared, differing) = capped.verify(&shader);
+    assert!(
+        compared > 0 && differing == 0,
+        "{differing} of {compared} differ ({frames} frames)"
+    );
+}

@@ -36,7 +36,7 @@ type SampleId = (Level, i64, i64);
 
 /// The level of `lattice` at which a pixel whose neighbours lie `dx` and
 /// `dy` away (in level-0 samples) gets at least one sample per pixel.
-fn level_for_footprint(dx: DVec2, dy: DVec2) -> u32 {
+fn level_for_footprint(dx: DVec2, dy: DVec2) -> i32 {
     let longest = dx.length().max(dy.length());
     if longest <= 0.0 {
         return 0;
@@ -49,7 +49,7 @@ fn level_for_footprint(dx: DVec2, dy: DVec2) -> u32 {
     // A hair of tolerance: exactly one sample per pixel needs no finer level.
     ((1.0 / width).log2() - 1e-6)
         .ceil()
-        .clamp(0.0, f64::from(MAX_LEVEL)) as u32
+        .clamp(0.0, f64::from(MAX_LEVEL)) as i32
 }
 
 /// A pixel's candidate samples (2x2 around its centre on its level and
@@ -88,13 +88,13 @@ fn for_each_pixel<T: Send>(
                     right.x -= turn.copysign(right.x);
                 }
                 let level = level_for_footprint(right, down);
-                let sample = |level: u32, col: f64, row: f64| {
+                let sample = |level: i32, col: f64, row: f64| {
                     let row = (row as i64).clamp(0, lattice.last_row(level));
                     lattice.owner(Level::square(level), col as i64, row)
                 };
                 let mut candidates = [(Level::default(), 0, 0); 8];
                 for (k, slot) in candidates.iter_mut().enumerate() {
-                    let level = (level + (k / 4) as u32).min(MAX_LEVEL);
+                    let level = (level + (k / 4) as i32).min(MAX_LEVEL);
                     let at = centre * f64::from(1u32 << level);
                     *slot = sample(
                         level,

@@ -32,6 +32,12 @@ const BLOCK_SHIFT: u32 = 6;
 const BLOCK: i64 = 1 << BLOCK_SHIFT;
 const BLOCK_SAMPLES: usize = (BLOCK * BLOCK) as usize;
 
+/// The memory a block takes: its samples and its bookkeeping.
+pub(super) const BLOCK_BYTES: u64 = (BLOCK_SAMPLES * std::mem::size_of::<SampleCode>()) as u64 + 64;
+
+/// A block of a level: (level index, block key).
+pub(super) type BlockId = (usize, (i64, i64));
+
 /// One level's assembled blocks, row-major inside, made on first read.
 #[derive(Default)]
 pub(super) struct LevelBlocks {
@@ -77,6 +83,16 @@ impl LevelBlocks {
         self.index.insert(key, slot);
     }
 
+    /// Blocks assembled.
+    pub(super) fn count(&self) -> usize {
+        self.index.len()
+    }
+
+    /// Frees every block.
+    pub(super) fn clear(&mut self) {
+        *self = LevelBlocks::default();
+    }
+
     /// Gives every block last read before frame `since` to `spare`.
     fn give_up_unread(&mut self, since: u64, spare: &mut Vec<Box<[SampleCode]>>) {
         let (blocks, read_in, free) = (&mut self.blocks, &self.read_in, &mut self.free);
@@ -119,35 +135,51 @@ impl BlockCache {
 }
 
 impl SampleBuffer {
-    /// Assembles every block the boxes of `reads` cover (rows clamped to
-    /// the lattice, columns wrapped) that is not assembled yet. Blocks no
-    /// frame read since the one before give their memory to the new ones:
-    /// a fresh block's pages would each fault in on first touch, and the
-    /// faults would make assembling cost more than copying.
-    pub(super) fn assemble_blocks(&mut self, reads: impl Iterator<Item = (Level, SampleBox)>) {
-        self.frame += 1;
-        let frame = self.frame;
-        let mut wanted: Vec<(usize, (i64, i64))> = Vec::new();
+    /// The blocks the boxes of `reads` cover (rows clamped to the
+    /// lattice, columns wrapped), as (level index, key), sorted, each
+    /// once; and how many of them are not assembled yet.
+    pub(super) fn blocks_read(
+        &self,
+        reads: impl Iterator<Item = (Level, SampleBox)>,
+    ) -> (Vec<BlockId>, usize) {
+        let mut read: Vec<BlockId> = Vec::new();
         for (level, bounds) in reads {
-            let blocks = &mut self.blocks[level.index()];
             let columns = self.lattice.columns(level.x);
             let last_row = self.lattice.last_row(level.y);
             let (r0, r1) = (bounds.r0.clamp(0, last_row), bounds.r1.clamp(0, last_row));
             for block_row in (r0 >> BLOCK_SHIFT)..=(r1 >> BLOCK_SHIFT) {
                 for_each_run(bounds.c0, bounds.c1, columns, |col, _| {
-                    let key = (col >> BLOCK_SHIFT, block_row);
-                    match blocks.block(key) {
-                        Some(slot) => blocks.read_in[slot as usize] = frame,
-                        None => wanted.push((level.index(), key)),
-                    }
+                    read.push((level.index(), (col >> BLOCK_SHIFT, block_row)));
                 });
+            }
+        }
+        read.sort_unstable();
+        read.dedup();
+        let fresh = read
+            .iter()
+            .filter(|&&(index, key)| self.blocks[index].block(key).is_none())
+            .count();
+        (read, fresh)
+    }
+
+    /// Assembles every block of `read` (from [`SampleBuffer::blocks_read`])
+    /// that is not assembled yet. Blocks no frame read since the one
+    /// before give their memory to the new ones: a fresh block's pages
+    /// would each fault in on first touch, and the faults would make
+    /// assembling cost more than copying.
+    pub(super) fn assemble_blocks(&mut self, read: &[BlockId]) {
+        let frame = self.frame;
+        let mut wanted: Vec<BlockId> = Vec::new();
+        for &(index, key) in read {
+            let blocks = &mut self.blocks[index];
+            match blocks.block(key) {
+                Some(slot) => blocks.read_in[slot as usize] = frame,
+                None => wanted.push((index, key)),
             }
         }
         if wanted.is_empty() {
             return;
         }
-        wanted.sort_unstable();
-        wanted.dedup();
         for blocks in &mut self.blocks {
             blocks.give_up_unread(frame - 1, &mut self.spare_blocks);
         }
@@ -205,18 +237,19 @@ impl SampleBuffer {
     /// along it, each coarser azimuth level owns every 2^k-th sample, so
     /// each owner's slots go straight into `out` at their stride.
     fn copy_row(&self, cache: &mut TileCache, level: Level, col: i64, row: i64, out: &mut [Vec3]) {
-        let sy = row.trailing_zeros().min(level.y);
-        let oy = level.y - sy;
-        let slot_row = (row >> sy) >> u32::from(oy > 0);
+        let base = self.lattice.base(level);
+        let sy = row.trailing_zeros().min((level.y - base.y) as u32);
+        let oy = level.y - sy as i32;
+        let slot_row = (row >> sy) >> u32::from(oy > base.y);
         let n = out.len() as i64;
-        for ox in 0..=level.x {
+        for ox in base.x..=level.x {
             let sx = level.x - ox;
-            let (period, offset) = owned_positions(level.x, ox);
+            let (period, offset) = owned_positions((level.x - base.x) as u32, (ox - base.x) as u32);
             let first = col + ((offset - col) & (period - 1));
             if first - col >= n {
                 continue;
             }
-            let slot = (first >> sx) >> u32::from(ox > 0);
+            let slot = (first >> sx) >> u32::from(ox > base.x);
             let owner = Level::new(ox, oy);
             let out = &mut out[(first - col) as usize..];
             self.copy_run(cache, owner, slot, slot_row, out, period as usize);
@@ -362,9 +395,12 @@ pub(super) fn follow_traced(
         .filter(|(_, blocks)| !blocks.index.is_empty())
         .for_each(|(index, blocks)| {
             let level = Level::from_index(index);
+            let base = lattice.base(level);
             let mut recent = ((i64::MIN, i64::MIN), None);
             for (&(owner, group, _), codes) in groups.iter().zip(&codes) {
-                if owner.x > level.x || owner.y > level.y {
+                // Only the owners of its pyramid hold a level's samples.
+                if !(base.x..=level.x).contains(&owner.x) || !(base.y..=level.y).contains(&owner.y)
+                {
                     continue;
                 }
                 let (sx, sy) = (level.x - owner.x, level.y - owner.y);
@@ -373,8 +409,8 @@ pub(super) fn follow_traced(
                 // go in at fixed steps, with no lookup each.
                 let (c0, r0) = lattice.slot_position(owner, group.col, group.row);
                 let (col, row) = (c0 << sx, r0 << sy);
-                let step = |k: u32, s: u32| (1usize + usize::from(k > 0)) << s;
-                let (step_x, step_y) = (step(owner.x, sx), step(owner.y, sy));
+                let step = |finer: bool, s: i32| (1usize + usize::from(finer)) << s;
+                let (step_x, step_y) = (step(owner.x > base.x, sx), step(owner.y > base.y, sy));
                 let (key, first) = block_key(col, row);
                 let width = (GROUP_WIDTH - 1) as usize;
                 let (corner, _) = block_key(col + (width * step_x) as i64, row + step_y as i64);

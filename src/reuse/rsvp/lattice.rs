@@ -22,7 +22,7 @@ const ATAN_TAYLOR: [f64; 15] = {
     }
     c
 };
-use super::MAX_LEVEL;
+use super::{COARSEST_LEVEL, MAX_LEVEL};
 
 /// atan2 without a libm call: range reduction to |t| <= tan(pi/8), then the
 /// Taylor series to t^29. The error stays below 1e-12 rad (tested), a
@@ -58,40 +58,52 @@ pub fn fast_atan2(y: f64, x: f64) -> f64 {
 }
 
 /// A pyramid level: the azimuth step halved `x` times and the elevation
-/// step halved `y` times. Levels refine each axis on its own: the edges of a
-/// wide perspective view squeeze azimuth far more than elevation.
+/// step halved `y` times (doubled, where negative: coarser than the
+/// camera's, for zoomed-out views). Levels refine each axis on its own: the
+/// edges of a wide perspective view squeeze azimuth far more than
+/// elevation.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub struct Level {
-    pub x: u32,
-    pub y: u32,
+    pub x: i32,
+    pub y: i32,
 }
+
+/// Levels on each axis, [`COARSEST_LEVEL`] to [`MAX_LEVEL`].
+const LEVELS_PER_AXIS: usize = (MAX_LEVEL - COARSEST_LEVEL + 1) as usize;
 
 impl Level {
     /// Every level pair, for per-level tables.
-    pub const COUNT: usize = ((MAX_LEVEL + 1) * (MAX_LEVEL + 1)) as usize;
+    pub const COUNT: usize = LEVELS_PER_AXIS * LEVELS_PER_AXIS;
 
-    pub const fn new(x: u32, y: u32) -> Level {
+    pub const fn new(x: i32, y: i32) -> Level {
         Level { x, y }
     }
 
     /// The same refinement on both axes.
-    pub const fn square(k: u32) -> Level {
+    pub const fn square(k: i32) -> Level {
         Level { x: k, y: k }
     }
 
+    /// Dense and in the order of the levels (by `x`, then `y`).
     pub fn index(self) -> usize {
-        (self.x * (MAX_LEVEL + 1) + self.y) as usize
+        axis_index(self.x) * LEVELS_PER_AXIS + axis_index(self.y)
     }
 
     pub fn from_index(index: usize) -> Level {
-        let n = MAX_LEVEL as usize + 1;
-        Level::new((index / n) as u32, (index % n) as u32)
+        let axis = |i: usize| i as i32 + COARSEST_LEVEL;
+        Level::new(axis(index / LEVELS_PER_AXIS), axis(index % LEVELS_PER_AXIS))
     }
 
     /// The finer of the two axes' levels.
-    pub fn finest(self) -> u32 {
+    pub fn finest(self) -> i32 {
         self.x.max(self.y)
     }
+}
+
+/// Where level `k` of one axis sits in that axis's tables.
+fn axis_index(k: i32) -> usize {
+    debug_assert!((COARSEST_LEVEL..=MAX_LEVEL).contains(&k), "level {k}");
+    (k - COARSEST_LEVEL) as usize
 }
 
 impl std::fmt::Display for Level {
@@ -104,7 +116,9 @@ impl std::fmt::Display for Level {
     }
 }
 
-/// The corner-sampled equal-angle lattice pyramid around one eye.
+/// The corner-sampled equal-angle lattice pyramid around one eye: level 0
+/// and the finer ones nest, and so do the coarser ones, each pyramid
+/// apart (see [`SampleLattice::base`]).
 #[derive(Clone, Debug, PartialEq)]
 pub struct SampleLattice {
     pub position: DVec3,
@@ -112,9 +126,13 @@ pub struct SampleLattice {
     pub columns_per_turn: i64,
     /// Angle per sample at level 0, radians.
     pub step: f64,
+    /// The coarsest level on each axis: as many as [`COARSEST_LEVEL`]
+    /// allows in elevation, and in azimuth as many as keep a whole number
+    /// of groups in a turn.
+    coarsest: Level,
     /// Per elevation level: the last row (a division saved on every sample
     /// read).
-    last_rows: [i64; MAX_LEVEL as usize + 1],
+    last_rows: [i64; LEVELS_PER_AXIS],
     /// Sines and cosines of the coarse levels' angles, made on first use.
     angles: AngleTables,
 }
@@ -132,7 +150,7 @@ struct AngleTables {
 
 /// Per level, its angles' sines and cosines, by column or row.
 #[derive(Clone, Default)]
-struct LevelAngles([OnceLock<Box<[SinCos]>>; MAX_LEVEL as usize + 1]);
+struct LevelAngles([OnceLock<Box<[SinCos]>>; LEVELS_PER_AXIS]);
 
 /// `(sin, cos)` of one angle.
 type SinCos = (f64, f64);
@@ -143,12 +161,12 @@ const TABLED_ANGLES: i64 = 1 << 16;
 impl LevelAngles {
     /// `angle(i).sin_cos()`, from level `level`'s table of `count` angles
     /// when it is small enough to keep.
-    fn sin_cos(&self, level: u32, count: i64, i: i64, angle: impl Fn(i64) -> f64) -> (f64, f64) {
+    fn sin_cos(&self, level: i32, count: i64, i: i64, angle: impl Fn(i64) -> f64) -> (f64, f64) {
         if count > TABLED_ANGLES || !(0..count).contains(&i) {
             return angle(i).sin_cos();
         }
-        let table =
-            self.0[level as usize].get_or_init(|| (0..count).map(|k| angle(k).sin_cos()).collect());
+        let table = self.0[axis_index(level)]
+            .get_or_init(|| (0..count).map(|k| angle(k).sin_cos()).collect());
         table[i as usize]
     }
 }
@@ -190,41 +208,78 @@ impl SampleLattice {
     /// `columns_per_turn` (a multiple of the group width) columns at level 0.
     pub fn new(position: DVec3, columns_per_turn: i64) -> SampleLattice {
         let step = TAU / columns_per_turn as f64;
-        SampleLattice {
+        let group = i64::from(GROUP_WIDTH);
+        let coarser_x = (0..-COARSEST_LEVEL)
+            .take_while(|&k| columns_per_turn % (group << (k + 1)) == 0)
+            .count() as i32;
+        let mut lattice = SampleLattice {
             position,
             columns_per_turn,
             step,
-            last_rows: std::array::from_fn(|level| {
-                (PI / (step / f64::from(1u32 << level))).floor() as i64
-            }),
+            coarsest: Level::new(-coarser_x, COARSEST_LEVEL),
+            last_rows: [0; LEVELS_PER_AXIS],
             angles: AngleTables::default(),
+        };
+        lattice.last_rows = std::array::from_fn(|i| {
+            let y = i as i32 + COARSEST_LEVEL;
+            (PI / lattice.step(y)).floor() as i64
+        });
+        lattice
+    }
+
+    /// The coarsest level on each axis.
+    pub fn coarsest(&self) -> Level {
+        self.coarsest
+    }
+
+    /// The coarsest level of `level`'s pyramid on each axis: 0 for level 0
+    /// and the finer ones, [`SampleLattice::coarsest`] for the coarser. A
+    /// pyramid's coarsest level owns all its samples, each finer one the
+    /// odd positions: the camera's level and the finer ones never read a
+    /// coarser level's store (a frame that is not zoomed out checks and
+    /// traces exactly what it would without them), and a sample of both
+    /// pyramids is traced in each.
+    pub fn base(&self, level: Level) -> Level {
+        let axis = |k: i32, coarsest: i32| if k >= 0 { 0 } else { coarsest };
+        Level::new(
+            axis(level.x, self.coarsest.x),
+            axis(level.y, self.coarsest.y),
+        )
+    }
+
+    /// Angle per sample after `halvings` (negative: doublings); exact, a
+    /// power-of-two scaling.
+    pub fn step(&self, halvings: i32) -> f64 {
+        if halvings >= 0 {
+            self.step / f64::from(1u32 << halvings)
+        } else {
+            self.step * f64::from(1u32 << -halvings)
         }
     }
 
-    /// Angle per sample after `halvings` (exact: a power-of-two scaling).
-    pub fn step(&self, halvings: u32) -> f64 {
-        self.step / f64::from(1u32 << halvings)
-    }
-
-    /// Columns in a turn at azimuth level `x`.
-    pub fn columns(&self, x: u32) -> i64 {
-        self.columns_per_turn << x
+    /// Columns in a turn at azimuth level `x` (at least the coarsest).
+    pub fn columns(&self, x: i32) -> i64 {
+        if x >= 0 {
+            self.columns_per_turn << x
+        } else {
+            self.columns_per_turn >> -x
+        }
     }
 
     /// Last row at elevation level `y` (the south pole when the turn divides
     /// evenly).
-    pub fn last_row(&self, y: u32) -> i64 {
-        self.last_rows[y as usize]
+    pub fn last_row(&self, y: i32) -> i64 {
+        self.last_rows[axis_index(y)]
     }
 
     /// `col` brought into the turn at azimuth level `x`.
-    pub fn wrap_column(&self, x: u32, col: i64) -> i64 {
+    pub fn wrap_column(&self, x: i32, col: i64) -> i64 {
         wrap(col, self.columns(x))
     }
 
     /// Sine and cosine of the azimuth of column `col` (in the turn) at
     /// azimuth level `x`.
-    fn azimuth_sin_cos(&self, x: u32, col: i64) -> (f64, f64) {
+    fn azimuth_sin_cos(&self, x: i32, col: i64) -> (f64, f64) {
         let step = self.step(x);
         self.angles
             .azimuths
@@ -232,7 +287,7 @@ impl SampleLattice {
     }
 
     /// Sine and cosine of the elevation of row `row` at elevation level `y`.
-    fn elevation_sin_cos(&self, y: u32, row: i64) -> (f64, f64) {
+    fn elevation_sin_cos(&self, y: i32, row: i64) -> (f64, f64) {
         let step = self.step(y);
         self.angles
             .elevations
@@ -251,44 +306,46 @@ impl SampleLattice {
         Some(crate::camera::direction_from_angles(az, el))
     }
 
-    /// The coarsest level holding sample (col, row) of `level`, and the
-    /// sample's slot there: its column and row among the samples that level
-    /// owns (see [`SampleLattice::slot_position`]).
+    /// The coarsest level of its pyramid holding sample (col, row) of
+    /// `level`, and the sample's slot there: its column and row among the
+    /// samples that level owns (see [`SampleLattice::slot_position`]).
     pub fn owner(&self, level: Level, col: i64, row: i64) -> (Level, i64, i64) {
+        let base = self.base(level);
         let col = self.wrap_column(level.x, col);
-        let sx = col.trailing_zeros().min(level.x);
-        let sy = row.trailing_zeros().min(level.y);
-        let owner = Level::new(level.x - sx, level.y - sy);
+        let sx = col.trailing_zeros().min((level.x - base.x) as u32);
+        let sy = row.trailing_zeros().min((level.y - base.y) as u32);
+        let owner = Level::new(level.x - sx as i32, level.y - sy as i32);
         let (col, row) = (col >> sx, row >> sy);
         (
             owner,
-            col >> u32::from(owner.x > 0),
-            row >> u32::from(owner.y > 0),
+            col >> u32::from(owner.x > base.x),
+            row >> u32::from(owner.y > base.y),
         )
     }
 
     /// The (col, row) on `level` of its own slot (col, row): a level finer
-    /// than 0 on an axis owns the odd positions there (the even ones are
-    /// the coarser level's), so its slots are dense and a 4x2 group of them
-    /// is eight samples the level owns.
+    /// than its pyramid's coarsest on an axis owns the odd positions there
+    /// (the even ones are the coarser level's), so its slots are dense and
+    /// a 4x2 group of them is eight samples the level owns.
     pub fn slot_position(&self, level: Level, col: i64, row: i64) -> (i64, i64) {
-        let expand = |k: u32, v: i64| if k > 0 { 2 * v + 1 } else { v };
-        (expand(level.x, col), expand(level.y, row))
+        let base = self.base(level);
+        let expand = |k: i32, base: i32, v: i64| if k > base { 2 * v + 1 } else { v };
+        (expand(level.x, base.x, col), expand(level.y, base.y, row))
     }
 
     /// Slot columns in a turn at `level`.
     pub fn slot_columns(&self, level: Level) -> i64 {
-        if level.x > 0 {
+        if level.x > self.base(level).x {
             self.columns(level.x - 1)
         } else {
-            self.columns_per_turn
+            self.columns(level.x)
         }
     }
 
     /// Last slot row of `level`.
     pub fn last_slot_row(&self, level: Level) -> i64 {
         let last = self.last_row(level.y);
-        if level.y > 0 {
+        if level.y > self.base(level).y {
             (last - 1) >> 1
         } else {
             last
@@ -471,11 +528,73 @@ mod tests {
     }
 
     #[test]
+    fn coarser_levels_nest_with_level_0_and_own_their_samples_apart() {
+        let lattice = lattice();
+        // 2304 = 4 * 9 * 2^6: six halvings keep whole groups in a turn.
+        assert_eq!(lattice.coarsest(), Level::new(-6, COARSEST_LEVEL));
+        assert_eq!(lattice.columns(-6), 36);
+        for (col, row) in [(0, 0), (5, 7), (35, 4), (-1, 3), (17, 4)] {
+            for (x, y) in [(-1, -1), (-6, -8), (-3, -1), (-2, -5)] {
+                let level = Level::new(x, y);
+                let coarse = lattice.direction(level, col, row);
+                let (c0, r0) = (col << -x, row << -y);
+                let fine = lattice.direction(Level::default(), c0, r0);
+                assert_eq!(
+                    coarse.map(|d| d.to_array().map(f64::to_bits)),
+                    fine.map(|d| d.to_array().map(f64::to_bits)),
+                    "({col}, {row}) at level {level}"
+                );
+                // Level 0's own sample: never a coarser level's store.
+                assert_eq!(lattice.owner(Level::default(), c0, r0).0, Level::default());
+                // A coarser level's, within its pyramid.
+                let (owner, c, r) = lattice.owner(level, col, row);
+                assert!(owner.x < 0 && owner.x <= x && owner.y < 0 && owner.y <= y);
+                let (sc, sr) = lattice.slot_position(owner, c, r);
+                assert_eq!(
+                    (sc << (x - owner.x), sr << (y - owner.y)),
+                    (lattice.wrap_column(x, col), row),
+                    "{level}"
+                );
+            }
+        }
+        // Column 8 of azimuth level -3 is column 1 of level -6, the
+        // coarsest, which owns all its positions; row 4 of level -2 is
+        // row 1 of level -4, its slot 0.
+        assert_eq!(
+            lattice.owner(Level::new(-3, -2), 8, 4),
+            (Level::new(-6, -4), 1, 0)
+        );
+        // A level finer on one axis and coarser on the other.
+        assert_eq!(
+            lattice.owner(Level::new(2, -2), 6, 4),
+            (Level::new(1, -4), 1, 0)
+        );
+        for index in 0..Level::COUNT {
+            let level = Level::from_index(index);
+            assert_eq!(level.index(), index);
+        }
+        assert_eq!(Level::from_index(0), Level::square(COARSEST_LEVEL));
+    }
+
+    #[test]
     fn slots_are_the_samples_a_level_owns() {
         let lattice = lattice();
-        for (x, y) in [(0, 0), (1, 0), (0, 1), (2, 3), (7, 7)] {
+        let levels = [
+            (0, 0),
+            (1, 0),
+            (0, 1),
+            (2, 3),
+            (7, 7),
+            (-6, -8),
+            (-1, -1),
+            (2, -3),
+        ];
+        for (x, y) in levels {
             let level = Level::new(x, y);
-            for (col, row) in [(0, 0), (1, 2), (5, 9), (1151, 7)] {
+            let base = lattice.base(level);
+            // Within the turn of the coarsest levels' 36 slot columns too.
+            let last_col = lattice.slot_columns(level) - 1;
+            for (col, row) in [(0, 0), (1, 2), (5, 9), (last_col, 3)] {
                 let (c, r) = lattice.slot_position(level, col, row);
                 assert_eq!(lattice.owner(level, c, r), (level, col, row), "{level}");
             }
@@ -487,14 +606,18 @@ mod tests {
                 level,
             };
             // Slot rows straddling the last row (slot v is row 2v + 1 on a
-            // finer level).
-            let pole = if y == 0 {
-                lattice.last_row(0)
+            // level finer than its pyramid's coarsest).
+            let pole = if y == base.y {
+                lattice.last_row(y)
             } else {
                 lattice.last_row(y) / 2 - 1
             };
+            // Level -8 has five rows.
             for group in [
-                SampleGroup { col: 8, row: 6 },
+                SampleGroup {
+                    col: 8,
+                    row: 6.min(pole - 2),
+                },
                 SampleGroup { col: -4, row: 2 },
                 SampleGroup { col: 16, row: pole },
             ] {

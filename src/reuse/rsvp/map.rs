@@ -145,7 +145,7 @@ impl SampleBuffer {
             }
             density.add(dx, dy);
         }
-        density.level(knobs)
+        density.level(knobs, self.lattice.coarsest())
     }
 
     /// The patch's level and mapping grid, or None when interpolating it
@@ -226,7 +226,7 @@ impl SampleBuffer {
                 density.add(dx, dy);
             }
         }
-        let level = density.level(knobs);
+        let level = density.level(knobs, self.lattice.coarsest());
         let scale = level_scale(level);
         if (worst * scale).max_element() > GRID_TOLERANCE {
             return None;
@@ -407,7 +407,10 @@ impl SampleBuffer {
         let samples = &self.levels[owner.index()];
         let columns = self.lattice.slot_columns(owner);
         tile_spans(columns, row, c_from, c_to, |key, wanted| {
-            let traced = samples.tile(key).map_or(0, |t| samples.traced[t as usize]);
+            let traced = samples.tile(key).map_or(0, |t| {
+                samples.mark_used(t, self.frame);
+                samples.traced[t as usize]
+            });
             traced & wanted == wanted
         })
     }
@@ -417,21 +420,23 @@ impl SampleBuffer {
     /// owns some of them.
     fn box_traced(&self, level: Level, (c0, c1): (i64, i64), (r0, r1): (i64, i64)) -> bool {
         let gh = i64::from(GROUP_HEIGHT);
-        (0..=level.x).all(|ox| {
-            (0..=level.y).all(|oy| {
+        let base = self.lattice.base(level);
+        (base.x..=level.x).all(|ox| {
+            (base.y..=level.y).all(|oy| {
                 let owner = Level::new(ox, oy);
                 let (sx, sy) = (level.x - ox, level.y - oy);
                 // The owner's positions in the box, then its slots there: a
-                // level finer than 0 on an axis owns the odd positions.
-                let slots = |k: u32, lo: i64, hi: i64| {
-                    if k > 0 {
+                // level finer than its pyramid's coarsest on an axis owns
+                // the odd positions.
+                let slots = |finer: bool, lo: i64, hi: i64| {
+                    if finer {
                         (lo >> 1, (hi - 1) >> 1)
                     } else {
                         (lo, hi)
                     }
                 };
-                let (sc0, sc1) = slots(ox, c0 >> sx, c1 >> sx);
-                let (sr0, sr1) = slots(oy, r0 >> sy, r1 >> sy);
+                let (sc0, sc1) = slots(ox > base.x, c0 >> sx, c1 >> sx);
+                let (sr0, sr1) = slots(oy > base.y, r0 >> sy, r1 >> sy);
                 if sc0 > sc1 || sr0 > sr1 {
                     return true;
                 }
@@ -502,18 +507,19 @@ impl SampleBuffer {
         from: i64,
         to: i64,
     ) {
-        let sy = row.trailing_zeros().min(level.y);
-        let oy = level.y - sy;
-        let slot_row = (row >> sy) >> u32::from(oy > 0);
-        for ox in 0..=level.x {
+        let base = self.lattice.base(level);
+        let sy = row.trailing_zeros().min((level.y - base.y) as u32);
+        let oy = level.y - sy as i32;
+        let slot_row = (row >> sy) >> u32::from(oy > base.y);
+        for ox in base.x..=level.x {
             let sx = level.x - ox;
-            let (period, offset) = owned_positions(level.x, ox);
+            let (period, offset) = owned_positions((level.x - base.x) as u32, (ox - base.x) as u32);
             let first = from + ((offset - from) & (period - 1));
             let last = to - ((to - offset) & (period - 1));
             if first > last {
                 continue;
             }
-            let slot = |col: i64| (col >> sx) >> u32::from(ox > 0);
+            let slot = |col: i64| (col >> sx) >> u32::from(ox > base.x);
             requests.add_span(Level::new(ox, oy), slot_row, slot(first), slot(last));
         }
     }
@@ -581,11 +587,11 @@ impl<'a> GroupRequests<'a> {
         let slot = &mut self.cached[slot_index];
         if (slot.0, slot.1) != (index, key) {
             let samples = &self.buffer.levels[index];
-            *slot = (
-                index,
-                key,
-                samples.tile(key).map_or(0, |t| samples.traced[t as usize]),
-            );
+            let traced = samples.tile(key).map_or(0, |t| {
+                samples.mark_used(t, self.buffer.frame);
+                samples.traced[t as usize]
+            });
+            *slot = (index, key, traced);
         }
         &mut slot.2
     }
@@ -743,27 +749,45 @@ impl SampleDensity {
     }
 
     /// The level giving at least `oversample` samples per pixel on each
-    /// axis, with the knobs' bias.
-    fn level(&self, knobs: &RsvpKnobs) -> Level {
-        let axis = |pixels_per_step: f64| {
+    /// axis, with the knobs' bias, no coarser than `coarsest`.
+    ///
+    /// A level coarser than 0 only where the pixels are wider than level
+    /// 0's samples (the view zoomed out), and never coarser than one
+    /// sample a pixel there: the knobs choose among the finer levels as
+    /// they did before there were coarser ones, and a zoomed-out view
+    /// traces about a sample a pixel rather than groups of level 0's
+    /// scattered far apart.
+    fn level(&self, knobs: &RsvpKnobs, coarsest: Level) -> Level {
+        let axis = |pixels_per_step: f64, coarsest: i32| {
             if !(pixels_per_step.is_finite() && pixels_per_step > 0.0) {
                 return 0;
             }
             // A hair of tolerance: exactly one sample per pixel, up to
             // rounding, needs no finer level.
-            let wanted = ((knobs.oversample * pixels_per_step).log2() - 1e-6).ceil() as i64
+            let at_least = |per_pixel: f64| (per_pixel.log2() - 1e-6).ceil() as i64;
+            let wanted = at_least(knobs.oversample * pixels_per_step)
                 + i64::from(knobs.level_bias)
                 + i64::from(knobs.filter == Filter::Box);
-            wanted.clamp(0, i64::from(MAX_LEVEL)) as u32
+            let floor = at_least(pixels_per_step).clamp(i64::from(coarsest), 0);
+            wanted.clamp(floor, i64::from(MAX_LEVEL)) as i32
         };
-        Level::new(axis(self.x), axis(self.y))
+        Level::new(axis(self.x, coarsest.x), axis(self.y, coarsest.y))
     }
 }
 
 /// Level-0 lattice coordinates times this are `level`'s (exact: powers of
 /// two).
 fn level_scale(level: Level) -> DVec2 {
-    DVec2::new(f64::from(1u32 << level.x), f64::from(1u32 << level.y))
+    DVec2::new(power_of_two(level.x), power_of_two(level.y))
+}
+
+/// 2^k, exactly.
+fn power_of_two(k: i32) -> f64 {
+    if k >= 0 {
+        f64::from(1u32 << k)
+    } else {
+        1.0 / f64::from(1u32 << -k)
+    }
 }
 
 #[cfg(test)]

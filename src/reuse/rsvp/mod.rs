@@ -12,22 +12,32 @@
 //!   with a whole number of columns per turn (a multiple of the group
 //!   width): the azimuth wraps, the rows end at the poles. The axes refine
 //!   independently, because a wide perspective view squeezes azimuth at
-//!   its sides long before elevation. Halving a step is exact in floating
-//!   point, so level (x+1, y)'s sample (2c, r) has bit for bit level
-//!   (x, y)'s direction, and likewise for rows: the levels nest.
-//! - Every sample belongs to the coarsest level that has it (on each axis),
-//!   is stored only there, and is traced only there. A level finer than 0
-//!   on an axis owns the odd positions on it; its samples are stored and
-//!   traced by slot (the odd positions numbered densely), in aligned 4x2
-//!   groups of slots, so every lane of a packet is a sample the level owns.
-//!   A sample's colour never depends on which level or viewport asked
-//!   first, and a fresh trace of the same group reproduces it bit for bit.
+//!   its sides long before elevation. Levels below 0 (down to
+//!   [`COARSEST_LEVEL`]) serve zoomed-out views, whose pixels are wider
+//!   than level 0's samples. Halving a step is exact in floating point, so
+//!   level (x+1, y)'s sample (2c, r) has bit for bit level (x, y)'s
+//!   direction, and likewise for rows: the levels nest.
+//! - Level 0 and the finer levels form one pyramid, the coarser ones
+//!   another ([`SampleLattice::base`]): a view that is not zoomed out reads
+//!   and traces exactly what it would without the coarser levels. Every
+//!   sample belongs to the coarsest level of its pyramid that has it (on
+//!   each axis), is stored only there, and is traced only there. A level
+//!   finer than its pyramid's coarsest on an axis owns the odd positions on
+//!   it; its samples are stored and traced by slot (the odd positions
+//!   numbered densely), in aligned 4x2 groups of slots, so every lane of a
+//!   packet is a sample the level owns. A sample's colour never depends on
+//!   which level or viewport asked first, and a fresh trace of the same
+//!   group reproduces it bit for bit (a sample of both pyramids is traced
+//!   in each, the same).
 //! - Pass 2 reads copies: each level's samples at all its positions,
 //!   assembled from their owners into blocks that take every group traced
 //!   after them, so they always equal the stores (`verify` checks that too).
-//! - A sample is traced at most once and kept for every later frame; all
-//!   null samples the viewports of a frame touch are traced in one batch per
-//!   level through [`crate::render::trace_groups`].
+//! - A sample is traced once and kept for every later frame, unless the
+//!   buffer's memory cap ([`SampleBuffer::set_memory_cap`]) evicts its
+//!   tile, the least recently read first: it is then traced again when a
+//!   frame reads it, the same bit for bit. All null samples the viewports
+//!   of a frame touch are traced in one batch per level through
+//!   [`crate::render::trace_groups`].
 //! - Resampling is an approximation: its error against the viewport's own
 //!   rays is measured (`--verify`, `bench --only E2`), never assumed.
 
@@ -60,19 +70,25 @@ use crate::reuse::{Dirty, Erasure, FrameMode, SampleStore, StoreFrame, Unfit, Vi
 use crate::sampling::PixelSamples;
 use crate::shade::{RayCounts, Shader};
 use blocks::LevelBlocks;
+use blocks::BLOCK_BYTES;
 use filter::filter_reads;
 use filter::SampleCode;
 use lattice::wrap;
 use map::nan_filled;
 use tiles::{
-    group_key, key_group, tile_key, traced_groups, LevelSamples, TracedGroups, TILE_COLS,
-    TILE_COL_SHIFT, TILE_ROW_SHIFT,
+    group_key, key_group, tile_key, traced_groups, LevelSamples, TracedGroups, TILE_BYTES,
+    TILE_COLS, TILE_COL_SHIFT, TILE_ROW_SHIFT,
 };
 use viewport::PixelMap;
 
 /// Finest pyramid level: 2^16 times the camera's angular resolution, enough
 /// for a zoom of 1000 with room for oversampling and level bias.
-pub const MAX_LEVEL: u32 = 16;
+pub const MAX_LEVEL: i32 = 16;
+
+/// Coarsest pyramid level: 2^-8 times the camera's angular resolution, for
+/// views zoomed out as far as the viewer goes (1/97) and their widest
+/// pixels (where azimuth lets it: see [`SampleLattice::coarsest`]).
+pub const COARSEST_LEVEL: i32 = -8;
 
 /// Viewport pixels per side of a patch: a square whose pixels all read
 /// one pyramid level.
@@ -88,9 +104,13 @@ pub struct SampleBuffer {
     blocks: Vec<LevelBlocks>,
     /// Blocks given up, for new ones to reuse.
     spare_blocks: Vec<Box<[SampleCode]>>,
-    /// Frames rendered: when each block was last read.
+    /// Frames rendered: when each tile was last used and each block last
+    /// read.
     frame: u64,
     samples_traced: u64,
+    samples_evicted: u64,
+    /// The most bytes the tiles and blocks may take (None: no cap).
+    memory_cap: Option<u64>,
     /// The groups the last [`SampleBuffer::render`] traced, sorted as
     /// `missing` is: what [`SampleBuffer::fresh_image`] paints.
     fresh: Vec<(Level, SampleGroup)>,
@@ -105,8 +125,118 @@ impl SampleBuffer {
             spare_blocks: Vec::new(),
             frame: 0,
             samples_traced: 0,
+            samples_evicted: 0,
+            memory_cap: None,
             fresh: Vec::new(),
         }
+    }
+
+    /// Caps the memory the buffer keeps at `bytes` (None: no cap). Past
+    /// it, before a frame keeps new tiles, the tiles no view of the frame
+    /// reads go, least recently used first, until the buffer holds three
+    /// quarters of the cap (so that the next frames need not evict again
+    /// at once); samples they held are traced again when read, the same
+    /// bit for bit. What one frame reads always stays, cap or not.
+    pub fn set_memory_cap(&mut self, bytes: Option<u64>) {
+        self.memory_cap = bytes;
+    }
+
+    /// Bytes the buffer keeps: its tiles of samples and pass 2's blocks,
+    /// with their bookkeeping.
+    pub fn kept_bytes(&self) -> u64 {
+        let tiles: usize = self.levels.iter().map(LevelSamples::tile_count).sum();
+        let blocks =
+            self.blocks.iter().map(LevelBlocks::count).sum::<usize>() + self.spare_blocks.len();
+        tiles as u64 * TILE_BYTES + blocks as u64 * BLOCK_BYTES
+    }
+
+    /// Evicts the least recently used tiles until the buffer keeps at most
+    /// `bytes` (or nothing); between frames, when no frame reads any.
+    pub fn trim(&mut self, bytes: u64) {
+        if self.kept_bytes() <= bytes {
+            return;
+        }
+        // Every tile was last used by a frame before the next.
+        self.frame += 1;
+        self.samples_evicted += self.evict_to(bytes);
+    }
+
+    /// Makes the tiles the traced `groups` (sorted as `trace` sorts them)
+    /// go into, first evicting tiles if they and the blocks the frame
+    /// reads (`blocks`: how many, how many of them not assembled yet)
+    /// would take the buffer past its cap. Returns the samples evicted.
+    fn make_tiles(
+        &mut self,
+        groups: &[(Level, SampleGroup, usize)],
+        (blocks_read, fresh_blocks): (usize, usize),
+    ) -> u64 {
+        // A tile is one row of groups: a row's groups, in column order,
+        // share their tiles in turn.
+        let mut new: Vec<(usize, (i64, i64))> = Vec::new();
+        let mut last = None;
+        for &(level, group, _) in groups {
+            let (key, _, _) = tile_key(group.col, group.row);
+            let at = (level.index(), key);
+            if last != Some(at) && self.levels[at.0].tile(key).is_none() {
+                new.push(at);
+            }
+            last = Some(at);
+        }
+        let new_bytes = new.len() as u64 * TILE_BYTES;
+        // Assembling takes the fresh blocks from those given up when it
+        // can: at most this many more.
+        let more_blocks = fresh_blocks as u64 * BLOCK_BYTES;
+        let evicted = match self.memory_cap {
+            Some(cap) if self.kept_bytes() + new_bytes + more_blocks > cap => {
+                // Evicting frees every block: the frame assembles all it
+                // reads afresh.
+                let frame_bytes = new_bytes + blocks_read as u64 * BLOCK_BYTES;
+                self.evict_to((cap / 4 * 3).saturating_sub(frame_bytes))
+            }
+            _ => 0,
+        };
+        for (index, key) in new {
+            self.levels[index].tile_or_insert(key, self.frame);
+        }
+        evicted
+    }
+
+    /// Frees pass 2's blocks (copies of the tiles, assembled again as
+    /// frames read them), then evicts the least recently used tiles this
+    /// frame does not read until the tiles take at most `target` bytes, or
+    /// none is left to evict. Returns the samples evicted.
+    fn evict_to(&mut self, target: u64) -> u64 {
+        for blocks in &mut self.blocks {
+            blocks.clear();
+        }
+        self.spare_blocks = Vec::new();
+        let tiles: usize = self.levels.iter().map(LevelSamples::tile_count).sum();
+        let excess = (tiles as u64 * TILE_BYTES).saturating_sub(target);
+        if excess == 0 {
+            return 0;
+        }
+        let now = self.frame;
+        let mut unused: Vec<(u64, usize, u32)> = self
+            .levels
+            .iter()
+            .enumerate()
+            .flat_map(|(index, store)| {
+                store
+                    .unused_since(now)
+                    .map(move |(used, tile)| (used, index, tile))
+            })
+            .collect();
+        let count = (excess.div_ceil(TILE_BYTES) as usize).min(unused.len());
+        if count < unused.len() {
+            unused.select_nth_unstable(count);
+        }
+        let mut evicted = 0;
+        for &(_, index, tile) in &unused[..count] {
+            let store = &mut self.levels[index];
+            evicted += u64::from(store.traced[tile as usize].count_ones()) * GROUP_SAMPLES;
+            store.evict(tile);
+        }
+        evicted
     }
 
     /// Regions of `size` level-0 samples tiling the whole buffer (a whole
@@ -114,7 +244,9 @@ impl SampleBuffer {
     /// its position on level 0: a group of slots spans 8 columns and 4 rows
     /// at a level finer than 0 on that axis, aligned, which is 4 or fewer
     /// level-0 columns and 2 or fewer rows; regions a multiple of 4 wide and
-    /// 2 tall (40 x 30 samples) so never cut a group.
+    /// 2 tall (40 x 30 samples) so never cut a group. A coarser level's
+    /// group may span regions: it is recorded into, and erased with, the
+    /// region of its first sample.
     pub fn regions(&self, size: (i64, i64)) -> RegionLayout {
         RegionLayout::new(
             size,
@@ -132,8 +264,9 @@ impl SampleBuffer {
         group: SampleGroup,
     ) -> usize {
         let (col, row) = lattice.slot_position(level, group.col, group.row);
-        let col = lattice.wrap_column(level.x, col) >> level.x;
-        let row = (row >> level.y).clamp(0, lattice.last_row(0));
+        let to_level_0 = |v: i64, k: i32| if k >= 0 { v >> k } else { v << -k };
+        let col = to_level_0(lattice.wrap_column(level.x, col), level.x);
+        let row = to_level_0(row, level.y).clamp(0, lattice.last_row(0));
         layout.region_of(col, row)
     }
 
@@ -244,6 +377,12 @@ impl SampleBuffer {
         self.samples_traced
     }
 
+    /// Traced samples evicted (to keep within the memory cap) since the
+    /// buffer was made.
+    pub fn samples_evicted(&self) -> u64 {
+        self.samples_evicted
+    }
+
     /// The colour of sample (col, row) of `level`, if traced.
     pub fn sample(&self, level: Level, col: i64, row: i64) -> Option<Vec3> {
         let (owner, col, row) = self.lattice.owner(level, col, row);
@@ -260,14 +399,17 @@ impl SampleBuffer {
 
     /// Traces the missing groups of every level in one parallel batch and
     /// keeps them, their rays recorded into `ostc` (built over
-    /// [`SampleBuffer::regions`]) when given. Returns the samples and rays
-    /// traced for each request list.
+    /// [`SampleBuffer::regions`]) when given; `blocks` (read, not yet
+    /// assembled) are the blocks the frame will then read. Returns the
+    /// samples and rays traced for each request list, and the samples
+    /// evicted to make room.
     fn trace(
         &mut self,
         shader: &Shader,
         requests: &[Vec<(Level, SampleGroup)>],
         ostc: Option<&Ostc>,
-    ) -> Vec<(u64, RayCounts, f64)> {
+        blocks: (usize, usize),
+    ) -> (Vec<(u64, RayCounts, f64)>, u64) {
         let mut all: Vec<(Level, SampleGroup, usize)> = Vec::new();
         for (who, list) in requests.iter().enumerate() {
             all.extend(list.iter().map(|&(l, g)| (l, g, who)));
@@ -286,7 +428,9 @@ impl SampleBuffer {
         self.fresh
             .extend(all.iter().map(|&(level, group, _)| (level, group)));
         if all.is_empty() {
-            return out;
+            let evicted = self.make_tiles(&all, blocks);
+            self.samples_evicted += evicted;
+            return (out, evicted);
         }
         // One batch rather than one per level: a frame that refines a few
         // levels would otherwise wait for each level's last group in turn.
@@ -303,6 +447,10 @@ impl SampleBuffer {
             let marker = ostc.map(|o| o.marker_in(region(o), group_key(level, group)));
             (&sources[level.index()] as &dyn PrimaryRays, group, marker)
         });
+        // On this thread, before the levels keep their groups on theirs:
+        // the memory evicted tiles give back is then the next tiles'.
+        let evicted = self.make_tiles(&all, blocks);
+        self.samples_evicted += evicted;
         // Each level's store keeps its own groups, on its own thread: a
         // first frame grows the stores by many fresh pages, each a fault,
         // and the levels take theirs in parallel. The blocks follow the
@@ -343,7 +491,7 @@ impl SampleBuffer {
         for &(_, _, who) in &all {
             out[who].2 += per_group;
         }
-        out
+        (out, evicted)
     }
 
     /// Renders every viewport of a frame: maps their pixels, traces the
@@ -357,6 +505,7 @@ impl SampleBuffer {
         linear: bool,
         ostc: Option<&Ostc>,
     ) -> Vec<StoreFrame> {
+        self.frame += 1;
         let mut mapped = Vec::with_capacity(poses.len());
         let mut map_ms = Vec::with_capacity(poses.len());
         for pose in poses {
@@ -368,41 +517,54 @@ impl SampleBuffer {
             .iter_mut()
             .map(|m| std::mem::take(&mut m.missing))
             .collect();
-        let traced = self.trace(shader, &requests, ostc);
         // Pass 2 reads assembled blocks; assembling new ones is its cost,
         // shared between the viewports.
         let watch = Stopwatch::start();
-        self.assemble_blocks(mapped.iter().flat_map(|m| {
+        let (blocks, fresh_blocks) = self.blocks_read(mapped.iter().flat_map(|m| {
             m.patches
                 .iter()
                 .filter_map(|p| p.blocks.map(|b| (p.level, b)))
         }));
-        let assembly_ms = watch.ms() / poses.len().max(1) as f64;
+        let mut assembly_ms = watch.ms();
+        let (traced, evicted) = self.trace(shader, &requests, ostc, (blocks.len(), fresh_blocks));
+        let watch = Stopwatch::start();
+        self.assemble_blocks(&blocks);
+        assembly_ms = (assembly_ms + watch.ms()) / poses.len().max(1) as f64;
+        let kept_bytes = self.kept_bytes();
         poses
             .iter()
             .zip(&mapped)
             .zip(traced.into_iter().zip(map_ms))
-            .map(|((pose, mapped), ((samples, rays, trace_ms), map_ms))| {
-                let watch = Stopwatch::start();
-                let (frame, image) = self.gather(pose, mapped, knobs.filter, linear);
-                let gather_ms = watch.ms() + assembly_ms;
-                let levels = mapped.patches.iter().fold((u32::MAX, 0), |(lo, hi), p| {
-                    (lo.min(p.level.finest()), hi.max(p.level.finest()))
-                });
-                StoreFrame {
-                    frame,
-                    image,
-                    work: ViewWork {
-                        samples_traced: samples,
-                        pixels_reused: pixels(pose).saturating_sub(samples),
-                        rays,
-                        trace_ms,
-                        assembly_ms: map_ms + gather_ms,
-                        snap_error: None,
-                        levels: Some(levels),
-                    },
-                }
-            })
+            .enumerate()
+            .map(
+                |(index, ((pose, mapped), ((samples, rays, trace_ms), map_ms)))| {
+                    let watch = Stopwatch::start();
+                    let (frame, image) = self.gather(pose, mapped, knobs.filter, linear);
+                    let gather_ms = watch.ms() + assembly_ms;
+                    let levels = mapped
+                        .patches
+                        .iter()
+                        .fold((i32::MAX, i32::MIN), |(lo, hi), p| {
+                            (lo.min(p.level.finest()), hi.max(p.level.finest()))
+                        });
+                    StoreFrame {
+                        frame,
+                        image,
+                        work: ViewWork {
+                            samples_traced: samples,
+                            pixels_reused: pixels(pose).saturating_sub(samples),
+                            rays,
+                            trace_ms,
+                            assembly_ms: map_ms + gather_ms,
+                            snap_error: None,
+                            levels: Some(levels),
+                            kept_bytes: Some(kept_bytes),
+                            // The frame's, on its first view's row.
+                            samples_evicted: if index == 0 { evicted } else { 0 },
+                        },
+                    }
+                },
+            )
             .collect()
     }
 
@@ -483,29 +645,32 @@ impl SampleBuffer {
     /// sample): traced samples in colour, never-traced ones black (the
     /// paper's figure 5a). Where level 0 is null but a finer level traced
     /// inside the sample's cell, that sample shows, so what a zoomed
-    /// viewport traced appears solid.
+    /// viewport traced appears solid; failing that, a coarser level's
+    /// sample whose cell holds it (what a zoomed-out viewport traced).
     pub fn buffer_image(&self, camera: &Camera, width: u32, height: u32) -> image::RgbImage {
         let col0 = (camera.yaw / self.lattice.step - 0.5 * f64::from(width)).round() as i64;
         let row0 = ((FRAC_PI_2 - camera.pitch) / self.lattice.step - 0.5 * f64::from(height))
             .round() as i64;
         let srgb = srgb_table();
-        // Coarser levels first: fewer halvings in all come first.
+        // Level 0 and the finer ones first, fewer halvings in all first;
+        // then the coarser, the least coarse first.
         let mut levels: Vec<Level> = (0..Level::COUNT)
             .filter(|&i| !self.levels[i].traced.is_empty())
             .map(Level::from_index)
             .collect();
-        levels.sort_by_key(|l| (l.x + l.y, *l));
+        levels.sort_by_key(|l| (l.x < 0 || l.y < 0, l.x.abs() + l.y.abs(), *l));
+        // On a finer axis, the cell's first position the level owns (an
+        // odd one); on a coarser axis, the position whose cell holds it.
+        let cell = |k: i32, v: i64| match k {
+            0 => v,
+            k if k > 0 => (v << k) + 1,
+            k => v >> -k,
+        };
         image::RgbImage::from_fn(width, height, |x, y| {
             let (c, r) = (col0 + i64::from(x), row0 + i64::from(y));
-            let colour = levels.iter().find_map(|&level| {
-                // The first sample of the cell this level owns.
-                let (col, row) = self.lattice.slot_position(
-                    level,
-                    c << level.x.saturating_sub(1),
-                    r << level.y.saturating_sub(1),
-                );
-                self.sample(level, col, row)
-            });
+            let colour = levels
+                .iter()
+                .find_map(|&level| self.sample(level, cell(level.x, c), cell(level.y, r)));
             image::Rgb(colour.map_or([0; 3], |c| c.to_array().map(|v| srgb.encode(v))))
         })
     }
@@ -679,6 +844,18 @@ impl SampleStore for RsvpStore {
 
     fn verify(&self, shader: &Shader) -> Option<(u64, u64)> {
         Some(self.buffer.verify(shader))
+    }
+
+    fn set_memory_cap(&mut self, bytes: Option<u64>) {
+        self.buffer.set_memory_cap(bytes);
+    }
+
+    fn kept_bytes(&self) -> u64 {
+        self.buffer.kept_bytes()
+    }
+
+    fn trim(&mut self, bytes: u64) {
+        self.buffer.trim(bytes);
     }
 }
 

@@ -25,7 +25,9 @@ impl StorePlan for RsvpPlan {
     fn new_store(&self, run: &Run, views: &[View]) -> Box<dyn SampleStore> {
         let columns = SampleLattice::for_camera(&run.scene.camera).columns_per_turn;
         let lattice = SampleLattice::new(views[0].pose.camera.position, columns);
-        Box::new(RsvpStore::new(lattice, run.options.rsvp, run.scene.samples))
+        let mut store = RsvpStore::new(lattice, run.options.rsvp, run.scene.samples);
+        store.set_memory_cap(run.options.sample_memory);
+        Box::new(store)
     }
 
     /// A viewport traced directly, through its own rays: resampled

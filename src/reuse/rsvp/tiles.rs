@@ -1,8 +1,11 @@
 //! Where traced samples live: per level, tiles of slots allocated on first
-//! touch, with a traced bit per group, and a small cache of recent tiles.
+//! touch, with a traced bit per group and the frame that last used them
+//! (the least recently used go first when the buffer is over its memory
+//! cap), and a small cache of recent tiles.
 
 use std::collections::HashMap;
 use std::hash::{BuildHasherDefault, Hasher};
+use std::sync::atomic::{AtomicU64, Ordering};
 
 use glam::Vec3;
 
@@ -12,32 +15,43 @@ use crate::render::{SampleGroup, GROUP_HEIGHT, GROUP_WIDTH};
 use crate::shade::RayCounts;
 
 /// Samples per side of a storage tile (a multiple of both group sides).
-/// A tile is one row of groups, 256 samples wide: a viewport row reads
-/// long contiguous runs, which the hardware prefetcher follows (with
-/// square tiles the sample loads would miss the cache every few pixels).
-pub(super) const TILE_COLS: i64 = 256;
-pub(super) const TILE_COL_SHIFT: u32 = 8;
+/// A tile is one row of groups, 64 samples wide: pass 2 reads assembled
+/// blocks 64 wide, each row of which one tile gives; and where a view's
+/// pixels read samples far apart (zoomed far out, or slivers of pixels
+/// tilted to the lattice) each group takes a tile of its own, whose
+/// memory is mostly unused: 256-wide tiles kept three times the memory at
+/// the viewer's zoom-out limit, and were no faster.
+pub(super) const TILE_COLS: i64 = 64;
+pub(super) const TILE_COL_SHIFT: u32 = 6;
 const TILE_ROWS: i64 = GROUP_HEIGHT as i64;
 pub(super) const TILE_ROW_SHIFT: u32 = 1;
 pub(super) const TILE_SAMPLES: usize = (TILE_COLS * TILE_ROWS) as usize;
-const _: () = assert!(TILE_COLS / GROUP_WIDTH as i64 == 64);
+const _: () = assert!(TILE_COLS / GROUP_WIDTH as i64 <= 64);
 const _: () = assert!(1 << TILE_COL_SHIFT == TILE_COLS && 1 << TILE_ROW_SHIFT == TILE_ROWS);
 
-/// Tiles per chunk of a level's samples: 192 KB, allocated zeroed (memory
-/// fresh from the system stays untouched until a sample on its page is
-/// kept) and never moved.
-const CHUNK_TILES: usize = 32;
+/// The memory a tile takes: its samples, and an estimate of its share of
+/// the bookkeeping (its key in the map, its traced mask, when it was last
+/// used).
+pub(super) const TILE_BYTES: u64 = (TILE_SAMPLES * std::mem::size_of::<Vec3>()) as u64 + 64;
 
-/// One level's traced samples, by slot, in tiles allocated on first touch.
+/// One level's traced samples, by slot, in tiles allocated on first touch
+/// and given back when evicted (a tile's slot is then reused).
 #[derive(Default)]
 pub(super) struct LevelSamples {
     pub(super) tiles: HashMap<(i64, i64), u32, BuildHasherDefault<TileHasher>>,
-    /// The tiles' samples, [`CHUNK_TILES`] tiles a chunk. One growing array
-    /// would instead copy everything kept at each doubling, its fresh pages
-    /// faulting in as they are copied to.
-    chunks: Vec<Box<[[f32; 3]]>>,
+    /// By tile, its samples; empty while the slot is free. A tile of its
+    /// own each: an evicted tile's memory goes back to the allocator for
+    /// the next, whatever its level.
+    samples: Vec<Box<[[f32; 3]]>>,
     /// Per tile, one bit per 4x2 group: traced yet?
     pub(super) traced: Vec<u64>,
+    /// Per tile, the last frame that read or traced it (pass 1 marks the
+    /// tiles its patches read from every thread).
+    used: Vec<AtomicU64>,
+    /// Per tile, its key (what eviction removes from `tiles`).
+    keys: Vec<(i64, i64)>,
+    /// Slots of evicted tiles.
+    free: Vec<u32>,
 }
 
 /// Multiplicative hashing of tile keys (small integers; no adversary).
@@ -56,12 +70,6 @@ impl Hasher for TileHasher {
     fn write_i64(&mut self, v: i64) {
         self.0 = (self.0.rotate_left(29) ^ v as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15);
     }
-}
-
-/// The chunk holding tile `tile`, and where in it the tile starts.
-fn chunk_of(tile: u32) -> (usize, usize) {
-    let tile = tile as usize;
-    (tile / CHUNK_TILES, tile % CHUNK_TILES * TILE_SAMPLES)
 }
 
 pub(super) fn tile_key(col: i64, row: i64) -> ((i64, i64), usize, u32) {
@@ -133,34 +141,77 @@ impl LevelSamples {
         self.tiles.get(&key).copied()
     }
 
-    pub(super) fn tile_or_insert(&mut self, key: (i64, i64)) -> u32 {
-        let next = self.traced.len() as u32;
-        let index = *self.tiles.entry(key).or_insert(next);
-        if index == next {
-            if self.traced.len() % CHUNK_TILES == 0 {
-                // Zeros of a primitive type: allocated zeroed, not filled.
-                let chunk = vec![[0f32; 3]; CHUNK_TILES * TILE_SAMPLES];
-                self.chunks.push(chunk.into_boxed_slice());
-            }
-            self.traced.push(0);
+    /// The tile of `key`, made (all black, untraced) if there is none.
+    pub(super) fn tile_or_insert(&mut self, key: (i64, i64), frame: u64) -> u32 {
+        if let Some(tile) = self.tile(key) {
+            return tile;
         }
-        index
+        // Zeros of a primitive type: allocated zeroed, not filled.
+        let samples = vec![[0f32; 3]; TILE_SAMPLES].into_boxed_slice();
+        let tile = match self.free.pop() {
+            Some(tile) => {
+                let t = tile as usize;
+                self.samples[t] = samples;
+                self.traced[t] = 0;
+                *self.used[t].get_mut() = frame;
+                self.keys[t] = key;
+                tile
+            }
+            None => {
+                self.samples.push(samples);
+                self.traced.push(0);
+                self.used.push(AtomicU64::new(frame));
+                self.keys.push(key);
+                self.samples.len() as u32 - 1
+            }
+        };
+        self.tiles.insert(key, tile);
+        tile
+    }
+
+    /// Tiles holding samples.
+    pub(super) fn tile_count(&self) -> usize {
+        self.tiles.len()
+    }
+
+    /// Marks tile `tile` as read by `frame`.
+    #[inline]
+    pub(super) fn mark_used(&self, tile: u32, frame: u64) {
+        self.used[tile as usize].store(frame, Ordering::Relaxed);
+    }
+
+    /// Every tile not used since before frame `since`: (last used, tile).
+    pub(super) fn unused_since(&self, since: u64) -> impl Iterator<Item = (u64, u32)> + '_ {
+        self.tiles.values().filter_map(move |&tile| {
+            let used = self.used[tile as usize].load(Ordering::Relaxed);
+            (used < since).then_some((used, tile))
+        })
+    }
+
+    /// Gives tile `tile` back: its samples are gone (null, traced again
+    /// when read) and its memory freed.
+    pub(super) fn evict(&mut self, tile: u32) {
+        let t = tile as usize;
+        self.tiles.remove(&self.keys[t]);
+        self.samples[t] = Box::default();
+        self.traced[t] = 0;
+        self.free.push(tile);
     }
 
     /// The samples of tile `tile`, by [`tile_key`]'s sample index.
     pub(super) fn tile_colors(&self, tile: u32) -> &[Vec3] {
-        let (chunk, at) = chunk_of(tile);
-        bytemuck::cast_slice(&self.chunks[chunk][at..at + TILE_SAMPLES])
+        bytemuck::cast_slice(&self.samples[tile as usize])
     }
 
     fn tile_colors_mut(&mut self, tile: u32) -> &mut [Vec3] {
-        let (chunk, at) = chunk_of(tile);
-        bytemuck::cast_slice_mut(&mut self.chunks[chunk][at..at + TILE_SAMPLES])
+        bytemuck::cast_slice_mut(&mut self.samples[tile as usize])
     }
 
     /// Keeps freshly traced groups of this level, sorted by row and
     /// column. Returns, per requester, the samples it gained (none past
     /// `last_row`, beyond the pole) and the rays they took.
+    /// Every tile of this level's groups in `groups` (sorted by row and
+    /// column) must exist ([`LevelSamples::tile_or_insert`]).
     pub(super) fn keep(
         &mut self,
         traced: TracedGroups,
@@ -176,7 +227,7 @@ impl LevelSamples {
             let (key, _, bit) = tile_key(group.col, group.row);
             let tile = match recent {
                 Some((k, tile)) if k == key => tile,
-                _ => self.tile_or_insert(key) as usize,
+                _ => self.tile(key).expect("tiles made before keeping") as usize,
             };
             recent = Some((key, tile));
             self.traced[tile] |= 1u64 << bit;

@@ -342,6 +342,7 @@ fn a_converged_zoomed_view_equals_the_direct_render_of_its_viewport() {
         None,
         true,
         16,
+        None,
         Box::new(|| {}),
     )
     .unwrap();
@@ -392,6 +393,7 @@ fn input_during_refinement_abandons_it_and_no_stale_picture_follows() {
         None,
         true,
         16,
+        None,
         Box::new(|| {}),
     )
     .unwrap();
@@ -489,6 +491,7 @@ fn input_during_a_full_render_abandons_it_and_the_next_picture_is_exact() {
         None,
         true,
         1,
+        None,
         Box::new(|| {}),
     )
     .unwrap();

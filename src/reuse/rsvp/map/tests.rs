@@ -127,6 +127,8 @@ fn the_groups_asked_for_are_exactly_those_the_pixels_read() {
             [0.0, 0.0],
         ),
         (base.clone(), 0.01, 0.0, [0.0, 0.0]),
+        // Zoomed out: levels coarser than 0, some mixed with finer ones.
+        (base.clone(), 0.3, 0.4, [0.0, 0.0]),
         (
             Camera {
                 projection: Projection::EqualAngle,
@@ -229,4 +231,31 @@ fn a_wide_perspective_viewport_needs_finer_levels_at_its_edges() {
     let level = buffer.patch_level(&zoomed, &PixelMap::new(&zoomed), &knobs, 312, 232);
     assert!((10..=11).contains(&level.x), "{level}");
     assert!((10..=11).contains(&level.y), "{level}");
+}
+
+#[test]
+fn a_zoomed_out_view_reads_coarser_levels_about_a_sample_a_pixel() {
+    // Zoomed out fourfold, the middle's pixels are four level-0 samples
+    // apart: read from level 0, each would trace groups of its own.
+    let buffer = SampleBuffer::new(lattice());
+    let pose = ViewportPose::new(
+        camera(Projection::Perspective),
+        ViewTransform {
+            zoom: 0.25,
+            ..ViewTransform::default()
+        },
+    );
+    let mapped = buffer.map(&pose, &RsvpKnobs::default());
+    let centre = &mapped.patches[mapped.patches.len() / 2 + mapped.patches_x / 2];
+    assert_eq!(centre.level, Level::new(-2, -2));
+    let coarsest = mapped.patches.iter().map(|p| p.level.finest()).min();
+    assert_eq!(coarsest, Some(-2));
+    let pixels = u64::from(pose.camera.width * pose.camera.height);
+    let samples = mapped.missing.len() as u64 * u64::from(GROUP_WIDTH * GROUP_HEIGHT);
+    // Measured 2.1 samples a pixel (the wide lens's edges need finer
+    // levels); with level 0 the coarsest, 3.3.
+    assert!(
+        samples * 2 < 5 * pixels,
+        "{samples} samples for {pixels} pixels"
+    );
 }
