@@ -142,11 +142,19 @@ pub(crate) fn view(args: ViewArgs) -> Result<()> {
                 say!("saved {}", path.display());
                 Ok(())
             };
-            let rows = run_script(&thread, &viewer, &lines, &mut next_save, &mut save)
-                .map_err(anyhow::Error::msg)?;
+            // An interrupt ends the script after the picture under way,
+            // with the statistics of the commands run written.
+            super::stop_on_interrupt(Some(thread.interrupter()));
+            let ran = run_script(&thread, &viewer, &lines, &mut next_save, &mut save);
+            super::stop_on_interrupt(None);
+            let rows = ran.map_err(anyhow::Error::msg)?;
             say_script(&name, &rows, &thread.abandoned());
             if let Some(path) = &args.stats {
                 save_text(path, &stats_csv(&rows)?)?;
+            }
+            if thread.interrupted() {
+                eprintln!("\ninterrupted");
+                retrace::output::remove_unfinished_and_exit(130)
             }
             Ok(())
         }

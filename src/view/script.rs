@@ -206,7 +206,8 @@ pub type Saved = (PathBuf, image::RgbImage);
 
 /// Runs `lines` through `thread` from the opening view; `save` writes a
 /// picture (a `save` command's, or `key s`'s to `next_save()`). Returns
-/// one row per command that asks for a picture (the opening view first).
+/// one row per command that asks for a picture (the opening view first);
+/// if `thread` is interrupted, those of the commands run until then.
 pub fn run_script(
     thread: &RenderThread,
     viewer: &Viewer,
@@ -248,55 +249,67 @@ pub fn run_script(
             thread.wait_for(generation)
         }
     };
-    for line in lines {
-        let was_converged = std::mem::take(&mut converged);
-        match &line.command {
-            Command::Input(input) => match viewer.apply(&mut state, *input) {
-                Effect::Changed => ask(&state, line, line.text.clone(), &mut generation),
-                Effect::Nothing
-                | Effect::TogglePlay
-                | Effect::ToggleHelp
-                | Effect::ToggleFullscreen => converged = was_converged,
-                Effect::ToggleOverlay => {
-                    overlay = !overlay;
-                    converged = was_converged;
-                }
-                Effect::Save => {
-                    let picture = picture(generation, was_converged)?;
-                    save(&next_save(), picture.shown(overlay))?;
-                    converged = was_converged;
-                }
-                Effect::Quit => break,
-            },
-            Command::Play(frames) => {
-                for _ in 0..*frames {
-                    if viewer.advance(&mut state) != Effect::Changed {
-                        break;
+    // Run as a closure so that an interrupt, which gives up the wait
+    // under way, ends the commands but not the rows of those that ran.
+    let ran = (|| -> Result<(), String> {
+        for line in lines {
+            if thread.interrupted() {
+                break;
+            }
+            let was_converged = std::mem::take(&mut converged);
+            match &line.command {
+                Command::Input(input) => match viewer.apply(&mut state, *input) {
+                    Effect::Changed => ask(&state, line, line.text.clone(), &mut generation),
+                    Effect::Nothing
+                    | Effect::TogglePlay
+                    | Effect::ToggleHelp
+                    | Effect::ToggleFullscreen => converged = was_converged,
+                    Effect::ToggleOverlay => {
+                        overlay = !overlay;
+                        converged = was_converged;
                     }
-                    let text = format!("play frame {}", state.frame);
-                    ask(&state, line, text, &mut generation);
+                    Effect::Save => {
+                        let picture = picture(generation, was_converged)?;
+                        save(&next_save(), picture.shown(overlay))?;
+                        converged = was_converged;
+                    }
+                    Effect::Quit => break,
+                },
+                Command::Play(frames) => {
+                    for _ in 0..*frames {
+                        if viewer.advance(&mut state) != Effect::Changed {
+                            break;
+                        }
+                        let text = format!("play frame {}", state.frame);
+                        ask(&state, line, text, &mut generation);
+                        thread.wait_for(generation)?;
+                    }
+                }
+                Command::Wait => {
                     thread.wait_for(generation)?;
                 }
-            }
-            Command::Wait => {
-                thread.wait_for(generation)?;
-            }
-            Command::WaitConverged => {
-                thread.wait_converged(generation)?;
-                converged = true;
-            }
-            Command::Sleep(ms) => {
-                std::thread::sleep(std::time::Duration::from_millis(u64::from(*ms)));
-                converged = was_converged;
-            }
-            Command::Save(path) => {
-                let picture = picture(generation, was_converged)?;
-                save(path, picture.shown(overlay))?;
-                converged = was_converged;
+                Command::WaitConverged => {
+                    thread.wait_converged(generation)?;
+                    converged = true;
+                }
+                Command::Sleep(ms) => {
+                    std::thread::sleep(std::time::Duration::from_millis(u64::from(*ms)));
+                    converged = was_converged;
+                }
+                Command::Save(path) => {
+                    let picture = picture(generation, was_converged)?;
+                    save(path, picture.shown(overlay))?;
+                    converged = was_converged;
+                }
             }
         }
+        thread.wait_for(generation)?;
+        Ok(())
+    })();
+    match ran {
+        Err(_) if thread.interrupted() => {}
+        other => other?,
     }
-    thread.wait_for(generation)?;
     let log = thread.log();
     Ok(sent
         .into_iter()

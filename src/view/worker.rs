@@ -192,6 +192,9 @@ struct Outbox {
     /// Why the thread stopped, if it failed.
     failure: Option<String>,
     stopped: bool,
+    /// Whether the waiting was given up (an interrupt): waits return at
+    /// once.
+    interrupted: bool,
 }
 
 struct Shared {
@@ -355,6 +358,9 @@ impl RenderThread {
             if let Some(picture) = found(&outbox) {
                 return Ok(Arc::clone(picture));
             }
+            if outbox.interrupted {
+                return Err("interrupted".to_string());
+            }
             if outbox.stopped {
                 return Err(outbox
                     .failure
@@ -367,6 +373,21 @@ impl RenderThread {
                 .wait(outbox)
                 .unwrap_or_else(PoisonError::into_inner);
         }
+    }
+
+    /// What gives up every wait, now and later, from any thread (an
+    /// interrupt's handler): a script then stops where it is.
+    pub fn interrupter(&self) -> Box<dyn FnOnce() + Send> {
+        let shared = Arc::clone(&self.shared);
+        Box::new(move || {
+            lock(&shared.outbox).interrupted = true;
+            shared.finished.notify_all();
+        })
+    }
+
+    /// Whether the interrupter was called.
+    pub fn interrupted(&self) -> bool {
+        lock(&self.shared.outbox).interrupted
     }
 
     /// The pictures finished so far (with a log kept).

@@ -820,3 +820,47 @@ fn a_scene_with_one_viewport_opens_saying_v_shows_the_camera() {
     assert!(said.contains("`v` shows the camera's image"), "{said}");
     assert!(!said.contains("the next"), "{said}");
 }
+
+#[test]
+fn an_interrupted_script_writes_the_statistics_of_the_commands_run() {
+    use nix::sys::signal::{kill, Signal};
+    let dir = tempfile::tempdir().unwrap();
+    // A long script: the interrupt comes while it sleeps between drags.
+    let drags = "drag 4 0\nwait\nsleep 200\n".repeat(50);
+    std::fs::write(
+        dir.path().join("long.txt"),
+        format!("save open.png\n{drags}"),
+    )
+    .unwrap();
+    let mut child = Command::new(env!("CARGO_BIN_EXE_retrace"))
+        .args(args(
+            &["view"],
+            &["--script", "long.txt", "--stats", "stats.csv"],
+        ))
+        .current_dir(dir.path())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut lines = BufReader::new(child.stdout.take().unwrap()).lines();
+    let saved = lines.next().unwrap().unwrap();
+    assert!(saved.starts_with("saved "), "{saved}");
+    std::thread::sleep(Duration::from_millis(500));
+    kill(
+        nix::unistd::Pid::from_raw(child.id() as i32),
+        Signal::SIGINT,
+    )
+    .unwrap();
+    let out = child.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(130), "{err}");
+    assert!(err.contains("interrupted"), "{err}");
+    // The opening and the drags run before the interrupt, not all fifty.
+    let (stats, rows) = stats_rows(&dir.path().join("stats.csv"));
+    assert!(rows.len() >= 2 && rows.len() < 51, "{stats}");
+    assert_eq!(rows[0]["event"], "open", "{stats}");
+    assert!(
+        rows.iter().all(|r| !r["ms_to_picture"].is_empty()),
+        "{stats}"
+    );
+}
