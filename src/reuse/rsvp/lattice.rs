@@ -185,6 +185,11 @@ impl std::fmt::Debug for AngleTables {
     }
 }
 
+/// How far (relative) level 0's step may be moved from the camera's angle
+/// per pixel so that coarser levels hold whole groups: a fifth of a percent,
+/// no change a resampled view can show.
+const COARSENING_NUDGE: f64 = 1.0 / 512.0;
+
 impl SampleLattice {
     /// Level-0 coordinates of point `p` of viewport `pose`, by the exact
     /// functions (for level choice and tests).
@@ -197,12 +202,24 @@ impl SampleLattice {
     }
 
     /// Level 0 at the camera's angle per pixel, nudged so a whole turn
-    /// holds whole groups (640 px over 100 degrees: 2304 columns).
+    /// holds whole groups (640 px over 100 degrees: 2304 columns), and
+    /// where a nudge of at most [`COARSENING_NUDGE`] makes it so, whole
+    /// groups of the coarser levels too: a camera whose turn does not
+    /// halve into whole groups (16384 px over 100 degrees: 58982.4
+    /// columns) would leave zoomed-out views only level 0's columns,
+    /// many times finer than their pixels.
     pub fn for_camera(camera: &Camera) -> SampleLattice {
-        let group = f64::from(GROUP_WIDTH);
-        let columns_per_turn =
-            ((TAU / camera.angle_step() / group).round().max(1.0) * group) as i64;
-        SampleLattice::new(camera.position, columns_per_turn)
+        let exact = TAU / camera.angle_step();
+        let whole_groups = |halvings: i32| {
+            let unit = f64::from(GROUP_WIDTH << halvings);
+            (exact / unit).round().max(1.0) * unit
+        };
+        let columns_per_turn = (1..=-COARSEST_LEVEL)
+            .rev()
+            .map(whole_groups)
+            .find(|&columns| (columns - exact).abs() <= exact * COARSENING_NUDGE)
+            .unwrap_or_else(|| whole_groups(0));
+        SampleLattice::new(camera.position, columns_per_turn as i64)
     }
 
     /// `columns_per_turn` (a multiple of the group width) columns at level 0.
@@ -465,6 +482,7 @@ impl PrimaryRays for LevelRays<'_> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::camera::Projection;
     use crate::reuse::rsvp::fixtures::*;
 
     #[test]
@@ -490,6 +508,28 @@ mod tests {
         assert!(worst < 1e-12, "worst error {worst:e}");
         // A millionth of a sample at the finest level.
         assert!(worst < lattice().step(MAX_LEVEL) * 1e-6);
+    }
+
+    #[test]
+    fn a_camera_whose_turn_does_not_halve_still_gets_coarser_levels() {
+        for width in [640, 320, 1920, 16384] {
+            let camera = Camera {
+                width,
+                ..camera(Projection::EqualAngle)
+            };
+            let lattice = SampleLattice::for_camera(&camera);
+            let nudge = lattice.step(0) / camera.angle_step() - 1.0;
+            assert!(nudge.abs() <= COARSENING_NUDGE, "{width}: nudged {nudge}");
+            // A view 25 times wider than a pixel of 16384 over 100 degrees
+            // finds a level at least 16 times coarser.
+            assert!(
+                lattice.coarsest().x <= -4,
+                "{width}: {:?}",
+                lattice.coarsest()
+            );
+        }
+        // 640 over 100 degrees stays exactly as before: 2304 columns.
+        assert_eq!(lattice().columns_per_turn, 2304);
     }
 
     #[test]
