@@ -389,16 +389,16 @@ fn parse_frame_range(text: Option<&str>, count: u32) -> Result<std::ops::RangeIn
     };
     let parse = |s: &str| -> Result<u32> {
         if s.trim().starts_with('-') {
-            anyhow::bail!("--frames {text}: {NOT_NEGATIVE}");
+            anyhow::bail!("--frames {text}: {NOT_NEGATIVE}: {FORM}");
         }
         s.trim()
             .parse()
-            .with_context(|| format!("--frames {text}: '{s}' is not a frame number"))
+            .with_context(|| format!("--frames {text}: '{s}' is not a frame number ({FORM})"))
     };
-    const NOT_NEGATIVE: &str = "frames are numbered from 0, never below: give A-B (inclusive) \
-                                or A, e.g. 0-49";
+    const FORM: &str = "give A-B (inclusive) or A, e.g. 0-49";
+    const NOT_NEGATIVE: &str = "frames are numbered from 0, never below";
     if text.trim_start().starts_with('-') {
-        anyhow::bail!("--frames {text}: {NOT_NEGATIVE}");
+        anyhow::bail!("--frames {text}: {NOT_NEGATIVE}: {FORM}");
     }
     let (first, last) = match text.split_once('-') {
         Some((a, b)) => (parse(a)?, parse(b)?),

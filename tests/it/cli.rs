@@ -645,7 +645,10 @@ fn bench_rejects_bad_frames_before_any_work() {
     let cases: [(&[&str], &str); 7] = [
         (&["--frames", "5-2"], "first frame comes after the last"),
         (&["--frames", "0-100"], "frames 0-99"),
-        (&["--frames", "x"], "'x' is not a frame number"),
+        (
+            &["--frames", "0..2"],
+            "'0..2' is not a frame number (give A-B (inclusive) or A, e.g. 0-49)",
+        ),
         (
             &["--only", "E2", "--oversample", "0"],
             "--oversample 0: must be within 0.01..8",
