@@ -303,15 +303,21 @@ mod tests {
     use crate::scene::{paper_scene, SceneOverrides};
     use glam::Vec3;
 
-    #[test]
-    fn a_changed_pixel_is_found_in_linear_colour_and_in_the_bytes_written() {
+    /// The paper scene at 64x48, and its accelerator.
+    fn small_paper_scene() -> (crate::scene::Scene, Accelerator) {
         let scene = paper_scene(&SceneOverrides {
             width: Some(64),
             height: Some(48),
             ..SceneOverrides::default()
         })
         .unwrap();
-        let mut accel = Accelerator::build(BackendKind::Embree, &scene.objects).unwrap();
+        let accel = Accelerator::build(BackendKind::Embree, &scene.objects).unwrap();
+        (scene, accel)
+    }
+
+    #[test]
+    fn a_changed_pixel_is_found_in_linear_colour_and_in_the_bytes_written() {
+        let (scene, mut accel) = small_paper_scene();
         let mut animator = Animator::new(&scene, &mut accel, Options::new(Techniques::AUTO, 0..1));
         let mut output = animator.render(0).remove(0);
         let checks = Checks {
@@ -348,13 +354,7 @@ mod tests {
 
     #[test]
     fn an_exr_frame_is_compared_in_its_half_floats_and_aovs_but_traced() {
-        let scene = paper_scene(&SceneOverrides {
-            width: Some(64),
-            height: Some(48),
-            ..SceneOverrides::default()
-        })
-        .unwrap();
-        let mut accel = Accelerator::build(BackendKind::Embree, &scene.objects).unwrap();
+        let (scene, mut accel) = small_paper_scene();
         let options = Options {
             aovs: crate::aov::AovSet::parse("depth,normal,albedo,object,traced").unwrap(),
             ..Options::new(Techniques::AUTO, 0..1)

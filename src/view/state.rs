@@ -741,14 +741,20 @@ mod tests {
         assert!((looks(&state) - before).length() < 1e-9);
     }
 
-    #[test]
-    fn a_perspective_view_pans_by_translating_its_viewport() {
+    /// A viewer of the paper scene through a perspective camera of 60
+    /// degrees.
+    fn perspective_viewer() -> Viewer {
         let overrides = SceneOverrides {
             projection: Some(Projection::Perspective),
             fov: Some(60.0),
             ..SceneOverrides::default()
         };
-        let viewer = Viewer::new(&paper_scene(&overrides).unwrap());
+        Viewer::new(&paper_scene(&overrides).unwrap())
+    }
+
+    #[test]
+    fn a_perspective_view_pans_by_translating_its_viewport() {
+        let viewer = perspective_viewer();
         let mut state = ViewState::default();
         viewer.apply(&mut state, Input::Drag(DVec2::new(10.0, -4.0)));
         assert_eq!(state.translate, DVec2::new(-10.0, 4.0));
@@ -849,12 +855,7 @@ mod tests {
 
     #[test]
     fn a_perspective_view_zooms_out_no_wider_than_the_limit() {
-        let overrides = SceneOverrides {
-            projection: Some(Projection::Perspective),
-            fov: Some(60.0),
-            ..SceneOverrides::default()
-        };
-        let viewer = Viewer::new(&paper_scene(&overrides).unwrap());
+        let viewer = perspective_viewer();
         let mut state = ViewState::default();
         let at = DVec2::new(320.0, 240.0);
         viewer.apply(
@@ -877,8 +878,9 @@ mod tests {
         // A wide scene camera keeps its own field: zooming in is allowed,
         // and back out to it.
         let wide = SceneOverrides {
+            projection: Some(Projection::Perspective),
             fov: Some(150.0),
-            ..overrides
+            ..SceneOverrides::default()
         };
         let viewer = Viewer::new(&paper_scene(&wide).unwrap());
         let mut state = ViewState::default();

@@ -416,17 +416,16 @@ fn reused_exr_frames_verify_and_equal_full_renders_but_for_the_traced_mask() {
 #[test]
 fn bad_aov_names_and_aovs_without_exr_are_refused() {
     let dir = tempfile::tempdir().unwrap();
-    let size = ["--width", "16", "--height", "8"];
-    let out = retrace(
-        &[
-            &["render", "-o", "a.exr", "--aov", "depth,colour"][..],
-            &size,
-        ]
-        .concat(),
-        dir.path(),
-    );
-    assert!(!out.status.success());
-    let err = String::from_utf8_lossy(&out.stderr);
+    // What the command says, failing, at a small size.
+    let refused = |command: &[&str]| {
+        let out = retrace(
+            &[command, &["--width", "16", "--height", "8"]].concat(),
+            dir.path(),
+        );
+        assert!(!out.status.success(), "{command:?}");
+        String::from_utf8_lossy(&out.stderr).into_owned()
+    };
+    let err = refused(&["render", "-o", "a.exr", "--aov", "depth,colour"]);
     assert!(err.contains("unknown AOV 'colour'"), "{err}");
     assert!(
         err.contains("depth, normal, albedo, object, traced"),
@@ -438,22 +437,11 @@ fn bad_aov_names_and_aovs_without_exr_are_refused() {
             "animate", "-o", "f_#.png", "--aov", "traced", "--frames", "0",
         ][..],
     ] {
-        let out = retrace(&[command, &size].concat(), dir.path());
-        assert!(!out.status.success(), "{command:?}");
-        let err = String::from_utf8_lossy(&out.stderr);
+        let err = refused(command);
         assert!(err.contains("--aov") && err.contains(".exr"), "{err}");
     }
     // An 8-bit picture of the run is not a frame: no EXR for it.
-    let out = retrace(
-        &[
-            &["animate", "-o", "f_#.exr", "--dirty-image", "d_#.exr"][..],
-            &size,
-        ]
-        .concat(),
-        dir.path(),
-    );
-    assert!(!out.status.success());
-    let err = String::from_utf8_lossy(&out.stderr);
+    let err = refused(&["animate", "-o", "f_#.exr", "--dirty-image", "d_#.exr"]);
     assert!(err.contains("use .png or .tga"), "{err}");
     assert_eq!(
         std::fs::read_dir(dir.path()).unwrap().count(),

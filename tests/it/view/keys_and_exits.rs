@@ -101,19 +101,7 @@ fn one_wheel_click_is_one_notch() {
     // After each click, `h` (taken after the click's press and release,
     // X keeping their order) says the view the window asks for.
     for (notches, help) in [("1", "on"), ("2", "off")] {
-        x.run(
-            "xdotool",
-            &[
-                "mousemove",
-                "--window",
-                &window,
-                "--sync",
-                "60",
-                "50",
-                "click",
-                "4",
-            ],
-        );
+        x.wheel_in_at(&window, 60, 50);
         x.run("xdotool", &["key", "h"]);
         let line = viewer.wait_for("the help toggled", |l| {
             l.starts_with("shown picture") && field(l, "help") == help
@@ -130,9 +118,7 @@ fn one_wheel_click_is_one_notch() {
     assert!(notches < 0 && notches > -40, "{line}");
     let title = x.run("xdotool", &["getwindowname", &window]);
     assert!(title.contains("(the limit)"), "{title}");
-    x.run("xdotool", &["key", "q"]);
-    let (code, err) = viewer.wait_exit();
-    assert_eq!(code, Some(0), "{err}");
+    viewer.quit(&x);
 }
 
 #[test]
@@ -235,9 +221,7 @@ fn the_overlay_after_refinement_shows_what_the_last_reuse_picture_traced() {
     );
     let title = x.run("xdotool", &["getwindowname", &window]);
     assert!(title.contains("t: black where reuse traced"), "{title}");
-    x.run("xdotool", &["key", "q"]);
-    let (code, err) = viewer.wait_exit();
-    assert_eq!(code, Some(0), "{err}");
+    viewer.quit(&x);
 }
 
 #[test]
@@ -271,7 +255,5 @@ fn f_makes_the_window_fullscreen_and_back() {
     viewer.wait_for("the windowed picture again", |l| {
         l.starts_with("picture") && field(l, "size") == "320x240" && !l.starts_with("picture 1:")
     });
-    x.run("xdotool", &["key", "q"]);
-    let (code, err) = viewer.wait_exit();
-    assert_eq!(code, Some(0), "{err}");
+    viewer.quit(&x);
 }

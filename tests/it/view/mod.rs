@@ -7,7 +7,7 @@ mod window;
 
 use std::collections::HashMap;
 use std::io::{BufRead, BufReader};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::Duration;
 
@@ -78,6 +78,57 @@ fn stats_rows(csv: &Path) -> (String, Vec<HashMap<String, String>>) {
         })
         .collect();
     (text, rows)
+}
+
+/// The paper scene at `width` x `height`.
+fn paper_at(width: u32, height: u32) -> retrace::scene::Scene {
+    let overrides = retrace::scene::SceneOverrides {
+        width: Some(width),
+        height: Some(height),
+        ..Default::default()
+    };
+    retrace::scene::paper_scene(&overrides).unwrap()
+}
+
+/// Runs the script `text` in this process through a render thread of
+/// `scene` (its log kept, refining to `refine_spp`): the thread, the
+/// viewer, one row per command and the pictures saved, by path.
+fn run_in_process(
+    scene: retrace::scene::Scene,
+    text: &str,
+    refine_spp: u32,
+) -> (
+    retrace::view::RenderThread,
+    retrace::view::Viewer,
+    Vec<retrace::view::script::EventStats>,
+    Vec<(PathBuf, image::RgbImage)>,
+) {
+    use retrace::view::script::{parse_script, run_script};
+    let view = retrace::view::Viewer::new(&scene);
+    let lines = parse_script(text, Path::new("script.txt"), view.size()).unwrap();
+    let thread = retrace::view::RenderThread::spawn(
+        scene,
+        retrace::accel::BackendKind::default(),
+        None,
+        true,
+        refine_spp,
+        None,
+        Box::new(|| {}),
+    )
+    .unwrap();
+    let mut saved = Vec::new();
+    let rows = run_script(
+        &thread,
+        &view,
+        &lines,
+        &mut || unreachable!("no key s"),
+        &mut |path, image| {
+            saved.push((path.to_path_buf(), image.clone()));
+            Ok(())
+        },
+    )
+    .unwrap();
+    (thread, view, rows, saved)
 }
 
 fn png(path: &Path) -> image::RgbImage {
@@ -322,42 +373,12 @@ fn a_converged_zoomed_view_equals_the_direct_render_of_its_viewport() {
     use retrace::accel::{Accelerator, BackendKind};
     use retrace::reuse::rsvp::render_direct_sampled;
     use retrace::sampling::PixelSamples;
-    use retrace::scene::{paper_scene, SceneOverrides};
     use retrace::shade::Shader;
-    use retrace::view::script::{parse_script, run_script};
-    use retrace::view::{RenderThread, Viewer as View};
+    use retrace::view::Viewer as View;
 
-    let overrides = SceneOverrides {
-        width: Some(160),
-        height: Some(120),
-        ..SceneOverrides::default()
-    };
-    let scene = paper_scene(&overrides).unwrap();
-    let view = View::new(&scene);
+    let scene = paper_at(160, 120);
     let text = "wheel 3 40 30\nwait-converged\nsave zoomed\n";
-    let lines = parse_script(text, Path::new("zoom.txt"), view.size()).unwrap();
-    let thread = RenderThread::spawn(
-        scene.clone(),
-        BackendKind::default(),
-        None,
-        true,
-        16,
-        None,
-        Box::new(|| {}),
-    )
-    .unwrap();
-    let mut saved = Vec::new();
-    run_script(
-        &thread,
-        &view,
-        &lines,
-        &mut || unreachable!("no key s"),
-        &mut |_, image| {
-            saved.push(image.clone());
-            Ok(())
-        },
-    )
-    .unwrap();
+    let (thread, view, _, saved) = run_in_process(scene.clone(), text, 16);
     let shown = thread.latest().unwrap();
     assert_eq!((shown.mode(), shown.samples), ("refine", 16));
     assert!(!View::is_camera_view(&shown.state));
@@ -366,45 +387,15 @@ fn a_converged_zoomed_view_equals_the_direct_render_of_its_viewport() {
     let shader = Shader::new(&scene, &accel);
     let pose = view.view(&shown.state).pose;
     let (direct, _) = render_direct_sampled(&shader, &pose, PixelSamples::new(16).unwrap());
-    assert!(saved == [direct.to_rgb8()]);
+    assert!(saved == [(PathBuf::from("zoomed"), direct.to_rgb8())]);
 }
 
 #[test]
 fn input_during_refinement_abandons_it_and_no_stale_picture_follows() {
-    use retrace::accel::BackendKind;
-    use retrace::scene::{paper_scene, SceneOverrides};
-    use retrace::view::script::{parse_script, run_script};
-    use retrace::view::{RenderThread, Viewer as View};
-
-    let overrides = SceneOverrides {
-        width: Some(320),
-        height: Some(240),
-        ..SceneOverrides::default()
-    };
-    let scene = paper_scene(&overrides).unwrap();
-    let view = View::new(&scene);
     // Each drag is sent as soon as the frame loop's picture of the last
     // is shown: while its refinement runs.
     let text = format!("{}wait-converged\n", "wait\ndrag -4 0\n".repeat(6));
-    let lines = parse_script(&text, Path::new("drags.txt"), view.size()).unwrap();
-    let thread = RenderThread::spawn(
-        scene,
-        BackendKind::default(),
-        None,
-        true,
-        16,
-        None,
-        Box::new(|| {}),
-    )
-    .unwrap();
-    let rows = run_script(
-        &thread,
-        &view,
-        &lines,
-        &mut || unreachable!("no key s"),
-        &mut |_, _| unreachable!("no save"),
-    )
-    .unwrap();
+    let (thread, _, rows, _) = run_in_process(paper_at(320, 240), &text, 16);
     assert_eq!(rows.len(), 7);
     let log = thread.log();
     let abandoned = thread.abandoned();
@@ -453,10 +444,7 @@ fn input_during_refinement_abandons_it_and_no_stale_picture_follows() {
 
 #[test]
 fn input_during_a_full_render_abandons_it_and_the_next_picture_is_exact() {
-    use retrace::accel::BackendKind;
     use retrace::scene::{load_scene, SceneOverrides};
-    use retrace::view::script::{parse_script, run_script};
-    use retrace::view::{RenderThread, Viewer as View};
 
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path();
@@ -475,7 +463,6 @@ fn input_during_a_full_render_abandons_it_and_the_next_picture_is_exact() {
         ..SceneOverrides::default()
     };
     let scene = load_scene(&path.join("scene.toml"), &overrides).unwrap();
-    let view = View::new(&scene);
     // Reuse off: every picture is traced in full. The second drag of each
     // pair comes while the first's picture is traced (a few ms into it);
     // with reuse on again, a drag comes while the new buffer is filled.
@@ -483,30 +470,8 @@ fn input_during_a_full_render_abandons_it_and_the_next_picture_is_exact() {
         "key m\nwait\n{}save off\nkey m\nsleep 2\ndrag 10 -3\nsleep 2\ndrag 14 -5\nwait\nsave on\n",
         "drag -10 3\nsleep 2\ndrag -14 5\nwait\n".repeat(4)
     );
-    let lines = parse_script(&text, Path::new("full.txt"), view.size()).unwrap();
     // No refinement: every picture is the frame loop's.
-    let thread = RenderThread::spawn(
-        scene,
-        BackendKind::default(),
-        None,
-        true,
-        1,
-        None,
-        Box::new(|| {}),
-    )
-    .unwrap();
-    let mut saved = Vec::new();
-    let rows = run_script(
-        &thread,
-        &view,
-        &lines,
-        &mut || unreachable!("no key s"),
-        &mut |path, image| {
-            saved.push((path.to_path_buf(), image.clone()));
-            Ok(())
-        },
-    )
-    .unwrap();
+    let (thread, _, rows, saved) = run_in_process(scene, &text, 1);
     assert_eq!(rows.len(), 13);
     let log = thread.log();
     let abandoned = thread.abandoned();

@@ -105,6 +105,40 @@ impl Xvfb {
         found.lines().next().unwrap().to_string()
     }
 
+    /// A drag with the left button in `window` through `points` (its
+    /// coordinates), pressed at the first and released at the last.
+    pub(super) fn drag(&self, window: &str, points: &[(i32, i32)]) {
+        let mut args: Vec<String> = Vec::new();
+        for (i, (x, y)) in points.iter().enumerate() {
+            args.extend(["mousemove", "--window", window, "--sync"].map(String::from));
+            args.extend([x.to_string(), y.to_string()]);
+            if i == 0 {
+                args.extend(["mousedown", "1"].map(String::from));
+            }
+        }
+        args.extend(["mouseup", "1"].map(String::from));
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        self.run("xdotool", &args);
+    }
+
+    /// One click of the wheel in (button 4) at (`x`, `y`) of `window`.
+    pub(super) fn wheel_in_at(&self, window: &str, x: i32, y: i32) {
+        let (x, y) = (x.to_string(), y.to_string());
+        self.run(
+            "xdotool",
+            &[
+                "mousemove",
+                "--window",
+                window,
+                "--sync",
+                &x,
+                &y,
+                "click",
+                "4",
+            ],
+        );
+    }
+
     pub(super) fn run(&self, program: &str, args: &[&str]) -> String {
         let out = Command::new("timeout")
             .arg("20")
@@ -213,6 +247,13 @@ impl Viewer {
         self.child.id()
     }
 
+    /// Presses `q` in the window and waits for the program to end well.
+    pub(super) fn quit(self, x: &Xvfb) {
+        x.run("xdotool", &["key", "q"]);
+        let (code, err) = self.wait_exit();
+        assert_eq!(code, Some(0), "{err}");
+    }
+
     pub(super) fn wait_exit(mut self) -> (Option<i32>, String) {
         let deadline = Instant::now() + Duration::from_secs(30);
         loop {
@@ -278,33 +319,7 @@ fn the_window_pans_exactly_zooms_about_the_cursor_and_quits_on_q() {
     );
 
     // A drag of 24 pixels left and 8 down, in two moves.
-    x.run(
-        "xdotool",
-        &[
-            "mousemove",
-            "--window",
-            &window,
-            "--sync",
-            "200",
-            "100",
-            "mousedown",
-            "1",
-            "mousemove",
-            "--window",
-            &window,
-            "--sync",
-            "190",
-            "104",
-            "mousemove",
-            "--window",
-            &window,
-            "--sync",
-            "176",
-            "108",
-            "mouseup",
-            "1",
-        ],
-    );
+    x.drag(&window, &[(200, 100), (190, 104), (176, 108)]);
     let yaw = format!("{:.6}", 24.0 * STEP);
     viewer.wait_for("the dragged picture", |l| {
         l.starts_with("picture") && field(l, "yaw") == yaw && field(l, "pitch") == "2.500000"
@@ -327,19 +342,7 @@ fn the_window_pans_exactly_zooms_about_the_cursor_and_quits_on_q() {
     }
 
     // The wheel in, at (60, 50): one click, one notch.
-    x.run(
-        "xdotool",
-        &[
-            "mousemove",
-            "--window",
-            &window,
-            "--sync",
-            "60",
-            "50",
-            "click",
-            "4",
-        ],
-    );
+    x.wheel_in_at(&window, 60, 50);
     let last = viewer.wait_for("a zoomed picture", |l| {
         l.starts_with("picture") && field(l, "notches") == "1"
     });
@@ -445,36 +448,14 @@ fn a_resized_window_shows_more_at_the_same_angle_per_pixel() {
         "the resized window differs from a render at its size"
     );
     // A drag after the resize is still a pan of the wider camera.
-    x.run(
-        "xdotool",
-        &[
-            "mousemove",
-            "--window",
-            &window,
-            "--sync",
-            "300",
-            "100",
-            "mousedown",
-            "1",
-            "mousemove",
-            "--window",
-            &window,
-            "--sync",
-            "276",
-            "100",
-            "mouseup",
-            "1",
-        ],
-    );
+    x.drag(&window, &[(300, 100), (276, 100)]);
     let yaw = format!("{:.6}", 24.0 * STEP);
     let line = viewer.wait_for("the dragged picture", |l| {
         l.starts_with("picture") && field(l, "yaw") == yaw
     });
     assert_eq!(field(&line, "mode"), "pan", "{line}");
     assert_eq!(field(&line, "size"), "640x360", "{line}");
-    x.run("xdotool", &["key", "q"]);
-    let (code, err) = viewer.wait_exit();
-    assert_eq!(code, Some(0), "{err}");
+    viewer.quit(&x);
 }
 
 #[test]
@@ -515,7 +496,5 @@ fn the_window_refines_an_idle_picture_and_shows_its_samples_a_pixel() {
         ) == 0,
         "the converged window differs from a 16-spp render"
     );
-    x.run("xdotool", &["key", "q"]);
-    let (code, err) = viewer.wait_exit();
-    assert_eq!(code, Some(0), "{err}");
+    viewer.quit(&x);
 }
