@@ -63,10 +63,12 @@ pub(crate) struct AnimateArgs {
     mode: Techniques,
     #[command(flatten)]
     ostc: OstcArgs,
-    /// How a pan by a fraction of a sample is shown: snap (to whole samples:
-    /// exact, the angle off by at most half a sample) or resample (the true
-    /// angle, bilinear from the buffer: slightly blurred).
-    /// [default: snap]
+    /// How a pan by a fraction of a sample is shown: snap (to the nearest
+    /// stratum of the pixel's samples at --spp 4, 9, 16...; to whole samples
+    /// at --spp 1: exact, the angle off by at most half a stratum),
+    /// snap-samples (to whole samples whatever the --spp: exact, off by up
+    /// to half a pixel) or resample (the true angle, bilinear from the
+    /// buffer: slightly blurred). [default: snap]
     #[arg(long)]
     fractional_pan: Option<retrace::reuse::pan::FractionalPan>,
     /// Also render every frame in full: exact (snapped) frames must equal

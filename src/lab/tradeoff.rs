@@ -278,6 +278,7 @@ pub fn sweep(
         for (fractional, measured) in PAN_SETTINGS.iter().zip(pan) {
             let setting = match fractional {
                 FractionalPan::Snap => "snap to lattice",
+                FractionalPan::SnapSamples => "snap to whole samples",
                 FractionalPan::Resample => "resample true yaw",
             };
             rows.push(measured.row("pan", setting.to_string(), count));

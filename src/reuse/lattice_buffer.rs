@@ -35,6 +35,38 @@ pub struct Window {
     /// Snapped minus requested yaw and pitch, radians (at most half a step).
     pub yaw_error: f64,
     pub pitch_error: f64,
+    /// Strata of the lattice's cells past (col, row) where the image's
+    /// corner sits, (0, 0) on whole cells: pixel (x, y) is then the box
+    /// over the side x side strata from there, two or four cells' worth
+    /// ([`resolve_strata`]).
+    pub strata_offset: (i64, i64),
+}
+
+impl Window {
+    /// A window on whole cells, as shown without strata.
+    pub fn on_cells(col: i64, row: i64, width: u32, height: u32) -> Window {
+        Window {
+            col,
+            row,
+            width,
+            height,
+            yaw_error: 0.0,
+            pitch_error: 0.0,
+            strata_offset: (0, 0),
+        }
+    }
+
+    /// The window of whole cells holding every stratum this one reads: a
+    /// cell wider (taller) where it is offset across (down).
+    pub fn cells(&self) -> Window {
+        let (x, y) = self.strata_offset;
+        Window {
+            width: self.width + u32::from(x != 0),
+            height: self.height + u32::from(y != 0),
+            strata_offset: (0, 0),
+            ..*self
+        }
+    }
 }
 
 /// A sample lattice a [`LatticeBuffer`] can hold: rays by integer position,
@@ -134,6 +166,9 @@ pub fn render_window<L: Lattice>(
     lattice: &L,
     window: &Window,
 ) -> (Frame, RayCounts) {
+    if window.strata_offset != (0, 0) {
+        return render_strata_window(shader, lattice, window);
+    }
     let groups = window_groups(lattice, window);
     let (colors, counts) = trace_groups(shader, lattice, &groups);
     let mut frame = Frame::new(window.width, window.height);
@@ -145,6 +180,88 @@ pub fn render_window<L: Lattice>(
         }
     }
     (frame, counts)
+}
+
+/// [`render_window`] for a window offset by strata: its strata traced as
+/// groups of their own ([`Strata`]), then resolved as the buffer resolves
+/// them.
+fn render_strata_window<L: Lattice>(
+    shader: &Shader,
+    lattice: &L,
+    window: &Window,
+) -> (Frame, RayCounts) {
+    let side = i64::from(lattice.samples().grid_side());
+    let (first_col, first_row) = window.first_stratum(side);
+    let (width, height) = (
+        i64::from(window.width) * side,
+        i64::from(window.height) * side,
+    );
+    let groups = SampleGroup::covering(first_col..first_col + width, first_row..first_row + height);
+    let (colors, counts) = trace_groups(shader, &Strata::new(lattice), &groups);
+    let mut strata = vec![[0.0; 3]; (width * height) as usize];
+    for (group, colors) in groups.iter().zip(&colors) {
+        for (lane, (col, row)) in group.lane_samples().into_iter().enumerate() {
+            let (x, y) = (col - first_col, row - first_row);
+            if (0..width).contains(&x) && (0..height).contains(&y) {
+                strata[(y * width + x) as usize] = colors[lane].to_array();
+            }
+        }
+    }
+    let columns: Vec<usize> = (0..width as usize).collect();
+    let row = |y: usize| &strata[y * width as usize..(y + 1) * width as usize];
+    let pixels = resolve_strata(window, side as usize, &columns, row);
+    (
+        Frame {
+            width: window.width,
+            height: window.height,
+            pixels,
+        },
+        counts,
+    )
+}
+
+impl Window {
+    /// The stratum at the image's corner, on a lattice of `side` strata a
+    /// cell.
+    fn first_stratum(&self, side: i64) -> (i64, i64) {
+        (
+            self.col * side + self.strata_offset.0,
+            self.row * side + self.strata_offset.1,
+        )
+    }
+}
+
+/// The pixels of a window offset by strata, each the box over the side x
+/// side strata it covers, summed row by row from the top left as
+/// [`trace_group`] sums a cell's strata: at no offset each pixel is its
+/// cell's colour bit for bit. `row(j)` is the j-th row of strata from the
+/// window's top, where stratum k from its left lies at `columns[k]`.
+fn resolve_strata<'a>(
+    window: &Window,
+    side: usize,
+    columns: &[usize],
+    row: impl Fn(usize) -> &'a [[f32; 3]] + Sync,
+) -> Vec<Vec3> {
+    let width = window.width as usize;
+    let scale = 1.0 / (side * side) as f32;
+    let mut pixels = vec![Vec3::ZERO; width * window.height as usize];
+    pixels
+        .par_chunks_mut(width)
+        .enumerate()
+        .for_each(|(y, pixels)| {
+            for j in 0..side {
+                let strata = row(y * side + j);
+                for (pixel, columns) in pixels.iter_mut().zip(columns.chunks_exact(side)) {
+                    for &column in columns {
+                        *pixel += Vec3::from(strata[column]);
+                    }
+                }
+            }
+            for pixel in pixels {
+                *pixel *= scale;
+            }
+        });
+    pixels
 }
 
 /// Image positions of lattice sample (col, row) in the window (none, one,
@@ -412,6 +529,7 @@ impl<L: Lattice> LatticeBuffer<L> {
     }
 
     pub fn covers(&self, window: &Window) -> bool {
+        let window = window.cells();
         window.row >= self.first_row
             && window.row + i64::from(window.height) <= self.first_row + self.row_count
     }
@@ -677,8 +795,29 @@ impl<L: Lattice> LatticeBuffer<L> {
         ostc: Option<&Ostc>,
     ) -> (StoreFrame, Vec<SampleGroup>) {
         let watch = Stopwatch::start();
-        let (fresh_pixels, rays, traced) = self.trace_missing(shader, window, ostc);
+        let (fresh_pixels, rays, traced) = self.trace_missing(shader, &window.cells(), ostc);
         let trace_ms = watch.ms();
+        let (pixels, bytes) = if window.strata_offset == (0, 0) {
+            self.copy_cells(window, linear)
+        } else {
+            self.resolve_offset(window, linear)
+        };
+        let (frame, image) = assembled(window.width, window.height, pixels, bytes);
+        let pixels = u64::from(window.width) * u64::from(window.height);
+        let work = ViewWork {
+            samples_traced: cells_traced(&rays, self.lattice.samples()),
+            pixels_reused: pixels - fresh_pixels.min(pixels),
+            rays,
+            trace_ms,
+            assembly_ms: watch.ms() - trace_ms,
+            ..ViewWork::default()
+        };
+        (StoreFrame { frame, image, work }, traced)
+    }
+
+    /// A window on whole cells: its kept colours copied out, as 8-bit sRGB
+    /// and, when `linear` is set, in linear colour.
+    fn copy_cells(&self, window: &Window, linear: bool) -> (Option<Vec<Vec3>>, Vec<u8>) {
         let (width, height) = (window.width as usize, window.height as usize);
         let mut pixels = Vec::with_capacity(if linear { width * height } else { 0 });
         let mut bytes: Vec<u8> = Vec::with_capacity(width * height * 3);
@@ -698,17 +837,28 @@ impl<L: Lattice> LatticeBuffer<L> {
                 x += run;
             }
         }
-        let (frame, image) =
-            assembled(window.width, window.height, linear.then_some(pixels), bytes);
-        let pixels = u64::from(window.width) * u64::from(window.height);
-        let work = ViewWork {
-            samples_traced: cells_traced(&rays, self.lattice.samples()),
-            pixels_reused: pixels - fresh_pixels.min(pixels),
-            rays,
-            trace_ms,
-            assembly_ms: watch.ms() - trace_ms,
-            ..ViewWork::default()
-        };
-        (StoreFrame { frame, image, work }, traced)
+        (linear.then_some(pixels), bytes)
+    }
+
+    /// A window offset by strata, resolved from the kept strata
+    /// ([`resolve_strata`]), as [`LatticeBuffer::copy_cells`] gives it.
+    fn resolve_offset(&self, window: &Window, linear: bool) -> (Option<Vec<Vec3>>, Vec<u8>) {
+        let strata = (self.strata.as_ref()).expect("a window offset by strata reads kept strata");
+        let side = strata.side;
+        let turn = self.lattice.period() * side;
+        let (first_col, first_row) = window.first_stratum(side);
+        let columns: Vec<usize> = (0..i64::from(window.width) * side)
+            .map(|k| wrap_into(first_col + k, turn) as usize)
+            .collect();
+        let top = (first_row - self.first_row * side) as usize;
+        let turn = turn as usize;
+        let row = |j: usize| &strata.colors[(top + j) * turn..(top + j + 1) * turn];
+        let pixels = resolve_strata(window, side as usize, &columns, row);
+        let srgb = srgb_table();
+        let bytes = pixels
+            .par_iter()
+            .flat_map_iter(|c| c.to_array().map(|v| srgb.encode(v)))
+            .collect();
+        (linear.then_some(pixels), bytes)
     }
 }

@@ -35,14 +35,7 @@ impl Lattice for RayTable {
 /// The window of a fixed camera's lattice: its whole image.
 fn image_window(table: &RayTable) -> Window {
     let (width, height) = table.size();
-    Window {
-        col: 0,
-        row: 0,
-        width,
-        height,
-        yaw_error: 0.0,
-        pitch_error: 0.0,
-    }
+    Window::on_cells(0, 0, width, height)
 }
 
 /// A run whose camera's frames do not live on the pan lattice: a still

@@ -11,18 +11,24 @@ use crate::common::retrace;
 
 /// The paper scene, small, with the given camera keyframes appended.
 fn paper_with_keys(keys: &str, frames: u32) -> Scene {
+    paper_with_keys_at(keys, frames, None)
+}
+
+/// [`paper_with_keys`] at `spp` samples a pixel (None: the scene's).
+pub fn paper_with_keys_at(keys: &str, frames: u32, spp: Option<u32>) -> Scene {
     let paper =
         std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/paper.toml")).unwrap();
     let text = format!("{paper}\n[animation]\nframes = {frames}\n{keys}");
     let overrides = SceneOverrides {
         width: Some(64),
         height: Some(48),
+        spp,
         ..SceneOverrides::default()
     };
     parse_scene_str(&text, Path::new("scenes/paper.toml"), &overrides).unwrap()
 }
 
-fn key(frame: u32, fields: &str) -> String {
+pub fn key(frame: u32, fields: &str) -> String {
     format!("[[animation.camera]]\nframe = {frame}\n{fields}\n")
 }
 

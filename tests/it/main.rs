@@ -24,6 +24,7 @@ mod obj_exporters;
 mod obj_input;
 mod ostc;
 mod output_folders;
+mod pan_strata;
 mod ray_cones;
 mod render;
 mod rsvp;

@@ -164,6 +164,14 @@ impl EqualAngleLattice {
         columns * rows as f64 * per_sample + tables
     }
 
+    /// The samples (cells) of a pan buffer over `rows` rows of `camera`'s
+    /// lattice, a band of rows spare (the buffer rounds its rows to whole
+    /// groups).
+    pub fn buffer_samples(camera: &Camera, rows: i64) -> f64 {
+        let rows = rows + i64::from(GROUP_HEIGHT);
+        Self::columns_per_turn_for(camera) as f64 * rows as f64
+    }
+
     /// The angle between neighbouring samples of `camera`'s lattice,
     /// radians: the unit a snapped view's offset is measured in.
     pub fn step_for(camera: &Camera) -> f64 {
@@ -202,16 +210,25 @@ impl EqualAngleLattice {
 
     /// The window a camera sees, its corner snapped to the nearest sample.
     pub fn window(&self, camera: &Camera) -> Window {
+        self.window_on_strata(camera, 1)
+    }
+
+    /// The window a camera sees, its corner snapped to the nearest of
+    /// `side` strata a cell along each axis (1: whole samples): at most
+    /// half a stratum from the camera.
+    pub fn window_on_strata(&self, camera: &Camera, side: i64) -> Window {
         let (exact_col, exact_row) = self.exact_corner(camera);
-        let col = exact_col.round();
-        let row = exact_row.round();
+        let n = side as f64;
+        let (col, row) = ((exact_col * n).round(), (exact_row * n).round());
+        let (col_i, row_i) = (col as i64, row as i64);
         Window {
-            col: col as i64,
-            row: row as i64,
+            col: col_i.div_euclid(side),
+            row: row_i.div_euclid(side),
             width: camera.width,
             height: camera.height,
-            yaw_error: (col - exact_col) * self.step,
-            pitch_error: -(row - exact_row) * self.step,
+            yaw_error: (col / n - exact_col) * self.step,
+            pitch_error: -(row / n - exact_row) * self.step,
+            strata_offset: (col_i.rem_euclid(side), row_i.rem_euclid(side)),
         }
     }
 
@@ -268,14 +285,7 @@ impl LatticeBuffer<EqualAngleLattice> {
         let height = (i64::from(camera.height) + 1).min(rows);
         let c0 = col.floor();
         let r0 = row.floor().clamp(0.0, (rows - height) as f64);
-        let window = Window {
-            col: c0 as i64,
-            row: r0 as i64,
-            width: camera.width + 1,
-            height: height as u32,
-            yaw_error: 0.0,
-            pitch_error: 0.0,
-        };
+        let window = Window::on_cells(c0 as i64, r0 as i64, camera.width + 1, height as u32);
         (window, col - c0, (row - r0).clamp(0.0, 1.0))
     }
 
@@ -339,14 +349,27 @@ impl LatticeBuffer<EqualAngleLattice> {
 /// How a pan by a fraction of a sample is shown.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum FractionalPan {
-    /// Move the view to the nearest whole sample (exact: equals a full
-    /// render of the snapped view; the angle is off by at most half a
-    /// sample).
+    /// Move the view to the nearest stratum of the lattice's cells (with
+    /// a square count of samples a pixel above one, where the buffer can
+    /// keep its strata), else to the nearest whole sample. Exact: equals a
+    /// full render of the snapped view; the angle is off by at most half a
+    /// stratum.
     #[default]
     Snap,
+    /// Move the view to the nearest whole sample whatever the samples a
+    /// pixel (exact; off by up to half a pixel, in whole-pixel steps).
+    SnapSamples,
     /// Resample the exact view bilinearly from the buffer (the true angle;
     /// slightly blurred, error measured against the camera's own rays).
     Resample,
+}
+
+impl FractionalPan {
+    /// Whether frames are the lattice's own views, bit-exact renders of
+    /// a camera snapped onto it.
+    pub fn snaps(self) -> bool {
+        self != FractionalPan::Resample
+    }
 }
 
 impl std::str::FromStr for FractionalPan {
@@ -354,9 +377,10 @@ impl std::str::FromStr for FractionalPan {
     fn from_str(s: &str) -> Result<Self, String> {
         match s {
             "snap" => Ok(FractionalPan::Snap),
+            "snap-samples" => Ok(FractionalPan::SnapSamples),
             "resample" => Ok(FractionalPan::Resample),
             other => Err(format!(
-                "unknown fractional pan '{other}' (expected snap or resample)"
+                "unknown fractional pan '{other}' (expected snap, snap-samples or resample)"
             )),
         }
     }
@@ -368,6 +392,9 @@ impl std::str::FromStr for FractionalPan {
 pub struct PanStore {
     buffer: LatticeBuffer<EqualAngleLattice>,
     fractional: FractionalPan,
+    /// Strata a cell along each axis a snapped view snaps to (1: whole
+    /// samples).
+    snap_side: i64,
     /// Whether the view may move (pan is on); without, the buffer serves
     /// a still view for OSTC.
     pans: bool,
@@ -378,20 +405,29 @@ pub struct PanStore {
 }
 
 impl PanStore {
-    /// A store for views of `camera`'s lattice within `rows`.
+    /// A store for views of `camera`'s lattice within `rows`, snapping to
+    /// `snap_side` strata a cell ([`PanPlan`] decides, as the buffer must
+    /// keep strata for it).
     pub fn new(
         camera: &Camera,
         rows: std::ops::Range<i64>,
         fractional: FractionalPan,
+        snap_side: i64,
         pans: bool,
         samples: PixelSamples,
         keep_strata: bool,
     ) -> PanStore {
         let lattice = EqualAngleLattice::for_camera_sampled(camera, samples);
-        let window = lattice.window(camera);
+        let window = lattice.window_on_strata(camera, snap_side);
+        let buffer = LatticeBuffer::new(lattice, rows, keep_strata || snap_side > 1);
+        assert!(
+            snap_side == 1 || i64::from(buffer.lattice_side()) == snap_side,
+            "the plan snaps to strata only where the buffer keeps them"
+        );
         PanStore {
-            buffer: LatticeBuffer::new(lattice, rows, keep_strata),
+            buffer,
             fractional,
+            snap_side,
             pans,
             window,
             traced: Vec::new(),
@@ -401,7 +437,10 @@ impl PanStore {
     /// The window of the buffer a view of `camera` reads.
     fn read_window(&self, camera: &Camera) -> Window {
         match self.fractional {
-            FractionalPan::Snap => self.buffer.lattice().window(camera),
+            FractionalPan::Snap | FractionalPan::SnapSamples => self
+                .buffer
+                .lattice()
+                .window_on_strata(camera, self.snap_side),
             FractionalPan::Resample => self.buffer.resample_window(camera).0,
         }
     }
@@ -430,8 +469,9 @@ impl SampleStore for PanStore {
         if !self.buffer.covers(&self.read_window(camera)) {
             return Some(Unfit::RowsLeft);
         }
-        let window = lattice.window(camera);
-        let moved = (window.col, window.row) != (self.window.col, self.window.row);
+        let window = lattice.window_on_strata(camera, self.snap_side);
+        let corner = |w: &Window| (w.col, w.row, w.strata_offset);
+        let moved = corner(&window) != corner(&self.window);
         (moved && !self.pans).then_some(Unfit::MovedPanOff)
     }
 
@@ -452,16 +492,21 @@ impl SampleStore for PanStore {
         wanted: Wanted,
     ) -> Vec<StoreFrame> {
         let camera = &views[0].camera;
-        self.window = self.buffer.lattice().window(camera);
+        self.window = self
+            .buffer
+            .lattice()
+            .window_on_strata(camera, self.snap_side);
         let (mut made, traced) = match self.fractional {
-            FractionalPan::Snap => self.buffer.frame(shader, &self.window, wanted.linear, ostc),
+            FractionalPan::Snap | FractionalPan::SnapSamples => {
+                self.buffer.frame(shader, &self.window, wanted.linear, ostc)
+            }
             FractionalPan::Resample => {
                 self.buffer
                     .frame_resampled(shader, camera, wanted.linear, ostc)
             }
         };
-        made.work.snap_error = (self.fractional == FractionalPan::Snap)
-            .then_some((self.window.yaw_error, self.window.pitch_error));
+        made.work.snap_error =
+            (self.fractional.snaps()).then_some((self.window.yaw_error, self.window.pitch_error));
         self.traced = traced;
         vec![made]
     }
@@ -538,5 +583,27 @@ mod tests {
         assert_eq!(lattice.direction(-1, 100), lattice.direction(2303, 100));
         assert_eq!(lattice.direction(0, -1), None);
         assert_eq!(lattice.direction(0, 1152), None);
+    }
+
+    #[test]
+    fn snapping_to_strata_is_within_half_a_stratum() {
+        let lattice = EqualAngleLattice::for_camera(&camera(0.0, 0.0));
+        for side in [1i64, 2, 4] {
+            for frame in [1u32, 7, 99, 10_000] {
+                let cam = camera(f64::from(frame) * 0.37, f64::from(frame % 13) - 9.0);
+                let window = lattice.window_on_strata(&cam, side);
+                let half = lattice.step * 0.5 / side as f64 + 1e-12;
+                assert!(window.yaw_error.abs() <= half && window.pitch_error.abs() <= half);
+                let (x, y) = window.strata_offset;
+                assert!((0..side).contains(&x) && (0..side).contains(&y));
+                // The corner shown is the keyed one moved by the error.
+                let (col, row) = lattice.exact_corner(&cam);
+                let shown = |cell: i64, offset: i64| (cell * side + offset) as f64 / side as f64;
+                let yaw_moved = (shown(window.col, x) - col) * lattice.step;
+                let pitch_moved = -(shown(window.row, y) - row) * lattice.step;
+                assert!((yaw_moved - window.yaw_error).abs() < 1e-12);
+                assert!((pitch_moved - window.pitch_error).abs() < 1e-12);
+            }
+        }
     }
 }

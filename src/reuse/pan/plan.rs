@@ -13,7 +13,7 @@ use std::collections::HashMap;
 use super::{EqualAngleLattice, FractionalPan, PanStore};
 use crate::camera::{Camera, Projection, RayTable};
 use crate::render::{Frame, PrimaryRays, Shifted};
-use crate::reuse::lattice_buffer::render_window;
+use crate::reuse::lattice_buffer::{render_window, Window, STRATA_LIMIT_BYTES};
 use crate::reuse::{FullReason, Idle, Run, SampleStore, Serve, StorePlan, View};
 use crate::sampling::PixelSamples;
 use crate::scene::Scene;
@@ -30,6 +30,10 @@ pub const PAN_BUFFER_LIMIT_BYTES: f64 = 2e9;
 pub struct PanPlan {
     facts: TimelineFacts,
     fractional: FractionalPan,
+    /// Strata a cell along each axis a snapped view snaps to: the side of
+    /// the run's square count where the buffer keeps its strata for every
+    /// view of the timeline, else 1 (whole samples).
+    snap_side: i64,
 }
 
 impl PanPlan {
@@ -40,9 +44,18 @@ impl PanPlan {
         let facts = TimelineFacts::for_run(run);
         let camera = &run.scene.camera;
         if facts.on_lattice(camera) {
+            let fractional = run.options.fractional_pan;
+            let side = i64::from(run.scene.samples.grid_side());
+            let strata_fit = facts.strata_bytes(side) <= STRATA_LIMIT_BYTES;
+            let snap_side = if fractional == FractionalPan::Snap && side > 1 && strata_fit {
+                side
+            } else {
+                1
+            };
             return Ok(PanPlan {
                 facts,
-                fractional: run.options.fractional_pan,
+                fractional,
+                snap_side,
             });
         }
         let techniques = run.options.techniques;
@@ -106,6 +119,7 @@ impl StorePlan for PanPlan {
             camera,
             low - 1..high + 1,
             self.fractional,
+            self.snap_side,
             run.options.techniques.pan,
             run.scene.samples,
             // Strata serve OSTC alone (it re-traces groups of them).
@@ -120,13 +134,26 @@ impl StorePlan for PanPlan {
         samples: PixelSamples,
     ) -> (Frame, RayCounts) {
         let camera = &view.pose.camera;
+        let shown = self.shown_window(camera);
         let lattice = EqualAngleLattice::for_camera_sampled(camera, samples);
-        let window = lattice.window(camera);
-        render_window(shader, &lattice, &window)
+        // The shown corner in strata of `samples`, where they are as fine
+        // (a converged reference's are); else through the shown camera's
+        // own rays.
+        let side = i64::from(samples.grid_side());
+        let (x, y) = shown.strata_offset;
+        if shown.strata_offset == (0, 0) || (side > 0 && side % self.snap_side == 0) {
+            let scale = side.max(1) / self.snap_side;
+            let window = Window {
+                strata_offset: (x * scale, y * scale),
+                ..shown
+            };
+            return render_window(shader, &lattice, &window);
+        }
+        crate::render::render_camera(shader, &shown_camera(camera, &shown), samples)
     }
 
     fn exact(&self) -> bool {
-        self.fractional == FractionalPan::Snap
+        self.fractional.snaps()
     }
 
     fn store_bytes(&self, run: &Run, views: &[View]) -> f64 {
@@ -139,7 +166,11 @@ impl StorePlan for PanPlan {
                 camera,
                 i64::from(camera.height),
             ))
-            + crate::reuse::strata_bytes(run, pixels)
+            + if self.snap_side > 1 {
+                self.facts.strata_bytes(self.snap_side)
+            } else {
+                crate::reuse::strata_bytes(run, pixels)
+            }
     }
 
     /// A snapped pan shows the lattice's window; a resampled one, the
@@ -149,15 +180,33 @@ impl StorePlan for PanPlan {
         if !self.exact() {
             return Box::new(RayTable::new(camera));
         }
-        let lattice = EqualAngleLattice::for_camera(camera);
-        let window = lattice.window(camera);
+        let window = self.shown_window(camera);
+        if window.strata_offset != (0, 0) {
+            return Box::new(RayTable::new(&shown_camera(camera, &window)));
+        }
         Box::new(Shifted {
-            source: lattice,
+            source: EqualAngleLattice::for_camera(camera),
             col: window.col,
             row: window.row,
             width: window.width,
             height: window.height,
         })
+    }
+}
+
+impl PanPlan {
+    /// Where a snapped frame of `camera` sits on its lattice.
+    fn shown_window(&self, camera: &Camera) -> Window {
+        EqualAngleLattice::for_camera(camera).window_on_strata(camera, self.snap_side)
+    }
+}
+
+/// `camera` turned onto the view `window` shows.
+fn shown_camera(camera: &Camera, window: &Window) -> Camera {
+    Camera {
+        yaw: camera.yaw + window.yaw_error,
+        pitch: camera.pitch + window.pitch_error,
+        ..camera.clone()
     }
 }
 
@@ -167,6 +216,8 @@ struct TimelineFacts {
     camera_moves: bool,
     /// The most a pan buffer of this timeline's views could take, in bytes.
     pan_buffer_bytes: f64,
+    /// The most samples (cells) such a buffer could hold.
+    pan_buffer_samples: f64,
     /// Per pan lattice (see [`lattice_key`]), the rows the run's views of
     /// it cover.
     row_spans: HashMap<LatticeKey, (i64, i64)>,
@@ -199,6 +250,9 @@ impl TimelineFacts {
             self.pan_buffer_bytes = self
                 .pan_buffer_bytes
                 .max(EqualAngleLattice::buffer_bytes(&camera, rows + 2));
+            self.pan_buffer_samples = self
+                .pan_buffer_samples
+                .max(EqualAngleLattice::buffer_samples(&camera, rows + 2));
         }
     }
 
@@ -211,10 +265,20 @@ impl TimelineFacts {
             && self.pan_buffer_bytes <= PAN_BUFFER_LIMIT_BYTES
     }
 
+    /// The most bytes the strata of a pan buffer of this timeline's views
+    /// could take at `side` x `side` strata a cell, as
+    /// [`crate::reuse::lattice_buffer::LatticeBuffer::new`] counts them (a
+    /// band of rows spare).
+    fn strata_bytes(&self, side: i64) -> f64 {
+        let strata = (side * side) as f64;
+        (self.pan_buffer_samples * strata) * std::mem::size_of::<[f32; 3]>() as f64
+    }
+
     fn of(scene: &Scene, run: &std::ops::Range<u32>) -> TimelineFacts {
         let mut facts = TimelineFacts {
             camera_moves: false,
             pan_buffer_bytes: 0.0,
+            pan_buffer_samples: 0.0,
             row_spans: HashMap::new(),
         };
         let camera_at = |frame| match &scene.animation {
@@ -241,6 +305,9 @@ impl TimelineFacts {
             facts.pan_buffer_bytes = facts
                 .pan_buffer_bytes
                 .max(EqualAngleLattice::buffer_bytes(&camera, span));
+            facts.pan_buffer_samples = facts
+                .pan_buffer_samples
+                .max(EqualAngleLattice::buffer_samples(&camera, span));
             // Each lattice's rows, found once here rather than at every
             // restart (an eye that moves every frame restarts every frame).
             if run.contains(&frame) {

@@ -1,0 +1,132 @@
+//! Pans at more than one sample a pixel snap to the strata of the
+//! lattice's cells: every frame stays a bit-exact render of a camera at
+//! most half a stratum from the keyed one, and a slow pan moves every
+//! frame instead of in whole-pixel jumps.
+
+use retrace::accel::{Accelerator, BackendKind};
+use retrace::frame_loop::{Animator, FrameStats, Options, Techniques};
+use retrace::reuse::pan::FractionalPan;
+use retrace::scene::Scene;
+
+use crate::animate::{key, paper_with_keys_at};
+
+/// The paper lattice's angle a sample at 64 px over 100 degrees: 232
+/// columns a turn.
+const STEP_DEG: f64 = 360.0 / 232.0;
+
+/// The small paper scene at `spp`, panned `pixels_a_frame` across and
+/// `pixels_down` down a frame over `frames` frames, with a bouncing ball
+/// when `ball` is set.
+fn slow_pan(spp: u32, frames: u32, pixels_a_frame: f64, pixels_down: f64, ball: bool) -> Scene {
+    let last = frames - 1;
+    let yaw = f64::from(last) * pixels_a_frame * STEP_DEG;
+    let pitch = -f64::from(last) * pixels_down * STEP_DEG;
+    let mut text =
+        key(0, "yaw = 0.0\npitch = 0.0") + &key(last, &format!("yaw = {yaw}\npitch = {pitch}"));
+    if ball {
+        text += "[[animation.bounce]]\nobject = \"ball\"\nheight = 1.0\nperiod = 4\n\n\
+                 [[object]]\ntype = \"sphere\"\nname = \"ball\"\ncenter = [-0.6, 0.5, 3.0]\n\
+                 radius = 0.5\nmaterial = \"red\"\n";
+    }
+    paper_with_keys_at(&text, frames, Some(spp))
+}
+
+/// The largest snap of `stats`' frames, in samples of the lattice.
+fn largest_snap(stats: &[FrameStats]) -> f64 {
+    stats
+        .iter()
+        .map(|s| {
+            let (yaw, pitch) = s.snap_error_deg();
+            yaw.abs().max(pitch.abs()) / STEP_DEG
+        })
+        .fold(0.0, f64::max)
+}
+
+fn snapping(fractional: FractionalPan, frames: u32) -> Options {
+    Options {
+        fractional_pan: fractional,
+        ..Options::new(Techniques::AUTO, 0..frames)
+    }
+}
+
+#[test]
+fn slow_pans_at_4_spp_snap_to_strata_and_stay_bit_exact() {
+    // A quarter pixel a frame: half a stratum of a 2 x 2 pixel's.
+    let scene = slow_pan(4, 9, 0.25, 0.0, false);
+    let stats = crate::common::run_exact_reusing_with(
+        &scene,
+        BackendKind::Embree,
+        snapping(FractionalPan::Snap, 9),
+    );
+    let snap = largest_snap(&stats);
+    assert!(snap > 0.0 && snap <= 0.25 + 1e-9, "{snap} samples off");
+    // The shown view moves with the keyed one: each frame's motion is the
+    // keyed quarter pixel, give or take half a stratum.
+    for pair in stats.windows(2) {
+        let shown = |s: &FrameStats| s.snap_error_deg().0 / STEP_DEG;
+        let motion = 0.25 + shown(&pair[1]) - shown(&pair[0]);
+        assert!(
+            (motion - 0.25).abs() <= 0.25 + 1e-9,
+            "frame {}: {motion}",
+            pair[1].frame
+        );
+    }
+}
+
+#[test]
+fn snap_samples_snaps_slow_pans_at_4_spp_to_whole_samples() {
+    let scene = slow_pan(4, 9, 0.25, 0.0, false);
+    let stats = crate::common::run_exact_reusing_with(
+        &scene,
+        BackendKind::Embree,
+        snapping(FractionalPan::SnapSamples, 9),
+    );
+    let snap = largest_snap(&stats);
+    assert!(snap > 0.25 && snap <= 0.5 + 1e-9, "{snap} samples off");
+    // Frames 0 and 2, half a pixel apart, show one whole-sample view: the
+    // pan judders; snapped to strata, they differ.
+    let mut accel = Accelerator::build(BackendKind::Embree, &scene.objects).unwrap();
+    for (fractional, judders) in [
+        (FractionalPan::SnapSamples, true),
+        (FractionalPan::Snap, false),
+    ] {
+        let mut animator = Animator::new(&scene, &mut accel, snapping(fractional, 3));
+        let first = animator.render(0).remove(0).frame.unwrap();
+        let third = animator.render(2).remove(0).frame.unwrap();
+        let same = retrace::metrics::count_differences(&first, &third).unwrap() == 0;
+        assert_eq!(same, judders, "{fractional:?}");
+    }
+}
+
+on_every_backend! {
+    pans_between_strata_by_whole_and_part_pixels_stay_bit_exact(backend) {
+        // 16 samples a pixel (strata a quarter pixel), panned 1.3 pixels
+        // across and 0.3 down a frame, a ball bouncing: OSTC erases
+        // regions of strata as the view moves between them.
+        let scene = slow_pan(16, 6, 1.3, 0.3, true);
+        let stats = crate::common::run_exact_reusing_with(&scene, backend, snapping(FractionalPan::Snap, 6));
+        assert!(stats[1..].iter().all(|s| s.mode.to_string() == "pan+ostc"), "{:?}",
+            stats.iter().map(|s| s.mode.to_string()).collect::<Vec<_>>());
+        assert!(stats[1..].iter().any(|s| s.ostc.samples_nulled > 0));
+        let snap = largest_snap(&stats);
+        assert!(snap > 0.0 && snap <= 0.125 + 1e-9, "{snap} samples off");
+    }
+}
+
+#[test]
+fn a_run_of_later_frames_of_a_slow_pan_at_4_spp_equals_one_long_run() {
+    let scene = slow_pan(4, 8, 0.3, 0.1, false);
+    let mut accel = Accelerator::build(BackendKind::Embree, &scene.objects).unwrap();
+    let mut long = Animator::new(&scene, &mut accel, Options::new(Techniques::AUTO, 0..8));
+    let long_frames: Vec<_> = (0..8)
+        .map(|f| long.render(f).remove(0).frame.unwrap())
+        .collect();
+    drop(long);
+    let mut late = Animator::new(&scene, &mut accel, Options::new(Techniques::AUTO, 5..8));
+    for frame in 5..8 {
+        let image = late.render(frame).remove(0).frame.unwrap();
+        let differing =
+            retrace::metrics::count_differences(&image, &long_frames[frame as usize]).unwrap();
+        assert_eq!(differing, 0, "frame {frame}");
+    }
+}
