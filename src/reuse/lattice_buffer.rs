@@ -209,12 +209,12 @@ fn render_strata_window<L: Lattice>(
     }
     let columns: Vec<usize> = (0..width as usize).collect();
     let row = |y: usize| &strata[y * width as usize..(y + 1) * width as usize];
-    let pixels = resolve_strata(window, side as usize, &columns, row);
+    let (pixels, _) = resolve_strata(window, side as usize, &columns, row, true);
     (
         Frame {
             width: window.width,
             height: window.height,
-            pixels,
+            pixels: pixels.expect("asked for"),
         },
         counts,
     )
@@ -236,32 +236,62 @@ impl Window {
 /// [`trace_group`] sums a cell's strata: at no offset each pixel is its
 /// cell's colour bit for bit. `row(j)` is the j-th row of strata from the
 /// window's top, where stratum k from its left lies at `columns[k]`.
+/// Returns the 8-bit sRGB image and, when `linear` is set, the linear
+/// pixels, made in one pass over the rows.
 fn resolve_strata<'a>(
     window: &Window,
     side: usize,
     columns: &[usize],
     row: impl Fn(usize) -> &'a [[f32; 3]] + Sync,
-) -> Vec<Vec3> {
-    let width = window.width as usize;
+    linear: bool,
+) -> (Option<Vec<Vec3>>, Vec<u8>) {
+    let (width, height) = (window.width as usize, window.height as usize);
     let scale = 1.0 / (side * side) as f32;
-    let mut pixels = vec![Vec3::ZERO; width * window.height as usize];
-    pixels
-        .par_chunks_mut(width)
+    let srgb = srgb_table();
+    // Unless the window wraps round the turn its strata are one run of
+    // each row: summed from a slice, without an index a stratum.
+    let first = columns.first().copied().unwrap_or(0);
+    let contiguous = columns.iter().enumerate().all(|(k, &c)| c == first + k);
+    let mut pixels = vec![Vec3::ZERO; if linear { width * height } else { 0 }];
+    let mut pixel_rows: Vec<Option<&mut [Vec3]>> = if linear {
+        pixels.chunks_mut(width).map(Some).collect()
+    } else {
+        (0..height).map(|_| None).collect()
+    };
+    let mut bytes = vec![0u8; width * height * 3];
+    bytes
+        .par_chunks_mut(width * 3)
+        .zip(pixel_rows.par_iter_mut())
         .enumerate()
-        .for_each(|(y, pixels)| {
+        .for_each(|(y, (bytes, linear_row))| {
+            let mut sums = vec![Vec3::ZERO; width];
             for j in 0..side {
                 let strata = row(y * side + j);
-                for (pixel, columns) in pixels.iter_mut().zip(columns.chunks_exact(side)) {
-                    for &column in columns {
-                        *pixel += Vec3::from(strata[column]);
+                if contiguous {
+                    let run = &strata[first..first + columns.len()];
+                    for (sum, strata) in sums.iter_mut().zip(run.chunks_exact(side)) {
+                        for &stratum in strata {
+                            *sum += Vec3::from(stratum);
+                        }
+                    }
+                } else {
+                    for (sum, columns) in sums.iter_mut().zip(columns.chunks_exact(side)) {
+                        for &column in columns {
+                            *sum += Vec3::from(strata[column]);
+                        }
                     }
                 }
             }
-            for pixel in pixels {
-                *pixel *= scale;
+            for (sum, bytes) in sums.iter_mut().zip(bytes.chunks_exact_mut(3)) {
+                *sum *= scale;
+                bytes.copy_from_slice(&sum.to_array().map(|c| srgb.encode(c)));
+            }
+            if let Some(linear_row) = linear_row {
+                linear_row.copy_from_slice(&sums);
             }
         });
-    pixels
+    drop(pixel_rows);
+    (linear.then_some(pixels), bytes)
 }
 
 /// Image positions of lattice sample (col, row) in the window (none, one,
@@ -853,12 +883,6 @@ impl<L: Lattice> LatticeBuffer<L> {
         let top = (first_row - self.first_row * side) as usize;
         let turn = turn as usize;
         let row = |j: usize| &strata.colors[(top + j) * turn..(top + j + 1) * turn];
-        let pixels = resolve_strata(window, side as usize, &columns, row);
-        let srgb = srgb_table();
-        let bytes = pixels
-            .par_iter()
-            .flat_map_iter(|c| c.to_array().map(|v| srgb.encode(v)))
-            .collect();
-        (linear.then_some(pixels), bytes)
+        resolve_strata(window, side as usize, &columns, row, linear)
     }
 }
