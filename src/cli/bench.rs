@@ -66,6 +66,11 @@ pub(crate) struct BenchArgs {
     /// `knobs` sweeps its own.
     #[command(flatten)]
     rsvp: RsvpKnobArgs,
+    /// How the pans (E1) show a pan by a fraction of a sample, as `animate
+    /// --fractional-pan`: snap, snap-samples, blend-strata or resample
+    /// [default: snap]
+    #[arg(long)]
+    fractional_pan: Option<retrace::reuse::pan::FractionalPan>,
 }
 
 impl BenchArgs {
@@ -474,10 +479,14 @@ fn run_experiment(
     if let (true, Some(changes)) = (info.uses_rsvp(), knobs.changes(scene.samples)) {
         info.technique = format!("{}, {changes}", info.technique);
     }
+    if let Some(fractional) = args.fractional_pan {
+        info.technique = format!("{}, {}", info.technique, fractional.name());
+    }
     let mut accel = args.backend.build(&scene)?;
     let options = Options {
         ostc: args.ostc.settings(),
         rsvp: knobs,
+        fractional_pan: args.fractional_pan.unwrap_or_default(),
         ..Options::new(Techniques::AUTO, frames.clone())
     };
     let measure = Measure {

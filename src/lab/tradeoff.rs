@@ -279,6 +279,7 @@ pub fn sweep(
             let setting = match fractional {
                 FractionalPan::Snap => "snap to lattice",
                 FractionalPan::SnapSamples => "snap to whole samples",
+                FractionalPan::BlendStrata => "blend strata",
                 FractionalPan::Resample => "resample true yaw",
             };
             rows.push(measured.row("pan", setting.to_string(), count));

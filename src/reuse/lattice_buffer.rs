@@ -23,6 +23,8 @@ use crate::reuse::{StoreFrame, ViewWork};
 use crate::sampling::PixelSamples;
 use crate::shade::{RayCounts, RayObserver, Shader};
 
+mod strata_window;
+
 /// Where a camera's view sits on the lattice.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Window {
@@ -38,8 +40,15 @@ pub struct Window {
     /// Strata of the lattice's cells past (col, row) where the image's
     /// corner sits, (0, 0) on whole cells: pixel (x, y) is then the box
     /// over the side x side strata from there, two or four cells' worth
-    /// ([`resolve_strata`]).
+    /// ([`strata_window`]).
     pub strata_offset: (i64, i64),
+    /// Strata a cell along each axis the offset and blend count in (1: the
+    /// cells themselves).
+    pub strata_side: i64,
+    /// How far past that stratum, in strata (0 to 1), the box is moved on
+    /// along each axis, its edge strata weighed by how much of them it
+    /// covers: (0, 0) for a view snapped to strata.
+    pub blend: (f32, f32),
 }
 
 impl Window {
@@ -53,18 +62,8 @@ impl Window {
             yaw_error: 0.0,
             pitch_error: 0.0,
             strata_offset: (0, 0),
-        }
-    }
-
-    /// The window of whole cells holding every stratum this one reads: a
-    /// cell wider (taller) where it is offset across (down).
-    pub fn cells(&self) -> Window {
-        let (x, y) = self.strata_offset;
-        Window {
-            width: self.width + u32::from(x != 0),
-            height: self.height + u32::from(y != 0),
-            strata_offset: (0, 0),
-            ..*self
+            strata_side: 1,
+            blend: (0.0, 0.0),
         }
     }
 }
@@ -166,8 +165,8 @@ pub fn render_window<L: Lattice>(
     lattice: &L,
     window: &Window,
 ) -> (Frame, RayCounts) {
-    if window.strata_offset != (0, 0) {
-        return render_strata_window(shader, lattice, window);
+    if !window.on_whole_cells() {
+        return strata_window::render(shader, lattice, window);
     }
     let groups = window_groups(lattice, window);
     let (colors, counts) = trace_groups(shader, lattice, &groups);
@@ -180,118 +179,6 @@ pub fn render_window<L: Lattice>(
         }
     }
     (frame, counts)
-}
-
-/// [`render_window`] for a window offset by strata: its strata traced as
-/// groups of their own ([`Strata`]), then resolved as the buffer resolves
-/// them.
-fn render_strata_window<L: Lattice>(
-    shader: &Shader,
-    lattice: &L,
-    window: &Window,
-) -> (Frame, RayCounts) {
-    let side = i64::from(lattice.samples().grid_side());
-    let (first_col, first_row) = window.first_stratum(side);
-    let (width, height) = (
-        i64::from(window.width) * side,
-        i64::from(window.height) * side,
-    );
-    let groups = SampleGroup::covering(first_col..first_col + width, first_row..first_row + height);
-    let (colors, counts) = trace_groups(shader, &Strata::new(lattice), &groups);
-    let mut strata = vec![[0.0; 3]; (width * height) as usize];
-    for (group, colors) in groups.iter().zip(&colors) {
-        for (lane, (col, row)) in group.lane_samples().into_iter().enumerate() {
-            let (x, y) = (col - first_col, row - first_row);
-            if (0..width).contains(&x) && (0..height).contains(&y) {
-                strata[(y * width + x) as usize] = colors[lane].to_array();
-            }
-        }
-    }
-    let columns: Vec<usize> = (0..width as usize).collect();
-    let row = |y: usize| &strata[y * width as usize..(y + 1) * width as usize];
-    let (pixels, _) = resolve_strata(window, side as usize, &columns, row, true);
-    (
-        Frame {
-            width: window.width,
-            height: window.height,
-            pixels: pixels.expect("asked for"),
-        },
-        counts,
-    )
-}
-
-impl Window {
-    /// The stratum at the image's corner, on a lattice of `side` strata a
-    /// cell.
-    fn first_stratum(&self, side: i64) -> (i64, i64) {
-        (
-            self.col * side + self.strata_offset.0,
-            self.row * side + self.strata_offset.1,
-        )
-    }
-}
-
-/// The pixels of a window offset by strata, each the box over the side x
-/// side strata it covers, summed row by row from the top left as
-/// [`trace_group`] sums a cell's strata: at no offset each pixel is its
-/// cell's colour bit for bit. `row(j)` is the j-th row of strata from the
-/// window's top, where stratum k from its left lies at `columns[k]`.
-/// Returns the 8-bit sRGB image and, when `linear` is set, the linear
-/// pixels, made in one pass over the rows.
-fn resolve_strata<'a>(
-    window: &Window,
-    side: usize,
-    columns: &[usize],
-    row: impl Fn(usize) -> &'a [[f32; 3]] + Sync,
-    linear: bool,
-) -> (Option<Vec<Vec3>>, Vec<u8>) {
-    let (width, height) = (window.width as usize, window.height as usize);
-    let scale = 1.0 / (side * side) as f32;
-    let srgb = srgb_table();
-    // Unless the window wraps round the turn its strata are one run of
-    // each row: summed from a slice, without an index a stratum.
-    let first = columns.first().copied().unwrap_or(0);
-    let contiguous = columns.iter().enumerate().all(|(k, &c)| c == first + k);
-    let mut pixels = vec![Vec3::ZERO; if linear { width * height } else { 0 }];
-    let mut pixel_rows: Vec<Option<&mut [Vec3]>> = if linear {
-        pixels.chunks_mut(width).map(Some).collect()
-    } else {
-        (0..height).map(|_| None).collect()
-    };
-    let mut bytes = vec![0u8; width * height * 3];
-    bytes
-        .par_chunks_mut(width * 3)
-        .zip(pixel_rows.par_iter_mut())
-        .enumerate()
-        .for_each(|(y, (bytes, linear_row))| {
-            let mut sums = vec![Vec3::ZERO; width];
-            for j in 0..side {
-                let strata = row(y * side + j);
-                if contiguous {
-                    let run = &strata[first..first + columns.len()];
-                    for (sum, strata) in sums.iter_mut().zip(run.chunks_exact(side)) {
-                        for &stratum in strata {
-                            *sum += Vec3::from(stratum);
-                        }
-                    }
-                } else {
-                    for (sum, columns) in sums.iter_mut().zip(columns.chunks_exact(side)) {
-                        for &column in columns {
-                            *sum += Vec3::from(strata[column]);
-                        }
-                    }
-                }
-            }
-            for (sum, bytes) in sums.iter_mut().zip(bytes.chunks_exact_mut(3)) {
-                *sum *= scale;
-                bytes.copy_from_slice(&sum.to_array().map(|c| srgb.encode(c)));
-            }
-            if let Some(linear_row) = linear_row {
-                linear_row.copy_from_slice(&sums);
-            }
-        });
-    drop(pixel_rows);
-    (linear.then_some(pixels), bytes)
 }
 
 /// Image positions of lattice sample (col, row) in the window (none, one,
@@ -827,10 +714,10 @@ impl<L: Lattice> LatticeBuffer<L> {
         let watch = Stopwatch::start();
         let (fresh_pixels, rays, traced) = self.trace_missing(shader, &window.cells(), ostc);
         let trace_ms = watch.ms();
-        let (pixels, bytes) = if window.strata_offset == (0, 0) {
+        let (pixels, bytes) = if window.on_whole_cells() {
             self.copy_cells(window, linear)
         } else {
-            self.resolve_offset(window, linear)
+            self.resolve_strata(window, linear)
         };
         let (frame, image) = assembled(window.width, window.height, pixels, bytes);
         let pixels = u64::from(window.width) * u64::from(window.height);
@@ -870,19 +757,25 @@ impl<L: Lattice> LatticeBuffer<L> {
         (linear.then_some(pixels), bytes)
     }
 
-    /// A window offset by strata, resolved from the kept strata
-    /// ([`resolve_strata`]), as [`LatticeBuffer::copy_cells`] gives it.
-    fn resolve_offset(&self, window: &Window, linear: bool) -> (Option<Vec<Vec3>>, Vec<u8>) {
-        let strata = (self.strata.as_ref()).expect("a window offset by strata reads kept strata");
-        let side = strata.side;
+    /// A window on strata, resolved from the kept strata (the cells
+    /// themselves at one stratum a cell), as [`LatticeBuffer::copy_cells`]
+    /// gives it.
+    fn resolve_strata(&self, window: &Window, linear: bool) -> (Option<Vec<Vec3>>, Vec<u8>) {
+        let side = window.strata_side;
+        let colors = match &self.strata {
+            _ if side == 1 => &self.colors,
+            Some(strata) if strata.side == side => &strata.colors,
+            _ => panic!("a window on strata the buffer does not keep"),
+        };
         let turn = self.lattice.period() * side;
-        let (first_col, first_row) = window.first_stratum(side);
-        let columns: Vec<usize> = (0..i64::from(window.width) * side)
+        let (first_col, first_row) = window.first_stratum();
+        let (span_cols, _) = window.strata_span();
+        let columns: Vec<usize> = (0..span_cols)
             .map(|k| wrap_into(first_col + k, turn) as usize)
             .collect();
         let top = (first_row - self.first_row * side) as usize;
         let turn = turn as usize;
-        let row = |j: usize| &strata.colors[(top + j) * turn..(top + j + 1) * turn];
-        resolve_strata(window, side as usize, &columns, row, linear)
+        let row = |j: usize| &colors[(top + j) * turn..(top + j + 1) * turn];
+        strata_window::resolve(window, side as usize, &columns, row, linear)
     }
 }

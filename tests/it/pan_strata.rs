@@ -130,3 +130,29 @@ fn a_run_of_later_frames_of_a_slow_pan_at_4_spp_equals_one_long_run() {
         assert_eq!(differing, 0, "frame {frame}");
     }
 }
+
+/// `--fractional-pan blend-strata`: the keyed camera itself, each pixel's
+/// box moved between strata; exact against its full render, at one sample
+/// a pixel too, and never off the keys.
+#[test]
+fn blended_pans_stay_bit_exact_and_show_the_keyed_camera() {
+    for spp in [1, 16] {
+        let scene = slow_pan(spp, 6, 0.3, 0.1, true);
+        let stats = crate::common::run_exact_reusing_with(
+            &scene,
+            BackendKind::Embree,
+            snapping(FractionalPan::BlendStrata, 6),
+        );
+        assert_eq!(largest_snap(&stats), 0.0, "{spp} spp");
+    }
+    // Snapped and blended frames differ where the keys fall between strata.
+    let scene = slow_pan(4, 3, 0.3, 0.1, false);
+    let mut accel = Accelerator::build(BackendKind::Embree, &scene.objects).unwrap();
+    let [snapped, blended] = [FractionalPan::Snap, FractionalPan::BlendStrata].map(|fractional| {
+        let mut animator = Animator::new(&scene, &mut accel, snapping(fractional, 3));
+        animator.render(0);
+        animator.render(1).remove(0).frame.unwrap()
+    });
+    let differing = retrace::metrics::count_differences(&snapped, &blended).unwrap();
+    assert!(differing > 0);
+}

@@ -229,6 +229,39 @@ impl EqualAngleLattice {
             yaw_error: (col / n - exact_col) * self.step,
             pitch_error: -(row / n - exact_row) * self.step,
             strata_offset: (col_i.rem_euclid(side), row_i.rem_euclid(side)),
+            strata_side: side,
+            blend: (0.0, 0.0),
+        }
+    }
+
+    /// The window of the camera as keyed, on `side` strata a cell: its
+    /// corner on the stratum before the camera's, each pixel's box moved
+    /// on by the fraction of a stratum left over ([`Window::blend`]).
+    pub fn window_blended(&self, camera: &Camera, side: i64) -> Window {
+        let (exact_col, exact_row) = self.exact_corner(camera);
+        let n = side as f64;
+        let (col, row) = ((exact_col * n).floor(), (exact_row * n).floor());
+        let (col_i, row_i) = (col as i64, row as i64);
+        Window {
+            col: col_i.div_euclid(side),
+            row: row_i.div_euclid(side),
+            width: camera.width,
+            height: camera.height,
+            yaw_error: 0.0,
+            pitch_error: 0.0,
+            strata_offset: (col_i.rem_euclid(side), row_i.rem_euclid(side)),
+            strata_side: side,
+            blend: ((exact_col * n - col) as f32, (exact_row * n - row) as f32),
+        }
+    }
+
+    /// The window a frame of `camera` shows as `fractional` asks, at
+    /// `side` strata a cell: snapped, or blended between strata (a
+    /// resampled view reads [`LatticeBuffer::resample_window`] instead).
+    pub fn shown_window(&self, camera: &Camera, fractional: FractionalPan, side: i64) -> Window {
+        match fractional {
+            FractionalPan::BlendStrata => self.window_blended(camera, side),
+            _ => self.window_on_strata(camera, side),
         }
     }
 
@@ -359,16 +392,38 @@ pub enum FractionalPan {
     /// Move the view to the nearest whole sample whatever the samples a
     /// pixel (exact; off by up to half a pixel, in whole-pixel steps).
     SnapSamples,
+    /// Show the camera as keyed: each pixel the box over the strata (or
+    /// samples, at one a pixel) it covers, the strata it covers in part
+    /// weighed by how much. Exact (equals a full render of the same
+    /// blend), a little softer than a snapped view, and moves with the
+    /// keys.
+    BlendStrata,
     /// Resample the exact view bilinearly from the buffer (the true angle;
     /// slightly blurred, error measured against the camera's own rays).
     Resample,
 }
 
 impl FractionalPan {
-    /// Whether frames are the lattice's own views, bit-exact renders of
-    /// a camera snapped onto it.
+    /// Whether frames are views of a camera snapped onto the lattice.
     pub fn snaps(self) -> bool {
+        matches!(self, FractionalPan::Snap | FractionalPan::SnapSamples)
+    }
+
+    /// Whether frames equal full renders of the same view bit for bit.
+    pub fn exact(self) -> bool {
         self != FractionalPan::Resample
+    }
+}
+
+impl FractionalPan {
+    /// The name `--fractional-pan` takes.
+    pub fn name(self) -> &'static str {
+        match self {
+            FractionalPan::Snap => "snap",
+            FractionalPan::SnapSamples => "snap-samples",
+            FractionalPan::BlendStrata => "blend-strata",
+            FractionalPan::Resample => "resample",
+        }
     }
 }
 
@@ -378,9 +433,11 @@ impl std::str::FromStr for FractionalPan {
         match s {
             "snap" => Ok(FractionalPan::Snap),
             "snap-samples" => Ok(FractionalPan::SnapSamples),
+            "blend-strata" => Ok(FractionalPan::BlendStrata),
             "resample" => Ok(FractionalPan::Resample),
             other => Err(format!(
-                "unknown fractional pan '{other}' (expected snap, snap-samples or resample)"
+                "unknown fractional pan '{other}' \
+                 (expected snap, snap-samples, blend-strata or resample)"
             )),
         }
     }
@@ -418,7 +475,7 @@ impl PanStore {
         keep_strata: bool,
     ) -> PanStore {
         let lattice = EqualAngleLattice::for_camera_sampled(camera, samples);
-        let window = lattice.window_on_strata(camera, snap_side);
+        let window = lattice.shown_window(camera, fractional, snap_side);
         let buffer = LatticeBuffer::new(lattice, rows, keep_strata || snap_side > 1);
         assert!(
             snap_side == 1 || i64::from(buffer.lattice_side()) == snap_side,
@@ -437,11 +494,11 @@ impl PanStore {
     /// The window of the buffer a view of `camera` reads.
     fn read_window(&self, camera: &Camera) -> Window {
         match self.fractional {
-            FractionalPan::Snap | FractionalPan::SnapSamples => self
-                .buffer
-                .lattice()
-                .window_on_strata(camera, self.snap_side),
             FractionalPan::Resample => self.buffer.resample_window(camera).0,
+            fractional => {
+                let lattice = self.buffer.lattice();
+                lattice.shown_window(camera, fractional, self.snap_side)
+            }
         }
     }
 }
@@ -469,8 +526,8 @@ impl SampleStore for PanStore {
         if !self.buffer.covers(&self.read_window(camera)) {
             return Some(Unfit::RowsLeft);
         }
-        let window = lattice.window_on_strata(camera, self.snap_side);
-        let corner = |w: &Window| (w.col, w.row, w.strata_offset);
+        let window = lattice.shown_window(camera, self.fractional, self.snap_side);
+        let corner = |w: &Window| (w.col, w.row, w.strata_offset, w.blend);
         let moved = corner(&window) != corner(&self.window);
         (moved && !self.pans).then_some(Unfit::MovedPanOff)
     }
@@ -492,12 +549,9 @@ impl SampleStore for PanStore {
         wanted: Wanted,
     ) -> Vec<StoreFrame> {
         let camera = &views[0].camera;
-        self.window = self
-            .buffer
-            .lattice()
-            .window_on_strata(camera, self.snap_side);
+        self.window = (self.buffer.lattice()).shown_window(camera, self.fractional, self.snap_side);
         let (mut made, traced) = match self.fractional {
-            FractionalPan::Snap | FractionalPan::SnapSamples => {
+            FractionalPan::Snap | FractionalPan::SnapSamples | FractionalPan::BlendStrata => {
                 self.buffer.frame(shader, &self.window, wanted.linear, ostc)
             }
             FractionalPan::Resample => {

@@ -47,7 +47,8 @@ impl PanPlan {
             let fractional = run.options.fractional_pan;
             let side = i64::from(run.scene.samples.grid_side());
             let strata_fit = facts.strata_bytes(side) <= STRATA_LIMIT_BYTES;
-            let snap_side = if fractional == FractionalPan::Snap && side > 1 && strata_fit {
+            let on_strata = matches!(fractional, FractionalPan::Snap | FractionalPan::BlendStrata);
+            let snap_side = if on_strata && side > 1 && strata_fit {
                 side
             } else {
                 1
@@ -136,15 +137,25 @@ impl StorePlan for PanPlan {
         let camera = &view.pose.camera;
         let shown = self.shown_window(camera);
         let lattice = EqualAngleLattice::for_camera_sampled(camera, samples);
-        // The shown corner in strata of `samples`, where they are as fine
-        // (a converged reference's are); else through the shown camera's
-        // own rays.
-        let side = i64::from(samples.grid_side());
+        let side = i64::from(samples.grid_side().max(1));
+        if side == self.snap_side {
+            return render_window(shader, &lattice, &shown);
+        }
+        // At other samples a pixel (a converged reference's), a snapped
+        // corner in their strata, where they are as fine; else the shown
+        // camera's own rays.
         let (x, y) = shown.strata_offset;
-        if shown.strata_offset == (0, 0) || (side > 0 && side % self.snap_side == 0) {
-            let scale = side.max(1) / self.snap_side;
+        if shown.blend == (0.0, 0.0)
+            && (shown.strata_offset == (0, 0) || side % self.snap_side == 0)
+        {
+            let scale = side / self.snap_side;
             let window = Window {
                 strata_offset: (x * scale, y * scale),
+                strata_side: if shown.strata_offset == (0, 0) {
+                    1
+                } else {
+                    side
+                },
                 ..shown
             };
             return render_window(shader, &lattice, &window);
@@ -153,7 +164,7 @@ impl StorePlan for PanPlan {
     }
 
     fn exact(&self) -> bool {
-        self.fractional.snaps()
+        self.fractional.exact()
     }
 
     fn store_bytes(&self, run: &Run, views: &[View]) -> f64 {
@@ -181,7 +192,7 @@ impl StorePlan for PanPlan {
             return Box::new(RayTable::new(camera));
         }
         let window = self.shown_window(camera);
-        if window.strata_offset != (0, 0) {
+        if !window.on_whole_cells() {
             return Box::new(RayTable::new(&shown_camera(camera, &window)));
         }
         Box::new(Shifted {
@@ -197,7 +208,8 @@ impl StorePlan for PanPlan {
 impl PanPlan {
     /// Where a snapped frame of `camera` sits on its lattice.
     fn shown_window(&self, camera: &Camera) -> Window {
-        EqualAngleLattice::for_camera(camera).window_on_strata(camera, self.snap_side)
+        let lattice = EqualAngleLattice::for_camera(camera);
+        lattice.shown_window(camera, self.fractional, self.snap_side)
     }
 }
 
