@@ -64,9 +64,9 @@ impl RunCheck {
         output: &mut ViewOutput,
     ) -> Result<()> {
         let sampled = frame == self.frames.1 || (frame - self.frames.0) % REFERENCE_EVERY == 0;
-        // Exact output off its camera's own rays is a snapped pan:
-        // approximate against the camera's view, so measured too.
-        let approximate = !animator.is_exact() || output.stats.off_keyed_view();
+        // Exact output off its camera's own rays is a snapped or blended
+        // pan: approximate against the camera's view, so measured too.
+        let approximate = !animator.is_exact() || output.stats.off_keyed_view() || blends(animator);
         let checks = Checks {
             full: true,
             afresh: true,
@@ -220,7 +220,7 @@ fn say_verified(
     }
     // Only a pan moves frames off the camera's own rays (snapped to the
     // lattice, or resampled); without one the two checks agree.
-    let off_own_rays = stats
+    let snapped = stats
         .iter()
         .any(retrace::frame_loop::FrameStats::off_keyed_view);
     if animator.is_exact() {
@@ -235,7 +235,7 @@ fn say_verified(
             retrace::reuse::pan::EqualAngleLattice::step_for(&animator.camera_at(0)).to_degrees();
         say!(
             "verify: every frame equals its full render bit for bit{}",
-            if off_own_rays {
+            if snapped {
                 format!(
                     " (a pan: of the view snapped onto the lattice, at most {:.2} samples = {:.3} degrees off the keyed camera)",
                     largest_snap_deg / step_deg,
@@ -246,18 +246,26 @@ fn say_verified(
             }
         );
     }
-    if off_own_rays || !animator.is_exact() {
+    if snapped || blends(animator) || !animator.is_exact() {
         say!(
             "verify ({}, against the camera's own unsnapped rays): {}",
-            if animator.is_exact() {
-                "snapped"
-            } else {
+            if !animator.is_exact() {
                 "resampled"
+            } else if blends(animator) {
+                "blended"
+            } else {
+                "snapped"
             },
             error_summary(stats.iter().filter_map(FrameStats::error))
         );
     }
     Ok(())
+}
+
+/// Whether the run's pans blend between strata: exact frames, of the
+/// keyed camera but not through its own rays.
+fn blends(animator: &Animator) -> bool {
+    animator.options().fractional_pan == retrace::reuse::pan::FractionalPan::BlendStrata
 }
 
 /// Worst and mean PSNR, largest and mean absolute error and share of

@@ -140,7 +140,7 @@ fn stderr(out: &std::process::Output) -> String {
 }
 
 /// A small animated scene in a temp dir that includes the real paper scene.
-fn pan_case(extra: &str) -> tempfile::TempDir {
+pub fn pan_case(extra: &str) -> tempfile::TempDir {
     let dir = tempfile::tempdir().unwrap();
     let paper = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/paper.toml");
     std::fs::copy(paper, dir.path().join("paper.toml")).unwrap();
@@ -758,7 +758,7 @@ fn verify_pan_at_4_spp(dir: &tempfile::TempDir, width: &str, height: &str) -> St
 }
 
 /// The worst PSNR on the `--verify` line of `heading` that names `side`.
-fn verified_worst_psnr(said: &str, heading: &str, side: &str) -> f64 {
+pub fn verified_worst_psnr(said: &str, heading: &str, side: &str) -> f64 {
     let line = said
         .lines()
         .find(|l| l.starts_with(heading) && l.contains(side))

@@ -156,3 +156,35 @@ fn blended_pans_stay_bit_exact_and_show_the_keyed_camera() {
     let differing = retrace::metrics::count_differences(&snapped, &blended).unwrap();
     assert!(differing > 0);
 }
+
+/// `--verify` of a blended pan: exact against its full render, and, as it
+/// is not the camera's own rays, scored against the converged reference
+/// beside the full render.
+#[test]
+fn verify_scores_a_blended_pan_against_the_reference() {
+    let dir = crate::animate::pan_case("");
+    let args = [
+        "animate", "pan.toml", "--width", "64", "--height", "48", "--spp", "4",
+    ];
+    let more = [
+        "--fractional-pan",
+        "blend-strata",
+        "-o",
+        "out/f_###.png",
+        "--verify",
+    ];
+    let out = crate::common::retrace_ok(&[&args[..], &more[..]].concat(), dir.path());
+    let said = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        said.contains("verify: every frame equals its full render bit for bit\n"),
+        "{said}"
+    );
+    assert!(
+        said.contains("verify (blended, against the camera's own unsnapped rays)"),
+        "{said}"
+    );
+    let heading = "verify (against a 64-spp reference, frames 0, 5): ";
+    let full = crate::animate::verified_worst_psnr(&said, heading, "full render at 4 spp:");
+    let output = crate::animate::verified_worst_psnr(&said, heading, "accelerated output:");
+    assert!(output >= full - 0.5, "{said}");
+}
