@@ -122,7 +122,8 @@ pub(crate) fn bench(args: BenchArgs) -> Result<()> {
         "frame" | "backends" | "knobs" => {
             // These measure a single frame, or sweep the RSVP knobs
             // themselves: no knob given applies.
-            let flag = args.ostc.given().or(args.rsvp.given());
+            let flag = (args.ostc.given().or(args.rsvp.given()))
+                .or(args.fractional_pan.map(|_| "--fractional-pan"));
             if let Some(flag) = flag {
                 return Err(idle_flag(
                     flag,
@@ -162,6 +163,22 @@ pub(crate) fn bench(args: BenchArgs) -> Result<()> {
             return Err(idle_flag(
                 flag,
                 "none of the experiments measured has a viewport for RSVP to resample",
+            ));
+        }
+    }
+    if args.fractional_pan.is_some() {
+        use retrace::camera::Projection::EqualAngle;
+        let pans = |scene: &Scene| {
+            let turns = scene.animation.as_ref().is_some_and(|a| {
+                let first = a.camera_at(&scene.camera, 0);
+                (1..a.frames).any(|f| a.camera_at(&scene.camera, f) != first)
+            });
+            turns && scene.viewports.is_empty() && scene.camera.projection == EqualAngle
+        };
+        if !any(pans) {
+            return Err(idle_flag(
+                "--fractional-pan",
+                "none of the experiments measured pans an equal-angle camera",
             ));
         }
     }

@@ -188,3 +188,21 @@ fn verify_scores_a_blended_pan_against_the_reference() {
     let output = crate::animate::verified_worst_psnr(&said, heading, "accelerated output:");
     assert!(output >= full - 0.5, "{said}");
 }
+
+/// The bench takes `--fractional-pan` for its pans, and refuses it where
+/// nothing measured pans.
+#[test]
+fn bench_refuses_a_fractional_pan_where_nothing_pans() {
+    let dir = tempfile::tempdir().unwrap();
+    for only in ["E2", "frame"] {
+        let args = ["bench", "--only", only, "--fractional-pan", "blend-strata"];
+        let out = crate::common::retrace(&args, dir.path());
+        let said = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{said}");
+        assert!(
+            said.contains("--fractional-pan has nothing to act on"),
+            "{said}"
+        );
+    }
+    assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0);
+}
