@@ -25,6 +25,8 @@ use crate::shade::{RayCounts, RayObserver, Shader};
 
 mod strata_window;
 
+use strata_window::ResolvedStrata;
+
 /// Where a camera's view sits on the lattice.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Window {
@@ -318,6 +320,9 @@ pub struct LatticeBuffer<L: Lattice> {
     /// are resolved from (None for other counts, and where they would not
     /// fit in [`STRATA_LIMIT_BYTES`]).
     strata: Option<KeptStrata>,
+    /// Windows snapped between cells, as resolved from the strata so far
+    /// (made when the first is shown).
+    resolved: Option<ResolvedStrata>,
 }
 
 /// The most memory a buffer's strata may take: past it a buffer keeps
@@ -426,6 +431,7 @@ impl<L: Lattice> LatticeBuffer<L> {
             bytes: vec![[0; 3]; samples],
             traced: vec![false; groups],
             strata,
+            resolved: None,
         }
     }
 
@@ -539,6 +545,9 @@ impl<L: Lattice> LatticeBuffer<L> {
         for group in cell_groups {
             let index = self.group_index(group);
             self.traced[index] = false;
+            if let Some(resolved) = self.resolved.as_mut() {
+                resolved.forget(group, self.first_row, self.lattice.period());
+            }
         }
         nulled / (side * side) as u64
     }
@@ -554,6 +563,11 @@ impl<L: Lattice> LatticeBuffer<L> {
     ) -> (u64, RayCounts, Vec<SampleGroup>) {
         assert!(self.covers(window), "window rows outside the pan buffer");
         let missing = self.untraced_groups(window);
+        if let Some(resolved) = self.resolved.as_mut() {
+            for &group in &missing {
+                resolved.forget(group, self.first_row, self.lattice.period());
+            }
+        }
         let srgb = srgb_table();
         // Each group row's groups are traced and kept in its own band of
         // the stores, bands in parallel and the groups of a band too (a
@@ -716,6 +730,17 @@ impl<L: Lattice> LatticeBuffer<L> {
         let trace_ms = watch.ms();
         let (pixels, bytes) = if window.on_whole_cells() {
             self.copy_cells(window, linear)
+        } else if let Some(strata) = (self.strata.as_ref())
+            .filter(|strata| window.blend == (0.0, 0.0) && strata.side == window.strata_side)
+        {
+            // Snapped between cells: what was resolved at this offset
+            // before is copied.
+            let entries = self.colors.len();
+            let rows = (self.first_row, self.lattice.period());
+            (self
+                .resolved
+                .get_or_insert_with(|| ResolvedStrata::new(entries)))
+            .window(window, &strata.colors, rows, linear)
         } else {
             self.resolve_strata(window, linear)
         };
@@ -735,26 +760,8 @@ impl<L: Lattice> LatticeBuffer<L> {
     /// A window on whole cells: its kept colours copied out, as 8-bit sRGB
     /// and, when `linear` is set, in linear colour.
     fn copy_cells(&self, window: &Window, linear: bool) -> (Option<Vec<Vec3>>, Vec<u8>) {
-        let (width, height) = (window.width as usize, window.height as usize);
-        let mut pixels = Vec::with_capacity(if linear { width * height } else { 0 });
-        let mut bytes: Vec<u8> = Vec::with_capacity(width * height * 3);
-        let turn = self.lattice.period() as usize;
-        for y in 0..height {
-            let row_start = (window.row + y as i64 - self.first_row) as usize * turn;
-            // Copy whole runs up to each wrap of the turn.
-            let mut x = 0usize;
-            while x < width {
-                let col = self.lattice.wrap(window.col + x as i64) as usize;
-                let run = (turn - col).min(width - x);
-                let samples = row_start + col..row_start + col + run;
-                if linear {
-                    pixels.extend(self.colors[samples.clone()].iter().map(|&c| Vec3::from(c)));
-                }
-                bytes.extend_from_slice(self.bytes[samples].as_flattened());
-                x += run;
-            }
-        }
-        (linear.then_some(pixels), bytes)
+        let rows = (self.first_row, self.lattice.period());
+        strata_window::copy_rows(window, &self.colors, &self.bytes, rows, linear)
     }
 
     /// A window on strata, resolved from the kept strata (the cells

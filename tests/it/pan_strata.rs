@@ -206,3 +206,29 @@ fn bench_refuses_a_fractional_pan_where_nothing_pans() {
     }
     assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0);
 }
+
+/// A pan that comes to rest between cells while a ball bounces: the
+/// resting frames copy what was resolved at their offset before, and
+/// the entries whose strata OSTC erased are resolved again.
+#[test]
+fn a_pan_at_rest_between_cells_keeps_resolving_what_the_ball_changes() {
+    let yaw = 3.0 * 1.3 * STEP_DEG;
+    let keys = key(0, "yaw = 0.0\npitch = 0.0")
+        + &key(3, &format!("yaw = {yaw}\npitch = -0.5"))
+        + &key(9, &format!("yaw = {yaw}\npitch = -0.5"));
+    let ball = "[[animation.bounce]]\nobject = \"ball\"\nheight = 1.0\nperiod = 4\n\n\
+                [[object]]\ntype = \"sphere\"\nname = \"ball\"\ncenter = [-0.6, 0.5, 3.0]\n\
+                radius = 0.5\nmaterial = \"red\"\n";
+    let scene = paper_with_keys_at(&(keys + ball), 10, Some(4));
+    let stats = crate::common::run_exact_reusing_with(
+        &scene,
+        BackendKind::Embree,
+        snapping(FractionalPan::Snap, 10),
+    );
+    let rest = &stats[4..];
+    assert!(rest
+        .iter()
+        .all(|s| s.snap_error_deg() == rest[0].snap_error_deg()));
+    assert_ne!(rest[0].snap_error_deg(), (0.0, 0.0));
+    assert!(rest.iter().any(|s| s.ostc.samples_nulled > 0));
+}

@@ -11,7 +11,7 @@ use rayon::prelude::*;
 
 use super::{Lattice, Window};
 use crate::color::srgb_table;
-use crate::render::{trace_groups, Frame, SampleGroup, Strata};
+use crate::render::{trace_groups, Frame, SampleGroup, Strata, GROUP_HEIGHT, GROUP_WIDTH};
 use crate::shade::{RayCounts, Shader};
 
 impl Window {
@@ -173,4 +173,134 @@ pub(super) fn render<L: Lattice>(
         pixels: pixels.expect("asked for"),
     };
     (frame, counts)
+}
+
+/// The pixels of windows snapped to one offset of strata, as resolved so
+/// far: a steady pan keeps its offset for many frames (E1's 46.08 strata
+/// a frame at 4 samples a pixel), and then copies what it resolved before
+/// as a pan on whole cells copies cells. Laid out as the buffer's cells:
+/// entry (col, row) is the pixel whose corner is stratum (col n + x,
+/// row n + y) for the offset (x, y).
+pub(super) struct ResolvedStrata {
+    offset: (i64, i64),
+    colors: Vec<[f32; 3]>,
+    bytes: Vec<[u8; 3]>,
+    /// Per entry: resolved from the strata as they are now?
+    valid: Vec<bool>,
+}
+
+impl ResolvedStrata {
+    pub(super) fn new(entries: usize) -> ResolvedStrata {
+        ResolvedStrata {
+            offset: (0, 0),
+            colors: vec![[0.0; 3]; entries],
+            bytes: vec![[0; 3]; entries],
+            valid: vec![false; entries],
+        }
+    }
+
+    /// Forgets the entries reading any cell of `group` (of cells; `turn`
+    /// cells a row, rows from `first_row`): theirs and, as an entry reads
+    /// its cell and the next across and down, those a cell before.
+    pub(super) fn forget(&mut self, group: SampleGroup, first_row: i64, turn: i64) {
+        let rows = self.valid.len() as i64 / turn;
+        let (gw, gh) = (i64::from(GROUP_WIDTH), i64::from(GROUP_HEIGHT));
+        for row in group.row - 1..group.row + gh {
+            let row = row - first_row;
+            if !(0..rows).contains(&row) {
+                continue;
+            }
+            for col in group.col - 1..group.col + gw {
+                self.valid[(row * turn + col.rem_euclid(turn)) as usize] = false;
+            }
+        }
+    }
+
+    /// The window's pixels, resolving first those not resolved at its
+    /// offset (all of them when the offset changed) from `strata` (`side`
+    /// a cell, rows of `turn * side` from stratum row `first_row * side`),
+    /// `linear` as [`resolve`] gives them.
+    pub(super) fn window(
+        &mut self,
+        window: &Window,
+        strata: &[[f32; 3]],
+        (first_row, turn): (i64, i64),
+        linear: bool,
+    ) -> (Option<Vec<Vec3>>, Vec<u8>) {
+        debug_assert!(window.blend == (0.0, 0.0));
+        if self.offset != window.strata_offset {
+            self.offset = window.strata_offset;
+            self.valid.fill(false);
+        }
+        let side = window.strata_side;
+        let (turn_u, n) = (turn as usize, side as usize);
+        let strata_turn = turn_u * n;
+        let scale = 1.0 / (n * n) as f32;
+        let srgb = srgb_table();
+        let (x0, y0) = self.offset;
+        // The window's rows of entries, resolved in parallel.
+        let top = (window.row - first_row) as usize;
+        let rows = top..top + window.height as usize;
+        let span = rows.start * turn_u..rows.end * turn_u;
+        (self.colors[span.clone()].par_chunks_mut(turn_u))
+            .zip(self.bytes[span.clone()].par_chunks_mut(turn_u))
+            .zip(self.valid[span].par_chunks_mut(turn_u))
+            .enumerate()
+            .for_each(|(y, ((colors, bytes), valid))| {
+                let row = (top + y) as i64 + first_row;
+                let stratum_row = |j: i64| {
+                    let at = ((row * side + y0 + j) - first_row * side) as usize * strata_turn;
+                    &strata[at..at + strata_turn]
+                };
+                for x in 0..i64::from(window.width) {
+                    let col = (window.col + x).rem_euclid(turn) as usize;
+                    if valid[col] {
+                        continue;
+                    }
+                    let mut sum = Vec3::ZERO;
+                    for j in 0..side {
+                        let strata = stratum_row(j);
+                        for i in 0..side {
+                            let at = (col as i64 * side + x0 + i).rem_euclid(turn * side);
+                            sum += Vec3::from(strata[at as usize]);
+                        }
+                    }
+                    sum *= scale;
+                    colors[col] = sum.to_array();
+                    bytes[col] = sum.to_array().map(|c| srgb.encode(c));
+                    valid[col] = true;
+                }
+            });
+        copy_rows(window, &self.colors, &self.bytes, (first_row, turn), linear)
+    }
+}
+
+/// A window's pixels copied out of cell-shaped stores (`turn` entries a
+/// row, rows from `first_row`), whole runs up to each wrap of the turn.
+pub(super) fn copy_rows(
+    window: &Window,
+    colors: &[[f32; 3]],
+    bytes: &[[u8; 3]],
+    (first_row, turn): (i64, i64),
+    linear: bool,
+) -> (Option<Vec<Vec3>>, Vec<u8>) {
+    let (width, height) = (window.width as usize, window.height as usize);
+    let mut pixels = Vec::with_capacity(if linear { width * height } else { 0 });
+    let mut out: Vec<u8> = Vec::with_capacity(width * height * 3);
+    let turn = turn as usize;
+    for y in 0..height {
+        let row_start = (window.row + y as i64 - first_row) as usize * turn;
+        let mut x = 0usize;
+        while x < width {
+            let col = (window.col + x as i64).rem_euclid(turn as i64) as usize;
+            let run = (turn - col).min(width - x);
+            let entries = row_start + col..row_start + col + run;
+            if linear {
+                pixels.extend(colors[entries.clone()].iter().map(|&c| Vec3::from(c)));
+            }
+            out.extend_from_slice(bytes[entries].as_flattened());
+            x += run;
+        }
+    }
+    (linear.then_some(pixels), out)
 }
