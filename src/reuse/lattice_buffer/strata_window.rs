@@ -252,8 +252,9 @@ impl ResolvedStrata {
                     let at = ((row * side + y0 + j) - first_row * side) as usize * strata_turn;
                     &strata[at..at + strata_turn]
                 };
-                for x in 0..i64::from(window.width) {
-                    let col = (window.col + x).rem_euclid(turn) as usize;
+                let first = window.col.rem_euclid(turn) as usize;
+                let cols = (first..turn_u).chain(0..first).cycle();
+                for col in cols.take(window.width as usize) {
                     if valid[col] {
                         continue;
                     }
