@@ -601,27 +601,34 @@ fn pan_then_still() -> Scene {
     paper_with_keys(&(keys + ball), 10)
 }
 
-#[test]
-fn a_run_of_later_frames_equals_one_long_run() {
-    // Frames 5-9 stand still: alone they must still be the frames a run
-    // over the whole timeline makes (on the pan lattice).
-    let scene = pan_then_still();
+/// Renders frames `late..frames` of `scene` in a run of their own and
+/// checks each equals the same frame of one run over all `frames`.
+pub fn assert_later_frames_equal_one_long_run(scene: &Scene, frames: u32, late: u32) {
     let mut accel =
         Accelerator::build(retrace::accel::BackendKind::Embree, &scene.objects).unwrap();
-    let mut long = Animator::new(&scene, &mut accel, Options::new(Techniques::AUTO, 0..10));
-    let long_frames: Vec<_> = (0..10)
+    let mut long = Animator::new(scene, &mut accel, Options::new(Techniques::AUTO, 0..frames));
+    let long_frames: Vec<_> = (0..frames)
         .map(|f| long.render(f).remove(0).frame.unwrap())
         .collect();
     drop(long);
-    let mut late = Animator::new(&scene, &mut accel, Options::new(Techniques::AUTO, 5..10));
-    for frame in 5..10 {
-        let image = late.render(frame).remove(0).frame.unwrap();
+    let options = Options::new(Techniques::AUTO, late..frames);
+    let mut late_run = Animator::new(scene, &mut accel, options);
+    for frame in late..frames {
+        let image = late_run.render(frame).remove(0).frame.unwrap();
         assert_eq!(
             retrace::metrics::count_differences(&image, &long_frames[frame as usize]).unwrap(),
             0,
             "frame {frame}"
         );
     }
+}
+
+#[test]
+fn a_run_of_later_frames_equals_one_long_run() {
+    // Frames 5-9 stand still: alone they must still be the frames a run
+    // over the whole timeline makes (on the pan lattice).
+    let scene = pan_then_still();
+    assert_later_frames_equal_one_long_run(&scene, 10, 5);
 }
 
 #[test]

@@ -116,19 +116,7 @@ on_every_backend! {
 #[test]
 fn a_run_of_later_frames_of_a_slow_pan_at_4_spp_equals_one_long_run() {
     let scene = slow_pan(4, 8, 0.3, 0.1, false);
-    let mut accel = Accelerator::build(BackendKind::Embree, &scene.objects).unwrap();
-    let mut long = Animator::new(&scene, &mut accel, Options::new(Techniques::AUTO, 0..8));
-    let long_frames: Vec<_> = (0..8)
-        .map(|f| long.render(f).remove(0).frame.unwrap())
-        .collect();
-    drop(long);
-    let mut late = Animator::new(&scene, &mut accel, Options::new(Techniques::AUTO, 5..8));
-    for frame in 5..8 {
-        let image = late.render(frame).remove(0).frame.unwrap();
-        let differing =
-            retrace::metrics::count_differences(&image, &long_frames[frame as usize]).unwrap();
-        assert_eq!(differing, 0, "frame {frame}");
-    }
+    crate::animate::assert_later_frames_equal_one_long_run(&scene, 8, 5);
 }
 
 /// `--fractional-pan blend-strata`: the keyed camera itself, each pixel's

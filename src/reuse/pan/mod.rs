@@ -217,41 +217,42 @@ impl EqualAngleLattice {
     /// `side` strata a cell along each axis (1: whole samples): at most
     /// half a stratum from the camera.
     pub fn window_on_strata(&self, camera: &Camera, side: i64) -> Window {
-        let (exact_col, exact_row) = self.exact_corner(camera);
-        let n = side as f64;
-        let (col, row) = ((exact_col * n).round(), (exact_row * n).round());
-        let (col_i, row_i) = (col as i64, row as i64);
-        Window {
-            col: col_i.div_euclid(side),
-            row: row_i.div_euclid(side),
-            width: camera.width,
-            height: camera.height,
-            yaw_error: (col / n - exact_col) * self.step,
-            pitch_error: -(row / n - exact_row) * self.step,
-            strata_offset: (col_i.rem_euclid(side), row_i.rem_euclid(side)),
-            strata_side: side,
-            blend: (0.0, 0.0),
-        }
+        self.window_at_strata(camera, side, false)
     }
 
     /// The window of the camera as keyed, on `side` strata a cell: its
     /// corner on the stratum before the camera's, each pixel's box moved
     /// on by the fraction of a stratum left over ([`Window::blend`]).
     pub fn window_blended(&self, camera: &Camera, side: i64) -> Window {
+        self.window_at_strata(camera, side, true)
+    }
+
+    /// The camera's corner on `side` strata a cell: the nearest stratum,
+    /// or with `blended` the one before and the fraction left over.
+    fn window_at_strata(&self, camera: &Camera, side: i64, blended: bool) -> Window {
         let (exact_col, exact_row) = self.exact_corner(camera);
         let n = side as f64;
-        let (col, row) = ((exact_col * n).floor(), (exact_row * n).floor());
+        let (at_col, at_row) = (exact_col * n, exact_row * n);
+        let snap = if blended { f64::floor } else { f64::round };
+        let (col, row) = (snap(at_col), snap(at_row));
         let (col_i, row_i) = (col as i64, row as i64);
+        let (yaw_error, pitch_error, blend) = if blended {
+            (0.0, 0.0, ((at_col - col) as f32, (at_row - row) as f32))
+        } else {
+            let yaw_error = (col / n - exact_col) * self.step;
+            let pitch_error = -(row / n - exact_row) * self.step;
+            (yaw_error, pitch_error, (0.0, 0.0))
+        };
         Window {
             col: col_i.div_euclid(side),
             row: row_i.div_euclid(side),
             width: camera.width,
             height: camera.height,
-            yaw_error: 0.0,
-            pitch_error: 0.0,
+            yaw_error,
+            pitch_error,
             strata_offset: (col_i.rem_euclid(side), row_i.rem_euclid(side)),
             strata_side: side,
-            blend: ((exact_col * n - col) as f32, (exact_row * n - row) as f32),
+            blend,
         }
     }
 
