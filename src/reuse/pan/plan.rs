@@ -178,7 +178,11 @@ impl StorePlan for PanPlan {
                 i64::from(camera.height),
             ))
             + if self.snap_side > 1 {
+                // The strata, and the pixels resolved between cells from
+                // them (a linear colour, its bytes and a flag a cell).
+                let resolved = std::mem::size_of::<[f32; 3]>() + 3 + 1;
                 self.facts.strata_bytes(self.snap_side)
+                    + self.facts.pan_buffer_samples * resolved as f64
             } else {
                 crate::reuse::strata_bytes(run, pixels)
             }
