@@ -5,6 +5,7 @@
 use glam::Vec3;
 
 use crate::color::SrgbTable;
+use crate::sampling::PixelSamples;
 
 /// How a viewport pixel's colour is made from buffer samples.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
@@ -18,6 +19,32 @@ pub enum Filter {
     /// The mean of the 2x2 samples around the pixel centre one level finer
     /// than the pixel's footprint needs: a box over the pixel, four samples.
     Box,
+    /// A box four samples wide centred on the pixel, two levels finer than
+    /// the pixel's footprint needs (so about the pixel's width): the 5x5
+    /// samples around the centre, the outer ones weighted by how much of
+    /// their cells the box covers. One resampling pass antialiases where
+    /// `box` needs a pass per sub-pixel shift.
+    PixelBox,
+}
+
+impl Filter {
+    /// Samples the filter reads along each axis.
+    pub(super) fn side(self) -> i64 {
+        match self {
+            Filter::Nearest => 1,
+            Filter::Bilinear | Filter::Box => 2,
+            Filter::PixelBox => PIXEL_BOX_TAPS as i64,
+        }
+    }
+
+    /// Levels finer than the pixel's footprint needs that the filter reads.
+    pub(super) fn finer_levels(self) -> i32 {
+        match self {
+            Filter::Nearest | Filter::Bilinear => 0,
+            Filter::Box => 1,
+            Filter::PixelBox => 2,
+        }
+    }
 }
 
 impl std::str::FromStr for Filter {
@@ -27,8 +54,9 @@ impl std::str::FromStr for Filter {
             "nearest" => Ok(Filter::Nearest),
             "bilinear" => Ok(Filter::Bilinear),
             "box" => Ok(Filter::Box),
+            "pixel-box" => Ok(Filter::PixelBox),
             other => Err(format!(
-                "unknown filter '{other}' (expected nearest, bilinear or box)"
+                "unknown filter '{other}' (expected nearest, bilinear, box or pixel-box)"
             )),
         }
     }
@@ -40,6 +68,7 @@ impl std::fmt::Display for Filter {
             Filter::Nearest => "nearest",
             Filter::Bilinear => "bilinear",
             Filter::Box => "box",
+            Filter::PixelBox => "pixel-box",
         })
     }
 }
@@ -79,16 +108,31 @@ const DEFAULT_OVERSAMPLE: f64 = 0.71;
 
 impl RsvpKnobs {
     /// The default knobs at `samples` a pixel: bilinear at one sample a
-    /// pixel; antialiased, the box filter (over one level finer), where
-    /// bilinear fell up to 0.7 dB short of direct renders at four samples
-    /// a pixel.
-    pub fn default_for(samples: crate::sampling::PixelSamples) -> RsvpKnobs {
-        if samples.count() == 1 {
-            return RsvpKnobs::default();
-        }
+    /// pixel; at four, the pixel box, in one pass more accurate than four
+    /// shifted boxes and faster; at other counts the box filter (over one
+    /// level finer), where bilinear fell up to 0.7 dB short of direct
+    /// renders, and the pixel box's quarter of the shifts falls short too
+    /// (docs/RESULTS.md).
+    pub fn default_for(samples: PixelSamples) -> RsvpKnobs {
+        let filter = match samples.count() {
+            1 => return RsvpKnobs::default(),
+            4 => Filter::PixelBox,
+            _ => Filter::Box,
+        };
         RsvpKnobs {
-            filter: Filter::Box,
+            filter,
             ..RsvpKnobs::default()
+        }
+    }
+
+    /// The sub-pixel shifts a viewport is resampled at, with `samples` a
+    /// pixel: one per sample, or for the pixel box (which reads four
+    /// shifts' worth at once) a quarter of them, at least one.
+    pub(crate) fn shifts(&self, samples: PixelSamples) -> PixelSamples {
+        if self.filter == Filter::PixelBox {
+            PixelSamples::new((samples.count() / 4).max(1)).expect("fewer shifts than samples")
+        } else {
+            samples
         }
     }
 
@@ -98,13 +142,13 @@ impl RsvpKnobs {
     /// level the box filter and a positive bias add. What a patch's box of
     /// samples is weighed against when choosing how to work on it.
     pub(crate) fn samples_per_pixel(&self) -> f64 {
-        let finer = self.level_bias.max(0) + i32::from(self.filter == Filter::Box);
+        let finer = self.level_bias.max(0) + self.filter.finer_levels();
         self.oversample.max(1.0).powi(2) * 4f64.powi(finer)
     }
 
     /// The knobs set away from their defaults at `samples` a pixel, in
     /// words ("oversample 0.9, level bias -1"); None at the defaults.
-    pub fn changes(&self, samples: crate::sampling::PixelSamples) -> Option<String> {
+    pub fn changes(&self, samples: PixelSamples) -> Option<String> {
         let default = RsvpKnobs::default_for(samples);
         let mut changed = Vec::new();
         if self.filter != default.filter {
@@ -201,12 +245,55 @@ pub(super) fn mean(s: [SampleCode; 4]) -> SampleCode {
     blend
 }
 
+/// Samples [`Filter::PixelBox`] reads along each axis.
+pub(super) const PIXEL_BOX_TAPS: usize = 5;
+
+/// The pixel box's blend of its 5x5 codes (`read(i, j)`: column i, row j),
+/// its centre `fx`, `fy` past the middle tap's cell's start: the edge taps
+/// weighted by how much of their cells the box covers, rounded.
+#[inline(always)]
+pub(super) fn pixel_box(
+    mut read: impl FnMut(usize, usize) -> SampleCode,
+    fx: f32,
+    fy: f32,
+) -> SampleCode {
+    const TAPS: usize = PIXEL_BOX_TAPS;
+    let weights = |f: f32| -> [f32; TAPS] {
+        let scale = 1.0 / (TAPS - 1) as f32;
+        std::array::from_fn(|i| match i {
+            0 => (1.0 - f) * scale,
+            i if i == TAPS - 1 => f * scale,
+            _ => scale,
+        })
+    };
+    let (wx, wy) = (weights(fx), weights(fy));
+    let codes: [[SampleCode; TAPS]; TAPS] =
+        std::array::from_fn(|j| std::array::from_fn(|i| read(i, j)));
+    let mut blend = 0;
+    for shift in CODE_SHIFTS {
+        let mut v = 0.0;
+        for (row, wy) in codes.iter().zip(wy) {
+            let across: f32 = row
+                .iter()
+                .zip(wx)
+                .map(|(&c, w)| w * channel(c, shift))
+                .sum();
+            v += wy * across;
+        }
+        // Round to nearest, as `bilinear_channel` does.
+        blend |= ((v + 8_388_608.0).to_bits() & CODE_MASK) << shift;
+    }
+    blend
+}
+
 /// Sub-sample steps per sample on the filter's grid.
 const FRACTION_ONE: f64 = 65536.0;
 
 /// A lattice coordinate on the filter's grid (rounded to 2^-16 of a
 /// sample): the sample the filter starts from (the one below for bilinear
-/// and box, the nearest for nearest) and the fraction past it. Every step
+/// and box, the nearest for nearest, two before the nearest for the pixel
+/// box) and the fraction past the sample below (for the pixel box, past
+/// the middle tap's cell's start). Every step
 /// is exact in f64, so pass 1 (which samples to trace) and pass 2 (which to
 /// read) always agree; a pixel within 2^-17 of a sample shows that sample
 /// bit for bit.
@@ -216,6 +303,7 @@ pub(super) fn filter_split(filter: Filter, x: f64) -> (f64, f64) {
     let q = match filter {
         Filter::Nearest => q + 0.5 * FRACTION_ONE,
         Filter::Bilinear | Filter::Box => q,
+        Filter::PixelBox => q - 1.5 * FRACTION_ONE,
     };
     let origin = (q * (1.0 / FRACTION_ONE)).floor();
     (origin, (q - origin * FRACTION_ONE) * (1.0 / FRACTION_ONE))
@@ -231,8 +319,8 @@ pub(super) fn filter_origin(filter: Filter, x: f64, y: f64) -> (i64, i64) {
 }
 
 /// The samples (column, row) a pixel at lattice coordinates (x, y) reads:
-/// its filter's origin and, for the 2x2 filters, the next column and row,
-/// row by row; rows clamped to the lattice (`0..=last_row`), as reads are.
+/// the filter's square of [`Filter::side`] samples from its origin, row
+/// by row; rows clamped to the lattice (`0..=last_row`), as reads are.
 #[inline(always)]
 pub(super) fn filter_reads(
     filter: Filter,
@@ -240,20 +328,20 @@ pub(super) fn filter_reads(
     last_row: i64,
 ) -> impl Iterator<Item = (i64, i64)> {
     let (cx, ry) = filter_origin(filter, x, y);
-    let (top, bottom) = (ry.clamp(0, last_row), (ry + 1).clamp(0, last_row));
-    let count = if filter == Filter::Nearest { 1 } else { 4 };
+    let side = filter.side();
     // An array rather than nested ranges: fewer instructions, where pass 1
     // marks every pixel's reads.
-    [(cx, top), (cx + 1, top), (cx, bottom), (cx + 1, bottom)]
-        .into_iter()
-        .take(count)
+    let reads: [(i64, i64); PIXEL_BOX_TAPS * PIXEL_BOX_TAPS] = std::array::from_fn(|k| {
+        let (i, j) = (k as i64 % side, k as i64 / side);
+        (cx + i, (ry + j).clamp(0, last_row))
+    });
+    reads.into_iter().take((side * side) as usize)
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::color::{encode_srgb, srgb_table};
-    use crate::sampling::PixelSamples;
 
     #[test]
     fn blends_show_a_sample_s_own_byte_where_it_alone_counts() {
@@ -276,6 +364,7 @@ mod tests {
             let (fx, fy) = (rng.unit(), rng.unit());
             assert_eq!(bilinear([code; 4], fx, fy), code);
             assert_eq!(mean([code; 4]), code);
+            assert_eq!(pixel_box(|_, _| code, fx, fy), code);
             // Otherwise each channel lies between its samples'.
             let blend = bilinear([code, x, y, z], fx, fy);
             for shift in CODE_SHIFTS {
@@ -283,6 +372,25 @@ mod tests {
                 let one = blend >> shift & CODE_MASK;
                 let (lo, hi) = (all.iter().min().unwrap(), all.iter().max().unwrap());
                 assert!((*lo..=*hi).contains(&one), "{one} outside {all:?}");
+            }
+            // The pixel box: each channel the weighted mean of its taps.
+            let taps = [code, x, y, z];
+            let blend = pixel_box(|i, j| taps[(i + 2 * j) % 4], fx, fy);
+            for shift in CODE_SHIFTS {
+                let weight = |f: f32, i: usize| match i {
+                    0 => 1.0 - f,
+                    4 => f,
+                    _ => 1.0,
+                } / 4.0;
+                let mut want = 0.0;
+                for j in 0..5 {
+                    for i in 0..5 {
+                        let c = (taps[(i + 2 * j) % 4] >> shift & CODE_MASK) as f32;
+                        want += weight(fx, i) * weight(fy, j) * c;
+                    }
+                }
+                let got = (blend >> shift & CODE_MASK) as f32;
+                assert!((got - want).abs() <= 0.5 + 1e-3, "{got} against {want}");
             }
         }
     }
@@ -305,11 +413,24 @@ mod tests {
             all.changes(one).as_deref(),
             Some("box filter, oversample 2, level bias -1")
         );
-        // At four samples a pixel the box filter is the default.
-        let four = PixelSamples::new(4).unwrap();
+        // The pixel box is the default at four samples a pixel, the box
+        // at other counts above one.
+        let pixel_box = RsvpKnobs {
+            filter: Filter::PixelBox,
+            ..all
+        };
+        let (four, nine) = (PixelSamples::new(4).unwrap(), PixelSamples::new(9).unwrap());
+        assert_eq!(
+            pixel_box.changes(four).as_deref(),
+            Some("oversample 2, level bias -1")
+        );
+        assert_eq!(
+            all.changes(nine).as_deref(),
+            Some("oversample 2, level bias -1")
+        );
         assert_eq!(
             all.changes(four).as_deref(),
-            Some("oversample 2, level bias -1")
+            Some("box filter, oversample 2, level bias -1")
         );
     }
 }

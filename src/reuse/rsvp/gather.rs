@@ -7,7 +7,7 @@ use rayon::prelude::*;
 
 use super::{
     blocks::SampleView,
-    filter::{bilinear, decode, encode, filter_split, mean, rgb8, SampleCode},
+    filter::{bilinear, decode, encode, filter_split, mean, pixel_box, rgb8, SampleCode},
     map::{nan_filled, Mapped, SampleBox, GRID_SPACING},
     tiles::{tile_key, TileCache},
     viewport::PixelMap,
@@ -167,6 +167,11 @@ impl SampleBuffer {
                 code(c, r + 1),
                 code(c + 1, r + 1),
             ]),
+            Filter::PixelBox => pixel_box(
+                |i, j| code(c + i as i64, r + j as i64),
+                fx as f32,
+                fy as f32,
+            ),
             Filter::Bilinear => bilinear(
                 [
                     code(c, r),
@@ -316,6 +321,12 @@ fn gather_patch(
                 *slot = mean([top[0], top[1], bottom[0], bottom[1]]);
             }
         }
+        Filter::PixelBox => {
+            for ((slot, &k), (&fx, &fy)) in out.iter_mut().zip(index).zip(wx.iter().zip(wy)) {
+                let k = k as usize;
+                *slot = pixel_box(|i, j| samples[k + j * wd + i], fx, fy);
+            }
+        }
         Filter::Bilinear => {
             // Every pixel's pairs of samples first, each pair one copy,
             // then the blends, which so vectorise.
@@ -375,7 +386,12 @@ mod tests {
                 let out = nan_filled(&mut coords, cols * rows);
                 let level = patch.level;
                 buffer.patch_coords(&pose, &map, level, Some(grid), (x0, y0), cols, out);
-                for filter in [Filter::Nearest, Filter::Bilinear, Filter::Box] {
+                for filter in [
+                    Filter::Nearest,
+                    Filter::Bilinear,
+                    Filter::Box,
+                    Filter::PixelBox,
+                ] {
                     let every = pixels_box(filter, &coords).expect("a grid maps every pixel");
                     let quick = grid_pixels_box(filter, &coords, cols).expect("likewise");
                     assert!(
@@ -412,6 +428,48 @@ mod tests {
                 0,
                 "zoom {zoom}: {read_one_by_one} of {} patches",
                 mapped.patches.len()
+            );
+        }
+    }
+
+    /// At four samples a pixel the pixel box reads, in one pass, the levels
+    /// four shifted boxes read (but where a shift moves a patch's densest
+    /// pixel across a level's threshold): the same samples, the pixels
+    /// mapped once.
+    #[test]
+    fn the_pixel_box_reads_in_one_pass_the_levels_four_shifted_boxes_read() {
+        let samples = crate::sampling::PixelSamples::new(4).unwrap();
+        let knobs = RsvpKnobs::default_for(samples);
+        let shifted = RsvpStore::new(
+            lattice(),
+            RsvpKnobs {
+                filter: Filter::Box,
+                ..knobs
+            },
+            samples,
+        );
+        let pixel_box = RsvpStore::new(
+            lattice(),
+            RsvpKnobs {
+                filter: Filter::PixelBox,
+                ..knobs
+            },
+            samples,
+        );
+        let levels = |store: &RsvpStore, pose: &ViewportPose| -> Vec<Level> {
+            let mapped = store.buffer.map(pose, &store.knobs);
+            mapped.patches.iter().map(|p| p.level).collect()
+        };
+        for zoom in [1.0, 1.7, 3.1] {
+            let pose = ViewportPose::new(tilted_camera(), off_centre(zoom, 0.2, [0.0, 0.0]));
+            let shifts = shifted.shifted(&pose);
+            assert_eq!((pixel_box.shifted(&pose).len(), shifts.len()), (1, 4));
+            let (one, first) = (levels(&pixel_box, &pose), levels(&shifted, &shifts[0]));
+            let differ = one.iter().zip(&first).filter(|(a, b)| a != b).count();
+            assert!(
+                differ * 20 <= one.len(),
+                "zoom {zoom}: {differ} of {} patches read another level",
+                one.len()
             );
         }
     }

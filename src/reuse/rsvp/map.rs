@@ -59,9 +59,10 @@ pub(super) struct SampleBox {
 impl SampleBox {
     /// The samples `filter` reads for pixels whose lattice coordinates lie
     /// in `lo..=hi`: filter origins grow with the coordinates, so the box
-    /// spans the origins of the corners, and one more for the 2x2 filters.
+    /// spans the origins of the corners, and the rest of the last corner's
+    /// square of reads.
     pub(super) fn read_by(filter: Filter, lo: DVec2, hi: DVec2) -> SampleBox {
-        let extra = i64::from(filter != Filter::Nearest);
+        let extra = filter.side() - 1;
         let (c0, r0) = filter_origin(filter, lo.x, lo.y);
         let (c1, r1) = filter_origin(filter, hi.x, hi.y);
         SampleBox {
@@ -767,7 +768,7 @@ impl SampleDensity {
             let at_least = |per_pixel: f64| (per_pixel.log2() - 1e-6).ceil() as i64;
             let wanted = at_least(knobs.oversample * pixels_per_step)
                 + i64::from(knobs.level_bias)
-                + i64::from(knobs.filter == Filter::Box);
+                + i64::from(knobs.filter.finer_levels());
             let floor = at_least(pixels_per_step).clamp(i64::from(coarsest), 0);
             wanted.clamp(floor, i64::from(MAX_LEVEL)) as i32
         };

@@ -690,38 +690,40 @@ fn same_bits(a: Vec3, b: Vec3) -> bool {
 /// and the shifted pictures averaged: the buffer read at sub-pixel
 /// positions, its samples untouched. The pyramid level each read needs is
 /// chosen for the shifted pixels' spacing (the oversampling knob times the
-/// square root of the count).
+/// square root of the count). The pixel box reads four shifts' worth in
+/// one pass: a quarter of the count's shifts, at least one.
 pub struct RsvpStore {
     buffer: SampleBuffer,
     knobs: RsvpKnobs,
-    samples: PixelSamples,
+    /// The sub-pixel shifts each viewport is resampled at.
+    shifts: PixelSamples,
 }
 
 impl RsvpStore {
     pub fn new(lattice: SampleLattice, knobs: RsvpKnobs, samples: PixelSamples) -> RsvpStore {
-        let oversample = knobs.oversample * f64::from(samples.count()).sqrt();
+        let shifts = knobs.shifts(samples);
+        let oversample = knobs.oversample * f64::from(shifts.count()).sqrt();
         RsvpStore {
             buffer: SampleBuffer::new(lattice),
             knobs: RsvpKnobs {
                 oversample,
                 ..knobs
             },
-            samples,
+            shifts,
         }
     }
 
     /// `view` at each sub-pixel shift of the antialiasing (itself, with one
-    /// sample a pixel): its 2D transform's translation moved by the shift,
-    /// carried back through the transform into unzoomed pixels.
+    /// shift): its 2D transform's translation moved by the shift, carried
+    /// back through the transform into unzoomed pixels.
     fn shifted(&self, view: &ViewportPose) -> Vec<ViewportPose> {
-        if self.samples.count() == 1 {
+        if self.shifts.count() == 1 {
             return vec![view.clone()];
         }
         let inverse = view.transform.matrix().inverse();
-        (0..self.samples.count())
+        (0..self.shifts.count())
             .map(|k| {
-                let shift =
-                    glam::DVec2::new(self.samples.x(0, k) - 0.5, self.samples.y(0, k) - 0.5);
+                let shift = glam::DVec2::new(self.shifts.x(0, k) - 0.5, self.shifts.y(0, k) - 0.5);
                 let moved = inverse * shift;
                 let mut transform = view.transform;
                 transform.translate = [
@@ -773,7 +775,7 @@ impl SampleStore for RsvpStore {
         ostc: Option<&Ostc>,
         wanted: Wanted,
     ) -> Vec<StoreFrame> {
-        let count = self.samples.count() as usize;
+        let count = self.shifts.count() as usize;
         if count == 1 {
             return self
                 .buffer

@@ -54,8 +54,9 @@ impl StorePlan for RsvpPlan {
             .iter()
             .map(|view| f64::from(view.pose.camera.width) * f64::from(view.pose.camera.height))
             .sum();
-        let per_pixel =
-            f64::from(run.scene.samples.count()) * run.options.rsvp.samples_per_pixel() * 4.0;
+        let knobs = &run.options.rsvp;
+        let shifts = knobs.shifts(run.scene.samples).count();
+        let per_pixel = f64::from(shifts) * knobs.samples_per_pixel() * 4.0;
         pixels * per_pixel * RSVP_BYTES_PER_SAMPLE
     }
 

@@ -152,6 +152,11 @@ fn the_groups_asked_for_are_exactly_those_the_pixels_read() {
             oversample: 0.5,
             ..RsvpKnobs::default()
         },
+        // 5x5 reads a pixel, around its nearest sample.
+        RsvpKnobs {
+            filter: Filter::PixelBox,
+            ..RsvpKnobs::default()
+        },
     ];
     for (case, (camera, zoom, rotate, shear)) in poses.into_iter().enumerate() {
         let transform = ViewTransform {
@@ -175,7 +180,7 @@ fn the_groups_asked_for_are_exactly_those_the_pixels_read() {
                 let grid = patch.grid.as_ref();
                 buffer.patch_coords(&pose, &map, patch.level, grid, (x0, y0), cols, out);
                 let last_row = buffer.lattice.last_row(patch.level.y);
-                let extra = i64::from(knobs.filter != Filter::Nearest);
+                let extra = knobs.filter.side() - 1;
                 for c in coords.iter().filter(|c| !c.x.is_nan()) {
                     let (cx, ry) = filter_origin(knobs.filter, c.x, c.y);
                     for dr in 0..=extra {
