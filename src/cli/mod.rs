@@ -225,9 +225,9 @@ fn parse_backend(s: &str) -> Result<BackendKind, String> {
 
 #[derive(Args)]
 struct RsvpKnobArgs {
-    /// RSVP reconstruction filter: nearest, bilinear, box or box16 (with
-    /// --spp 4N: N shifts of a 4x4 box, one pass a shift; faster than box,
-    /// a little less accurate) [default: bilinear; box with --spp above 1].
+    /// RSVP reconstruction filter: nearest, bilinear, box or pixel-box
+    /// (one pass a quarter of the samples, centred box) [default: bilinear;
+    /// pixel-box at --spp 4; box at other counts above 1].
     #[arg(long)]
     filter: Option<retrace::reuse::rsvp::Filter>,
     /// RSVP: buffer samples per viewport pixel (per side) the pyramid level
