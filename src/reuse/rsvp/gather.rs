@@ -473,4 +473,24 @@ mod tests {
             );
         }
     }
+
+    /// A still viewport at four samples a pixel traces at most eight times
+    /// its samples: the pixel box's level holds 2.8-5.7 samples a pixel
+    /// side, and a level finer would hold four times as many.
+    #[test]
+    fn a_still_viewport_at_four_samples_traces_at_most_eight_times_them() {
+        let samples = crate::sampling::PixelSamples::new(4).unwrap();
+        let store = RsvpStore::new(lattice(), RsvpKnobs::default_for(samples), samples);
+        for zoom in [1.0, 1.7, 3.1, 6.5] {
+            let pose = ViewportPose::new(tilted_camera(), off_centre(zoom, 0.0, [0.0, 0.0]));
+            let mapped = store.buffer.map(&pose, &store.knobs);
+            let traced = (mapped.missing.len() as u64 * super::super::GROUP_SAMPLES) as f64;
+            let pixels = f64::from(pose.camera.width * pose.camera.height);
+            let per_sample = traced / pixels / f64::from(samples.count());
+            assert!(
+                (1.0..=8.0).contains(&per_sample),
+                "zoom {zoom}: {per_sample:.2} traced samples per pixel sample"
+            );
+        }
+    }
 }
