@@ -322,20 +322,44 @@ pub(super) fn filter_origin(filter: Filter, x: f64, y: f64) -> (i64, i64) {
 /// the filter's square of [`Filter::side`] samples from its origin, row
 /// by row; rows clamped to the lattice (`0..=last_row`), as reads are.
 #[inline(always)]
-pub(super) fn filter_reads(
-    filter: Filter,
-    (x, y): (f64, f64),
+pub(super) fn filter_reads(filter: Filter, (x, y): (f64, f64), last_row: i64) -> FilterReads {
+    let (col, row) = filter_origin(filter, x, y);
+    FilterReads {
+        col,
+        row,
+        last_row,
+        side: filter.side(),
+        next: (0, 0),
+    }
+}
+
+/// [`filter_reads`]' samples, stepped through without a table or a
+/// division: pass 1 marks every pixel's reads.
+pub(super) struct FilterReads {
+    col: i64,
+    row: i64,
     last_row: i64,
-) -> impl Iterator<Item = (i64, i64)> {
-    let (cx, ry) = filter_origin(filter, x, y);
-    let side = filter.side();
-    // An array rather than nested ranges: fewer instructions, where pass 1
-    // marks every pixel's reads.
-    let reads: [(i64, i64); PIXEL_BOX_TAPS * PIXEL_BOX_TAPS] = std::array::from_fn(|k| {
-        let (i, j) = (k as i64 % side, k as i64 / side);
-        (cx + i, (ry + j).clamp(0, last_row))
-    });
-    reads.into_iter().take((side * side) as usize)
+    side: i64,
+    /// The next read's column and row past the origin.
+    next: (i64, i64),
+}
+
+impl Iterator for FilterReads {
+    type Item = (i64, i64);
+
+    #[inline(always)]
+    fn next(&mut self) -> Option<(i64, i64)> {
+        let (i, j) = self.next;
+        if j == self.side {
+            return None;
+        }
+        self.next = if i + 1 == self.side {
+            (0, j + 1)
+        } else {
+            (i + 1, j)
+        };
+        Some((self.col + i, (self.row + j).clamp(0, self.last_row)))
+    }
 }
 
 #[cfg(test)]
