@@ -28,6 +28,17 @@ pub enum Filter {
 }
 
 impl Filter {
+    /// Where the filter's first read lies from the coordinate, in steps of
+    /// the filter's grid (see [`filter_split`]).
+    #[inline(always)]
+    pub(super) fn origin_shift(self) -> f64 {
+        match self {
+            Filter::Nearest => 0.5 * FRACTION_ONE,
+            Filter::Bilinear | Filter::Box => 0.0,
+            Filter::PixelBox => -1.5 * FRACTION_ONE,
+        }
+    }
+
     /// Samples the filter reads along each axis.
     pub(super) fn side(self) -> i64 {
         match self {
@@ -299,12 +310,14 @@ const FRACTION_ONE: f64 = 65536.0;
 /// bit for bit.
 #[inline(always)]
 pub(super) fn filter_split(filter: Filter, x: f64) -> (f64, f64) {
-    let q = (x * FRACTION_ONE + 0.5).floor();
-    let q = match filter {
-        Filter::Nearest => q + 0.5 * FRACTION_ONE,
-        Filter::Bilinear | Filter::Box => q,
-        Filter::PixelBox => q - 1.5 * FRACTION_ONE,
-    };
+    split_from(filter.origin_shift(), x)
+}
+
+/// [`filter_split`] with the filter's [`Filter::origin_shift`] looked up
+/// once, out of a loop that so stays straight-line code and vectorises.
+#[inline(always)]
+pub(super) fn split_from(origin_shift: f64, x: f64) -> (f64, f64) {
+    let q = (x * FRACTION_ONE + 0.5).floor() + origin_shift;
     let origin = (q * (1.0 / FRACTION_ONE)).floor();
     (origin, (q - origin * FRACTION_ONE) * (1.0 / FRACTION_ONE))
 }
@@ -318,47 +331,37 @@ pub(super) fn filter_origin(filter: Filter, x: f64, y: f64) -> (i64, i64) {
     )
 }
 
-/// The samples (column, row) a pixel at lattice coordinates (x, y) reads:
-/// the filter's square of [`Filter::side`] samples from its origin, row
-/// by row; rows clamped to the lattice (`0..=last_row`), as reads are.
+/// Calls `each(column, row)` for every sample a pixel at lattice
+/// coordinates (x, y) reads: the filter's square of [`Filter::side`]
+/// samples from its origin, row by row; rows clamped to the lattice
+/// (`0..=last_row`), as reads are. The filter is matched once a pixel, so
+/// the 2x2 filters keep a fixed four-read body: pass 1 marks every pixel's
+/// reads.
 #[inline(always)]
-pub(super) fn filter_reads(filter: Filter, (x, y): (f64, f64), last_row: i64) -> FilterReads {
-    let (col, row) = filter_origin(filter, x, y);
-    FilterReads {
-        col,
-        row,
-        last_row,
-        side: filter.side(),
-        next: (0, 0),
-    }
-}
-
-/// [`filter_reads`]' samples, stepped through without a table or a
-/// division: pass 1 marks every pixel's reads.
-pub(super) struct FilterReads {
-    col: i64,
-    row: i64,
+pub(super) fn for_each_read(
+    filter: Filter,
+    (x, y): (f64, f64),
     last_row: i64,
-    side: i64,
-    /// The next read's column and row past the origin.
-    next: (i64, i64),
-}
-
-impl Iterator for FilterReads {
-    type Item = (i64, i64);
-
-    #[inline(always)]
-    fn next(&mut self) -> Option<(i64, i64)> {
-        let (i, j) = self.next;
-        if j == self.side {
-            return None;
+    mut each: impl FnMut(i64, i64),
+) {
+    let (col, row) = filter_origin(filter, x, y);
+    match filter {
+        Filter::Nearest => each(col, row.clamp(0, last_row)),
+        Filter::Bilinear | Filter::Box => {
+            let (top, bottom) = (row.clamp(0, last_row), (row + 1).clamp(0, last_row));
+            each(col, top);
+            each(col + 1, top);
+            each(col, bottom);
+            each(col + 1, bottom);
         }
-        self.next = if i + 1 == self.side {
-            (0, j + 1)
-        } else {
-            (i + 1, j)
-        };
-        Some((self.col + i, (self.row + j).clamp(0, self.last_row)))
+        Filter::PixelBox => {
+            for j in 0..PIXEL_BOX_TAPS as i64 {
+                let row = (row + j).clamp(0, last_row);
+                for i in 0..PIXEL_BOX_TAPS as i64 {
+                    each(col + i, row);
+                }
+            }
+        }
     }
 }
 

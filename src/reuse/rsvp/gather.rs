@@ -7,7 +7,9 @@ use rayon::prelude::*;
 
 use super::{
     blocks::SampleView,
-    filter::{bilinear, decode, encode, filter_split, mean, pixel_box, rgb8, SampleCode},
+    filter::{
+        bilinear, decode, encode, filter_split, mean, pixel_box, rgb8, split_from, SampleCode,
+    },
     map::{nan_filled, Mapped, SampleBox, GRID_SPACING},
     tiles::{tile_key, TileCache},
     viewport::PixelMap,
@@ -289,6 +291,7 @@ fn gather_patch(
     } = reads;
     let (c0f, r0f, wdf) = (view.col as f64, view.row as f64, wd as f64);
     let mut has_nan = false;
+    let shift = filter.origin_shift();
     for (((c, k), fx), fy) in coords
         .iter()
         .zip(index.iter_mut())
@@ -296,8 +299,8 @@ fn gather_patch(
         .zip(wy.iter_mut())
     {
         has_nan |= c.x.is_nan();
-        let (ox, x) = filter_split(filter, c.x);
-        let (oy, y) = filter_split(filter, c.y);
+        let (ox, x) = split_from(shift, c.x);
+        let (oy, y) = split_from(shift, c.y);
         // A whole number in 0..2^32 (NaN: 0), read from the mantissa of
         // itself plus 2^52: `as u32` saturates one lane at a time.
         let k_exact = ((oy - r0f) * wdf + (ox - c0f)).max(0.0);

@@ -9,7 +9,7 @@ use rayon::prelude::*;
 
 use super::{
     fast_atan2,
-    filter::{filter_origin, filter_reads},
+    filter::{filter_origin, for_each_read},
     lattice::{column_runs, owned_positions},
     tiles::{tile_key, TILE_COLS, TILE_COL_SHIFT, TILE_ROW_SHIFT},
     viewport::PixelMap,
@@ -490,10 +490,10 @@ impl SampleBuffer {
             });
         } else {
             for_each_pixel(&mut |pixel| {
-                for (col, row) in filter_reads(filter, pixel, last_row) {
+                for_each_read(filter, pixel, last_row, |col, row| {
                     let (owner, c, r) = self.lattice.owner(level, col, row);
                     requests.add(owner, SampleGroup::containing(c, r));
-                }
+                });
             });
         }
     }
@@ -621,11 +621,11 @@ impl SampleMarks {
         let (width, height) = ((c1 - c0 + 1) as usize, (r1 - r0 + 1) as usize);
         let mut bits = vec![0u64; (width * height).div_ceil(64)];
         for_each_pixel(&mut |pixel| {
-            for (col, row) in filter_reads(filter, pixel, last_row) {
+            for_each_read(filter, pixel, last_row, |col, row| {
                 debug_assert!((c0..=c1).contains(&col), "{col} outside {c0}..={c1}");
                 let bit = (row - r0) as usize * width + (col - c0) as usize;
                 bits[bit >> 6] |= 1 << (bit & 63);
-            }
+            });
         });
         SampleMarks {
             c0,

@@ -71,7 +71,7 @@ use crate::sampling::PixelSamples;
 use crate::shade::{RayCounts, Shader};
 use blocks::LevelBlocks;
 use blocks::BLOCK_BYTES;
-use filter::filter_reads;
+use filter::for_each_read;
 use filter::SampleCode;
 use lattice::wrap;
 use map::nan_filled;
@@ -620,13 +620,13 @@ impl SampleBuffer {
                     if c.x.is_nan() {
                         continue;
                     }
-                    let fresh =
-                        filter_reads(knobs.filter, (c.x, c.y), last_row).any(|(col, row)| {
-                            let (owner, col, row) = self.lattice.owner(level, col, row);
-                            let group = SampleGroup::containing(col, row);
-                            let col = wrap(group.col, self.lattice.slot_columns(owner));
-                            is_fresh((owner, group.row, col))
-                        });
+                    let mut fresh = false;
+                    for_each_read(knobs.filter, (c.x, c.y), last_row, |col, row| {
+                        let (owner, col, row) = self.lattice.owner(level, col, row);
+                        let group = SampleGroup::containing(col, row);
+                        let col = wrap(group.col, self.lattice.slot_columns(owner));
+                        fresh |= is_fresh((owner, group.row, col));
+                    });
                     if fresh {
                         marks.push((x0 + (k % size.0) as u32, y0 + (k / size.0) as u32));
                     }
