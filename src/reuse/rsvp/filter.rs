@@ -2,7 +2,7 @@
 //! of the level choice, the exact sub-sample grid both passes share, and
 //! the sample codes pass 2 blends.
 
-use glam::Vec3;
+use glam::{DVec2, Vec3};
 
 use crate::color::SrgbTable;
 use crate::sampling::PixelSamples;
@@ -19,11 +19,11 @@ pub enum Filter {
     /// The mean of the 2x2 samples around the pixel centre one level finer
     /// than the pixel's footprint needs: a box over the pixel, four samples.
     Box,
-    /// A box four samples wide centred on the pixel, two levels finer than
-    /// the pixel's footprint needs (so about the pixel's width): the 5x5
-    /// samples around the centre, the outer ones weighted by how much of
-    /// their cells the box covers. One resampling pass antialiases where
-    /// `box` needs a pass per sub-pixel shift.
+    /// A box exactly as wide as the pixel on each axis, centred on it, one
+    /// level finer than the pixel's footprint needs (at least two samples a
+    /// side at the default oversampling): every sample whose cell it
+    /// covers, weighted by how much of the cell it covers. One resampling
+    /// pass antialiases where `box` needs a pass per sub-pixel shift.
     PixelBox,
 }
 
@@ -39,7 +39,8 @@ impl Filter {
         }
     }
 
-    /// Samples the filter reads along each axis.
+    /// Samples the filter reads along each axis (the most, for the pixel
+    /// box: see [`PatchFilter::sides`]).
     pub(super) fn side(self) -> i64 {
         match self {
             Filter::Nearest => 1,
@@ -53,7 +54,7 @@ impl Filter {
         match self {
             Filter::Nearest | Filter::Bilinear => 0,
             Filter::Box => 1,
-            Filter::PixelBox => 2,
+            Filter::PixelBox => 1,
         }
     }
 }
@@ -117,22 +118,32 @@ impl Default for RsvpKnobs {
 /// at four), at about twice the speed of oversampling 1 (docs/RESULTS.md).
 const DEFAULT_OVERSAMPLE: f64 = 0.71;
 
+/// The pixel box's oversampling at four samples a pixel: its level then
+/// holds 2-4 samples a pixel side, 4-16 a pixel. At 0.71 (1.4-2.8 a side)
+/// it fell 2.3 dB short of the direct render, at 0.85 and 0.92 up to 1.1
+/// dB; at 1 it beats it (docs/RESULTS.md).
+const PIXEL_BOX_OVERSAMPLE: f64 = 1.0;
+
 impl RsvpKnobs {
     /// The default knobs at `samples` a pixel: bilinear at one sample a
-    /// pixel; at four, the pixel box, in one pass more accurate than four
-    /// shifted boxes and faster; at other counts the box filter (over one
-    /// level finer), where bilinear fell up to 0.7 dB short of direct
-    /// renders, and the pixel box's quarter of the shifts falls short too
+    /// pixel; at four, the pixel box over 2-4 samples a pixel side, in one
+    /// pass more accurate than the direct render and than four shifted
+    /// boxes, and faster; at other counts the box filter (over one level
+    /// finer), where bilinear fell up to 0.7 dB short of direct renders,
+    /// and the pixel box's quarter of the shifts falls short too
     /// (docs/RESULTS.md).
     pub fn default_for(samples: PixelSamples) -> RsvpKnobs {
-        let filter = match samples.count() {
-            1 => return RsvpKnobs::default(),
-            4 => Filter::PixelBox,
-            _ => Filter::Box,
-        };
-        RsvpKnobs {
-            filter,
-            ..RsvpKnobs::default()
+        match samples.count() {
+            1 => RsvpKnobs::default(),
+            4 => RsvpKnobs {
+                filter: Filter::PixelBox,
+                oversample: PIXEL_BOX_OVERSAMPLE,
+                ..RsvpKnobs::default()
+            },
+            _ => RsvpKnobs {
+                filter: Filter::Box,
+                ..RsvpKnobs::default()
+            },
         }
     }
 
@@ -259,27 +270,33 @@ pub(super) fn mean(s: [SampleCode; 4]) -> SampleCode {
 /// Samples [`Filter::PixelBox`] reads along each axis.
 pub(super) const PIXEL_BOX_TAPS: usize = 5;
 
-/// The pixel box's blend of its 5x5 codes (`read(i, j)`: column i, row j),
-/// its centre `fx`, `fy` past the middle tap's cell's start: the edge taps
-/// weighted by how much of their cells the box covers, rounded.
+/// The pixel box's blend of its codes (`read(i, j)`: column i, row j),
+/// its start `fx`, `fy` past the first tap's cell's start and its width
+/// `wx`, `wy` in samples: each tap weighted by how much of its cell the
+/// box covers, rounded. Reads only the taps the box covers
+/// ([`box_taps`]).
 #[inline(always)]
 pub(super) fn pixel_box(
     mut read: impl FnMut(usize, usize) -> SampleCode,
-    fx: f32,
-    fy: f32,
+    (fx, fy): (f32, f32),
+    (wx, wy): (f32, f32),
 ) -> SampleCode {
     const TAPS: usize = PIXEL_BOX_TAPS;
-    let weights = |f: f32| -> [f32; TAPS] {
-        let scale = 1.0 / (TAPS - 1) as f32;
-        std::array::from_fn(|i| match i {
-            0 => (1.0 - f) * scale,
-            i if i == TAPS - 1 => f * scale,
-            _ => scale,
+    let weights = |f: f32, w: f32| -> [f32; TAPS] {
+        let (end, scale) = (f + w, 1.0 / w);
+        std::array::from_fn(|i| {
+            let i = i as f32;
+            (end.min(i + 1.0) - f.max(i)).max(0.0) * scale
         })
     };
-    let (wx, wy) = (weights(fx), weights(fy));
-    let codes: [[SampleCode; TAPS]; TAPS] =
-        std::array::from_fn(|j| std::array::from_fn(|i| read(i, j)));
+    let (nx, ny) = (box_taps(fx, wx), box_taps(fy, wy));
+    let (wx, wy) = (weights(fx, wx), weights(fy, wy));
+    let mut codes = [[0; TAPS]; TAPS];
+    for (j, row) in codes.iter_mut().enumerate().take(ny) {
+        for (i, code) in row.iter_mut().enumerate().take(nx) {
+            *code = read(i, j);
+        }
+    }
     let mut blend = 0;
     for shift in CODE_SHIFTS {
         let mut v = 0.0;
@@ -297,24 +314,26 @@ pub(super) fn pixel_box(
     blend
 }
 
+/// Taps a pixel box `w` samples wide covers, starting `f` into its first
+/// tap's cell (both exact: multiples of 2^-16 below 8).
+#[inline(always)]
+pub(super) fn box_taps(f: f32, w: f32) -> usize {
+    (f + w).ceil() as usize
+}
+
 /// Sub-sample steps per sample on the filter's grid.
 const FRACTION_ONE: f64 = 65536.0;
 
 /// A lattice coordinate on the filter's grid (rounded to 2^-16 of a
-/// sample): the sample the filter starts from (the one below for bilinear
-/// and box, the nearest for nearest, two before the nearest for the pixel
-/// box) and the fraction past the sample below (for the pixel box, past
-/// the middle tap's cell's start). Every step
-/// is exact in f64, so pass 1 (which samples to trace) and pass 2 (which to
-/// read) always agree; a pixel within 2^-17 of a sample shows that sample
-/// bit for bit.
-#[inline(always)]
-pub(super) fn filter_split(filter: Filter, x: f64) -> (f64, f64) {
-    split_from(filter.origin_shift(), x)
-}
-
-/// [`filter_split`] with the filter's [`Filter::origin_shift`] looked up
-/// once, out of a loop that so stays straight-line code and vectorises.
+/// sample), its first read `origin_shift` grid steps away: the sample the
+/// filter starts from (the one below for bilinear and box, the nearest for
+/// nearest, the one whose cell holds the start for the pixel box) and the
+/// fraction past the sample below (for the pixel box, past that cell's
+/// start). Every step is exact in f64, so pass 1 (which samples to trace)
+/// and pass 2 (which to read) always agree; a pixel within 2^-17 of a
+/// sample shows that sample bit for bit. The shift is looked up once a
+/// patch, out of the loop, which so stays straight-line code and
+/// vectorises.
 #[inline(always)]
 pub(super) fn split_from(origin_shift: f64, x: f64) -> (f64, f64) {
     let q = (x * FRACTION_ONE + 0.5).floor() + origin_shift;
@@ -322,30 +341,117 @@ pub(super) fn split_from(origin_shift: f64, x: f64) -> (f64, f64) {
     (origin, (q - origin * FRACTION_ONE) * (1.0 / FRACTION_ONE))
 }
 
-/// The sample a filter starts from (top-left for bilinear and box).
-#[inline]
-pub(super) fn filter_origin(filter: Filter, x: f64, y: f64) -> (i64, i64) {
-    (
-        filter_split(filter, x).0 as i64,
-        filter_split(filter, y).0 as i64,
-    )
+/// A filter as one patch applies it: the pixel box as wide as the
+/// patch's pixels on each axis, at whatever density its level gives.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) struct PatchFilter {
+    pub(super) filter: Filter,
+    /// Per axis, where the first read lies from a pixel's coordinate, in
+    /// steps of the filter's grid.
+    shift: [f64; 2],
+    /// Per axis, the pixel box's width in samples (a multiple of 2^-15).
+    width: [f32; 2],
+}
+
+impl PatchFilter {
+    /// `filter` over pixels `footprint` samples of the patch's level wide
+    /// on each axis. The pixel box's width is rounded to the filter's
+    /// grid, so both passes find the same taps, and kept to
+    /// 1..=[`PIXEL_BOX_TAPS`] - 1 samples.
+    pub(super) fn new(filter: Filter, footprint: DVec2) -> PatchFilter {
+        let max = (PIXEL_BOX_TAPS - 1) as f64;
+        let axis = |w: f64| -> (f64, f32) {
+            let w = if w.is_finite() {
+                w.clamp(1.0, max)
+            } else {
+                max
+            };
+            let half = (0.5 * w * FRACTION_ONE).round();
+            (
+                0.5 * FRACTION_ONE - half,
+                (2.0 * half / FRACTION_ONE) as f32,
+            )
+        };
+        match filter {
+            Filter::PixelBox => {
+                let ((sx, wx), (sy, wy)) = (axis(footprint.x), axis(footprint.y));
+                PatchFilter {
+                    filter,
+                    shift: [sx, sy],
+                    width: [wx, wy],
+                }
+            }
+            _ => PatchFilter::fixed(filter),
+        }
+    }
+
+    /// `filter` at its fixed width (the pixel box four samples wide).
+    pub(super) fn fixed(filter: Filter) -> PatchFilter {
+        let shift = filter.origin_shift();
+        let width = (PIXEL_BOX_TAPS - 1) as f32;
+        PatchFilter {
+            filter,
+            shift: [shift; 2],
+            width: [width; 2],
+        }
+    }
+
+    /// The pixel box's width in samples across and down.
+    #[inline(always)]
+    pub(super) fn width(&self) -> (f32, f32) {
+        (self.width[0], self.width[1])
+    }
+
+    /// Where the filter's first read lies from the coordinate across and
+    /// down, in steps of the filter's grid (see [`split_from`]).
+    #[inline(always)]
+    pub(super) fn shift(&self) -> (f64, f64) {
+        (self.shift[0], self.shift[1])
+    }
+
+    /// The sample the filter starts from (top-left for bilinear and box)
+    /// and the fractions past it, across and down.
+    #[inline(always)]
+    pub(super) fn split(&self, x: f64, y: f64) -> ((f64, f64), (f64, f64)) {
+        (split_from(self.shift[0], x), split_from(self.shift[1], y))
+    }
+
+    /// The sample the filter starts from.
+    #[inline]
+    pub(super) fn origin(&self, x: f64, y: f64) -> (i64, i64) {
+        let ((c, _), (r, _)) = self.split(x, y);
+        (c as i64, r as i64)
+    }
+
+    /// The most samples the filter reads along each axis.
+    pub(super) fn sides(&self) -> (i64, i64) {
+        match self.filter {
+            // The start lies at most 1 - 2^-16 into the first tap's cell.
+            Filter::PixelBox => {
+                let most = |w: f32| box_taps(1.0 - 1.0 / FRACTION_ONE as f32, w) as i64;
+                (most(self.width[0]), most(self.width[1]))
+            }
+            filter => (filter.side(), filter.side()),
+        }
+    }
 }
 
 /// Calls `each(column, row)` for every sample a pixel at lattice
-/// coordinates (x, y) reads: the filter's square of [`Filter::side`]
-/// samples from its origin, row by row; rows clamped to the lattice
-/// (`0..=last_row`), as reads are. The filter is matched once a pixel, so
-/// the 2x2 filters keep a fixed four-read body: pass 1 marks every pixel's
-/// reads.
+/// coordinates (x, y) reads: the filter's square of samples from its
+/// origin (for the pixel box, the taps it covers), row by row; rows
+/// clamped to the lattice (`0..=last_row`), as reads are. The filter is
+/// matched once a pixel, so the 2x2 filters keep a fixed four-read body:
+/// pass 1 marks every pixel's reads.
 #[inline(always)]
 pub(super) fn for_each_read(
-    filter: Filter,
+    filter: &PatchFilter,
     (x, y): (f64, f64),
     last_row: i64,
     mut each: impl FnMut(i64, i64),
 ) {
-    let (col, row) = filter_origin(filter, x, y);
-    match filter {
+    let ((col, fx), (row, fy)) = filter.split(x, y);
+    let (col, row) = (col as i64, row as i64);
+    match filter.filter {
         Filter::Nearest => each(col, row.clamp(0, last_row)),
         Filter::Bilinear | Filter::Box => {
             let (top, bottom) = (row.clamp(0, last_row), (row + 1).clamp(0, last_row));
@@ -355,9 +461,12 @@ pub(super) fn for_each_read(
             each(col + 1, bottom);
         }
         Filter::PixelBox => {
-            for j in 0..PIXEL_BOX_TAPS as i64 {
+            let (wx, wy) = filter.width();
+            let nx = box_taps(fx as f32, wx) as i64;
+            let ny = box_taps(fy as f32, wy) as i64;
+            for j in 0..ny {
                 let row = (row + j).clamp(0, last_row);
-                for i in 0..PIXEL_BOX_TAPS as i64 {
+                for i in 0..nx {
                     each(col + i, row);
                 }
             }
@@ -391,7 +500,15 @@ mod tests {
             let (fx, fy) = (rng.unit(), rng.unit());
             assert_eq!(bilinear([code; 4], fx, fy), code);
             assert_eq!(mean([code; 4]), code);
-            assert_eq!(pixel_box(|_, _| code, fx, fy), code);
+            // Box widths on the filter's grid, 1 to 4 samples; starts
+            // on it too.
+            let on_grid = |v: f32, step: f32| (v * step).round() / step;
+            let width = (
+                on_grid(1.0 + 3.0 * rng.unit(), 32768.0),
+                on_grid(1.0 + 3.0 * rng.unit(), 32768.0),
+            );
+            let start = (on_grid(fx, 65536.0) % 1.0, on_grid(fy, 65536.0) % 1.0);
+            assert_eq!(pixel_box(|_, _| code, start, width), code);
             // Otherwise each channel lies between its samples'.
             let blend = bilinear([code, x, y, z], fx, fy);
             for shift in CODE_SHIFTS {
@@ -400,20 +517,31 @@ mod tests {
                 let (lo, hi) = (all.iter().min().unwrap(), all.iter().max().unwrap());
                 assert!((*lo..=*hi).contains(&one), "{one} outside {all:?}");
             }
-            // The pixel box: each channel the weighted mean of its taps.
+            // The pixel box: each channel the mean of its taps weighted
+            // by how much of each one's cell it covers; it reads no other.
             let taps = [code, x, y, z];
-            let blend = pixel_box(|i, j| taps[(i + 2 * j) % 4], fx, fy);
+            let mut read_past = false;
+            let (nx, ny) = (box_taps(start.0, width.0), box_taps(start.1, width.1));
+            let blend = pixel_box(
+                |i, j| {
+                    read_past |= i >= nx || j >= ny;
+                    taps[(i + 2 * j) % 4]
+                },
+                start,
+                width,
+            );
+            assert!(!read_past, "read a tap the box misses");
             for shift in CODE_SHIFTS {
-                let weight = |f: f32, i: usize| match i {
-                    0 => 1.0 - f,
-                    4 => f,
-                    _ => 1.0,
-                } / 4.0;
+                // Tap i's cell spans [i, i + 1) from the first cell's start.
+                let weight = |f: f32, w: f32, i: usize| {
+                    let i = i as f32;
+                    ((f + w).min(i + 1.0) - f.max(i)).max(0.0) / w
+                };
                 let mut want = 0.0;
-                for j in 0..5 {
-                    for i in 0..5 {
+                for j in 0..ny {
+                    for i in 0..nx {
                         let c = (taps[(i + 2 * j) % 4] >> shift & CODE_MASK) as f32;
-                        want += weight(fx, i) * weight(fy, j) * c;
+                        want += weight(start.0, width.0, i) * weight(start.1, width.1, j) * c;
                     }
                 }
                 let got = (blend >> shift & CODE_MASK) as f32;

@@ -9,11 +9,11 @@ use rayon::prelude::*;
 
 use super::{
     fast_atan2,
-    filter::{filter_origin, for_each_read},
+    filter::{for_each_read, PatchFilter},
     lattice::{column_runs, owned_positions},
     tiles::{tile_key, TILE_COLS, TILE_COL_SHIFT, TILE_ROW_SHIFT},
     viewport::PixelMap,
-    Filter, Level, RsvpKnobs, SampleBuffer, MAX_LEVEL, PATCH,
+    Level, RsvpKnobs, SampleBuffer, MAX_LEVEL, PATCH,
 };
 use crate::camera::ViewportPose;
 use crate::render::{SampleGroup, GROUP_HEIGHT, GROUP_WIDTH};
@@ -37,6 +37,8 @@ type MapGrid = [[DVec2; GRID_POINTS]; GRID_POINTS];
 /// How pass 1 left a patch for pass 2.
 pub(super) struct PatchMap {
     pub(super) level: Level,
+    /// The filter as the patch's pixels apply it at that level.
+    pub(super) filter: PatchFilter,
     /// None: the mapping bends too much here (near a pole, across the view's
     /// back seam, fisheye): every pixel is mapped exactly.
     pub(super) grid: Option<MapGrid>,
@@ -61,15 +63,15 @@ impl SampleBox {
     /// in `lo..=hi`: filter origins grow with the coordinates, so the box
     /// spans the origins of the corners, and the rest of the last corner's
     /// square of reads.
-    pub(super) fn read_by(filter: Filter, lo: DVec2, hi: DVec2) -> SampleBox {
-        let extra = filter.side() - 1;
-        let (c0, r0) = filter_origin(filter, lo.x, lo.y);
-        let (c1, r1) = filter_origin(filter, hi.x, hi.y);
+    pub(super) fn read_by(filter: &PatchFilter, lo: DVec2, hi: DVec2) -> SampleBox {
+        let (sx, sy) = filter.sides();
+        let (c0, r0) = filter.origin(lo.x, lo.y);
+        let (c1, r1) = filter.origin(hi.x, hi.y);
         SampleBox {
             c0,
             r0,
-            c1: c1 + extra,
-            r1: r1 + extra,
+            c1: c1 + sx - 1,
+            r1: r1 + sy - 1,
         }
     }
 
@@ -117,7 +119,7 @@ impl SampleBuffer {
         knobs: &RsvpKnobs,
         x0: u32,
         y0: u32,
-    ) -> Level {
+    ) -> (Level, PatchFilter) {
         let cam = &pose.camera;
         let x1 = (x0 + PATCH).min(cam.width) - 1;
         let y1 = (y0 + PATCH).min(cam.height) - 1;
@@ -146,7 +148,7 @@ impl SampleBuffer {
             }
             density.add(dx, dy);
         }
-        density.level(knobs, self.lattice.coarsest())
+        density.choose(knobs, self.lattice.coarsest())
     }
 
     /// The patch's level and mapping grid, or None when interpolating it
@@ -162,7 +164,7 @@ impl SampleBuffer {
         knobs: &RsvpKnobs,
         x0: u32,
         y0: u32,
-    ) -> Option<(Level, MapGrid)> {
+    ) -> Option<(Level, PatchFilter, MapGrid)> {
         // Level 0 first: scaling to the patch's level is by a power of
         // two, exact, so the grid is the one mapped at that level bit for
         // bit.
@@ -227,7 +229,7 @@ impl SampleBuffer {
                 density.add(dx, dy);
             }
         }
-        let level = density.level(knobs, self.lattice.coarsest());
+        let (level, filter) = density.choose(knobs, self.lattice.coarsest());
         let scale = level_scale(level);
         if (worst * scale).max_element() > GRID_TOLERANCE {
             return None;
@@ -235,7 +237,7 @@ impl SampleBuffer {
         for point in grid.iter_mut().flatten() {
             *point *= scale;
         }
-        Some((level, grid))
+        Some((level, filter, grid))
     }
 
     /// Lattice coordinates (at `level`) of a patch's pixels into `out`,
@@ -311,9 +313,12 @@ impl SampleBuffer {
                 let rows = (h - y0).min(PATCH) as usize;
                 let mut missing = Vec::new();
                 let cols = (w - x0).min(PATCH) as usize;
-                let (level, grid) = match self.patch_grid(pose, &map, knobs, x0, y0) {
-                    Some((level, grid)) => (level, Some(grid)),
-                    None => (self.patch_level(pose, &map, knobs, x0, y0), None),
+                let (level, filter, grid) = match self.patch_grid(pose, &map, knobs, x0, y0) {
+                    Some((level, filter, grid)) => (level, filter, Some(grid)),
+                    None => {
+                        let (level, filter) = self.patch_level(pose, &map, knobs, x0, y0);
+                        (level, filter, None)
+                    }
                 };
                 // Interpolated points lie within their cell's corners, so
                 // the grid's box holds every pixel's.
@@ -346,9 +351,10 @@ impl SampleBuffer {
                         }
                     }
                 }
-                let reads = (count > 0).then(|| SampleBox::read_by(knobs.filter, lo, hi));
+                let reads = (count > 0).then(|| SampleBox::read_by(&filter, lo, hi));
                 if let Some(reads) = reads {
-                    self.collect_missing(level, knobs, reads, count, &mut missing, |f| {
+                    let patch = (level, &filter);
+                    self.collect_missing(patch, knobs, reads, count, &mut missing, |f| {
                         if !mapped {
                             self.patch_coords(
                                 pose,
@@ -374,6 +380,7 @@ impl SampleBuffer {
                 (
                     PatchMap {
                         level,
+                        filter,
                         grid,
                         blocks,
                     },
@@ -464,7 +471,7 @@ impl SampleBuffer {
     #[inline]
     fn collect_missing(
         &self,
-        level: Level,
+        (level, filter): (Level, &PatchFilter),
         knobs: &RsvpKnobs,
         reads: SampleBox,
         pixels: u32,
@@ -472,7 +479,6 @@ impl SampleBuffer {
         for_each_pixel: impl FnOnce(&mut dyn FnMut((f64, f64))),
     ) {
         let SampleBox { c0, r0, c1, r1 } = reads;
-        let filter = knobs.filter;
         let last_row = self.lattice.last_row(level.y);
         let (r0, r1) = (r0.clamp(0, last_row), r1.clamp(0, last_row));
         let area = ((c1 - c0 + 1) as f64) * ((r1 - r0 + 1) as f64);
@@ -612,7 +618,7 @@ impl SampleMarks {
     /// Marks the samples each pixel's filter reads; the box
     /// (`c0..=c1`, `r0..=r1`, rows clamped like the reads) holds them all.
     fn of_pixels(
-        filter: Filter,
+        filter: &PatchFilter,
         (c0, c1): (i64, i64),
         (r0, r1): (i64, i64),
         last_row: i64,
@@ -773,6 +779,15 @@ impl SampleDensity {
             wanted.clamp(floor, i64::from(MAX_LEVEL)) as i32
         };
         Level::new(axis(self.x, coarsest.x), axis(self.y, coarsest.y))
+    }
+
+    /// The level (see [`SampleDensity::level`]) and the filter as its
+    /// pixels apply it there: the pixel box as wide as the densest pixel's
+    /// footprint, in that level's samples.
+    fn choose(&self, knobs: &RsvpKnobs, coarsest: Level) -> (Level, PatchFilter) {
+        let level = self.level(knobs, coarsest);
+        let footprint = level_scale(level) / DVec2::new(self.x, self.y);
+        (level, PatchFilter::new(knobs.filter, footprint))
     }
 }
 

@@ -539,7 +539,7 @@ impl SampleBuffer {
             .map(
                 |(index, ((pose, mapped), ((samples, rays, trace_ms), map_ms)))| {
                     let watch = Stopwatch::start();
-                    let (frame, image) = self.gather(pose, mapped, knobs.filter, linear);
+                    let (frame, image) = self.gather(pose, mapped, linear);
                     let gather_ms = watch.ms() + assembly_ms;
                     let levels = mapped
                         .patches
@@ -621,7 +621,7 @@ impl SampleBuffer {
                         continue;
                     }
                     let mut fresh = false;
-                    for_each_read(knobs.filter, (c.x, c.y), last_row, |col, row| {
+                    for_each_read(&patch.filter, (c.x, c.y), last_row, |col, row| {
                         let (owner, col, row) = self.lattice.owner(level, col, row);
                         let group = SampleGroup::containing(col, row);
                         let col = wrap(group.col, self.lattice.slot_columns(owner));

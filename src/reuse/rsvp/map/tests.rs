@@ -2,6 +2,7 @@ use super::*;
 use crate::camera::ViewTransform;
 use crate::camera::{Camera, Projection};
 use crate::reuse::rsvp::fixtures::*;
+use crate::reuse::rsvp::Filter;
 
 #[test]
 fn trace_order_keys_keep_every_level_and_sort_by_it() {
@@ -61,10 +62,10 @@ fn interpolated_patches_stay_within_their_tolerance() {
         let (mut exact, mut fast) = (Vec::new(), Vec::new());
         for y0 in (0..pose.camera.height).step_by(PATCH as usize) {
             for x0 in (0..pose.camera.width).step_by(PATCH as usize) {
-                let Some((level, grid)) = buffer.patch_grid(&pose, &map, &knobs, x0, y0) else {
+                let Some((level, _, grid)) = buffer.patch_grid(&pose, &map, &knobs, x0, y0) else {
                     continue;
                 };
-                let chosen = buffer.patch_level(&pose, &map, &knobs, x0, y0);
+                let (chosen, _) = buffer.patch_level(&pose, &map, &knobs, x0, y0);
                 levels[case] += usize::from(level == chosen);
                 interpolated[case] += 1;
                 let size = (
@@ -152,9 +153,14 @@ fn the_groups_asked_for_are_exactly_those_the_pixels_read() {
             oversample: 0.5,
             ..RsvpKnobs::default()
         },
-        // 5x5 reads a pixel, around its nearest sample.
+        // Up to 5x5 reads a pixel, as many as its box covers.
         RsvpKnobs {
             filter: Filter::PixelBox,
+            ..RsvpKnobs::default()
+        },
+        RsvpKnobs {
+            filter: Filter::PixelBox,
+            oversample: 1.0,
             ..RsvpKnobs::default()
         },
     ];
@@ -180,13 +186,20 @@ fn the_groups_asked_for_are_exactly_those_the_pixels_read() {
                 let grid = patch.grid.as_ref();
                 buffer.patch_coords(&pose, &map, patch.level, grid, (x0, y0), cols, out);
                 let last_row = buffer.lattice.last_row(patch.level.y);
-                let extra = knobs.filter.side() - 1;
                 for c in coords.iter().filter(|c| !c.x.is_nan()) {
-                    let (cx, ry) = filter_origin(knobs.filter, c.x, c.y);
-                    for dr in 0..=extra {
-                        for dc in 0..=extra {
-                            let row = (ry + dr).clamp(0, last_row);
-                            let (owner, c, r) = buffer.lattice.owner(patch.level, cx + dc, row);
+                    let (cols, rows) = if knobs.filter == Filter::PixelBox {
+                        // Every sample whose cell the pixel's box covers.
+                        let (wx, wy) = patch.filter.width();
+                        (covered(c.x, wx.into()), covered(c.y, wy.into()))
+                    } else {
+                        let (cx, ry) = patch.filter.origin(c.x, c.y);
+                        let side = knobs.filter.side();
+                        (cx..cx + side, ry..ry + side)
+                    };
+                    for row in rows {
+                        let row = row.clamp(0, last_row);
+                        for col in cols.clone() {
+                            let (owner, c, r) = buffer.lattice.owner(patch.level, col, row);
                             let group = SampleGroup::containing(c, r);
                             read.insert((owner, group.row, group.col));
                         }
@@ -208,6 +221,61 @@ fn the_groups_asked_for_are_exactly_those_the_pixels_read() {
     }
 }
 
+/// The samples whose cells (each a sample wide, centred on it) a box
+/// `width` wide centred on `x` covers; `x` first rounded to the filters'
+/// grid of 2^-16 of a sample.
+fn covered(x: f64, width: f64) -> std::ops::Range<i64> {
+    let x = (x * 65536.0).round() / 65536.0;
+    let (start, end) = (x - 0.5 * width, x + 0.5 * width);
+    (start + 0.5).floor() as i64..(end + 0.5).ceil() as i64
+}
+
+#[test]
+fn the_pixel_box_is_as_wide_as_the_patch_s_densest_pixel() {
+    let buffer = SampleBuffer::new(lattice());
+    let knobs = RsvpKnobs {
+        filter: Filter::PixelBox,
+        oversample: 1.0,
+        ..RsvpKnobs::default()
+    };
+    for zoom in [1.0, 1.3, 1.9, 2.6, 7.7] {
+        let pose = ViewportPose::new(
+            camera(Projection::EqualAngle),
+            off_centre(zoom, 0.0, [0.0, 0.0]),
+        );
+        let mapped = buffer.map(&pose, &knobs);
+        let map = PixelMap::new(&pose);
+        let (x0, y0) = (5 * PATCH, 4 * PATCH);
+        let patch =
+            &mapped.patches[(y0 / PATCH) as usize * mapped.patches_x + (x0 / PATCH) as usize];
+        // Pixel spacing along each lattice axis, at the patch's level,
+        // from neighbours mapped exactly.
+        let mut spacing = DVec2::INFINITY;
+        for y in y0..y0 + PATCH {
+            for x in x0..x0 + PATCH {
+                let at = |x: u32, y: u32| {
+                    let (az, el) = map.angles(&pose, x, y).unwrap();
+                    DVec2::new(az, -el) / buffer.lattice.step * level_scale(patch.level)
+                };
+                let (p, right, down) = (at(x, y), at(x + 1, y), at(x, y + 1));
+                spacing = spacing.min(DVec2::new((right - p).x.abs(), (down - p).y.abs()));
+            }
+        }
+        let (wx, wy) = patch.filter.width();
+        for (width, spacing) in [(wx, spacing.x), (wy, spacing.y)] {
+            // Two to four samples a pixel side, and the box that wide.
+            assert!(
+                (2.0 - 1e-3..4.0 + 1e-3).contains(&spacing),
+                "zoom {zoom}: {spacing}"
+            );
+            assert!(
+                (f64::from(width) - spacing).abs() < 0.02 * spacing,
+                "zoom {zoom}: {width} for {spacing}"
+            );
+        }
+    }
+}
+
 #[test]
 fn a_wide_perspective_viewport_needs_finer_levels_at_its_edges() {
     let lattice = lattice();
@@ -220,7 +288,7 @@ fn a_wide_perspective_viewport_needs_finer_levels_at_its_edges() {
         ..RsvpKnobs::default()
     };
     let map = PixelMap::new(&pose);
-    let level = |x0| buffer.patch_level(&pose, &map, &knobs, x0, 232);
+    let level = |x0| buffer.patch_level(&pose, &map, &knobs, x0, 232).0;
     assert_eq!(level(312), Level::new(0, 0));
     // Perspective squeezes azimuth first: a third of the way out only
     // columns need the finer level, at the edge rows too.
@@ -233,7 +301,7 @@ fn a_wide_perspective_viewport_needs_finer_levels_at_its_edges() {
             ..ViewTransform::default()
         },
     );
-    let level = buffer.patch_level(&zoomed, &PixelMap::new(&zoomed), &knobs, 312, 232);
+    let (level, _) = buffer.patch_level(&zoomed, &PixelMap::new(&zoomed), &knobs, 312, 232);
     assert!((10..=11).contains(&level.x), "{level}");
     assert!((10..=11).contains(&level.y), "{level}");
 }
