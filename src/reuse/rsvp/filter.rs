@@ -20,8 +20,8 @@ pub enum Filter {
     /// than the pixel's footprint needs: a box over the pixel, four samples.
     Box,
     /// A box exactly as wide as the pixel on each axis, centred on it, one
-    /// level finer than the pixel's footprint needs (at least two samples a
-    /// side at the default oversampling): every sample whose cell it
+    /// level finer than the pixel's footprint needs (at least 2.4 samples a
+    /// side at its default oversampling): every sample whose cell it
     /// covers, weighted by how much of the cell it covers. One resampling
     /// pass antialiases where `box` needs a pass per sub-pixel shift.
     PixelBox,
@@ -118,15 +118,17 @@ impl Default for RsvpKnobs {
 /// at four), at about twice the speed of oversampling 1 (docs/RESULTS.md).
 const DEFAULT_OVERSAMPLE: f64 = 0.71;
 
-/// The pixel box's oversampling at four samples a pixel: its level then
-/// holds 2-4 samples a pixel side, 4-16 a pixel. At 0.71 (1.4-2.8 a side)
-/// it fell 2.3 dB short of the direct render, at 0.85 and 0.92 up to 1.1
-/// dB; at 1 it beats it (docs/RESULTS.md).
-const PIXEL_BOX_OVERSAMPLE: f64 = 1.0;
+/// The pixel box's oversampling at four samples a pixel, 2^(1/4): its
+/// level then holds 2.4-4.8 samples a pixel side, 5.7-23 a pixel. Below
+/// that, the far checkerboard's aliasing on the regular lattice costs
+/// the worst frames more than the direct render's noise: at 1 (2-4 a
+/// side) E2 beat the direct render but E4's worst frame fell 1 dB short,
+/// at 0.71 E2 fell 2.3 dB short (docs/RESULTS.md).
+const PIXEL_BOX_OVERSAMPLE: f64 = 1.19;
 
 impl RsvpKnobs {
     /// The default knobs at `samples` a pixel: bilinear at one sample a
-    /// pixel; at four, the pixel box over 2-4 samples a pixel side, in one
+    /// pixel; at four, the pixel box over 2.4-4.8 samples a pixel side, in one
     /// pass more accurate than the direct render and than four shifted
     /// boxes, and faster; at other counts the box filter (over one level
     /// finer), where bilinear fell up to 0.7 dB short of direct renders,
@@ -268,7 +270,7 @@ pub(super) fn mean(s: [SampleCode; 4]) -> SampleCode {
 }
 
 /// Samples [`Filter::PixelBox`] reads along each axis.
-pub(super) const PIXEL_BOX_TAPS: usize = 5;
+pub(super) const PIXEL_BOX_TAPS: usize = 6;
 
 /// The pixel box's blend of its codes (`read(i, j)`: column i, row j),
 /// its start `fx`, `fy` past the first tap's cell's start and its width
@@ -385,7 +387,8 @@ impl PatchFilter {
         }
     }
 
-    /// `filter` at its fixed width (the pixel box four samples wide).
+    /// `filter` at its fixed width (the pixel box as wide as it reads at
+    /// most).
     pub(super) fn fixed(filter: Filter) -> PatchFilter {
         let shift = filter.origin_shift();
         let width = (PIXEL_BOX_TAPS - 1) as f32;
