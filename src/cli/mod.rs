@@ -226,13 +226,14 @@ fn parse_backend(s: &str) -> Result<BackendKind, String> {
 #[derive(Args)]
 struct RsvpKnobArgs {
     /// RSVP reconstruction filter: nearest, bilinear, box or pixel-box
-    /// (one pass a quarter of the samples, centred box) [default: bilinear;
-    /// pixel-box at --spp 4; box at other counts above 1].
+    /// (a box as wide as the pixel, one pass a quarter of the samples)
+    /// [default: bilinear; pixel-box at --spp 4; box at other counts above
+    /// 1].
     #[arg(long)]
     filter: Option<retrace::reuse::rsvp::Filter>,
     /// RSVP: buffer samples per viewport pixel (per side) the pyramid level
     /// is chosen for, at least (0.01 to 8; with --spp N, per sub-pixel
-    /// shift) [default: 0.71].
+    /// shift) [default: 0.71; 1.19 with the pixel box].
     #[arg(long, value_parser = finite_number)]
     oversample: Option<f64>,
     /// RSVP: pyramid levels added to the chosen one (negative: coarser;
@@ -245,7 +246,10 @@ impl RsvpKnobArgs {
     /// The knobs asked for, the rest at their defaults for `samples` a
     /// pixel.
     fn knobs(&self, samples: PixelSamples) -> Result<retrace::reuse::rsvp::RsvpKnobs> {
-        let default = retrace::reuse::rsvp::RsvpKnobs::default_for(samples);
+        let filter = self
+            .filter
+            .unwrap_or(retrace::reuse::rsvp::RsvpKnobs::default_for(samples).filter);
+        let default = retrace::reuse::rsvp::RsvpKnobs::with_filter(filter);
         let oversample = self.oversample.unwrap_or(default.oversample);
         let level_bias = self.level_bias.unwrap_or(default.level_bias);
         // Finer than 8 samples a pixel, or 4 levels past the one chosen, a
@@ -258,7 +262,7 @@ impl RsvpKnobArgs {
             anyhow::bail!("--level-bias {level_bias}: must be within -4..4");
         }
         Ok(retrace::reuse::rsvp::RsvpKnobs {
-            filter: self.filter.unwrap_or(default.filter),
+            filter,
             oversample,
             level_bias,
         })

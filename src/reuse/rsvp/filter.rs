@@ -118,7 +118,8 @@ impl Default for RsvpKnobs {
 /// at four), at about twice the speed of oversampling 1 (docs/RESULTS.md).
 const DEFAULT_OVERSAMPLE: f64 = 0.71;
 
-/// The pixel box's oversampling at four samples a pixel, 2^(1/4): its
+/// The pixel box's oversampling, 2^(1/4) (per shift; at four samples a
+/// pixel, one shift a pixel): its
 /// level then holds 2.4-4.8 samples a pixel side, 5.7-23 a pixel. Below
 /// that, the far checkerboard's aliasing on the regular lattice costs
 /// the worst frames more than the direct render's noise: at 1 (2-4 a
@@ -135,17 +136,24 @@ impl RsvpKnobs {
     /// and the pixel box's quarter of the shifts falls short too
     /// (docs/RESULTS.md).
     pub fn default_for(samples: PixelSamples) -> RsvpKnobs {
-        match samples.count() {
-            1 => RsvpKnobs::default(),
-            4 => RsvpKnobs {
-                filter: Filter::PixelBox,
-                oversample: PIXEL_BOX_OVERSAMPLE,
-                ..RsvpKnobs::default()
-            },
-            _ => RsvpKnobs {
-                filter: Filter::Box,
-                ..RsvpKnobs::default()
-            },
+        RsvpKnobs::with_filter(match samples.count() {
+            1 => Filter::Bilinear,
+            4 => Filter::PixelBox,
+            _ => Filter::Box,
+        })
+    }
+
+    /// The default knobs with `filter`: the pixel box at its own
+    /// oversampling, which sets the box's density directly.
+    pub fn with_filter(filter: Filter) -> RsvpKnobs {
+        let oversample = match filter {
+            Filter::PixelBox => PIXEL_BOX_OVERSAMPLE,
+            _ => DEFAULT_OVERSAMPLE,
+        };
+        RsvpKnobs {
+            filter,
+            oversample,
+            level_bias: 0,
         }
     }
 
@@ -178,7 +186,7 @@ impl RsvpKnobs {
         if self.filter != default.filter {
             changed.push(format!("{} filter", self.filter));
         }
-        if self.oversample != default.oversample {
+        if self.oversample != RsvpKnobs::with_filter(self.filter).oversample {
             changed.push(format!("oversample {}", self.oversample));
         }
         if self.level_bias != default.level_bias {
@@ -589,6 +597,23 @@ mod tests {
         assert_eq!(
             all.changes(four).as_deref(),
             Some("box filter, oversample 2, level bias -1")
+        );
+        // Each filter's own oversampling is its default, whatever the
+        // count: the pixel box at one sample a pixel names the filter
+        // alone, the box at four likewise.
+        assert_eq!(
+            RsvpKnobs::with_filter(Filter::PixelBox)
+                .changes(one)
+                .as_deref(),
+            Some("pixel-box filter")
+        );
+        assert_eq!(
+            RsvpKnobs::with_filter(Filter::Box).changes(four).as_deref(),
+            Some("box filter")
+        );
+        assert_eq!(
+            RsvpKnobs::default_for(four),
+            RsvpKnobs::with_filter(Filter::PixelBox)
         );
     }
 }
