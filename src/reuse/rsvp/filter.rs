@@ -28,17 +28,6 @@ pub enum Filter {
 }
 
 impl Filter {
-    /// Where the filter's first read lies from the coordinate, in steps of
-    /// the filter's grid (see [`filter_split`]).
-    #[inline(always)]
-    pub(super) fn origin_shift(self) -> f64 {
-        match self {
-            Filter::Nearest => 0.5 * FRACTION_ONE,
-            Filter::Bilinear | Filter::Box => 0.0,
-            Filter::PixelBox => -1.5 * FRACTION_ONE,
-        }
-    }
-
     /// Samples the filter reads along each axis (the most, for the pixel
     /// box: see [`PatchFilter::sides`]).
     pub(super) fn side(self) -> i64 {
@@ -398,12 +387,20 @@ impl PatchFilter {
     /// `filter` at its fixed width (the pixel box as wide as it reads at
     /// most).
     pub(super) fn fixed(filter: Filter) -> PatchFilter {
-        let shift = filter.origin_shift();
-        let width = (PIXEL_BOX_TAPS - 1) as f32;
+        // Where the first read lies from the coordinate, in steps of the
+        // filter's grid.
+        let shift = match filter {
+            Filter::Nearest => 0.5 * FRACTION_ONE,
+            Filter::Bilinear | Filter::Box => 0.0,
+            Filter::PixelBox => {
+                return PatchFilter::new(filter, DVec2::splat((PIXEL_BOX_TAPS - 1) as f64))
+            }
+        };
         PatchFilter {
             filter,
             shift: [shift; 2],
-            width: [width; 2],
+            // Unread: only the pixel box weighs its taps by width.
+            width: [1.0; 2],
         }
     }
 
