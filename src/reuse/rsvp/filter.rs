@@ -42,8 +42,7 @@ impl Filter {
     pub(super) fn finer_levels(self) -> i32 {
         match self {
             Filter::Nearest | Filter::Bilinear => 0,
-            Filter::Box => 1,
-            Filter::PixelBox => 1,
+            Filter::Box | Filter::PixelBox => 1,
         }
     }
 }
@@ -108,8 +107,8 @@ impl Default for RsvpKnobs {
 const DEFAULT_OVERSAMPLE: f64 = 0.71;
 
 /// The pixel box's oversampling, 2^(1/4) (per shift; at four samples a
-/// pixel, one shift a pixel): its
-/// level then holds 2.4-4.8 samples a pixel side, 5.7-23 a pixel. Below
+/// pixel, one shift a pixel): its level then holds 2.4-4.8 samples a pixel
+/// side, 5.7-23 a pixel. Below
 /// that, the far checkerboard's aliasing on the regular lattice costs
 /// the worst frames more than the direct render's noise: at 1 (2-4 a
 /// side) E2 beat the direct render but E4's worst frame fell 1 dB short,

@@ -353,8 +353,7 @@ impl SampleBuffer {
                 }
                 let reads = (count > 0).then(|| SampleBox::read_by(&filter, lo, hi));
                 if let Some(reads) = reads {
-                    let patch = (level, &filter);
-                    self.collect_missing(patch, knobs, reads, count, &mut missing, |f| {
+                    self.collect_missing(level, &filter, knobs, reads, count, &mut missing, |f| {
                         if !mapped {
                             self.patch_coords(
                                 pose,
@@ -471,7 +470,8 @@ impl SampleBuffer {
     #[inline]
     fn collect_missing(
         &self,
-        (level, filter): (Level, &PatchFilter),
+        level: Level,
+        filter: &PatchFilter,
         knobs: &RsvpKnobs,
         reads: SampleBox,
         pixels: u32,

@@ -622,10 +622,13 @@ impl SampleBuffer {
                     }
                     let mut fresh = false;
                     for_each_read(&patch.filter, (c.x, c.y), last_row, |col, row| {
+                        if fresh {
+                            return;
+                        }
                         let (owner, col, row) = self.lattice.owner(level, col, row);
                         let group = SampleGroup::containing(col, row);
                         let col = wrap(group.col, self.lattice.slot_columns(owner));
-                        fresh |= is_fresh((owner, group.row, col));
+                        fresh = is_fresh((owner, group.row, col));
                     });
                     if fresh {
                         marks.push((x0 + (k % size.0) as u32, y0 + (k / size.0) as u32));
