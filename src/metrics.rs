@@ -153,10 +153,12 @@ pub const BENCH_REFERENCE_SAMPLES: u32 = 64;
 pub const REFERENCE_EVERY: u32 = 20;
 
 /// The reference a run at `run` samples a pixel is measured against: the
-/// bench's count, or the converged count when the run has as many (a
-/// reference no finer than the run would measure nothing).
+/// bench's count up to 4 samples a pixel, and from there on the converged
+/// count, so that the reference has at least sixteen times the run's
+/// samples where it can (its own error then stays under about a tenth of
+/// the run's squared error).
 pub fn reference_samples(run: PixelSamples) -> PixelSamples {
-    let count = if run.count() < BENCH_REFERENCE_SAMPLES {
+    let count = if run.count() * 16 <= BENCH_REFERENCE_SAMPLES {
         BENCH_REFERENCE_SAMPLES
     } else {
         REFERENCE_SAMPLES_PER_PIXEL
@@ -236,7 +238,9 @@ mod tests {
     fn the_reference_is_finer_than_the_run() {
         let count = |spp| reference_samples(PixelSamples::new(spp).unwrap()).count();
         assert_eq!(count(1), BENCH_REFERENCE_SAMPLES);
-        assert_eq!(count(16), BENCH_REFERENCE_SAMPLES);
+        assert_eq!(count(4), BENCH_REFERENCE_SAMPLES);
+        assert_eq!(count(9), REFERENCE_SAMPLES_PER_PIXEL);
+        assert_eq!(count(16), REFERENCE_SAMPLES_PER_PIXEL);
         assert_eq!(count(BENCH_REFERENCE_SAMPLES), REFERENCE_SAMPLES_PER_PIXEL);
     }
 }

@@ -226,14 +226,15 @@ fn parse_backend(s: &str) -> Result<BackendKind, String> {
 #[derive(Args)]
 struct RsvpKnobArgs {
     /// RSVP reconstruction filter: nearest, bilinear, box or pixel-box
-    /// (a box as wide as the pixel, one pass a quarter of the samples)
-    /// [default: bilinear; pixel-box at --spp 4; box at other counts above
-    /// 1].
+    /// (a box as wide as the pixel, blended in linear colour, one pass at
+    /// any --spp) [default: bilinear; pixel-box at --spp 2 to 16; box
+    /// above 16].
     #[arg(long)]
     filter: Option<retrace::reuse::rsvp::Filter>,
     /// RSVP: buffer samples per viewport pixel (per side) the pyramid level
     /// is chosen for, at least (0.01 to 8; with --spp N, per sub-pixel
-    /// shift) [default: 0.71; 1.19 with the pixel box].
+    /// shift; the pixel box's per quarter of N) [default: 0.71; with the
+    /// pixel box 1, 1.19 above --spp 4].
     #[arg(long, value_parser = finite_number)]
     oversample: Option<f64>,
     /// RSVP: pyramid levels added to the chosen one (negative: coarser;
@@ -249,7 +250,7 @@ impl RsvpKnobArgs {
         let filter = self
             .filter
             .unwrap_or(retrace::reuse::rsvp::RsvpKnobs::default_for(samples).filter);
-        let default = retrace::reuse::rsvp::RsvpKnobs::with_filter(filter);
+        let default = retrace::reuse::rsvp::RsvpKnobs::with_filter(filter, samples);
         let oversample = self.oversample.unwrap_or(default.oversample);
         let level_bias = self.level_bias.unwrap_or(default.level_bias);
         // Finer than 8 samples a pixel, or 4 levels past the one chosen, a

@@ -176,6 +176,64 @@ fn an_edge_between_two_colours_converges_to_its_analytic_coverage() {
     }
 }
 
+/// An RSVP viewport's pixel on an edge between white and black shows the
+/// share of the pixel the white side covers, in linear colour as a
+/// direct render averages its samples: the pixel box weighs each buffer
+/// sample's cell by how much of it the pixel covers, so on a lattice `d`
+/// samples a pixel side the coverage is off by at most about half a cell,
+/// 1 / (2 d). Blending the samples' sRGB codes instead would be off by up
+/// to 0.29 (half covered showing 0.21).
+#[test]
+fn an_rsvp_viewport_of_an_edge_shows_its_coverage_in_linear_colour() {
+    for coverage in [0.3f32, 0.5, 0.77] {
+        // A wall at z = -10 left of x = x0, black sky beyond, seen by a
+        // 90-degree viewport 64 px wide looking down -z: the viewport maps
+        // x to column 32 + 3.2 x, so the edge covers `coverage` of column
+        // 20.
+        let x0 = (20.0 + f64::from(coverage) - 32.0) / 3.2;
+        let text = format!(
+            "[render]\nwidth = 64\nheight = 48\nambient = [1.0, 1.0, 1.0]\nbackground = [0.0, 0.0, 0.0]\n\
+             [camera]\nprojection = \"equal-angle\"\nposition = [0, 0, 0]\nfov = 90\n\
+             [material.white]\ndiffuse = [1.0, 1.0, 1.0]\n\
+             [[object]]\ntype = \"quad\"\nname = \"wall\"\nmaterial = \"white\"\n\
+             vertices = [[-100.0, -100.0, -10.0], [{x0}, -100.0, -10.0], [{x0}, 100.0, -10.0], [-100.0, 100.0, -10.0]]\n\
+             [[viewport]]\nname = \"edge\"\nwidth = 64\nheight = 48\nfov = 90.0\n"
+        );
+        let mut scene =
+            parse_scene_str(&text, Path::new("edge.toml"), &SceneOverrides::default()).unwrap();
+        scene.samples = four();
+        let mut accel =
+            retrace::accel::Accelerator::build(retrace::accel::BackendKind::Embree, &scene.objects)
+                .unwrap();
+        // 5-10 buffer samples a pixel side: the coverage within 0.1.
+        let oversample = 2.5;
+        let knobs = retrace::reuse::rsvp::RsvpKnobs {
+            oversample,
+            ..retrace::reuse::rsvp::RsvpKnobs::default_for(scene.samples)
+        };
+        assert_eq!(knobs.filter, retrace::reuse::rsvp::Filter::PixelBox);
+        let options = Options {
+            rsvp: knobs,
+            ..Options::new(Techniques::AUTO, 0..1)
+        };
+        let mut rsvp = retrace::frame_loop::Animator::new(&scene, &mut accel, options);
+        let output = rsvp.render(0).remove(0);
+        assert_eq!(output.stats.mode.as_str(), "rsvp");
+        let frame = output.frame.unwrap();
+        let bound = 1.0 / (2.0 * 2.0 * oversample as f32);
+        for y in 4..44 {
+            let value = |x: u32| frame.get(x, y).x;
+            assert!(value(18) > 0.99 && value(22) < 0.01, "row {y}: the sides");
+            let error = (value(20) - coverage).abs();
+            assert!(
+                error <= bound,
+                "coverage {coverage}, row {y}: {} (off by {error}, more than {bound})",
+                value(20)
+            );
+        }
+    }
+}
+
 /// RSVP antialiases by reading its buffer at sub-pixel shifts of the
 /// viewport's pixels: at four samples a pixel its frames are no worse,
 /// against a converged reference, than direct renders at four samples a

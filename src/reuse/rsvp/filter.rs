@@ -2,7 +2,7 @@
 //! of the level choice, the exact sub-sample grid both passes share, and
 //! the sample codes pass 2 blends.
 
-use glam::{DVec2, Vec3};
+use glam::{DVec2, Vec3, Vec3A};
 
 use crate::color::SrgbTable;
 use crate::sampling::PixelSamples;
@@ -106,35 +106,43 @@ impl Default for RsvpKnobs {
 /// at four), at about twice the speed of oversampling 1 (docs/RESULTS.md).
 const DEFAULT_OVERSAMPLE: f64 = 0.71;
 
-/// The pixel box's oversampling, 2^(1/4) (per shift; at four samples a
-/// pixel, one shift a pixel): its level then holds 2.4-4.8 samples a pixel
-/// side, 5.7-23 a pixel. Below
-/// that, the far checkerboard's aliasing on the regular lattice costs
-/// the worst frames more than the direct render's noise: at 1 (2-4 a
-/// side) E2 beat the direct render but E4's worst frame fell 1 dB short,
-/// at 0.71 E2 fell 2.3 dB short (docs/RESULTS.md).
-const PIXEL_BOX_OVERSAMPLE: f64 = 1.19;
+/// The pixel box's oversampling up to four samples a pixel: its level
+/// then holds 2-4 samples a pixel side at four, 4-16 a pixel. Blending in
+/// linear colour, as the direct render does, E2 and E4 beat the direct
+/// render there; at 0.85 E4's worst frame fell 0.6 dB short
+/// (docs/RESULTS.md).
+const PIXEL_BOX_OVERSAMPLE: f64 = 1.0;
+
+/// The pixel box's oversampling above four samples a pixel (times the
+/// square root of a quarter of them: 4.8-9.5 samples a pixel side at
+/// sixteen). At 1 E2 at sixteen fell 0.7 dB short of the direct render,
+/// whose sixteen strata resolve the horizon better than the regular
+/// lattice at 4-8 a side (docs/RESULTS.md).
+const PIXEL_BOX_OVERSAMPLE_ABOVE_FOUR: f64 = 1.19;
 
 impl RsvpKnobs {
     /// The default knobs at `samples` a pixel: bilinear at one sample a
-    /// pixel; at four, the pixel box over 2.4-4.8 samples a pixel side, in one
-    /// pass more accurate than the direct render and than four shifted
-    /// boxes, and faster; at other counts the box filter (over one level
-    /// finer), where bilinear fell up to 0.7 dB short of direct renders,
-    /// and the pixel box's quarter of the shifts falls short too
+    /// pixel; from two to sixteen the pixel box, over 2-4 samples a
+    /// pixel side at four and 4-8 at sixteen, in one pass more
+    /// accurate than the direct render and than shifted boxes, and
+    /// faster; above sixteen, where the pixel would be wider than the
+    /// box's taps, the box filter (over one level finer) at each shift
     /// (docs/RESULTS.md).
     pub fn default_for(samples: PixelSamples) -> RsvpKnobs {
-        RsvpKnobs::with_filter(match samples.count() {
+        let filter = match samples.count() {
             1 => Filter::Bilinear,
-            4 => Filter::PixelBox,
+            2..=16 => Filter::PixelBox,
             _ => Filter::Box,
-        })
+        };
+        RsvpKnobs::with_filter(filter, samples)
     }
 
-    /// The default knobs with `filter`: the pixel box at its own
-    /// oversampling, which sets the box's density directly.
-    pub fn with_filter(filter: Filter) -> RsvpKnobs {
+    /// The default knobs with `filter` at `samples` a pixel: the pixel
+    /// box at its own oversampling, which sets the box's density
+    /// directly.
+    pub fn with_filter(filter: Filter, samples: PixelSamples) -> RsvpKnobs {
         let oversample = match filter {
+            Filter::PixelBox if samples.count() > 4 => PIXEL_BOX_OVERSAMPLE_ABOVE_FOUR,
             Filter::PixelBox => PIXEL_BOX_OVERSAMPLE,
             _ => DEFAULT_OVERSAMPLE,
         };
@@ -146,13 +154,26 @@ impl RsvpKnobs {
     }
 
     /// The sub-pixel shifts a viewport is resampled at, with `samples` a
-    /// pixel: one per sample, or for the pixel box (which reads four
-    /// shifts' worth at once) a quarter of them, at least one.
+    /// pixel: one per sample, or one for the pixel box, which reads every
+    /// sample its pixel covers at once.
     pub(crate) fn shifts(&self, samples: PixelSamples) -> PixelSamples {
         if self.filter == Filter::PixelBox {
-            PixelSamples::new((samples.count() / 4).max(1)).expect("fewer shifts than samples")
+            PixelSamples::ONE
         } else {
             samples
+        }
+    }
+
+    /// What the oversampling is multiplied by on each axis with `samples`
+    /// a pixel: the square root of the shifts (each shift's pixel reads
+    /// at the oversampling), and for the pixel box the square root of a
+    /// quarter of the samples, at least 1 (its oversampling is set at
+    /// four).
+    pub(crate) fn density_scale(&self, samples: PixelSamples) -> f64 {
+        if self.filter == Filter::PixelBox {
+            (f64::from(samples.count()) / 4.0).max(1.0).sqrt()
+        } else {
+            f64::from(samples.count()).sqrt()
         }
     }
 
@@ -174,7 +195,7 @@ impl RsvpKnobs {
         if self.filter != default.filter {
             changed.push(format!("{} filter", self.filter));
         }
-        if self.oversample != RsvpKnobs::with_filter(self.filter).oversample {
+        if self.oversample != RsvpKnobs::with_filter(self.filter, samples).oversample {
             changed.push(format!("oversample {}", self.oversample));
         }
         if self.level_bias != default.level_bias {
@@ -218,6 +239,7 @@ pub(super) fn rgb8(code: SampleCode) -> [u8; 3] {
 }
 
 /// The linear colour a code stands for.
+#[inline(always)]
 pub(super) fn decode(srgb: &SrgbTable, code: SampleCode) -> Vec3 {
     Vec3::from_array(CODE_SHIFTS.map(|shift| srgb.decode_quarters(code >> shift & CODE_MASK)))
 }
@@ -265,21 +287,57 @@ pub(super) fn mean(s: [SampleCode; 4]) -> SampleCode {
     blend
 }
 
-/// Samples [`Filter::PixelBox`] reads along each axis.
-pub(super) const PIXEL_BOX_TAPS: usize = 6;
+/// Samples [`Filter::PixelBox`] reads along each axis at most: a box up to
+/// 11 samples wide, as the pixel at sixteen samples a pixel (4-8 a
+/// side at the default oversampling).
+pub(super) const PIXEL_BOX_TAPS: usize = 12;
+
+/// Taps of the narrow pixel box, up to 5 samples wide: enough at four
+/// samples a pixel (2-4 a side), and a quarter of the wide box's
+/// blending work.
+pub(super) const PIXEL_BOX_NARROW_TAPS: usize = 6;
+
+/// Whether a pixel box `width` samples wide fits the narrow box's taps.
+#[inline(always)]
+pub(super) fn is_narrow((wx, wy): (f32, f32)) -> bool {
+    wx.max(wy) <= (PIXEL_BOX_NARROW_TAPS - 1) as f32
+}
 
 /// The pixel box's blend of its codes (`read(i, j)`: column i, row j),
 /// its start `fx`, `fy` past the first tap's cell's start and its width
-/// `wx`, `wy` in samples: each tap weighted by how much of its cell the
-/// box covers, rounded. Reads only the taps the box covers
-/// ([`box_taps`]).
+/// `wx`, `wy` in samples: each tap's linear colour weighted by how much
+/// of its cell the box covers, as the direct render's samples average in
+/// linear colour. Reads only the taps the box covers ([`box_taps`]).
 #[inline(always)]
 pub(super) fn pixel_box(
+    srgb: &SrgbTable,
     mut read: impl FnMut(usize, usize) -> SampleCode,
+    start: (f32, f32),
+    width: (f32, f32),
+) -> SampleCode {
+    let read = |i, j| decode_simd(srgb, read(i, j));
+    let blend = if is_narrow(width) {
+        pixel_box_of::<PIXEL_BOX_NARROW_TAPS>(read, start, width)
+    } else {
+        pixel_box_of::<PIXEL_BOX_TAPS>(read, start, width)
+    };
+    encode(srgb, blend.into())
+}
+
+/// A code's linear colour, in a SIMD register.
+#[inline(always)]
+pub(super) fn decode_simd(srgb: &SrgbTable, code: SampleCode) -> Vec3A {
+    decode(srgb, code).into()
+}
+
+/// [`pixel_box`] over linear colours (`read(i, j)`), with room for `TAPS`
+/// taps a side (the box at most `TAPS - 1` samples wide).
+#[inline(always)]
+pub(super) fn pixel_box_of<const TAPS: usize>(
+    mut read: impl FnMut(usize, usize) -> Vec3A,
     (fx, fy): (f32, f32),
     (wx, wy): (f32, f32),
-) -> SampleCode {
-    const TAPS: usize = PIXEL_BOX_TAPS;
+) -> Vec3A {
     let weights = |f: f32, w: f32| -> [f32; TAPS] {
         let (end, scale) = (f + w, 1.0 / w);
         std::array::from_fn(|i| {
@@ -289,31 +347,19 @@ pub(super) fn pixel_box(
     };
     let (nx, ny) = (box_taps(fx, wx), box_taps(fy, wy));
     let (wx, wy) = (weights(fx, wx), weights(fy, wy));
-    let mut codes = [[0; TAPS]; TAPS];
-    for (j, row) in codes.iter_mut().enumerate().take(ny) {
-        for (i, code) in row.iter_mut().enumerate().take(nx) {
-            *code = read(i, j);
+    let mut sum = Vec3A::ZERO;
+    for (j, wy) in wy.iter().enumerate().take(ny) {
+        let mut across = Vec3A::ZERO;
+        for (i, wx) in wx.iter().enumerate().take(nx) {
+            across += *wx * read(i, j);
         }
+        sum += *wy * across;
     }
-    let mut blend = 0;
-    for shift in CODE_SHIFTS {
-        let mut v = 0.0;
-        for (row, wy) in codes.iter().zip(wy) {
-            let across: f32 = row
-                .iter()
-                .zip(wx)
-                .map(|(&c, w)| w * channel(c, shift))
-                .sum();
-            v += wy * across;
-        }
-        // Round to nearest, as `bilinear_channel` does.
-        blend |= ((v + 8_388_608.0).to_bits() & CODE_MASK) << shift;
-    }
-    blend
+    sum
 }
 
 /// Taps a pixel box `w` samples wide covers, starting `f` into its first
-/// tap's cell (both exact: multiples of 2^-16 below 8).
+/// tap's cell (both exact: multiples of 2^-16 below 16).
 #[inline(always)]
 pub(super) fn box_taps(f: f32, w: f32) -> usize {
     (f + w).ceil() as usize
@@ -507,15 +553,16 @@ mod tests {
             let (fx, fy) = (rng.unit(), rng.unit());
             assert_eq!(bilinear([code; 4], fx, fy), code);
             assert_eq!(mean([code; 4]), code);
-            // Box widths on the filter's grid, 1 to 4 samples; starts
-            // on it too.
+            // Box widths on the filter's grid, 1 to 11 samples (the
+            // narrow box's and the wide one's); starts on it too.
             let on_grid = |v: f32, step: f32| (v * step).round() / step;
+            let max = (PIXEL_BOX_TAPS - 1) as f32;
             let width = (
-                on_grid(1.0 + 3.0 * rng.unit(), 32768.0),
-                on_grid(1.0 + 3.0 * rng.unit(), 32768.0),
+                on_grid(1.0 + (max - 1.0) * rng.unit(), 32768.0),
+                on_grid(1.0 + (max - 1.0) * rng.unit(), 32768.0),
             );
             let start = (on_grid(fx, 65536.0) % 1.0, on_grid(fy, 65536.0) % 1.0);
-            assert_eq!(pixel_box(|_, _| code, start, width), code);
+            assert_eq!(pixel_box(srgb, |_, _| code, start, width), code);
             // Otherwise each channel lies between its samples'.
             let blend = bilinear([code, x, y, z], fx, fy);
             for shift in CODE_SHIFTS {
@@ -524,12 +571,14 @@ mod tests {
                 let (lo, hi) = (all.iter().min().unwrap(), all.iter().max().unwrap());
                 assert!((*lo..=*hi).contains(&one), "{one} outside {all:?}");
             }
-            // The pixel box: each channel the mean of its taps weighted
-            // by how much of each one's cell it covers; it reads no other.
+            // The pixel box: each channel the linear mean of its taps
+            // weighted by how much of each one's cell it covers; it reads
+            // no other.
             let taps = [code, x, y, z];
             let mut read_past = false;
             let (nx, ny) = (box_taps(start.0, width.0), box_taps(start.1, width.1));
             let blend = pixel_box(
+                srgb,
                 |i, j| {
                     read_past |= i >= nx || j >= ny;
                     taps[(i + 2 * j) % 4]
@@ -547,12 +596,15 @@ mod tests {
                 let mut want = 0.0;
                 for j in 0..ny {
                     for i in 0..nx {
-                        let c = (taps[(i + 2 * j) % 4] >> shift & CODE_MASK) as f32;
+                        let c = srgb.decode_quarters(taps[(i + 2 * j) % 4] >> shift & CODE_MASK);
                         want += weight(start.0, width.0, i) * weight(start.1, width.1, j) * c;
                     }
                 }
-                let got = (blend >> shift & CODE_MASK) as f32;
-                assert!((got - want).abs() <= 0.5 + 1e-3, "{got} against {want}");
+                let got = (blend >> shift & CODE_MASK) as i64;
+                let want = srgb.encode_quarters(want) as i64;
+                // Summed in another order, a mean on a code's edge may
+                // round to its neighbour.
+                assert!((got - want).abs() <= 1, "{got} against {want}");
             }
         }
     }
@@ -575,19 +627,25 @@ mod tests {
             all.changes(one).as_deref(),
             Some("box filter, oversample 2, level bias -1")
         );
-        // The pixel box is the default at four samples a pixel, the box
-        // at other counts above one.
+        // The pixel box is the default from two to sixteen samples a
+        // pixel, the box above.
         let pixel_box = RsvpKnobs {
             filter: Filter::PixelBox,
             ..all
         };
-        let (four, nine) = (PixelSamples::new(4).unwrap(), PixelSamples::new(9).unwrap());
-        assert_eq!(
-            pixel_box.changes(four).as_deref(),
-            Some("oversample 2, level bias -1")
+        let (four, sixteen, many) = (
+            PixelSamples::new(4).unwrap(),
+            PixelSamples::new(16).unwrap(),
+            PixelSamples::new(25).unwrap(),
         );
+        for count in [four, sixteen] {
+            assert_eq!(
+                pixel_box.changes(count).as_deref(),
+                Some("oversample 2, level bias -1")
+            );
+        }
         assert_eq!(
-            all.changes(nine).as_deref(),
+            all.changes(many).as_deref(),
             Some("oversample 2, level bias -1")
         );
         assert_eq!(
@@ -598,18 +656,29 @@ mod tests {
         // count: the pixel box at one sample a pixel names the filter
         // alone, the box at four likewise.
         assert_eq!(
-            RsvpKnobs::with_filter(Filter::PixelBox)
+            RsvpKnobs::with_filter(Filter::PixelBox, one)
                 .changes(one)
                 .as_deref(),
             Some("pixel-box filter")
         );
         assert_eq!(
-            RsvpKnobs::with_filter(Filter::Box).changes(four).as_deref(),
+            RsvpKnobs::with_filter(Filter::Box, four)
+                .changes(four)
+                .as_deref(),
             Some("box filter")
         );
         assert_eq!(
             RsvpKnobs::default_for(four),
-            RsvpKnobs::with_filter(Filter::PixelBox)
+            RsvpKnobs::with_filter(Filter::PixelBox, four)
+        );
+        // Above four samples a pixel the pixel box's own oversampling is
+        // higher: it is the default there, and the one at four a change.
+        let denser = RsvpKnobs::default_for(sixteen);
+        assert!(denser.oversample > RsvpKnobs::default_for(four).oversample);
+        assert_eq!(denser.changes(sixteen), None);
+        assert_eq!(
+            RsvpKnobs::default_for(four).changes(sixteen).as_deref(),
+            Some("oversample 1")
         );
     }
 }

@@ -705,7 +705,7 @@ pub struct RsvpStore {
 impl RsvpStore {
     pub fn new(lattice: SampleLattice, knobs: RsvpKnobs, samples: PixelSamples) -> RsvpStore {
         let shifts = knobs.shifts(samples);
-        let oversample = knobs.oversample * f64::from(shifts.count()).sqrt();
+        let oversample = knobs.oversample * knobs.density_scale(samples);
         RsvpStore {
             buffer: SampleBuffer::new(lattice),
             knobs: RsvpKnobs {

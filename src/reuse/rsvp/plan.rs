@@ -55,8 +55,8 @@ impl StorePlan for RsvpPlan {
             .map(|view| f64::from(view.pose.camera.width) * f64::from(view.pose.camera.height))
             .sum();
         let knobs = &run.options.rsvp;
-        let shifts = knobs.shifts(run.scene.samples).count();
-        let per_pixel = f64::from(shifts) * knobs.samples_per_pixel() * 4.0;
+        let per_pixel =
+            knobs.density_scale(run.scene.samples).powi(2) * knobs.samples_per_pixel() * 4.0;
         pixels * per_pixel * RSVP_BYTES_PER_SAMPLE
     }
 
