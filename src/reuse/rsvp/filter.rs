@@ -123,7 +123,7 @@ const PIXEL_BOX_OVERSAMPLE_ABOVE_FOUR: f64 = 1.19;
 impl RsvpKnobs {
     /// The default knobs at `samples` a pixel: bilinear at one sample a
     /// pixel; from two to sixteen the pixel box, over 2-4 samples a
-    /// pixel side at four and 4-8 at sixteen, in one pass more
+    /// pixel side at four and 4.8-9.5 at sixteen, in one pass more
     /// accurate than the direct render and than shifted boxes, and
     /// faster; above sixteen, where the pixel would be wider than the
     /// box's taps, the box filter (over one level finer) at each shift
@@ -288,7 +288,7 @@ pub(super) fn mean(s: [SampleCode; 4]) -> SampleCode {
 }
 
 /// Samples [`Filter::PixelBox`] reads along each axis at most: a box up to
-/// 11 samples wide, as the pixel at sixteen samples a pixel (4-8 a
+/// 11 samples wide, as the pixel at sixteen samples a pixel (4.8-9.5 a
 /// side at the default oversampling).
 pub(super) const PIXEL_BOX_TAPS: usize = 12;
 

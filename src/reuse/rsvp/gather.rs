@@ -107,7 +107,7 @@ impl SampleBuffer {
                         match bounds {
                             Some(bounds) => {
                                 let view = self.view(level, &bounds, view_samples);
-                                gather_patch(&view, filter, coords, reads, colors);
+                                gather_patch(srgb, &view, filter, coords, reads, colors);
                             }
                             None => {
                                 for (slot, c) in colors.iter_mut().zip(coords.iter()) {
@@ -276,6 +276,7 @@ fn grid_pixels_box(filter: &PatchFilter, coords: &[DVec2], cols: usize) -> Optio
 /// view's level, NaN for no ray) from `view`, which holds every sample
 /// they read, into `out` (`coords`' length), working in `reads`.
 fn gather_patch(
+    srgb: &SrgbTable,
     view: &SampleView,
     filter: &PatchFilter,
     coords: &[DVec2],
@@ -331,7 +332,6 @@ fn gather_patch(
         }
         Filter::PixelBox => {
             // Each sample decoded once, not once for each pixel reading it.
-            let srgb = srgb_table();
             linear.clear();
             linear.extend(samples.iter().map(|&code| decode_simd(srgb, code)));
             // The box's taps chosen once a patch, out of the loop.
