@@ -264,12 +264,70 @@ impl Object {
     }
 }
 
-/// A point light.
+/// A light: a point, or a shape whose surface glows evenly (an area
+/// light, which casts soft shadows).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Light {
+    /// A point light's position; an area light's centre.
     pub position: Vec3,
     /// Colour times intensity.
     pub power: Vec3,
+    pub shape: LightShape,
+}
+
+impl Light {
+    /// A point light whose light does not fall off with distance.
+    pub fn point(position: Vec3, power: Vec3) -> Light {
+        Light {
+            position,
+            power,
+            shape: LightShape::Point {
+                falloff: Falloff::None,
+            },
+        }
+    }
+
+    /// Whether the light has an extent (soft shadows, sampled).
+    pub fn is_area(&self) -> bool {
+        !matches!(self.shape, LightShape::Point { .. })
+    }
+}
+
+/// How a point light's brightness changes with distance.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Falloff {
+    /// The same at any distance (the paper's lights).
+    #[default]
+    None,
+    /// As one over the distance squared, reaching `power` at distance 1.
+    InverseSquare,
+}
+
+/// What a light glows from. Area lights fall off physically: a point far
+/// from one gets what an inverse-square point light of the same power
+/// would give it (from straight in front, for the flat ones).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum LightShape {
+    Point {
+        falloff: Falloff,
+    },
+    /// A ball of `radius` around the position, glowing to every side.
+    Sphere {
+        radius: f32,
+    },
+    /// A rectangle centred on the position, spanned by two perpendicular
+    /// half-edges, shining to the side of its unit `normal` only.
+    Rectangle {
+        half_width: Vec3,
+        half_height: Vec3,
+        normal: Vec3,
+    },
+    /// A disc of `radius` centred on the position, shining to the side of
+    /// its unit `normal` only.
+    Disc {
+        radius: f32,
+        normal: Vec3,
+    },
 }
 
 /// A surface normal carried through an affine transform (by the inverse

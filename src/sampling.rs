@@ -123,7 +123,7 @@ fn permuted(count: u32, index: u32, key: &[u64]) -> u32 {
 }
 
 /// SplitMix64 over `words`: the same bits everywhere, for any input.
-fn hash(words: &[u64]) -> u64 {
+pub(crate) fn hash(words: &[u64]) -> u64 {
     words.iter().fold(0x9e37_79b9_7f4a_7c15u64, |state, &w| {
         let mut z = (state ^ w).wrapping_add(0x9e37_79b9_7f4a_7c15);
         z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
@@ -133,7 +133,7 @@ fn hash(words: &[u64]) -> u64 {
 }
 
 /// The top 53 bits of `bits` as a number in [0, 1).
-fn unit(bits: u64) -> f64 {
+pub(crate) fn unit(bits: u64) -> f64 {
     (bits >> 11) as f64 / (1u64 << 53) as f64
 }
 

@@ -9,7 +9,7 @@
 use glam::{Affine3A, DVec3, EulerRot, Quat, Vec3};
 
 use crate::camera::{Camera, ViewTransform, Viewport, ViewportPose};
-use crate::geometry::{Light, Object, Placement};
+use crate::geometry::{Light, LightShape, Object, Placement};
 
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Deserialize, serde::Serialize)]
 #[serde(rename_all = "kebab-case")]
@@ -167,10 +167,13 @@ pub struct LightTrack {
 }
 
 impl LightTrack {
-    pub fn light_at(&self, frame: u32) -> Light {
+    /// The light at `frame`: its keyed position and power, with the
+    /// `shape` its table gave (keys do not change a light's shape).
+    pub fn light_at(&self, frame: u32, shape: LightShape) -> Light {
         let key = |k: &LightKey| Light {
             position: k.position,
             power: k.color * k.intensity,
+            shape,
         };
         match key_segment(&self.keys, frame, |k| k.frame, |k| k.ease) {
             None => unreachable!("a light track has keys"),
@@ -181,6 +184,7 @@ impl LightTrack {
                 Light {
                     position: lerp3(a.position, b.position, t),
                     power: lerp3(a.color, b.color, t) * intensity as f32,
+                    shape,
                 }
             }
         }
@@ -247,7 +251,7 @@ impl Animation {
             }
         }
         for track in &self.lights {
-            lights[track.light] = track.light_at(frame);
+            lights[track.light] = track.light_at(frame, lights[track.light].shape);
         }
         moved
     }

@@ -117,6 +117,13 @@ impl Material {
     }
 }
 
+/// Shadow rays a pixel sample casts to an area light unless
+/// `render.light_samples` says otherwise.
+pub const DEFAULT_LIGHT_SAMPLES: u32 = 4;
+
+/// The most shadow rays a pixel sample may cast to one area light.
+pub const MAX_LIGHT_SAMPLES: u32 = 256;
+
 #[derive(Clone, Debug)]
 pub struct Scene {
     pub camera: Camera,
@@ -130,6 +137,9 @@ pub struct Scene {
     /// Sub-samples a pixel of the camera's image and of the viewports
     /// (antialiasing: the mean of stratified sub-samples).
     pub samples: crate::sampling::PixelSamples,
+    /// Shadow rays each pixel sample casts to each area light (stratified
+    /// over the light); point lights take one.
+    pub light_samples: u32,
     /// Things the user should know that did not stop loading (e.g. dropped
     /// degenerate triangles).
     pub warnings: Vec<String>,

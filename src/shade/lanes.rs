@@ -188,7 +188,7 @@ pub(super) struct HitLanes {
 }
 
 impl HitLanes {
-    /// Toward a light at `light`: the facing term `n_s . (light - point)`
+    /// Toward a light at `light` (a point per lane): the facing term `n_s . (light - point)`
     /// (the light is in front where it is positive; by the shading normal,
     /// which is the geometric one except on smooth triangles, where a
     /// light below a facet's plane still lights the curved surface it
@@ -205,8 +205,7 @@ impl HitLanes {
     /// to LLVM's SLP vectorizer, which shapes them anew whenever the code
     /// around them changes, at times into split halves and shuffles.
     #[inline(never)]
-    pub(super) fn toward(&self, light: Vec3) -> (Lanes, Vec3Lanes, Vec3Lanes) {
-        let light = Vec3Lanes::splat(light);
+    pub(super) fn toward(&self, light: &Vec3Lanes) -> (Lanes, Vec3Lanes, Vec3Lanes) {
         let from_point = light.sub(&self.point);
         let facing = self.shading_normal.dot(&from_point);
         (facing, from_point, light.sub(&self.shadow_point))

@@ -6,6 +6,7 @@
 //! only on the packet it was traced in, so callers that need bit-exact
 //! repeats (the reuse algorithms) always trace the same groups of samples.
 
+mod area;
 mod cones;
 mod first_hit;
 mod lanes;
@@ -15,7 +16,8 @@ use glam::{Affine3A, Mat3A, Vec3};
 use crate::accel::Intersector;
 use crate::geometry::normals::terminator_point;
 use crate::geometry::{
-    normal_matrix, plane_axes, transform_normal, Object, Placement, Shape, TriangleMesh,
+    normal_matrix, plane_axes, transform_normal, Falloff, LightShape, Object, Placement, Shape,
+    TriangleMesh,
 };
 use crate::ray::{lanes, offset_origin, Hit, LaneMask, Ray, RayPacket, PACKET_WIDTH};
 use crate::scene::{Material, Scene};
@@ -642,7 +644,8 @@ impl<'a> Shader<'a> {
     }
 
     /// Adds to `colors` each light's diffuse and Phong terms on the hit
-    /// lanes it reaches, casting the shadow rays (one packet a light).
+    /// lanes it reaches, casting the shadow rays: one packet for a point
+    /// light, `light_samples` for an area light.
     #[inline(always)]
     fn add_lights(
         &self,
@@ -655,60 +658,144 @@ impl<'a> Shader<'a> {
     ) {
         let scene = self.scene;
         for (light_index, light) in scene.lights.iter().enumerate() {
-            let h = lanes_hit;
-            let (facing, lit_from, to_light) = h.toward(light.position);
-            // A light behind the surface cannot light it: no ray needed.
-            let lit_mask = hit_mask & lanes_where(|lane| facing[lane] > 0.0);
-            if lit_mask == 0 {
+            let shade = LightSample {
+                light: light_index,
+                power: light.power,
+                hit_mask,
+                specular_texels,
+            };
+            if light.shape
+                == (LightShape::Point {
+                    falloff: Falloff::None,
+                })
+            {
+                let target = Vec3Lanes::splat(light.position);
+                let ray = (&target, 1.0);
+                self.add_light_sample(
+                    lanes_hit,
+                    &shade,
+                    ray,
+                    None,
+                    colors,
+                    counts,
+                    reborrow(&mut observer),
+                );
                 continue;
             }
-            // Nearly every lane is lit: filling all of them and resetting
-            // the few others beats picking lanes out one by one.
-            let mut shadow_rays: RayPacket = std::array::from_fn(|lane| {
-                Ray::segment(h.shadow_point.get(lane), to_light.get(lane), 1.0)
-            });
-            for lane in lanes(!lit_mask) {
-                shadow_rays[lane] = Ray::INACTIVE;
-            }
-            counts.shadow += u64::from(lit_mask.count_ones());
-            let blocked = self.intersector.occluded8(&shadow_rays, lit_mask);
-            if let Some(observer) = observer.as_deref_mut() {
-                let ends = std::array::from_fn(|lane| shadow_rays[lane].tmax);
-                let kind = RayKind::Shadow {
-                    light: light_index,
-                    blocked,
+            let (count, reach) = if light.is_area() {
+                (scene.light_samples, area::AREA_SHADOW_REACH)
+            } else {
+                (1, 1.0)
+            };
+            let share = 1.0 / count as f32;
+            for index in 0..count {
+                let mut target = Vec3Lanes::default();
+                let mut weight: Lanes = [0.0; PACKET_WIDTH];
+                let mut mask = 0;
+                for lane in lanes(hit_mask) {
+                    let point = lanes_hit.point.get(lane);
+                    let uv = area::stratum_position(point, light_index, index, count);
+                    if let Some((at, w)) = area::sample_toward(light, point, uv) {
+                        target.set(lane, at);
+                        weight[lane] = w * share;
+                        mask |= 1 << lane;
+                    }
+                }
+                if mask == 0 {
+                    continue;
+                }
+                let shade = LightSample {
+                    hit_mask: mask,
+                    ..shade
                 };
-                observer.traced(kind, &shadow_rays, lit_mask, &ends);
-            }
-            let shaded = lit_mask & !blocked;
-            if shaded == 0 {
-                continue;
-            }
-            let (n_dot_l, r_dot_v) = h.cosines(&lit_from);
-            // Below the cutoff the highlight is under 1e-5: skip the powf.
-            let mut specular = Vec3Lanes::default();
-            for lane in lanes(shaded & lanes_where(|lane| r_dot_v[lane] > h.cutoff[lane])) {
-                let material = h.material[lane] as usize;
-                specular.set(
-                    lane,
-                    scene.materials[material].specular
-                        * specular_texels[lane]
-                        * phong(
-                            r_dot_v[lane],
-                            scene.materials[material].shininess,
-                            self.whole_exponents[material],
-                        ),
+                self.add_light_sample(
+                    lanes_hit,
+                    &shade,
+                    (&target, reach),
+                    Some(&weight),
+                    colors,
+                    counts,
+                    reborrow(&mut observer),
                 );
             }
-            add_light(
-                colors,
-                light.power,
-                &h.albedo,
-                &n_dot_l,
-                &specular,
-                &lane_flags(shaded),
+        }
+    }
+
+    /// Adds one light sample's diffuse and Phong terms (each lane's power
+    /// times its `weight`, or the power itself) on the lanes it reaches
+    /// from `target`, casting one packet of shadow rays toward it, each
+    /// looking for blockers up to `reach` of the way.
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    fn add_light_sample(
+        &self,
+        h: &HitLanes,
+        sample: &LightSample,
+        (target, reach): (&Vec3Lanes, f32),
+        weight: Option<&Lanes>,
+        colors: &mut Vec3Lanes,
+        counts: &mut RayCounts,
+        observer: Option<&mut dyn RayObserver>,
+    ) {
+        let scene = self.scene;
+        let (facing, lit_from, to_light) = h.toward(target);
+        // A light behind the surface cannot light it: no ray needed.
+        let lit_mask = sample.hit_mask & lanes_where(|lane| facing[lane] > 0.0);
+        if lit_mask == 0 {
+            return;
+        }
+        // Nearly every lane is lit: filling all of them and resetting
+        // the few others beats picking lanes out one by one.
+        let mut shadow_rays: RayPacket = std::array::from_fn(|lane| {
+            Ray::segment(h.shadow_point.get(lane), to_light.get(lane), reach)
+        });
+        for lane in lanes(!lit_mask) {
+            shadow_rays[lane] = Ray::INACTIVE;
+        }
+        counts.shadow += u64::from(lit_mask.count_ones());
+        let blocked = self.intersector.occluded8(&shadow_rays, lit_mask);
+        if let Some(observer) = observer {
+            let ends = std::array::from_fn(|lane| shadow_rays[lane].tmax);
+            let kind = RayKind::Shadow {
+                light: sample.light,
+                blocked,
+            };
+            observer.traced(kind, &shadow_rays, lit_mask, &ends);
+        }
+        let shaded = lit_mask & !blocked;
+        if shaded == 0 {
+            return;
+        }
+        let (mut n_dot_l, r_dot_v) = h.cosines(&lit_from);
+        // Below the cutoff the highlight is under 1e-5: skip the powf.
+        let mut specular = Vec3Lanes::default();
+        for lane in lanes(shaded & lanes_where(|lane| r_dot_v[lane] > h.cutoff[lane])) {
+            let material = h.material[lane] as usize;
+            specular.set(
+                lane,
+                scene.materials[material].specular
+                    * sample.specular_texels[lane]
+                    * phong(
+                        r_dot_v[lane],
+                        scene.materials[material].shininess,
+                        self.whole_exponents[material],
+                    ),
             );
         }
+        if let Some(weight) = weight {
+            for lane in 0..PACKET_WIDTH {
+                n_dot_l[lane] *= weight[lane];
+                specular.set(lane, specular.get(lane) * weight[lane]);
+            }
+        }
+        add_light(
+            colors,
+            sample.power,
+            &h.albedo,
+            &n_dot_l,
+            &specular,
+            &lane_flags(shaded),
+        );
     }
 
     /// Adds to `colors` what the mirror and glass lanes reflect and
@@ -789,6 +876,17 @@ impl<'a> Shader<'a> {
             glass.mix(colors, &mirrored, &refracted);
         }
     }
+}
+
+/// One light as a packet's hits take a sample of it.
+#[derive(Clone, Copy)]
+struct LightSample<'a> {
+    /// The light's number in the scene.
+    light: usize,
+    power: Vec3,
+    /// The lanes the sample may light.
+    hit_mask: LaneMask,
+    specular_texels: &'a [Vec3; PACKET_WIDTH],
 }
 
 /// What the reflected and refracted rays of a packet's hits carry on.

@@ -311,6 +311,7 @@ on_every_backend! {
                 ambient: Vec3::ZERO,
                 max_depth: 0,
                 samples: retrace::sampling::PixelSamples::ONE,
+                light_samples: retrace::scene::DEFAULT_LIGHT_SAMPLES,
                 warnings: Vec::new(),
                 animation: None,
                 viewports: Vec::new(),

@@ -7,6 +7,7 @@ mod common;
 
 mod animate;
 mod antialiasing;
+mod area_lights;
 mod cli;
 mod cli_limits;
 mod cli_messages;

@@ -259,8 +259,8 @@ fn bad_animation_input_names_file_line_and_field() {
 }
 
 /// A random small animation: a few spheres and quads near the paper
-/// scene's centre, some moving (keys or bounces), maybe a moving light,
-/// maybe a panning camera.
+/// scene's centre, some moving (keys or bounces), maybe an area light,
+/// maybe moving lights, maybe a panning camera.
 fn random_animation() -> impl Strategy<Value = String> {
     let object = (
         prop::bool::ANY,
@@ -283,9 +283,16 @@ fn random_animation() -> impl Strategy<Value = String> {
         prop::bool::ANY,
         -30.0f64..30.0,
         -12.0f64..0.0,
+        0u8..3,
     )
-        .prop_map(|(objects, light_moves, yaw, pitch)| {
-            let mut text = String::new();
+        .prop_map(|(objects, light_moves, yaw, pitch, area_light)| {
+            // Maybe an area light (light 2): soft shadows, four shadow rays
+            // a sample.
+            let mut text = match area_light {
+                0 => String::new(),
+                1 => "[[light]]\nshape = \"rectangle\"\nposition = [1.0, 7.0, 4.0]\nsize = [3.0, 2.0]\nnormal = [0.0, -1.0, 0.2]\nintensity = 30.0\n".to_string(),
+                _ => "[[light]]\nshape = \"sphere\"\nposition = [-3.0, 5.0, 6.0]\nradius = 0.8\nintensity = 20.0\n".to_string(),
+            };
             let mut timeline = String::from("[animation]\nframes = 5\n");
             for (i, ((sphere, x, y, z, size), (kind, dx, dy, dz, turn, period))) in
                 objects.into_iter().enumerate()
@@ -321,6 +328,9 @@ fn random_animation() -> impl Strategy<Value = String> {
             }
             if light_moves {
                 timeline += "[[animation.light]]\nlight = 1\nframe = 1\n[[animation.light]]\nlight = 1\nframe = 3\nposition = [4.0, 9.0, 6.0]\n";
+                if area_light > 0 {
+                    timeline += "[[animation.light]]\nlight = 2\nframe = 2\n[[animation.light]]\nlight = 2\nframe = 4\nposition = [0.0, 6.0, 5.0]\n";
+                }
             }
             timeline += &format!(
                 "[[animation.camera]]\nframe = 0\nyaw = {yaw}\npitch = {pitch}\n[[animation.camera]]\nframe = 4\nyaw = {}\npitch = {pitch}\n",

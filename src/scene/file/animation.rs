@@ -378,7 +378,11 @@ mod tests {
         .unwrap();
         let track = &scene.animation.as_ref().unwrap().lights[0];
         for frame in 0..5 {
-            assert_eq!(track.light_at(frame), scene.lights[0], "frame {frame}");
+            assert_eq!(
+                track.light_at(frame, scene.lights[0].shape),
+                scene.lights[0],
+                "frame {frame}"
+            );
         }
     }
 }

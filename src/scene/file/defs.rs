@@ -156,6 +156,9 @@ pub(super) struct RenderDef {
     pub(super) ambient: [f32; 3],
     #[serde(default = "default_spp")]
     pub(super) spp: u32,
+    /// Shadow rays to each area light a pixel sample casts.
+    #[serde(default = "default_light_samples")]
+    pub(super) light_samples: u32,
 }
 
 impl Default for RenderDef {
@@ -167,12 +170,16 @@ impl Default for RenderDef {
             background: [0.0; 3],
             ambient: default_ambient(),
             spp: default_spp(),
+            light_samples: default_light_samples(),
         }
     }
 }
 
 fn default_spp() -> u32 {
     1
+}
+fn default_light_samples() -> u32 {
+    crate::scene::DEFAULT_LIGHT_SAMPLES
 }
 fn default_width() -> u32 {
     640
@@ -209,11 +216,41 @@ fn default_projection() -> Projection {
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 pub(super) struct LightDef {
+    /// A point light's position; an area light's centre.
     pub(super) position: [f32; 3],
     #[serde(default = "white")]
     pub(super) color: [f32; 3],
     #[serde(default = "one")]
     pub(super) intensity: f32,
+    #[serde(default)]
+    pub(super) shape: LightShapeName,
+    /// Point lights only.
+    pub(super) falloff: Option<FalloffName>,
+    /// Sphere and disc lights.
+    pub(super) radius: Option<f32>,
+    /// Rectangle lights: width and height.
+    pub(super) size: Option<[f32; 2]>,
+    /// Rectangle and disc lights: the side they shine to.
+    pub(super) normal: Option<[f32; 3]>,
+    /// Rectangle lights: the direction their width runs along.
+    pub(super) width_axis: Option<[f32; 3]>,
+}
+
+#[derive(Deserialize, Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[serde(rename_all = "lowercase")]
+pub(super) enum LightShapeName {
+    #[default]
+    Point,
+    Sphere,
+    Rectangle,
+    Disc,
+}
+
+#[derive(Deserialize, Clone, Copy, Debug, PartialEq, Eq)]
+#[serde(rename_all = "kebab-case")]
+pub(super) enum FalloffName {
+    None,
+    InverseSquare,
 }
 
 fn white() -> [f32; 3] {

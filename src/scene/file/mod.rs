@@ -29,7 +29,7 @@ use std::path::Path;
 use glam::{Affine3A, Vec3};
 use toml::Spanned;
 
-use super::{Material, Scene, SceneError};
+use super::{Material, Scene, SceneError, MAX_LIGHT_SAMPLES};
 use crate::camera::Projection;
 use crate::geometry::Placement;
 use crate::sampling::PixelSamples;
@@ -275,6 +275,15 @@ pub(crate) fn parse_scene(
         Some(samples) => samples,
         None => PixelSamples::new(render.spp).map_err(|m| render_error("render.spp", m))?,
     };
+    if !(1..=MAX_LIGHT_SAMPLES).contains(&render.light_samples) {
+        return Err(render_error(
+            "render.light_samples",
+            format!(
+                "must be within 1..={MAX_LIGHT_SAMPLES}, got {}",
+                render.light_samples
+            ),
+        ));
+    }
     let camera = convert_camera(&ctx, &file.camera, render, render_span, overrides)?;
 
     let mut materials = Vec::with_capacity(file.material.len() + 1);
@@ -329,6 +338,7 @@ pub(crate) fn parse_scene(
         ambient,
         max_depth: render.max_depth,
         samples,
+        light_samples: render.light_samples,
         warnings,
         animation,
     })
