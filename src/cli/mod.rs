@@ -52,6 +52,11 @@ struct SceneArgs {
     /// positions, box-filtered) [default: the scene's `[render] spp`, or 1].
     #[arg(long)]
     spp: Option<u32>,
+    /// Shadow rays each pixel sample casts to each area light, 1 to 256
+    /// (stratified over the light; point lights take one)
+    /// [default: the scene's `[render] light_samples`, or 4].
+    #[arg(long, value_name = "N")]
+    light_samples: Option<u32>,
     /// The most memory textures may take, in MB (texels and mip levels at
     /// 4 bytes a texel) [default: 1024].
     #[arg(long, value_name = "MB")]
@@ -77,6 +82,7 @@ impl SceneArgs {
             projection: self.camera,
             fov: self.fov,
             spp: self.spp,
+            light_samples: self.light_samples,
             texture_memory_mb: self.texture_memory,
             texture_filter: self.texture_filter,
             up: self.up,

@@ -73,6 +73,10 @@ pub struct Material {
     pub shininess: f32,
     /// Share of the mirror reflection added to the colour (0 = none).
     pub reflectivity: f32,
+    /// How rough the reflecting surface is, 0 to 1: 0 a perfect mirror;
+    /// above, each reflection ray leaves through a lobe about the mirror
+    /// direction, wider as it grows (glossy reflection).
+    pub roughness: f32,
     /// An image the diffuse colour is multiplied by, on meshes with
     /// texture coordinates (MTL `map_Kd`, a scene's `texture`).
     pub diffuse_map: Option<TextureRef>,
@@ -110,6 +114,7 @@ impl Material {
             specular: Vec3::ZERO,
             shininess: 1.0,
             reflectivity: 0.0,
+            roughness: 0.0,
             diffuse_map: None,
             specular_map: None,
             glass: None,

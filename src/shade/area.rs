@@ -20,8 +20,8 @@ use std::f32::consts::{FRAC_PI_2, FRAC_PI_4, TAU};
 
 use glam::Vec3;
 
+use super::draws::{point_draw, ONE_BELOW};
 use crate::geometry::{plane_axes, Falloff, Light, LightShape};
-use crate::sampling::{hash, unit};
 
 /// The seed light samples are drawn from.
 const SEED: u64 = 0x6c69_6768_7473_2121;
@@ -125,17 +125,7 @@ fn concentric_disc(u: f32, v: f32) -> (f32, f32) {
 /// Where in the light's parameter square sample `index` of `count` from
 /// `point` lies, for light number `light` (see the module's promises).
 pub(super) fn stratum_position(point: Vec3, light: usize, index: u32, count: u32) -> (f32, f32) {
-    let draw = |axis: u64| {
-        unit(hash(&[
-            SEED,
-            u64::from(point.x.to_bits()),
-            u64::from(point.y.to_bits()),
-            u64::from(point.z.to_bits()),
-            light as u64,
-            u64::from(index),
-            axis,
-        ])) as f32
-    };
+    let draw = |axis: u64| point_draw(point, SEED, &[light as u64, u64::from(index), axis]);
     let side = (count as f32).sqrt().round() as u32;
     let (u, v) = if side * side == count {
         (
@@ -145,12 +135,9 @@ pub(super) fn stratum_position(point: Vec3, light: usize, index: u32, count: u32
     } else {
         ((index as f32 + draw(0)) / count as f32, draw(1))
     };
-    // f32 rounding can carry a draw just below 1 onto 1.
+    // f32 rounding can carry a stratum's last draw onto its end.
     (u.min(ONE_BELOW), v.min(ONE_BELOW))
 }
-
-/// The largest f32 below 1.
-const ONE_BELOW: f32 = 1.0 - f32::EPSILON / 2.0;
 
 #[cfg(test)]
 mod tests {

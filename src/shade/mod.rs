@@ -8,7 +8,9 @@
 
 mod area;
 mod cones;
+mod draws;
 mod first_hit;
+mod glossy;
 mod lanes;
 
 use glam::{Affine3A, Mat3A, Vec3};
@@ -398,6 +400,9 @@ pub struct Shader<'a> {
     /// Whether any object is transparent: scenes without glass skip all
     /// of refraction's work.
     any_glass: bool,
+    /// Whether any object reflects glossily: scenes without rough mirrors
+    /// keep every reflection on the mirror direction, untouched.
+    any_glossy: bool,
 }
 
 /// `x` to the power `n` by repeated squaring, the same multiplications in
@@ -463,6 +468,10 @@ impl<'a> Shader<'a> {
                 .objects
                 .iter()
                 .any(|o| scene.materials[o.material].glass.is_some()),
+            any_glossy: scene
+                .objects
+                .iter()
+                .any(|o| scene.materials[o.material].roughness > 0.0),
         }
     }
 
@@ -828,7 +837,19 @@ impl<'a> Shader<'a> {
         let reflect_mask = mirror_mask | glass.as_ref().map_or(0, |glass| glass.reflecting);
         let mut mirrored = Vec3Lanes::default();
         if reflect_mask != 0 {
-            let directions = h.mirror_directions();
+            let mut directions = h.mirror_directions();
+            if self.any_glossy {
+                for lane in lanes(reflect_mask) {
+                    let roughness = self.scene.materials[h.material[lane] as usize].roughness;
+                    if roughness > 0.0 {
+                        let mirror = directions.get(lane);
+                        let facing = h.geometric_normal.get(lane);
+                        let point = h.point.get(lane);
+                        let glossy = glossy::glossy_direction(mirror, facing, point, roughness);
+                        directions.set(lane, glossy);
+                    }
+                }
+            }
             // As for shadow rays: all lanes, then reset the others.
             let mut reflected: RayPacket =
                 std::array::from_fn(|lane| Ray::new(h.spawn_point.get(lane), directions.get(lane)));

@@ -748,6 +748,46 @@ fn samples_per_pixel_come_from_the_scene_or_the_flag() {
 }
 
 #[test]
+fn light_samples_come_from_the_scene_or_the_flag() {
+    let lit = "[[object]]\ntype = \"sphere\"\ncenter = [0, 0.5, 0]\nradius = 0.8\n\
+               [[object]]\ntype = \"plane\"\npoint = [0, -0.3, 0]\nnormal = [0, 1, 0]\n\
+               [[light]]\nshape = \"sphere\"\nposition = [2, 4, 3]\nradius = 1.5\nintensity = 20\n";
+    let case = Case::new(&[
+        ("default.toml", &format!("{CAMERA}{lit}")),
+        (
+            "one.toml",
+            &format!("{CAMERA}[render]\nlight_samples = 1\n{lit}"),
+        ),
+        (
+            "zero.toml",
+            &format!("{CAMERA}[render]\nlight_samples = 0\n{lit}"),
+        ),
+    ]);
+    let image = |scene: &str, extra: &[&str]| {
+        let out = case.render(scene, extra);
+        case.assert_renders(&out)
+    };
+    let (four, one) = (image("default.toml", &[]), image("one.toml", &[]));
+    // The sphere's soft shadow: one light sample leaves other noise there.
+    assert_ne!(four, one);
+    assert_eq!(image("default.toml", &["--light-samples", "1"]), one);
+    assert_eq!(image("one.toml", &["--light-samples", "4"]), four);
+
+    std::fs::remove_file(case.path("out.png")).unwrap();
+    let out = case.render("zero.toml", &[]);
+    case.assert_fails(
+        &out,
+        &[
+            "zero.toml:6",
+            "render.light_samples",
+            "within 1..=256, got 0",
+        ],
+    );
+    let out = case.render("one.toml", &["--light-samples", "257"]);
+    case.assert_fails(&out, &["--light-samples 257", "within 1..=256"]);
+}
+
+#[test]
 fn the_reference_is_256_samples_a_pixel() {
     let dir = tempfile::tempdir().unwrap();
     let args = ["render", "--width", "16", "--height", "12", "-o", "r.png"];

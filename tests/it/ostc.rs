@@ -259,8 +259,8 @@ fn bad_animation_input_names_file_line_and_field() {
 }
 
 /// A random small animation: a few spheres and quads near the paper
-/// scene's centre, some moving (keys or bounces), maybe an area light,
-/// maybe moving lights, maybe a panning camera.
+/// scene's centre, some moving (keys or bounces), maybe an area light
+/// (and glossy spheres), maybe moving lights, maybe a panning camera.
 fn random_animation() -> impl Strategy<Value = String> {
     let object = (
         prop::bool::ANY,
@@ -293,6 +293,9 @@ fn random_animation() -> impl Strategy<Value = String> {
                 1 => "[[light]]\nshape = \"rectangle\"\nposition = [1.0, 7.0, 4.0]\nsize = [3.0, 2.0]\nnormal = [0.0, -1.0, 0.2]\nintensity = 30.0\n".to_string(),
                 _ => "[[light]]\nshape = \"sphere\"\nposition = [-3.0, 5.0, 6.0]\nradius = 0.8\nintensity = 20.0\n".to_string(),
             };
+            // With the rectangle light the spheres are glossy mirrors.
+            text += "[material.brushed]\ndiffuse = [0.2, 0.2, 0.25]\nreflectivity = 0.6\nroughness = 0.3\n";
+            let sphere_material = if area_light == 1 { "brushed" } else { "red" };
             let mut timeline = String::from("[animation]\nframes = 5\n");
             for (i, ((sphere, x, y, z, size), (kind, dx, dy, dz, turn, period))) in
                 objects.into_iter().enumerate()
@@ -300,7 +303,7 @@ fn random_animation() -> impl Strategy<Value = String> {
                 let name = format!("thing{i}");
                 if sphere {
                     text += &format!(
-                        "[[object]]\ntype = \"sphere\"\nname = \"{name}\"\ncenter = [{x}, {y}, {z}]\nradius = {size}\nmaterial = \"red\"\n"
+                        "[[object]]\ntype = \"sphere\"\nname = \"{name}\"\ncenter = [{x}, {y}, {z}]\nradius = {size}\nmaterial = \"{sphere_material}\"\n"
                     );
                 } else {
                     text += &format!(

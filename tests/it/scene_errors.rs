@@ -103,6 +103,16 @@ fn out_of_range_values_name_their_own_line_not_their_tables() {
             "material.red.shininess: must be >= 0, got -1",
         ),
         (
+            17,
+            "roughness = 1.5",
+            "material.red.roughness: must be within 0..1, got 1.5",
+        ),
+        (
+            13,
+            "falloff = \"linear\"",
+            "light[0].falloff: unknown variant `linear`, expected `none` or `inverse-square`",
+        ),
+        (
             22,
             "radius = -1",
             "object[0].radius: must be above 0, got -1",

@@ -280,6 +280,7 @@ mod tests {
         projection: None,
         fov: None,
         spp: None,
+        light_samples: None,
         texture_memory_mb: None,
         texture_filter: None,
         up: None,

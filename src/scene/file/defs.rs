@@ -282,6 +282,9 @@ pub(super) struct MaterialDef {
     pub(super) shininess: f32,
     #[serde(default)]
     pub(super) reflectivity: f32,
+    /// Glossy reflection: 0 a perfect mirror, up to 1.
+    #[serde(default)]
+    pub(super) roughness: f32,
     /// Glass: share of the colour that is what lies behind (0 = opaque).
     #[serde(default)]
     pub(super) transparency: f32,

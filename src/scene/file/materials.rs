@@ -1,8 +1,9 @@
 //! The `[material.NAME]` tables as [`Material`]s.
 //!
 //! Promises: every colour is finite and not negative, a checker's scale
-//! above 0, the shininess finite and not negative, the reflectivity within
-//! 0..1; a transparent material's values as [`Glass`] promises.
+//! above 0, the shininess finite and not negative, the reflectivity and
+//! the roughness within 0..1; a transparent material's values as
+//! [`Glass`] promises.
 
 use std::path::Path;
 
@@ -112,6 +113,12 @@ pub(super) fn convert_material(
             m.reflectivity
         )));
     }
+    if !(0.0..=1.0).contains(&m.roughness) {
+        return Err(err("roughness")(format!(
+            "must be within 0..1, got {}",
+            m.roughness
+        )));
+    }
     let diffuse_map = match &m.texture {
         None => None,
         Some(written) => texture(ctx, name, "texture", written)?,
@@ -137,6 +144,7 @@ pub(super) fn convert_material(
         specular_map,
         shininess: m.shininess,
         reflectivity: m.reflectivity,
+        roughness: m.roughness,
         glass,
     })
 }

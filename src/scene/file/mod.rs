@@ -56,6 +56,9 @@ pub struct SceneOverrides {
     pub fov: Option<f64>,
     /// Samples per pixel (`--spp`).
     pub spp: Option<u32>,
+    /// Shadow rays a pixel sample casts to an area light
+    /// (`--light-samples`).
+    pub light_samples: Option<u32>,
     /// The most memory textures may take, in MB (`--texture-memory`).
     pub texture_memory_mb: Option<u64>,
     /// How textures are filtered (`--texture-filter`).
@@ -91,6 +94,16 @@ impl SceneOverrides {
         self.spp
             .map(|spp| {
                 PixelSamples::new(spp).map_err(|m| SceneError::of_flags(format!("--spp {spp}"), m))
+            })
+            .transpose()
+    }
+
+    /// The light samples `--light-samples` asks for, if it does.
+    pub(crate) fn light_samples(&self) -> Result<Option<u32>, SceneError> {
+        self.light_samples
+            .map(|count| {
+                check_light_samples(count)
+                    .map_err(|m| SceneError::of_flags(format!("--light-samples {count}"), m))
             })
             .transpose()
     }
@@ -275,15 +288,11 @@ pub(crate) fn parse_scene(
         Some(samples) => samples,
         None => PixelSamples::new(render.spp).map_err(|m| render_error("render.spp", m))?,
     };
-    if !(1..=MAX_LIGHT_SAMPLES).contains(&render.light_samples) {
-        return Err(render_error(
-            "render.light_samples",
-            format!(
-                "must be within 1..={MAX_LIGHT_SAMPLES}, got {}",
-                render.light_samples
-            ),
-        ));
-    }
+    let light_samples = match overrides.light_samples()? {
+        Some(count) => count,
+        None => check_light_samples(render.light_samples)
+            .map_err(|m| render_error("render.light_samples", m))?,
+    };
     let camera = convert_camera(&ctx, &file.camera, render, render_span, overrides)?;
 
     let mut materials = Vec::with_capacity(file.material.len() + 1);
@@ -338,10 +347,21 @@ pub(crate) fn parse_scene(
         ambient,
         max_depth: render.max_depth,
         samples,
-        light_samples: render.light_samples,
+        light_samples,
         warnings,
         animation,
     })
+}
+
+/// A count of light samples within 1..=[`MAX_LIGHT_SAMPLES`].
+fn check_light_samples(count: u32) -> Result<u32, String> {
+    if (1..=MAX_LIGHT_SAMPLES).contains(&count) {
+        Ok(count)
+    } else {
+        Err(format!(
+            "must be within 1..={MAX_LIGHT_SAMPLES}, got {count}"
+        ))
+    }
 }
 
 /// What the tests of every table share.

@@ -389,7 +389,7 @@ fn checked_mtl_text(
                 continue;
             }
             "Ka" | "Kd" | "Ks" | "Ke" => numbers(3),
-            "Ns" => numbers(1),
+            "Ns" | "Pr" => numbers(1),
             "Ni" | "d" | "Tr" | "Tf" => {
                 numbers(1).or_else(|| super::glass::mtl_value_problem(keyword, &values))
             }
@@ -570,10 +570,23 @@ fn material_from_mtl(
         } else {
             0.0
         },
+        roughness: mtl_roughness(m),
         diffuse_map,
         specular_map: specular_map.filter(|_| highlight),
         glass: super::glass::glass_from_mtl(m),
     }
+}
+
+/// The PBR extension's `Pr` (roughness, 0 to 1), where the MTL gives it;
+/// else 0: `Ns` already shapes the Phong highlight, and a reflective
+/// `illum` with `Ks` is how exporters write a mirror, so without `Pr` a
+/// reflection stays mirror-sharp.
+fn mtl_roughness(m: &tobj::Material) -> f32 {
+    m.unknown_param
+        .get("Pr")
+        .and_then(|v| v.split_whitespace().next()?.parse::<f32>().ok())
+        .filter(|r| r.is_finite())
+        .map_or(0.0, |r| r.clamp(0.0, 1.0))
 }
 
 /// Loads an OBJ (and its MTL, when present) as triangle meshes, one part per
@@ -913,7 +926,9 @@ pub(super) fn scene_around_obj(
         ambient: Vec3::splat(0.12),
         max_depth: 3,
         samples: overrides.samples()?.unwrap_or_default(),
-        light_samples: crate::scene::DEFAULT_LIGHT_SAMPLES,
+        light_samples: overrides
+            .light_samples()?
+            .unwrap_or(crate::scene::DEFAULT_LIGHT_SAMPLES),
         warnings,
         animation: None,
         viewports: Vec::new(),
