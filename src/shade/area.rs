@@ -2,10 +2,10 @@
 //! light's one ray, or an area light's samples over its surface.
 //!
 //! Promises:
-//! - A sample's position on the light is a pure function of the shaded
-//!   point (its bits), the light's number, the sample's index and a fixed
-//!   seed: never of the thread, the tile or the frame. A reused pixel
-//!   sample hits the same point as a fresh trace of it, so its light
+//! - A sample's position on the light is a pure function of the path's
+//!   key (see [`super::draws`]), the light's number, the sample's index
+//!   and a fixed seed: never of the thread, the tile or the frame. A
+//!   reused pixel sample draws as a fresh trace of it, so its light
 //!   samples, and its colour, are the same bit for bit.
 //! - Stratified: the `count` samples a point takes of a light fall one in
 //!   each cell of an n x n grid over the light's parameter square when
@@ -20,7 +20,7 @@ use std::f32::consts::{FRAC_PI_2, FRAC_PI_4, TAU};
 
 use glam::Vec3;
 
-use super::draws::{point_draw, ONE_BELOW};
+use super::draws::{key_draw, ONE_BELOW};
 use crate::geometry::{plane_axes, Falloff, Light, LightShape};
 
 /// The seed light samples are drawn from.
@@ -122,10 +122,11 @@ fn concentric_disc(u: f32, v: f32) -> (f32, f32) {
     (r * cos, r * sin)
 }
 
-/// Where in the light's parameter square sample `index` of `count` from
-/// `point` lies, for light number `light` (see the module's promises).
-pub(super) fn stratum_position(point: Vec3, light: usize, index: u32, count: u32) -> (f32, f32) {
-    let draw = |axis: u64| point_draw(point, SEED, &[light as u64, u64::from(index), axis]);
+/// Where in the light's parameter square sample `index` of `count` of
+/// the path keyed `path` lies, for light number `light` (see the
+/// module's promises).
+pub(super) fn stratum_position(path: u64, light: usize, index: u32, count: u32) -> (f32, f32) {
+    let draw = |axis: u64| key_draw(path, SEED, &[light as u64, u64::from(index), axis]);
     let side = (count as f32).sqrt().round() as u32;
     let (u, v) = if side * side == count {
         (
@@ -156,7 +157,7 @@ mod tests {
         let count = n * n;
         (0..count)
             .map(|k| {
-                let uv = stratum_position(point, 0, k, count);
+                let uv = stratum_position(point.x.to_bits().into(), 0, k, count);
                 sample_toward(light, point, uv).map_or(0.0, |(_, w)| w)
             })
             .sum::<f32>()
@@ -198,7 +199,7 @@ mod tests {
         let from = Vec3::new(2.0, -1.0, 3.0);
         for k in 0..64 {
             let (target, weight) =
-                sample_toward(&light, from, stratum_position(from, 2, k, 64)).unwrap();
+                sample_toward(&light, from, stratum_position(7, 2, k, 64)).unwrap();
             let off = ((target - light.position).length() - 1.5).abs();
             assert!(
                 off < 1e-5 && weight > 0.0,
@@ -212,7 +213,7 @@ mod tests {
             normal: Vec3::NEG_Y,
         });
         for k in 0..64 {
-            let (target, _) = sample_toward(&disc, Vec3::ZERO, stratum_position(from, 0, k, 64))
+            let (target, _) = sample_toward(&disc, Vec3::ZERO, stratum_position(7, 0, k, 64))
                 .expect("the disc faces the origin");
             assert_eq!(target.y, 4.0);
             assert!(target.x.hypot(target.z) <= 2.0 + 1e-5, "{target}");
@@ -243,8 +244,8 @@ mod tests {
     }
 
     #[test]
-    fn strata_hold_one_sample_each_and_depend_on_the_point_alone() {
-        let point = Vec3::new(1.25, 0.0, -3.5);
+    fn strata_hold_one_sample_each_and_depend_on_the_path_alone() {
+        let point = 0x1234_5678_9abc_u64;
         let mut cells = [0u32; 16];
         for k in 0..16 {
             let (u, v) = stratum_position(point, 1, k, 16);
@@ -259,7 +260,7 @@ mod tests {
         }
         assert_eq!(slices, [1; 5]);
         // Another point, or another light, draws elsewhere.
-        let other_point = stratum_position(point + Vec3::X * 1e-3, 1, 0, 16);
+        let other_point = stratum_position(point + 1, 1, 0, 16);
         let other_light = stratum_position(point, 0, 0, 16);
         assert_ne!(other_point, stratum_position(point, 1, 0, 16));
         assert_ne!(other_light, stratum_position(point, 1, 0, 16));

@@ -1,9 +1,9 @@
 //! Glossy reflection: where a rough mirror's reflection rays go.
 //!
 //! Promises:
-//! - A glossy direction is a pure function of the shaded point's bits,
-//!   the mirror direction, the surface's roughness and a fixed seed (see
-//!   [`super::draws`]): a reused sample reflects as a fresh trace of it.
+//! - A glossy direction is a pure function of the path's key (see
+//!   [`super::draws`]), the mirror direction, the surface's roughness and
+//!   a fixed seed: a reused sample reflects as a fresh trace of it.
 //! - It lies in a Phong lobe about the mirror direction whose exponent is
 //!   `2 / roughness^2 - 2` (Walter et al.'s match of a Beckmann surface of
 //!   that roughness; a cosine lobe at 1), so its mean over many samples
@@ -15,7 +15,7 @@ use std::f32::consts::TAU;
 
 use glam::Vec3;
 
-use super::draws::point_draw;
+use super::draws::key_draw;
 use crate::geometry::plane_axes;
 
 /// The seed glossy directions are drawn from.
@@ -26,11 +26,11 @@ fn lobe_exponent(roughness: f32) -> f32 {
     (2.0 / (roughness * roughness) - 2.0).max(0.0)
 }
 
-/// The direction a reflection ray from `point` leaves in, on a surface of
+/// The direction the reflection ray of the path keyed `path` leaves in, on a surface of
 /// `roughness` (above 0) whose perfect mirror would send it along unit
 /// `mirror`; `facing` is the unit geometric normal on the incoming side.
-pub(super) fn glossy_direction(mirror: Vec3, facing: Vec3, point: Vec3, roughness: f32) -> Vec3 {
-    let (u, v) = (point_draw(point, SEED, &[0]), point_draw(point, SEED, &[1]));
+pub(super) fn glossy_direction(mirror: Vec3, facing: Vec3, path: u64, roughness: f32) -> Vec3 {
+    let (u, v) = (key_draw(path, SEED, &[0]), key_draw(path, SEED, &[1]));
     let cos_theta = u.powf(1.0 / (lobe_exponent(roughness) + 1.0));
     let sin_theta = (1.0 - cos_theta * cos_theta).max(0.0).sqrt();
     let (sin_phi, cos_phi) = (TAU * v).sin_cos();
@@ -50,10 +50,7 @@ mod tests {
     /// Glossy directions from `n` points near the origin.
     fn directions(mirror: Vec3, facing: Vec3, roughness: f32, n: usize) -> Vec<Vec3> {
         (0..n)
-            .map(|i| {
-                let point = Vec3::new(i as f32 * 1e-3, 0.0, (i % 13) as f32 * 1e-3);
-                glossy_direction(mirror, facing, point, roughness)
-            })
+            .map(|i| glossy_direction(mirror, facing, i as u64, roughness))
             .collect()
     }
 
@@ -79,7 +76,7 @@ mod tests {
     }
 
     #[test]
-    fn directions_stay_above_the_surface_and_depend_on_the_point_alone() {
+    fn directions_stay_above_the_surface_and_depend_on_the_path_alone() {
         // A grazing mirror direction: the lobe reaches below the surface.
         let mirror = Vec3::new(0.999, 0.0447, 0.0).normalize();
         for (i, d) in directions(mirror, Vec3::Y, 1.0, 500)
@@ -88,12 +85,8 @@ mod tests {
         {
             assert!(d.y >= 0.0 && (d.length() - 1.0).abs() < 1e-5, "{i}: {d}");
         }
-        let point = Vec3::new(1.0, 2.0, 3.0);
-        let a = glossy_direction(mirror, Vec3::Y, point, 0.4);
-        assert_eq!(a, glossy_direction(mirror, Vec3::Y, point, 0.4));
-        assert_ne!(
-            a,
-            glossy_direction(mirror, Vec3::Y, point + Vec3::X * 1e-4, 0.4)
-        );
+        let a = glossy_direction(mirror, Vec3::Y, 99, 0.4);
+        assert_eq!(a, glossy_direction(mirror, Vec3::Y, 99, 0.4));
+        assert_ne!(a, glossy_direction(mirror, Vec3::Y, 100, 0.4));
     }
 }

@@ -185,6 +185,9 @@ pub(super) struct HitLanes {
     /// transparent, and whether the ray arrived on the front face.
     pub(super) glass: [Option<Glass>; PACKET_WIDTH],
     pub(super) front_face: [bool; PACKET_WIDTH],
+    /// Scenes with area lights or glossy surfaces only: each lane's path
+    /// key, which their samples are drawn from (`super::draws`).
+    pub(super) path: [u64; PACKET_WIDTH],
 }
 
 impl HitLanes {

@@ -403,6 +403,9 @@ pub struct Shader<'a> {
     /// Whether any object reflects glossily: scenes without rough mirrors
     /// keep every reflection on the mirror direction, untouched.
     any_glossy: bool,
+    /// Whether any light or surface draws samples (area lights, glossy
+    /// surfaces): only then are rays' path keys worked out.
+    draws: bool,
 }
 
 /// `x` to the power `n` by repeated squaring, the same multiplications in
@@ -472,6 +475,12 @@ impl<'a> Shader<'a> {
                 .objects
                 .iter()
                 .any(|o| scene.materials[o.material].roughness > 0.0),
+            draws: scene.lights.iter().any(|l| {
+                l.shape
+                    != (LightShape::Point {
+                        falloff: Falloff::None,
+                    })
+            }) || scene.materials.iter().any(|m| m.roughness > 0.0),
         }
     }
 
@@ -500,10 +509,16 @@ impl<'a> Shader<'a> {
         } else {
             RayKind::Reflection
         };
+        let paths = if self.draws {
+            draws::ray_keys(rays, depth)
+        } else {
+            [0; PACKET_WIDTH]
+        };
         let generation = Generation {
             depth,
             kind,
             cones: &cones,
+            paths: &paths,
         };
         self.shade_lanes(rays, mask, generation, counts, observer)
             .vectors()
@@ -520,7 +535,12 @@ impl<'a> Shader<'a> {
         counts: &mut RayCounts,
         mut observer: Option<&mut dyn RayObserver>,
     ) -> Vec3Lanes {
-        let Generation { depth, kind, cones } = generation;
+        let Generation {
+            depth,
+            kind,
+            cones,
+            paths,
+        } = generation;
         let scene = self.scene;
         if mask == 0 {
             return Vec3Lanes::default();
@@ -545,7 +565,10 @@ impl<'a> Shader<'a> {
             return Vec3Lanes::splat(scene.background)
                 .select(&lane_flags(mask), &Vec3Lanes::default());
         }
-        let mut lanes_hit = HitLanes::default();
+        let mut lanes_hit = HitLanes {
+            path: *paths,
+            ..HitLanes::default()
+        };
         // The cones leaving each hit, followed only where textures are.
         let mut next_cones = RayCones::default();
         // Where they are followed: each mirror or glass lane's radius of
@@ -703,7 +726,8 @@ impl<'a> Shader<'a> {
                 let mut mask = 0;
                 for lane in lanes(hit_mask) {
                     let point = lanes_hit.point.get(lane);
-                    let uv = area::stratum_position(point, light_index, index, count);
+                    let path = lanes_hit.path[lane];
+                    let uv = area::stratum_position(path, light_index, index, count);
                     if let Some((at, w)) = area::sample_toward(light, point, uv) {
                         target.set(lane, at);
                         weight[lane] = w * share;
@@ -844,8 +868,8 @@ impl<'a> Shader<'a> {
                     if roughness > 0.0 {
                         let mirror = directions.get(lane);
                         let facing = h.geometric_normal.get(lane);
-                        let point = h.point.get(lane);
-                        let glossy = glossy::glossy_direction(mirror, facing, point, roughness);
+                        let path = h.path[lane];
+                        let glossy = glossy::glossy_direction(mirror, facing, path, roughness);
                         directions.set(lane, glossy);
                     }
                 }
@@ -863,6 +887,7 @@ impl<'a> Shader<'a> {
                     depth: depth + 1,
                     kind: RayKind::Reflection,
                     cones: next_cones,
+                    paths: &child_paths(h, 1),
                 },
                 counts,
                 reborrow(&mut observer),
@@ -890,6 +915,7 @@ impl<'a> Shader<'a> {
                     depth: depth + 1,
                     kind: RayKind::Refraction,
                     cones: &refracted_cones,
+                    paths: &child_paths(h, 2),
                 },
                 counts,
                 observer,
@@ -930,6 +956,14 @@ struct Generation<'c> {
     depth: u32,
     kind: RayKind,
     cones: &'c RayCones,
+    /// Each lane's path key (zeros in scenes that draw no samples).
+    paths: &'c [u64; PACKET_WIDTH],
+}
+
+/// The path keys of the rays a bounce of kind `bounce` (1 reflection, 2
+/// refraction) sends on from `h`'s hits.
+fn child_paths(h: &HitLanes, bounce: u64) -> [u64; PACKET_WIDTH] {
+    std::array::from_fn(|lane| draws::child_key(h.path[lane], bounce))
 }
 
 /// The transparent lanes of a packet's hits, worked out lane by lane (only
