@@ -291,6 +291,16 @@ impl Light {
     pub fn is_area(&self) -> bool {
         !matches!(self.shape, LightShape::Point { .. })
     }
+
+    /// Whether lighting from it draws anything per shaded point: an area
+    /// light's position on it, a falling-off light's weight. Only a plain
+    /// point light (the paper's) needs neither.
+    pub fn draws_samples(&self) -> bool {
+        self.shape
+            != (LightShape::Point {
+                falloff: Falloff::None,
+            })
+    }
 }
 
 /// How a point light's brightness changes with distance.
