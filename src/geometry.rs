@@ -8,7 +8,10 @@ use glam::{Affine3A, Mat3A, Vec2, Vec3};
 
 use crate::ray::{LaneMask, Ray, RayPacket, PACKET_WIDTH};
 
+pub mod cutout;
 pub mod normals;
+
+pub use cutout::{Coverage, CoverageRef, Cutout};
 
 /// How far from the origin a scene may reach, on each axis. Beyond, f32
 /// positions lie more than 6e4 apart, and Embree refuses (aborts on) rays
@@ -168,6 +171,9 @@ pub struct TriangleMesh {
     /// empty for a mesh without them. Finite (the loader refuses others);
     /// any value, since textures wrap.
     pub texcoords: Vec<Vec2>,
+    /// Where the mesh lets rays through (its material's cut-out map); both
+    /// backends skip hits there. `None` for a solid mesh.
+    pub cutout: Option<Cutout>,
 }
 
 impl TriangleMesh {

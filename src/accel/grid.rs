@@ -26,6 +26,8 @@
 //!   from the grid; farther, an f32 position is coarser than that anyway).
 //!   A small per-ray mailbox keeps a primitive spanning several cells from
 //!   being tested again in each.
+//! - A triangle met where its mesh's cut-out lets rays through is no hit,
+//!   for closest hits and occlusion alike ([`crate::geometry::Cutout`]).
 //! - Nesting is one level deep: the world grid, then an object's own grid.
 //!   A moved instance only re-bins the world grid.
 //! - Planes are ignored ([`super::Accelerator`] handles them for every
@@ -46,7 +48,7 @@ use rayon::prelude::*;
 pub use primitives::{intersect_sphere, TriangleHit, WatertightRay};
 
 use super::{placed_sphere, Intersector};
-use crate::geometry::{Aabb, Object, Placement, Shape, Sphere};
+use crate::geometry::{Aabb, Cutout, Object, Placement, Shape, Sphere};
 use crate::ray::{Hit, Ray};
 use crate::voxel::{padded, GridSpec};
 
@@ -204,12 +206,18 @@ struct Prims {
     triangle_ids: Vec<[u32; 2]>,
     spheres: Vec<(Sphere, u32)>,
     nested: Vec<Nested>,
+    /// The cut-outs of the meshes among the triangles, by object: few, so
+    /// looked up by a scan, and only once a triangle is hit.
+    cutouts: Vec<(u32, Cutout)>,
 }
 
 impl Prims {
     fn add_shape(&mut self, object: u32, shape: &Shape) {
         match shape {
             Shape::Mesh(mesh) => {
+                if let Some(cutout) = &mesh.cutout {
+                    self.cutouts.push((object, cutout.clone()));
+                }
                 for (prim, tri) in mesh.triangles.iter().enumerate() {
                     let v = tri.map(|i| mesh.positions[i as usize]);
                     if v.iter().all(|p| p.is_finite()) {
@@ -229,6 +237,19 @@ impl Prims {
 
     fn len(&self) -> usize {
         self.triangles.len() + self.spheres.len() + self.nested.len()
+    }
+
+    /// Whether triangle primitive `p`'s mesh is clear where `hit` met it.
+    #[inline]
+    fn lets_through(&self, p: usize, hit: &TriangleHit) -> bool {
+        if self.cutouts.is_empty() {
+            return false;
+        }
+        let [object, prim] = self.triangle_ids[p];
+        self.cutouts
+            .iter()
+            .find(|(id, _)| *id == object)
+            .is_some_and(|(_, cutout)| cutout.lets_through(prim, hit.u, hit.v))
     }
 
     fn bounds(&self, p: usize) -> Aabb {
@@ -433,10 +454,10 @@ impl Level {
         let nt = self.prims.triangles.len();
         let ns = self.prims.spheres.len();
         if p < nt {
-            if let Some(h) =
-                prepared
-                    .wt
-                    .intersect_triangle(&self.prims.triangles[p], ray.tmin, best.tmax)
+            if let Some(h) = prepared
+                .wt
+                .intersect_triangle(&self.prims.triangles[p], ray.tmin, best.tmax)
+                .filter(|h| !self.prims.lets_through(p, h))
             {
                 let [object, prim] = self.prims.triangle_ids[p];
                 best.tmax = h.t;
@@ -503,7 +524,7 @@ impl Level {
             prepared
                 .wt
                 .intersect_triangle(&self.prims.triangles[p], ray.tmin, ray.tmax)
-                .is_some()
+                .is_some_and(|h| !self.prims.lets_through(p, &h))
         } else if p < nt + ns {
             let (sphere, _) = &self.prims.spheres[p - nt];
             intersect_sphere(sphere, ray.origin, ray.dir, ray.tmin, ray.tmax).is_some()

@@ -252,6 +252,7 @@ mod tests {
             triangles,
             normals: Vec::new(),
             texcoords: Vec::new(),
+            cutout: None,
         }
     }
 
@@ -310,6 +311,7 @@ mod tests {
             triangles,
             normals: Vec::new(),
             texcoords: Vec::new(),
+            cutout: None,
         }
     }
 
@@ -320,6 +322,7 @@ mod tests {
             triangles: [[0, 1, 2], [0, 3, 1]].repeat(50_000),
             normals: Vec::new(),
             texcoords: Vec::new(),
+            cutout: None,
         };
         let start = std::time::Instant::now();
         apply_crease_normals(&mut mesh, 180.0);
@@ -392,6 +395,7 @@ mod tests {
             triangles: vec![[0, 1, 2], [4, 3, 5]],
             normals: Vec::new(),
             texcoords: Vec::new(),
+            cutout: None,
         };
         apply_crease_normals(&mut mesh, DEFAULT_CREASE_ANGLE_DEG);
         assert_eq!(mesh.positions.len(), 6);

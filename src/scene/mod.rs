@@ -13,7 +13,7 @@ use std::path::{Path, PathBuf};
 use glam::Vec3;
 
 use crate::camera::Camera;
-use crate::geometry::{Light, Object, Shape};
+use crate::geometry::{CoverageRef, Cutout, Light, Object, Shape};
 use crate::texture::TextureRef;
 use crate::timeline::{Animation, ViewportTrack};
 
@@ -85,6 +85,21 @@ pub struct Material {
     pub specular_map: Option<TextureRef>,
     /// Transparent materials only: how light goes through.
     pub glass: Option<Glass>,
+    /// Where the surface is cut away, letting rays through (MTL `map_d`, a
+    /// scene's `cutout_texture`): on meshes with texture coordinates.
+    pub cutout: Option<CoverageRef>,
+}
+
+/// Gives each mesh with texture coordinates its material's cut-out, where
+/// the material has one: the backends read it from the mesh.
+pub fn cut_out_meshes(objects: &mut [Object], materials: &[Material]) {
+    for object in objects {
+        if let (Shape::Mesh(mesh), Some(coverage)) =
+            (&mut object.shape, &materials[object.material].cutout)
+        {
+            mesh.cutout = Cutout::new(mesh, coverage.clone());
+        }
+    }
 }
 
 /// Highlights dimmer than this are not computed (an sRGB byte changes only
@@ -106,6 +121,12 @@ impl Material {
         self.diffuse_map.is_some() || self.specular_map.is_some()
     }
 
+    /// Whether the material needs texture coordinates: an image maps onto
+    /// it, or cuts it out.
+    pub fn needs_texcoords(&self) -> bool {
+        self.textured() || self.cutout.is_some()
+    }
+
     pub fn matte(name: &str, diffuse: Vec3) -> Material {
         Material {
             name: name.to_string(),
@@ -118,6 +139,7 @@ impl Material {
             diffuse_map: None,
             specular_map: None,
             glass: None,
+            cutout: None,
         }
     }
 }

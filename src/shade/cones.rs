@@ -180,6 +180,7 @@ mod tests {
             positions: positions.iter().map(|p| *p * radius).collect(),
             triangles,
             texcoords: Vec::new(),
+            cutout: None,
         }
     }
 
@@ -271,6 +272,7 @@ mod tests {
                 triangles: vec![[0, 1, 2]],
                 normals: vec![Vec3::Y; 3],
                 texcoords: Vec::new(),
+                cutout: None,
             }),
             Placement::World,
         );

@@ -59,6 +59,7 @@ fn closed_sphere_mesh(levels: u32) -> TriangleMesh {
         triangles,
         normals: Vec::new(),
         texcoords: Vec::new(),
+        cutout: None,
     }
 }
 
@@ -188,7 +189,7 @@ on_every_backend! {
             }
             triangles.extend([[base, base + 1, base + 2], [base, base + 2, base + 3]]);
         }
-        let accel = build(backend, &[object(Shape::Mesh(TriangleMesh { positions, triangles, normals: Vec::new(), texcoords: Vec::new() }))]);
+        let accel = build(backend, &[object(Shape::Mesh(TriangleMesh { positions, triangles, normals: Vec::new(), texcoords: Vec::new(), cutout: None }))]);
         for axis in 0..3 {
             for sign in [1.0f32, -1.0] {
                 for zero in [0.0f32, -0.0] {
@@ -242,6 +243,7 @@ on_every_backend! {
             triangles: vec![[0, 1, 1], [0, 1, 3], [0, 1, 2]],
             normals: Vec::new(),
             texcoords: Vec::new(),
+            cutout: None,
         };
         let accel = build(backend, &[object(Shape::Mesh(mesh)), object(Shape::Mesh(TriangleMesh::default()))]);
         for x in [-0.5f32, 0.0, 0.5, 1.5] {

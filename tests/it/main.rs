@@ -11,6 +11,7 @@ mod area_lights;
 mod cli;
 mod cli_limits;
 mod cli_messages;
+mod cutouts;
 mod docs;
 mod exr;
 mod extremes;

@@ -258,18 +258,13 @@ fn bad_animation_input_names_file_line_and_field() {
     assert_eq!(err.field.as_deref(), Some("animation.object[0].translate"));
 }
 
-/// A random small animation: a few spheres and quads near the paper
-/// scene's centre, some moving (keys or bounces), maybe an area light
-/// (and glossy spheres), maybe moving lights, maybe a panning camera.
+/// A random small animation: a few spheres, quads and cut-out plants
+/// near the paper scene's centre, some moving (keys or bounces), maybe an
+/// area light (and glossy spheres), maybe moving lights, maybe a panning
+/// camera.
 fn random_animation() -> impl Strategy<Value = String> {
-    let object = (
-        prop::bool::ANY,
-        -4.0f32..4.0,
-        0.2f32..2.0,
-        -4.0f32..6.0,
-        0.2f32..1.2,
-    )
-        .prop_map(|(sphere, x, y, z, size)| (sphere, x, y, z, size));
+    let object = (0u8..3, -4.0f32..4.0, 0.2f32..2.0, -4.0f32..6.0, 0.2f32..1.2)
+        .prop_map(|(shape, x, y, z, size)| (shape, x, y, z, size));
     let motion = (
         0u8..3,
         -3.0f32..3.0,
@@ -297,13 +292,19 @@ fn random_animation() -> impl Strategy<Value = String> {
             text += "[material.brushed]\ndiffuse = [0.2, 0.2, 0.25]\nreflectivity = 0.6\nroughness = 0.3\n";
             let sphere_material = if area_light == 1 { "brushed" } else { "red" };
             let mut timeline = String::from("[animation]\nframes = 5\n");
-            for (i, ((sphere, x, y, z, size), (kind, dx, dy, dz, turn, period))) in
+            for (i, ((shape, x, y, z, size), (kind, dx, dy, dz, turn, period))) in
                 objects.into_iter().enumerate()
             {
                 let name = format!("thing{i}");
-                if sphere {
+                if shape == 0 {
                     text += &format!(
                         "[[object]]\ntype = \"sphere\"\nname = \"{name}\"\ncenter = [{x}, {y}, {z}]\nradius = {size}\nmaterial = \"{sphere_material}\"\n"
+                    );
+                } else if shape == 1 {
+                    // Leaves on cards cut out by their texture's alpha.
+                    text += &format!(
+                        "[[object]]\ntype = \"mesh\"\nname = \"{name}\"\nfile = \"plant/plant.obj\"\ntranslate = [{x}, {y}, {z}]\nscale = {}\n",
+                        size * 2.0
                     );
                 } else {
                     text += &format!(

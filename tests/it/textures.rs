@@ -1,4 +1,4 @@
-//! Texture maps end to end: MTL `map_Kd` and `map_Ks`, and a scene's
+//! Texture maps end to end: MTL `map_Kd`, `map_Ks` and `map_d`, and a scene's
 //! `texture` and `specular_texture`, as their authors write them, every bad input a warning (or, past the
 //! memory limit, an error) naming its file and line, both backends alike,
 //! reuse bit-exact on textured scenes, and Debian's textured spider.
@@ -145,24 +145,29 @@ fn a_missing_or_corrupt_map_ks_warns_naming_the_mtl_line_and_uses_ks() {
 }
 
 #[test]
-fn map_d_is_ignored_with_a_warning_naming_the_mtl_line() {
-    let dir = quad_folder("newmtl m\nKd 0 1 0\n");
-    let (plain, _) = render(dir.path(), &[]);
+fn map_d_cuts_out_clear_texels_on_both_backends_and_a_missing_one_is_a_warning() {
+    let dir = quad_folder("newmtl m\nKd 0 1 0\nmap_d bw.png\n");
     black_white(&dir.path().join("bw.png"));
-    std::fs::write(
-        dir.path().join("q.mtl"),
-        "newmtl m\nKd 0 1 0\nmap_d bw.png\n",
-    )
-    .unwrap();
+    for backend in ["embree", "grid"] {
+        let (image, said) = render(dir.path(), &["--backend", backend]);
+        assert!(!said.contains("warning"), "{backend}: {said}");
+        // The black half is clear: the background shows through it.
+        let (left, right) = halves(&image);
+        assert_eq!(left, [0, 0, 0], "{backend}: left");
+        assert!(
+            right[1] > 200 && right[0] < 20,
+            "{backend}: right {right:?}"
+        );
+    }
+    std::fs::remove_file(dir.path().join("bw.png")).unwrap();
     let (image, said) = render(dir.path(), &[]);
     assert!(
-        said.contains(
-            "q.mtl:3: map_d: cut-out (alpha) maps are not supported: ignored; \
-             material 'm' is drawn whole"
-        ),
+        said.contains("q.mtl:3: map_d: no file 'bw.png'")
+            && said.contains("material 'm' is drawn whole"),
         "{said}"
     );
-    assert!(image == plain);
+    let (left, right) = halves(&image);
+    assert!(left == right && left[1] > 200, "{left:?} {right:?}");
 }
 
 #[test]

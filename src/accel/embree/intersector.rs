@@ -174,7 +174,7 @@ fn not_round(object: u32, transform: &Affine3A) -> EmbreeError {
 fn attach_shape(scene: &mut SceneBuilder, id: u32, shape: &Shape) -> Result<(), EmbreeError> {
     match shape {
         Shape::Mesh(mesh) if !mesh.triangles.is_empty() => {
-            scene.attach_triangles(id, &mesh.positions, &mesh.triangles)
+            scene.attach_triangles(id, &mesh.positions, &mesh.triangles, mesh.cutout.as_ref())
         }
         Shape::Mesh(_) | Shape::Plane(_) => Ok(()),
         Shape::Sphere(sphere) => scene.attach_sphere(id, sphere.center, sphere.radius),

@@ -11,6 +11,8 @@
 //! - `intersector.rs`: [`EmbreeIntersector`], which turns scene objects into
 //!   Embree scenes, the still ones split off from the moving ones
 //!   ([`StillSplit`]).
+//! - `cutout.rs`: the filters that let rays through a cut-out mesh's clear
+//!   texels.
 //! - `callback_panic.rs`: panics in the callback Embree calls, kept from
 //!   unwinding into C and raised again once the call has returned.
 //! - `sys.rs`: the raw bindings build.rs generates.
@@ -20,6 +22,7 @@
 //! the intersect context argument.
 
 mod callback_panic;
+mod cutout;
 mod device;
 mod intersector;
 mod scene;

@@ -29,12 +29,13 @@
 //!   box test that lets a packet skip a scene (`trace.rs`) sees the moves.
 
 use std::ffi::c_void;
+use std::sync::Arc;
 
 use glam::{Affine3A, Vec3};
 
 use super::{callback_panic, sys};
 use super::{Device, EmbreeError};
-use crate::geometry::Aabb;
+use crate::geometry::{Aabb, Cutout};
 
 /// A scene being built. Attach geometry, then [`SceneBuilder::commit`].
 pub struct SceneBuilder {
@@ -42,6 +43,9 @@ pub struct SceneBuilder {
     device: Device,
     children: Vec<CommittedScene>,
     movable: MovableIds,
+    /// The cut-outs its geometries' filters read, each in an `Arc` of its
+    /// own so it stays put as the list grows.
+    cutouts: Vec<Arc<Cutout>>,
 }
 
 /// The ids of a scene's geometries that can move after commit, checked
@@ -76,6 +80,7 @@ impl SceneBuilder {
             device: device.clone(),
             children: Vec::new(),
             movable: MovableIds::default(),
+            cutouts: Vec::new(),
         };
         callback_panic::resume();
         Ok(builder)
@@ -135,11 +140,14 @@ impl SceneBuilder {
         self.device.take_error()
     }
 
+    /// A triangle mesh; with a `cutout`, hits where it lets rays through
+    /// are skipped.
     pub fn attach_triangles(
         &mut self,
         id: u32,
         positions: &[Vec3],
         triangles: &[[u32; 3]],
+        cutout: Option<&Cutout>,
     ) -> Result<(), EmbreeError> {
         let geometry = self.new_geometry(sys::RTCGeometryType::RTC_GEOMETRY_TYPE_TRIANGLE)?;
         let vertices: Vec<[f32; 3]> = positions.iter().map(|p| p.to_array()).collect();
@@ -155,6 +163,15 @@ impl SceneBuilder {
             sys::RTCFormat::RTC_FORMAT_UINT3,
             triangles,
         )?;
+        if let Some(cutout) = cutout {
+            let kept = Arc::new(cutout.clone());
+            // SAFETY: `geometry` is a live triangle geometry; the `Arc` is
+            // kept by this builder and then by its committed scene, which
+            // releases the Embree scene (and so the geometry) before
+            // dropping its fields.
+            unsafe { super::cutout::set_filters(geometry, &kept) };
+            self.cutouts.push(kept);
+        }
         self.attach(geometry, id)
     }
 
@@ -198,11 +215,12 @@ impl SceneBuilder {
         let this = std::mem::ManuallyDrop::new(self);
         // SAFETY: moving fields out of a ManuallyDrop that is never used again,
         // so the scene is released exactly once (by CommittedScene).
-        let (device, children, movable) = unsafe {
+        let (device, children, movable, cutouts) = unsafe {
             (
                 std::ptr::read(&this.device),
                 std::ptr::read(&this.children),
                 std::ptr::read(&this.movable),
+                std::ptr::read(&this.cutouts),
             )
         };
         let scene = CommittedScene {
@@ -210,6 +228,7 @@ impl SceneBuilder {
             device,
             _children: children,
             movable,
+            _cutouts: cutouts,
             bounds: scene_bounds(this.raw),
         };
         callback_panic::resume();
@@ -266,6 +285,9 @@ pub struct CommittedScene {
     device: Device,
     _children: Vec<CommittedScene>,
     movable: MovableIds,
+    /// The cut-outs its geometries' filters read. Dropped after `Drop`
+    /// has released the scene, so no filter outlives its cut-out.
+    _cutouts: Vec<Arc<Cutout>>,
     /// Embree's bounds of everything in the scene as last committed: a
     /// packet that misses them skips the scene when it is traced second.
     pub(super) bounds: Aabb,

@@ -18,6 +18,7 @@ fn unit_triangle_scene(device: &Device) -> CommittedScene {
                 Vec3::new(0.0, 1.0, 0.0),
             ],
             &[[0, 1, 2]],
+            None,
         )
         .unwrap();
     builder

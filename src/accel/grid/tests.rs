@@ -126,6 +126,7 @@ fn icosphere(subdivisions: u32, center: Vec3, radius: f32) -> TriangleMesh {
         triangles,
         normals: Vec::new(),
         texcoords: Vec::new(),
+        cutout: None,
     }
 }
 
@@ -595,6 +596,7 @@ fn baked(shape: &Shape, xf: &Affine3A) -> Shape {
             triangles: mesh.triangles.clone(),
             normals: Vec::new(),
             texcoords: Vec::new(),
+            cutout: None,
         }),
         Shape::Sphere(s) => sphere(
             xf.transform_point3(s.center),
@@ -789,6 +791,7 @@ fn empty_and_degenerate_scenes() {
         triangles: vec![[0, 1, 2], [0, 0, 0], [0, 1, 3]],
         normals: Vec::new(),
         texcoords: Vec::new(),
+        cutout: None,
     };
     let objects = vec![
         world(Shape::Mesh(TriangleMesh::default())),
@@ -822,6 +825,7 @@ fn empty_and_degenerate_scenes() {
         ],
         normals: Vec::new(),
         texcoords: Vec::new(),
+        cutout: None,
     };
     let grid = GridIntersector::build(&[world(Shape::Mesh(quad))], None);
     assert_eq!(grid.spec().unwrap().resolution[2], 1);
@@ -899,6 +903,7 @@ fn comparison_scene(mesh: TriangleMesh, mesh_scale: f32) -> Vec<Object> {
             triangles: vec![[0, 1, 2], [0, 2, 3]],
             normals: Vec::new(),
             texcoords: Vec::new(),
+            cutout: None,
         };
         objects.push(world(Shape::Mesh(quad)));
     }

@@ -278,6 +278,10 @@ pub(super) struct MaterialDef {
     /// multiplied by.
     #[serde(default)]
     pub(super) specular_texture: Option<Spanned<String>>,
+    /// An image file, relative to the scene file, whose clear texels cut
+    /// the surface away.
+    #[serde(default)]
+    pub(super) cutout_texture: Option<Spanned<String>>,
     #[serde(default = "default_shininess")]
     pub(super) shininess: f32,
     #[serde(default)]

@@ -6,12 +6,14 @@
 //! [`Glass`] promises.
 
 use std::path::Path;
+use std::sync::Arc;
 
 use toml::Spanned;
 
 use super::defs::MaterialDef;
 use super::values::colour;
 use super::Ctx;
+use crate::geometry::CoverageRef;
 use crate::scene::glass::{Glass, DEFAULT_IOR};
 use crate::scene::{Checker, Material, SceneError};
 use crate::texture::load::TextureProblem;
@@ -19,7 +21,7 @@ use crate::texture::path::{resolve, shown};
 use crate::texture::TextureRef;
 
 /// The texture `written` names in field `field` (`texture`,
-/// `specular_texture`) of material `name`, relative to the file that
+/// `specular_texture`, `cutout_texture`) of material `name`, relative to the file that
 /// names it. A file that is missing or not a readable image is a
 /// warning (the material renders untextured); one past the texture memory
 /// limit an error.
@@ -127,6 +129,11 @@ pub(super) fn convert_material(
         None => None,
         Some(written) => texture(ctx, name, "specular_texture", written)?,
     };
+    let cutout = match &m.cutout_texture {
+        None => None,
+        Some(written) => texture(ctx, name, "cutout_texture", written)?
+            .map(|map| CoverageRef(Arc::new(map.coverage()))),
+    };
     let untextured_grey = if diffuse_map.is_some() { 1.0 } else { 0.7 };
     let unmapped_specular = if specular_map.is_some() { 1.0 } else { 0.0 };
     let filter = match m.transmission_filter {
@@ -146,5 +153,6 @@ pub(super) fn convert_material(
         reflectivity: m.reflectivity,
         roughness: m.roughness,
         glass,
+        cutout,
     })
 }

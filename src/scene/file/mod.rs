@@ -336,6 +336,7 @@ pub(crate) fn parse_scene(
     }
 
     let viewports = convert_viewports(&ctx, &file, &camera)?;
+    crate::scene::cut_out_meshes(&mut objects, &materials);
 
     Ok(Scene {
         camera,

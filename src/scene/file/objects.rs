@@ -59,7 +59,7 @@ pub(super) fn convert_objects(
                 Shape::Mesh(mesh) => mesh.texcoords.is_empty(),
                 _ => true,
             };
-            if untextured && materials[object.material].textured() {
+            if untextured && materials[object.material].needs_texcoords() {
                 let at = ctx.error(def.span(), format!("object[{i}]"), "");
                 warnings.push(format!(
                     "{}:{}: object[{i}]: '{}' has no texture coordinates: material '{}' \
@@ -390,6 +390,7 @@ fn polygon_mesh(points: Vec<Vec3>) -> Result<Shape, String> {
         triangles,
         normals: Vec::new(),
         texcoords: Vec::new(),
+        cutout: None,
     };
     let area: f32 = (0..mesh.triangles.len() as u32)
         .map(|t| {

@@ -23,8 +23,8 @@ use super::file::{SceneOverrides, UpAxis};
 use super::{Checker, Material, Scene, SceneError};
 use crate::camera::{yaw_pitch_toward, Camera, Projection};
 use crate::geometry::normals::{apply_crease_normals, DEFAULT_CREASE_ANGLE_DEG};
-use crate::geometry::Light;
 use crate::geometry::{Aabb, Object, Placement, Plane, Shape, TriangleMesh, WORLD_LIMIT};
+use crate::geometry::{CoverageRef, Light};
 use crate::texture::load::{TextureCache, TextureProblem};
 use crate::texture::path::{mtl_file_name, resolve, shown};
 use crate::texture::TextureRef;
@@ -426,17 +426,6 @@ fn checked_mtl_text(
                 ));
             }
             None => {
-                // A cut-out would need both backends to skip hits on clear
-                // texels (an Embree filter function, a test in the grid's
-                // traversal); neither reads textures.
-                if let (Some(name), "map_d") = (&current, keyword) {
-                    problems.push(format!(
-                        "{}:{}: map_d: cut-out (alpha) maps are not supported: ignored; \
-                         material '{name}' is drawn whole",
-                        path.display(),
-                        number + 1
-                    ));
-                }
                 if let (Some(name), "Ns", Some(why)) = (&current, keyword, ns_problem(&values)) {
                     problems.push(format!(
                         "{}:{}: Ns {}: material '{name}': {why}",
@@ -445,7 +434,7 @@ fn checked_mtl_text(
                         values[0]
                     ));
                 }
-                if let (Some(name), "map_Kd" | "map_Ks") = (&current, keyword) {
+                if let (Some(name), "map_Kd" | "map_Ks" | "map_d") = (&current, keyword) {
                     texture_lines.insert(
                         (name.clone(), keyword.to_string()),
                         TextureLine {
@@ -488,10 +477,11 @@ struct TextureLine {
     keyword: String,
 }
 
-/// The texture of a material's `map_Kd` or `map_Ks` (`arguments`, written
-/// at `at`): `None`, with a warning naming the MTL file and line, when the
-/// file is missing or not a readable image (the material keeps its `Kd`,
-/// or `Ks`); an error past the texture memory limit.
+/// The texture of a material's `map_Kd`, `map_Ks` or `map_d` (`arguments`,
+/// written at `at`): `None`, with a warning naming the MTL file and line,
+/// when the file is missing or not a readable image (the material keeps its
+/// `Kd`, or `Ks`, or is drawn whole); an error past the texture memory
+/// limit.
 fn load_mtl_texture(
     material: &str,
     arguments: &str,
@@ -500,8 +490,13 @@ fn load_mtl_texture(
     problems: &mut Vec<String>,
 ) -> Result<Option<TextureRef>, SceneError> {
     let here = format!("{}:{}: {}", at.mtl.display(), at.line, at.keyword);
-    let colour = at.keyword.strip_prefix("map_").unwrap_or("Kd");
-    let fallback = format!("material '{material}' uses its {colour}");
+    let fallback = match at.keyword.as_str() {
+        "map_d" => format!("material '{material}' is drawn whole"),
+        keyword => {
+            let colour = keyword.strip_prefix("map_").unwrap_or("Kd");
+            format!("material '{material}' uses its {colour}")
+        }
+    };
     let (name, options) = mtl_file_name(arguments);
     if !options.is_empty() {
         problems.push(format!(
@@ -574,6 +569,7 @@ fn material_from_mtl(
         diffuse_map,
         specular_map: specular_map.filter(|_| highlight),
         glass: super::glass::glass_from_mtl(m),
+        cutout: None,
     }
 }
 
@@ -670,7 +666,11 @@ pub fn load_obj_mesh_with(path: &Path, textures: &mut TextureCache) -> Result<Ob
         };
         let diffuse_map = map(&m.diffuse_texture, "map_Kd")?;
         let specular_map = map(&m.specular_texture, "map_Ks")?;
-        converted.push(Some(material_from_mtl(m, diffuse_map, specular_map)));
+        let cutout = map(&m.dissolve_texture, "map_d")?
+            .map(|map| CoverageRef(std::sync::Arc::new(map.coverage())));
+        let mut material = material_from_mtl(m, diffuse_map, specular_map);
+        material.cutout = cutout;
+        converted.push(Some(material));
     }
 
     let mut dropped_degenerate = 0;
@@ -685,7 +685,7 @@ pub fn load_obj_mesh_with(path: &Path, textures: &mut TextureCache) -> Result<Ob
         let material = m
             .material_id
             .and_then(|id| converted.get(id).cloned().flatten());
-        if let Some(textured) = material.as_ref().filter(|m| m.textured()) {
+        if let Some(textured) = material.as_ref().filter(|m| m.needs_texcoords()) {
             if texcoords_missing && untextured.insert(textured.name.clone()) {
                 problems.push(format!(
                     "{}: faces with material '{}' have no texture coordinates (vt): its \
@@ -786,6 +786,7 @@ fn model_mesh(
         triangles,
         normals,
         texcoords,
+        cutout: None,
     }
 }
 
@@ -917,6 +918,7 @@ pub(super) fn scene_around_obj(
         .validate()
         .map_err(|err| SceneError::new(path, err.to_string()).field("camera"))?;
     let key = center + Vec3::new(-1.5, 3.0, 2.0) * radius;
+    crate::scene::cut_out_meshes(&mut objects, &materials);
     Ok(Scene {
         camera,
         objects,
