@@ -38,16 +38,16 @@ pub(crate) fn tradeoff(args: TradeoffArgs) -> Result<()> {
         Some(path) => {
             let scenes = TradeoffScenes::of(load(&args.scene)?);
             let skipped = scenes.skipped();
-            if skipped.len() == 3 {
+            if skipped.len() == 4 {
                 anyhow::bail!(
-                    "{}: its timeline exercises no knob (no pan of an equal-angle camera, no \
-                     viewport, nothing else moving)",
+                    "{}: it exercises no knob (no pan of an equal-angle camera, no viewport, \
+                     nothing else moving, no area light)",
                     path.display()
                 );
             }
             if !skipped.is_empty() {
                 eprintln!(
-                    "note: {} knobs skipped: the timeline of {} does not exercise them",
+                    "note: {} knobs skipped: {} does not exercise them",
                     skipped.join(", "),
                     path.display()
                 );

@@ -9,7 +9,11 @@
 //!   yaw (E1's pan);
 //! - RSVP filter, buffer oversampling and pyramid level bias (E2's zoom in);
 //! - OSTC region grid and voxel grid resolution (E3's bouncing ball): exact,
-//!   so only their speed varies.
+//!   so only their speed varies;
+//! - light samples (scenes with area lights): shadow rays a pixel sample
+//!   casts to each area light, against their noise. Each setting's full
+//!   and accelerated sides render at that setting, and all are scored
+//!   against one converged reference.
 //!
 //! Accelerated sides are timed with 8-bit output only; errors come from a
 //! second, untimed pass that keeps linear colour.
@@ -19,6 +23,7 @@ use std::path::Path;
 
 use crate::accel::{AccelError, Accelerator, BackendKind};
 use crate::frame_loop::{Options, OstcSettings, Techniques};
+use crate::geometry::Light;
 use crate::lab::bench::ErrorSummary;
 use crate::lab::bench::{bench_sequence, Measure, SequenceBench};
 use crate::lab::plot::{LabelledPoint, PlotError, ScatterGroup};
@@ -71,6 +76,9 @@ pub struct TradeoffScenes {
     /// Objects or lights that move (E3: a bouncing ball), for the OSTC
     /// knobs.
     pub objects: Option<Scene>,
+    /// Area lights (none among the paper's experiments), for the light
+    /// samples.
+    pub area_lit: Option<Scene>,
 }
 
 impl TradeoffScenes {
@@ -81,13 +89,14 @@ impl TradeoffScenes {
             pan: Some(builtin_scene("paper-pan.toml", overrides)?),
             zoom: Some(builtin_scene("paper-zoom-in.toml", overrides)?),
             objects: Some(builtin_scene("paper-bounce.toml", overrides)?),
+            area_lit: None,
         })
     }
 
     /// The knob groups `scene`'s own timeline exercises: the pan knobs
     /// when its equal-angle camera moves (and it has no viewports), the
     /// RSVP knobs when it has viewports, the OSTC knobs when objects or
-    /// lights move.
+    /// lights move; and the light samples when it has area lights.
     pub fn of(scene: Scene) -> TradeoffScenes {
         let animation = scene.animation.as_ref();
         let pans = scene.viewports.is_empty()
@@ -95,10 +104,12 @@ impl TradeoffScenes {
             && animation.is_some_and(|a| !a.camera_keys.is_empty());
         let moves = animation.is_some_and(|a| a.moves_scene());
         let zooms = !scene.viewports.is_empty();
+        let area_lit = scene.lights.iter().any(Light::is_area);
         TradeoffScenes {
             pan: pans.then(|| scene.clone()),
             zoom: zooms.then(|| scene.clone()),
-            objects: moves.then_some(scene),
+            objects: moves.then(|| scene.clone()),
+            area_lit: area_lit.then_some(scene),
         }
     }
 
@@ -108,6 +119,7 @@ impl TradeoffScenes {
             ("pan", &self.pan),
             ("RSVP", &self.zoom),
             ("OSTC", &self.objects),
+            ("light samples", &self.area_lit),
         ]
         .into_iter()
         .filter(|(_, scene)| scene.is_none())
@@ -116,7 +128,9 @@ impl TradeoffScenes {
     }
 
     fn scenes(&self) -> impl Iterator<Item = &Scene> {
-        [&self.pan, &self.zoom, &self.objects].into_iter().flatten()
+        [&self.pan, &self.zoom, &self.objects, &self.area_lit]
+            .into_iter()
+            .flatten()
     }
 
     /// Frames every swept animation has: the valid frame numbers are
@@ -135,12 +149,29 @@ impl TradeoffScenes {
         let settings = |scene: &Option<Scene>, count: usize| scene.as_ref().map_or(0, |_| count);
         let count = settings(&self.pan, PAN_SETTINGS.len())
             + settings(&self.zoom, rsvp_knob_settings().len())
-            + settings(&self.objects, unique_ostc_settings().len());
+            + settings(&self.objects, unique_ostc_settings().len())
+            + self
+                .area_lit
+                .as_ref()
+                .map_or(0, |scene| light_sample_settings(scene.light_samples).len());
         3 * u64::from(frames) * count as u64
     }
 }
 
 const PAN_SETTINGS: [FractionalPan; 2] = [FractionalPan::Snap, FractionalPan::Resample];
+
+/// The light samples swept on a scene whose own count is `own`: its own
+/// first (the most converged of the usual ones, it renders the shared
+/// reference), then one, four and sixteen, each once.
+fn light_sample_settings(own: u32) -> Vec<u32> {
+    let mut settings = vec![own];
+    for n in [1, 4, 16] {
+        if !settings.contains(&n) {
+            settings.push(n);
+        }
+    }
+    settings
+}
 
 /// The RSVP settings swept: the default first, then one knob changed at a
 /// time (filter, oversampling, level bias).
@@ -271,10 +302,14 @@ pub fn sweep(
                 ostc: OstcSettings::default(),
             })
             .collect();
-        let pan =
-            measure_camera_settings(scene, &mut accel, frames.clone(), &pan_settings, |what| {
-                progress(&format!("pan: {what}"))
-            });
+        let pan = measure_camera_settings(
+            scene,
+            &mut accel,
+            frames.clone(),
+            &pan_settings,
+            &mut References::default(),
+            |what| progress(&format!("pan: {what}")),
+        );
         for (fractional, measured) in PAN_SETTINGS.iter().zip(pan) {
             let setting = match fractional {
                 FractionalPan::Snap => "snap to lattice",
@@ -318,13 +353,47 @@ pub fn sweep(
                 ostc,
             })
             .collect();
-        let measured =
-            measure_camera_settings(scene, &mut accel, frames.clone(), &settings, |what| {
-                progress(&format!("OSTC: {what}"))
-            });
+        let measured = measure_camera_settings(
+            scene,
+            &mut accel,
+            frames.clone(),
+            &settings,
+            &mut References::default(),
+            |what| progress(&format!("OSTC: {what}")),
+        );
         for (knob, setting, ostc) in ostc_settings() {
             let index = unique.iter().position(|u| *u == ostc).expect("listed");
             rows.push(measured[index].row(knob, setting, count));
+        }
+    }
+
+    if let Some(scene) = &scenes.area_lit {
+        let mut accel = Accelerator::build_with(backend, &scene.objects, grid_resolution)?;
+        // One reference for every count: the first setting's, the scene's own.
+        let mut references = References::default();
+        let default = [CameraSetting {
+            fractional: FractionalPan::Snap,
+            ostc: OstcSettings::default(),
+        }];
+        for light_samples in light_sample_settings(scene.light_samples) {
+            let at = Scene {
+                light_samples,
+                ..scene.clone()
+            };
+            let measured = measure_camera_settings(
+                &at,
+                &mut accel,
+                frames.clone(),
+                &default,
+                &mut references,
+                |what| progress(&format!("light samples {light_samples}: {what}")),
+            );
+            let setting = if light_samples == scene.light_samples {
+                format!("{light_samples} (the scene's)")
+            } else {
+                light_samples.to_string()
+            };
+            rows.push(measured[0].row("light samples", setting, count));
         }
     }
     Ok(rows)
@@ -435,9 +504,9 @@ fn measure_camera_settings(
     accel: &mut Accelerator,
     frames: Range<u32>,
     settings: &[CameraSetting],
+    references: &mut References,
     mut progress: impl FnMut(&str),
 ) -> Vec<Measured> {
-    let mut references = References::default();
     settings
         .iter()
         .map(|setting| {
@@ -452,7 +521,7 @@ fn measure_camera_settings(
                 &options,
                 1,
                 ERRORS_NOT_ORACLE,
-                &mut references,
+                references,
                 || progress("sequence"),
             );
             Measured::of(&bench, true)
@@ -616,19 +685,24 @@ mod tests {
     fn the_built_in_experiments_give_each_knob_group_its_scene() {
         let overrides = SceneOverrides::default();
         let scenes = TradeoffScenes::builtin(&overrides).unwrap();
-        assert!(scenes.skipped().is_empty());
+        assert_eq!(scenes.skipped(), ["light samples"]);
         let of = |name| TradeoffScenes::of(builtin_scene(name, &overrides).unwrap());
         // Each experiment is classified as the knobs it exercises.
         let pan = of("paper-pan.toml");
-        assert_eq!(pan.skipped(), ["RSVP", "OSTC"]);
+        assert_eq!(pan.skipped(), ["RSVP", "OSTC", "light samples"]);
         let zoom = of("paper-zoom-in.toml");
-        assert_eq!(zoom.skipped(), ["pan", "OSTC"]);
+        assert_eq!(zoom.skipped(), ["pan", "OSTC", "light samples"]);
         let bounce = of("paper-bounce.toml");
-        assert_eq!(bounce.skipped(), ["pan", "RSVP"]);
+        assert_eq!(bounce.skipped(), ["pan", "RSVP", "light samples"]);
         // E4's camera pans under a viewport: RSVP and OSTC, not the pan's
         // snap (its output is the viewport).
-        assert_eq!(of("paper-all.toml").skipped(), ["pan"]);
-        assert_eq!(of("paper.toml").skipped(), ["pan", "RSVP", "OSTC"]);
+        assert_eq!(of("paper-all.toml").skipped(), ["pan", "light samples"]);
+        assert_eq!(
+            of("paper.toml").skipped(),
+            ["pan", "RSVP", "OSTC", "light samples"]
+        );
+        assert_eq!(light_sample_settings(4), [4, 1, 16]);
+        assert_eq!(light_sample_settings(9), [9, 1, 4, 16]);
         assert_eq!(scenes.frame_count(), 100);
         assert_eq!(bounce.progress_steps(10), 3 * 10 * 9);
     }

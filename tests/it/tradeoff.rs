@@ -149,3 +149,39 @@ fn bad_frame_ranges_fail_cleanly_before_any_work() {
         assert!(!dir.path().join("o").exists(), "{frames}: output written");
     }
 }
+
+#[test]
+fn light_samples_are_swept_on_a_scene_with_area_lights_against_one_reference() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/soft-light.toml");
+    let out = retrace(
+        &[
+            "tradeoff", scene, "--width", "48", "--height", "36", "--frames", "0-1", "--out",
+            "sweep",
+        ],
+        dir.path(),
+    );
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "stdout: {stdout}\nstderr: {stderr}");
+    assert!(stderr.contains("note: pan, RSVP knobs skipped"), "{stderr}");
+    let rows = read_csv(&dir.path().join("sweep/tradeoff.csv"));
+    let light: Vec<_> = rows
+        .iter()
+        .filter(|r| r["knob"] == "light samples")
+        .collect();
+    let settings: Vec<&str> = light.iter().map(|r| r["setting"].as_str()).collect();
+    assert_eq!(settings, ["4 (the scene's)", "1", "16"], "{rows:?}");
+    let psnr = |row: &HashMap<String, String>| number(row, "full_reference_psnr_db");
+    for row in &light {
+        // OSTC under every count is exact: as far from the reference as
+        // the full render at that count.
+        assert_eq!(row["bit_exact"], "true", "{row:?}");
+        assert_eq!(number(row, "accelerated_reference_psnr_db"), psnr(row));
+    }
+    // More shadow rays, less noise against the one converged reference.
+    assert!(
+        psnr(light[1]) < psnr(light[0]) && psnr(light[0]) < psnr(light[2]),
+        "{light:?}"
+    );
+}
