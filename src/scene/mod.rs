@@ -83,6 +83,8 @@ pub struct Material {
     /// An image the specular colour is multiplied by, likewise (MTL
     /// `map_Ks`, a scene's `specular_texture`).
     pub specular_map: Option<TextureRef>,
+    /// Relief that bends the shading normal, likewise.
+    pub bump_map: Option<BumpMap>,
     /// Transparent materials only: how light goes through.
     pub glass: Option<Glass>,
     /// Where the surface is cut away, letting rays through (MTL `map_d`, a
@@ -102,6 +104,22 @@ pub fn cut_out_meshes(objects: &mut [Object], materials: &[Material]) {
     }
 }
 
+/// An image of a surface's relief, which bends its shading normal (the
+/// surface itself stays where it is: shadows and silhouettes are the
+/// mesh's). Its texture is read as data, not through the sRGB curve.
+#[derive(Clone, Debug, PartialEq)]
+pub enum BumpMap {
+    /// A height map (MTL `map_Bump` or `bump`, a scene's `bump_texture`):
+    /// the surface raised along its normal by the mean of the texel's RGB
+    /// (0 to 1) times `scale`, in world units (MTL `-bm`, a scene's
+    /// `bump_scale`; 1 unless given).
+    Height { map: TextureRef, scale: f32 },
+    /// A tangent-space normal map (MTL `norm`, a scene's
+    /// `normal_texture`): red along the texture's u, green up its v, blue
+    /// out of the surface.
+    Normal { map: TextureRef },
+}
+
 /// Highlights dimmer than this are not computed (an sRGB byte changes only
 /// above about 3e-4 near black).
 pub const NEGLIGIBLE_HIGHLIGHT: f32 = 1e-5;
@@ -118,7 +136,7 @@ impl Material {
 
     /// Whether any image maps onto the material.
     pub fn textured(&self) -> bool {
-        self.diffuse_map.is_some() || self.specular_map.is_some()
+        self.diffuse_map.is_some() || self.specular_map.is_some() || self.bump_map.is_some()
     }
 
     /// Whether the material needs texture coordinates: an image maps onto
@@ -138,6 +156,7 @@ impl Material {
             roughness: 0.0,
             diffuse_map: None,
             specular_map: None,
+            bump_map: None,
             glass: None,
             cutout: None,
         }

@@ -13,8 +13,9 @@ pub struct FirstHit {
     /// From the ray's origin (the eye) to the hit, along the ray: a range,
     /// not a distance along the camera's axis.
     pub distance: f32,
-    /// Unit world-space shading normal (interpolated on smooth meshes),
-    /// turned toward the ray, as lighting uses it.
+    /// Unit world-space shading normal (interpolated on smooth meshes,
+    /// bent by a bump or normal map), turned toward the ray, as lighting
+    /// uses it.
     pub normal: Vec3,
     /// The material's diffuse colour there: its checker, times its diffuse
     /// texture filtered over the primary ray's footprint, as shading uses.
@@ -34,14 +35,18 @@ impl Shader<'_> {
             let hit = hits[lane].filter(|_| mask & (1 << lane) != 0)?;
             let ray = &rays[lane];
             let object = &self.objects[hit.object as usize];
-            let surface = object.shape.surface(ray, &hit, object.material_index);
+            let mut surface = object.shape.surface(ray, &hit, object.material_index);
             let mut colour = albedo(object.material, surface.point, surface.plane_uv);
+            // A primary ray's cone starts as a point at the eye.
+            let width = self.primary_spread * hit.t * ray.dir.length();
             if let Some(map) = &object.material.diffuse_map {
-                // A primary ray's cone starts as a point at the eye.
-                let width = self.primary_spread * hit.t * ray.dir.length();
                 if let Some(texel) = object.shape.texel(map, ray, &hit, width) {
                     colour *= texel;
                 }
+            }
+            if let Some(bump) = &object.material.bump_map {
+                let normal = surface.shading_normal;
+                surface.shading_normal = object.shape.bumped_normal(bump, ray, &hit, width, normal);
             }
             Some(FirstHit {
                 distance: hit.t * ray.dir.length(),

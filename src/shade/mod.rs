@@ -7,6 +7,7 @@
 //! repeats (the reuse algorithms) always trace the same groups of samples.
 
 mod area;
+mod bump;
 mod cones;
 mod draws;
 mod first_hit;
@@ -593,7 +594,7 @@ impl<'a> Shader<'a> {
                 analytic_mask |= 1 << lane;
                 continue;
             }
-            let surface = object
+            let mut surface = object
                 .shape
                 .surface(&rays[lane], hit, object.material_index);
             let mut albedo = albedo(object.material, surface.point, surface.plane_uv);
@@ -620,6 +621,11 @@ impl<'a> Shader<'a> {
                     if let Some(texel) = object.shape.texel(map, ray, hit, width) {
                         specular_texels[lane] = texel;
                     }
+                }
+                if let Some(bump) = &object.material.bump_map {
+                    let normal = surface.shading_normal;
+                    surface.shading_normal =
+                        object.shape.bumped_normal(bump, ray, hit, width, normal);
                 }
             }
             lanes_hit.set(lane, &surface, albedo);

@@ -10,7 +10,7 @@ use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-use super::{pyramid_bytes, Texture, TextureFilter, TextureRef};
+use super::{pyramid_bytes, Texture, TextureEncoding, TextureFilter, TextureRef};
 
 /// The texture memory a scene may use unless told otherwise, in MB
 /// (2^20 bytes): 1024, some 180 images of 1024 x 1024 with their mip
@@ -28,12 +28,13 @@ pub enum TextureProblem {
     OverBudget(String),
 }
 
-/// The textures one scene loaded, by file, and the memory they hold.
+/// The textures one scene loaded, by file and encoding (a file read as
+/// colours and as data is two textures), and the memory they hold.
 pub struct TextureCache {
     limit_bytes: u64,
     used_bytes: u64,
     filter: TextureFilter,
-    loaded: HashMap<PathBuf, TextureRef>,
+    loaded: HashMap<(PathBuf, TextureEncoding), TextureRef>,
 }
 
 impl Default for TextureCache {
@@ -59,9 +60,22 @@ impl TextureCache {
         self.used_bytes
     }
 
-    /// The texture of the image file at `path` (loaded on first use).
+    /// The texture of the image file at `path` (loaded on first use), its
+    /// colours sRGB.
     pub fn load(&mut self, path: &Path) -> Result<TextureRef, TextureProblem> {
-        let key = path.canonicalize().unwrap_or_else(|_| path.to_path_buf());
+        self.load_as(path, TextureEncoding::Srgb)
+    }
+
+    /// [`TextureCache::load`] with the image's RGB read as `encoding` says.
+    pub fn load_as(
+        &mut self,
+        path: &Path,
+        encoding: TextureEncoding,
+    ) -> Result<TextureRef, TextureProblem> {
+        let key = (
+            path.canonicalize().unwrap_or_else(|_| path.to_path_buf()),
+            encoding,
+        );
         if let Some(texture) = self.loaded.get(&key) {
             return Ok(texture.clone());
         }
@@ -108,12 +122,13 @@ impl TextureCache {
             return Err(skipped("the image has no pixels".into()));
         }
         let texels: Vec<[u8; 4]> = bytemuck::cast_vec(rgba.into_raw());
-        let texture = TextureRef(Arc::new(Texture::from_srgba8(
+        let texture = TextureRef(Arc::new(Texture::from_rgba8(
             width,
             height,
             texels,
             path,
             self.filter,
+            encoding,
         )));
         self.used_bytes += texture.bytes();
         self.loaded.insert(key, texture.clone());
@@ -144,6 +159,11 @@ mod tests {
         assert!(a == again);
         assert_eq!(cache.used_bytes(), pyramid_bytes(4, 4));
         assert_eq!(a.levels()[0].texels[4 + 1], [40, 40, 128, 255]);
+        // Read as data it is another texture, counted too.
+        let data = cache.load_as(&path, TextureEncoding::Linear).unwrap();
+        assert!(data != a && data.encoding() == TextureEncoding::Linear);
+        assert!(data == cache.load_as(&path, TextureEncoding::Linear).unwrap());
+        assert_eq!(cache.used_bytes(), 2 * pyramid_bytes(4, 4));
     }
 
     #[test]

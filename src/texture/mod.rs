@@ -4,10 +4,14 @@
 //! Promises:
 //! - Texels are kept as 8-bit sRGB (alpha linear), as GPUs keep sRGB
 //!   textures, and decoded to linear light through an exact 256-entry
-//!   table before any filtering: blends happen in linear light.
+//!   table before any filtering: blends happen in linear light. A texture
+//!   of data (heights, normals: [`TextureEncoding::Linear`]) keeps its
+//!   bytes as values over 255 instead, never through the sRGB curve, and
+//!   blends so that equal texels give their own value exactly (a flat
+//!   stretch of a height map has no slope, not one of rounding).
 //! - Level k is level k-1 halved (at least 1 texel a side), each texel the
 //!   mean in linear light of the 2x2 texels under it (the last row or
-//!   column of an odd size left out), re-encoded to sRGB.
+//!   column of an odd size left out), re-encoded as the texture is.
 //! - A lookup is a pure function of the texture, the texture coordinates
 //!   and the level of detail: no state, so a sample traced again gives the
 //!   same bits.
@@ -73,8 +77,65 @@ pub fn srgb_to_linear(byte: u8) -> f32 {
     SRGB_TO_LINEAR[usize::from(byte)]
 }
 
-/// One level of the pyramid: sRGB RGB and linear alpha, row-major, top
-/// row first.
+/// Each byte over 255: the values of a data texture.
+static BYTE_TO_UNIT: LazyLock<[f32; 256]> =
+    LazyLock::new(|| std::array::from_fn(|byte| byte as f32 / 255.0));
+
+/// What a texture's RGB bytes stand for.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum TextureEncoding {
+    /// Colours: sRGB-encoded light, decoded before filtering.
+    #[default]
+    Srgb,
+    /// Data (a height or normal map): each byte is its value times 255.
+    Linear,
+}
+
+impl TextureEncoding {
+    /// The value of each byte of RGB.
+    fn table(self) -> &'static [f32; 256] {
+        match self {
+            TextureEncoding::Srgb => &SRGB_TO_LINEAR,
+            TextureEncoding::Linear => &BYTE_TO_UNIT,
+        }
+    }
+
+    /// The byte of an RGB value.
+    fn encode(self, value: f32) -> u8 {
+        match self {
+            TextureEncoding::Srgb => encode_srgb(value),
+            TextureEncoding::Linear => (value.clamp(0.0, 1.0) * 255.0).round() as u8,
+        }
+    }
+}
+
+/// How bilinear and trilinear filtering blend two values. Colours blend
+/// as they always have; data blends as `a + (b - a) t`, which gives `a`
+/// itself, bit for bit, where `b` equals it (`a (1 - t) + b t` can miss by
+/// a rounding, and a height map's slope is a difference of such blends).
+trait Blend {
+    fn blend(a: Vec4, b: Vec4, t: f32) -> Vec4;
+}
+
+struct ColourBlend;
+struct DataBlend;
+
+impl Blend for ColourBlend {
+    #[inline(always)]
+    fn blend(a: Vec4, b: Vec4, t: f32) -> Vec4 {
+        a.lerp(b, t)
+    }
+}
+
+impl Blend for DataBlend {
+    #[inline(always)]
+    fn blend(a: Vec4, b: Vec4, t: f32) -> Vec4 {
+        a + (b - a) * t
+    }
+}
+
+/// One level of the pyramid: RGB as its texture's encoding says and
+/// linear alpha, row-major, top row first.
 #[derive(Clone)]
 pub struct MipLevel {
     pub width: u32,
@@ -83,45 +144,46 @@ pub struct MipLevel {
 }
 
 impl MipLevel {
-    /// The texel at (`x`, `y`) in linear light (wrapped into range).
+    /// The texel at (`x`, `y`) (wrapped into range), its RGB bytes
+    /// decoded through `table`.
     #[inline]
-    fn linear(&self, x: i64, y: i64) -> Vec4 {
+    fn linear(&self, x: i64, y: i64, table: &[f32; 256]) -> Vec4 {
         let x = x.rem_euclid(i64::from(self.width)) as usize;
         let y = y.rem_euclid(i64::from(self.height)) as usize;
         let [r, g, b, a] = self.texels[y * self.width as usize + x];
         Vec4::new(
-            srgb_to_linear(r),
-            srgb_to_linear(g),
-            srgb_to_linear(b),
+            table[usize::from(r)],
+            table[usize::from(g)],
+            table[usize::from(b)],
             f32::from(a) / 255.0,
         )
     }
 
     /// Bilinear at `uv` (texel centres at half-integers, wrapped).
     #[inline]
-    fn bilinear(&self, uv: Vec2) -> Vec4 {
+    fn bilinear<B: Blend>(&self, uv: Vec2, table: &[f32; 256]) -> Vec4 {
         let x = uv.x * self.width as f32 - 0.5;
         let y = uv.y * self.height as f32 - 0.5;
         let (x0, y0) = (x.floor(), y.floor());
         let (fx, fy) = (x - x0, y - y0);
         let (x0, y0) = (x0 as i64, y0 as i64);
-        let top = self.linear(x0, y0).lerp(self.linear(x0 + 1, y0), fx);
-        let bottom = self
-            .linear(x0, y0 + 1)
-            .lerp(self.linear(x0 + 1, y0 + 1), fx);
-        top.lerp(bottom, fy)
+        let texel = |x, y| self.linear(x, y, table);
+        let top = B::blend(texel(x0, y0), texel(x0 + 1, y0), fx);
+        let bottom = B::blend(texel(x0, y0 + 1), texel(x0 + 1, y0 + 1), fx);
+        B::blend(top, bottom, fy)
     }
 
     #[inline]
-    fn nearest(&self, uv: Vec2) -> Vec4 {
+    fn nearest(&self, uv: Vec2, table: &[f32; 256]) -> Vec4 {
         let x = (uv.x * self.width as f32).floor() as i64;
         let y = (uv.y * self.height as f32).floor() as i64;
-        self.linear(x, y)
+        self.linear(x, y, table)
     }
 
     /// The next level down: half the size, each texel the linear mean of
-    /// the 2x2 under it.
-    fn halved(&self) -> MipLevel {
+    /// the 2x2 under it, encoded as `encoding` says.
+    fn halved(&self, encoding: TextureEncoding) -> MipLevel {
+        let table = encoding.table();
         let width = (self.width / 2).max(1);
         let height = (self.height / 2).max(1);
         let mut texels = Vec::with_capacity(width as usize * height as usize);
@@ -130,15 +192,15 @@ impl MipLevel {
                 let (sx, sy) = (i64::from(x) * 2, i64::from(y) * 2);
                 // A side of 1 texel averages that texel with itself.
                 let (dx, dy) = (i64::from(self.width > 1), i64::from(self.height > 1));
-                let mean = (self.linear(sx, sy)
-                    + self.linear(sx + dx, sy)
-                    + self.linear(sx, sy + dy)
-                    + self.linear(sx + dx, sy + dy))
+                let mean = (self.linear(sx, sy, table)
+                    + self.linear(sx + dx, sy, table)
+                    + self.linear(sx, sy + dy, table)
+                    + self.linear(sx + dx, sy + dy, table))
                     * 0.25;
                 texels.push([
-                    encode_srgb(mean.x),
-                    encode_srgb(mean.y),
-                    encode_srgb(mean.z),
+                    encoding.encode(mean.x),
+                    encoding.encode(mean.y),
+                    encoding.encode(mean.z),
                     (mean.w * 255.0).round() as u8,
                 ]);
             }
@@ -157,6 +219,7 @@ pub struct Texture {
     levels: Vec<MipLevel>,
     source: PathBuf,
     filter: TextureFilter,
+    encoding: TextureEncoding,
 }
 
 /// Bytes a pyramid over a `width` x `height` image takes (4 per texel, all
@@ -183,6 +246,18 @@ impl Texture {
         source: &Path,
         filter: TextureFilter,
     ) -> Texture {
+        Texture::from_rgba8(width, height, rgba, source, filter, TextureEncoding::Srgb)
+    }
+
+    /// [`Texture::from_srgba8`] for an image whose RGB is `encoding`.
+    pub fn from_rgba8(
+        width: u32,
+        height: u32,
+        rgba: Vec<[u8; 4]>,
+        source: &Path,
+        filter: TextureFilter,
+        encoding: TextureEncoding,
+    ) -> Texture {
         assert!(width > 0 && height > 0 && rgba.len() == width as usize * height as usize);
         let mut levels = vec![MipLevel {
             width,
@@ -190,13 +265,14 @@ impl Texture {
             texels: rgba,
         }];
         while let Some(last) = levels.last().filter(|l| l.width > 1 || l.height > 1) {
-            let next = last.halved();
+            let next = last.halved(encoding);
             levels.push(next);
         }
         Texture {
             levels,
             source: source.to_path_buf(),
             filter,
+            encoding,
         }
     }
 
@@ -210,6 +286,10 @@ impl Texture {
 
     pub fn filter(&self) -> TextureFilter {
         self.filter
+    }
+
+    pub fn encoding(&self) -> TextureEncoding {
+        self.encoding
     }
 
     /// Width and height of the full-size image.
@@ -233,23 +313,56 @@ impl Texture {
     /// texture's filter says. A NaN `lod` reads level 0.
     #[inline]
     pub fn sample(&self, uv: Vec2, lod: f32) -> Vec4 {
+        match self.encoding {
+            TextureEncoding::Srgb => self.sample_blending::<ColourBlend>(uv, lod),
+            TextureEncoding::Linear => self.sample_blending::<DataBlend>(uv, lod),
+        }
+    }
+
+    #[inline]
+    fn sample_blending<B: Blend>(&self, uv: Vec2, lod: f32) -> Vec4 {
+        let table = self.encoding.table();
         // Wrapping first keeps huge coordinates' texel arithmetic exact.
         let uv = uv - uv.floor();
         match self.filter {
-            TextureFilter::Nearest => self.levels[0].nearest(uv),
-            TextureFilter::Bilinear => self.levels[0].bilinear(uv),
+            TextureFilter::Nearest => self.levels[0].nearest(uv, table),
+            TextureFilter::Bilinear => self.levels[0].bilinear::<B>(uv, table),
             TextureFilter::Trilinear => {
-                let top = (self.levels.len() - 1) as f32;
-                let lod = if lod > 0.0 { lod.min(top) } else { 0.0 };
+                let lod = self.level_read(lod);
                 let below = lod.floor();
                 let blend = lod - below;
-                let fine = self.levels[below as usize].bilinear(uv);
+                let fine = self.levels[below as usize].bilinear::<B>(uv, table);
                 if blend == 0.0 {
                     return fine;
                 }
-                fine.lerp(self.levels[below as usize + 1].bilinear(uv), blend)
+                let coarse = self.levels[below as usize + 1].bilinear::<B>(uv, table);
+                B::blend(fine, coarse, blend)
             }
         }
+    }
+
+    /// The (fractional) level a trilinear lookup at `lod` reads: `lod`
+    /// within the pyramid, level 0 for NaN.
+    #[inline]
+    fn level_read(&self, lod: f32) -> f32 {
+        let top = (self.levels.len() - 1) as f32;
+        if lod > 0.0 {
+            lod.min(top)
+        } else {
+            0.0
+        }
+    }
+
+    /// The width and height, in texture coordinates, of a texel of the
+    /// level a lookup at `lod` reads (of level 0 where the filter reads
+    /// only that): the step a finite difference of lookups takes.
+    pub fn texel_span(&self, lod: f32) -> Vec2 {
+        let level = match self.filter {
+            TextureFilter::Trilinear => self.level_read(lod),
+            TextureFilter::Nearest | TextureFilter::Bilinear => 0.0,
+        };
+        let (w, h) = self.size();
+        Vec2::new(w as f32, h as f32).recip() * level.exp2()
     }
 }
 
@@ -274,7 +387,11 @@ impl PartialEq for TextureRef {
 impl std::fmt::Debug for TextureRef {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         let (w, h) = self.size();
-        write!(f, "Texture({}, {w}x{h})", self.source.display())
+        let data = match self.encoding {
+            TextureEncoding::Srgb => "",
+            TextureEncoding::Linear => ", linear",
+        };
+        write!(f, "Texture({}, {w}x{h}{data})", self.source.display())
     }
 }
 
@@ -377,6 +494,36 @@ mod tests {
         assert_eq!(t.sample(Vec2::new(0.25, 0.25), 9.0), mean);
         assert_eq!(t.sample(Vec2::new(0.25, 0.25), -3.0), fine);
         assert_eq!(t.sample(Vec2::new(0.25, 0.25), f32::NAN), fine);
+    }
+
+    #[test]
+    fn data_textures_skip_the_srgb_curve_and_keep_flat_stretches_exact() {
+        let (b, w, g) = ([0, 0, 0, 255], [255, 255, 255, 255], [77, 77, 77, 255]);
+        let t = Texture::from_rgba8(
+            4,
+            2,
+            vec![b, w, b, w, g, g, g, g],
+            Path::new("h.png"),
+            TextureFilter::Trilinear,
+            TextureEncoding::Linear,
+        );
+        // A level down, the mean of the bytes (0 + 255 + 77 + 77) / 4, not
+        // of the light they would encode as sRGB.
+        assert_eq!(t.levels()[1].texels, vec![[102, 102, 102, 255]; 2]);
+        // Between equal texels a lookup is their value, bit for bit,
+        // wherever it lands (a colour blend can miss it by a rounding).
+        let grey = 77.0 / 255.0;
+        for i in 0..1000 {
+            let u = i as f32 * 0.000_999_7;
+            assert_eq!(t.sample(Vec2::new(u, 0.75), 0.0).x, grey, "{u}");
+        }
+        assert_eq!(t.sample(Vec2::new(0.125, 0.25), 0.0).x, 0.0);
+        assert_eq!(t.sample(Vec2::new(0.25, 0.25), 0.0).x, 0.5);
+        // A texel of the level read, in texture coordinates.
+        assert_eq!(t.texel_span(0.0), Vec2::new(0.25, 0.5));
+        assert_eq!(t.texel_span(1.0), Vec2::new(0.5, 1.0));
+        assert_eq!(t.texel_span(f32::NAN), Vec2::new(0.25, 0.5));
+        assert_eq!(t.texel_span(7.0), Vec2::new(1.0, 2.0));
     }
 
     #[test]

@@ -8,6 +8,7 @@ mod common;
 mod animate;
 mod antialiasing;
 mod area_lights;
+mod bump_maps;
 mod cli;
 mod cli_limits;
 mod cli_messages;

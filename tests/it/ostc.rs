@@ -261,7 +261,8 @@ fn bad_animation_input_names_file_line_and_field() {
 /// A random small animation: a few spheres, quads and cut-out plants
 /// near the paper scene's centre, some moving (keys or bounces), maybe an
 /// area light (and glossy spheres), maybe moving lights, maybe a panning
-/// camera.
+/// camera, maybe a brick wall with a height map
+/// (`scenes/textured/wall.obj`), still or moving.
 fn random_animation() -> impl Strategy<Value = String> {
     let object = (0u8..3, -4.0f32..4.0, 0.2f32..2.0, -4.0f32..6.0, 0.2f32..1.2)
         .prop_map(|(shape, x, y, z, size)| (shape, x, y, z, size));
@@ -279,8 +280,9 @@ fn random_animation() -> impl Strategy<Value = String> {
         -30.0f64..30.0,
         -12.0f64..0.0,
         0u8..3,
+        0u8..3,
     )
-        .prop_map(|(objects, light_moves, yaw, pitch, area_light)| {
+        .prop_map(|(objects, light_moves, yaw, pitch, area_light, wall)| {
             // Maybe an area light (light 2): soft shadows, four shadow rays
             // a sample.
             let mut text = match area_light {
@@ -329,6 +331,14 @@ fn random_animation() -> impl Strategy<Value = String> {
                         );
                     }
                 }
+            }
+            // Maybe a bump-mapped wall (its relief read through the cone
+            // of each ray), still (1) or sliding across (2).
+            if wall > 0 {
+                text += "[[object]]\ntype = \"mesh\"\nname = \"wall\"\nfile = \"textured/wall.obj\"\nscale = 0.4\ntranslate = [-1.0, 0.0, 1.0]\nrotate = [0.0, 20.0, 0.0]\n";
+            }
+            if wall > 1 {
+                timeline += "[[animation.object]]\nobject = \"wall\"\nframe = 0\n[[animation.object]]\nobject = \"wall\"\nframe = 4\ntranslate = [1.5, 0.0, 0.5]\n";
             }
             if light_moves {
                 timeline += "[[animation.light]]\nlight = 1\nframe = 1\n[[animation.light]]\nlight = 1\nframe = 3\nposition = [4.0, 9.0, 6.0]\n";

@@ -108,6 +108,22 @@ fn out_of_range_values_name_their_own_line_not_their_tables() {
             "material.red.roughness: must be within 0..1, got 1.5",
         ),
         (
+            17,
+            "bump_scale = inf\nbump_texture = \"h.png\"",
+            "material.red.bump_scale: must be finite, got inf",
+        ),
+        (
+            17,
+            "bump_scale = 0.5",
+            "material.red.bump_scale: scales a height map: give the material a `bump_texture`",
+        ),
+        (
+            17,
+            "normal_texture = \"n.png\"\nbump_texture = \"h.png\"",
+            "material.red.normal_texture: a material takes a height map (`bump_texture`) or a \
+             normal map (`normal_texture`), not both",
+        ),
+        (
             13,
             "falloff = \"linear\"",
             "light[0].falloff: unknown variant `linear`, expected `none` or `inverse-square`",

@@ -282,6 +282,17 @@ pub(super) struct MaterialDef {
     /// the surface away.
     #[serde(default)]
     pub(super) cutout_texture: Option<Spanned<String>>,
+    /// A height map, relative to the scene file, that bends the shading
+    /// normal.
+    #[serde(default)]
+    pub(super) bump_texture: Option<Spanned<String>>,
+    /// World units a white texel of the height map stands above a black
+    /// one: 1 when not given.
+    #[serde(default)]
+    pub(super) bump_scale: Option<f32>,
+    /// A tangent-space normal map, relative to the scene file.
+    #[serde(default)]
+    pub(super) normal_texture: Option<Spanned<String>>,
     #[serde(default = "default_shininess")]
     pub(super) shininess: f32,
     #[serde(default)]

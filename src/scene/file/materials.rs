@@ -2,8 +2,8 @@
 //!
 //! Promises: every colour is finite and not negative, a checker's scale
 //! above 0, the shininess finite and not negative, the reflectivity and
-//! the roughness within 0..1; a transparent material's values as
-//! [`Glass`] promises.
+//! the roughness within 0..1; a bump scale finite; a transparent
+//! material's values as [`Glass`] promises.
 
 use std::path::Path;
 use std::sync::Arc;
@@ -15,21 +15,22 @@ use super::values::colour;
 use super::Ctx;
 use crate::geometry::CoverageRef;
 use crate::scene::glass::{Glass, DEFAULT_IOR};
-use crate::scene::{Checker, Material, SceneError};
+use crate::scene::{BumpMap, Checker, Material, SceneError};
 use crate::texture::load::TextureProblem;
 use crate::texture::path::{resolve, shown};
-use crate::texture::TextureRef;
+use crate::texture::{TextureEncoding, TextureRef};
 
 /// The texture `written` names in field `field` (`texture`,
-/// `specular_texture`, `cutout_texture`) of material `name`, relative to the file that
-/// names it. A file that is missing or not a readable image is a
-/// warning (the material renders untextured); one past the texture memory
-/// limit an error.
+/// `specular_texture`, `cutout_texture`, ...) of material `name`, relative to the file that
+/// names it, its RGB read as `encoding`. A file that is missing or not a
+/// readable image is a warning (the material renders untextured); one
+/// past the texture memory limit an error.
 fn texture(
     ctx: &Ctx,
     name: &str,
     field: &str,
     written: &Spanned<String>,
+    encoding: TextureEncoding,
 ) -> Result<Option<TextureRef>, SceneError> {
     let field = format!("material.{name}.{field}");
     let here = || {
@@ -59,7 +60,7 @@ fn texture(
             found.path.display()
         ));
     }
-    let loaded = ctx.textures.borrow_mut().load(&found.path);
+    let loaded = ctx.textures.borrow_mut().load_as(&found.path, encoding);
     match loaded {
         Ok(texture) => Ok(Some(texture)),
         Err(TextureProblem::Skipped(why)) => {
@@ -123,17 +124,24 @@ pub(super) fn convert_material(
     }
     let diffuse_map = match &m.texture {
         None => None,
-        Some(written) => texture(ctx, name, "texture", written)?,
+        Some(written) => texture(ctx, name, "texture", written, TextureEncoding::Srgb)?,
     };
     let specular_map = match &m.specular_texture {
         None => None,
-        Some(written) => texture(ctx, name, "specular_texture", written)?,
+        Some(written) => texture(
+            ctx,
+            name,
+            "specular_texture",
+            written,
+            TextureEncoding::Srgb,
+        )?,
     };
     let cutout = match &m.cutout_texture {
         None => None,
-        Some(written) => texture(ctx, name, "cutout_texture", written)?
+        Some(written) => texture(ctx, name, "cutout_texture", written, TextureEncoding::Srgb)?
             .map(|map| CoverageRef(Arc::new(map.coverage()))),
     };
+    let bump_map = bump_map(ctx, name, m, err)?;
     let untextured_grey = if diffuse_map.is_some() { 1.0 } else { 0.7 };
     let unmapped_specular = if specular_map.is_some() { 1.0 } else { 0.0 };
     let filter = match m.transmission_filter {
@@ -149,10 +157,56 @@ pub(super) fn convert_material(
         checker,
         specular: colour(m.specular.unwrap_or([unmapped_specular; 3])).map_err(err("specular"))?,
         specular_map,
+        bump_map,
         shininess: m.shininess,
         reflectivity: m.reflectivity,
         roughness: m.roughness,
         glass,
         cutout,
     })
+}
+
+/// The height or normal map of material `name`, if it has one that
+/// loaded; `err(field)` makes an error about one of its fields.
+fn bump_map<E: Fn(String) -> SceneError>(
+    ctx: &Ctx,
+    name: &str,
+    m: &MaterialDef,
+    err: impl Fn(&str) -> E,
+) -> Result<Option<BumpMap>, SceneError> {
+    if let Some(scale) = m.bump_scale {
+        if !scale.is_finite() {
+            return Err(err("bump_scale")(format!("must be finite, got {scale}")));
+        }
+        if m.bump_texture.is_none() {
+            return Err(err("bump_scale")(
+                "scales a height map: give the material a `bump_texture`".into(),
+            ));
+        }
+    }
+    match (&m.bump_texture, &m.normal_texture) {
+        (Some(_), Some(_)) => Err(err("normal_texture")(
+            "a material takes a height map (`bump_texture`) or a normal map \
+             (`normal_texture`), not both"
+                .into(),
+        )),
+        (Some(written), None) => {
+            let map = texture(ctx, name, "bump_texture", written, TextureEncoding::Linear)?;
+            Ok(map.map(|map| BumpMap::Height {
+                map,
+                scale: m.bump_scale.unwrap_or(1.0),
+            }))
+        }
+        (None, Some(written)) => {
+            let map = texture(
+                ctx,
+                name,
+                "normal_texture",
+                written,
+                TextureEncoding::Linear,
+            )?;
+            Ok(map.map(|map| BumpMap::Normal { map }))
+        }
+        (None, None) => Ok(None),
+    }
 }

@@ -20,14 +20,14 @@ use std::path::{Path, PathBuf};
 use glam::{DVec3, Vec2, Vec3};
 
 use super::file::{SceneOverrides, UpAxis};
-use super::{Checker, Material, Scene, SceneError};
+use super::{BumpMap, Checker, Material, Scene, SceneError};
 use crate::camera::{yaw_pitch_toward, Camera, Projection};
 use crate::geometry::normals::{apply_crease_normals, DEFAULT_CREASE_ANGLE_DEG};
 use crate::geometry::{Aabb, Object, Placement, Plane, Shape, TriangleMesh, WORLD_LIMIT};
 use crate::geometry::{CoverageRef, Light};
 use crate::texture::load::{TextureCache, TextureProblem};
 use crate::texture::path::{mtl_file_name, resolve, shown};
-use crate::texture::TextureRef;
+use crate::texture::{TextureEncoding, TextureRef};
 use triangulate::FaceCutter;
 
 mod triangulate;
@@ -402,11 +402,12 @@ fn checked_mtl_text(
                 None => Some("expected an illumination model (0-10)".into()),
             },
             "map_Ka" | "map_Kd" | "map_Ks" | "map_Bump" | "map_bump" | "map_Ns" | "map_ns"
-            | "map_NS" | "bump" | "map_d"
+            | "map_NS" | "bump" | "map_d" | "norm"
                 if values.is_empty() =>
             {
                 Some("expected a texture file name".into())
             }
+            "map_Bump" | "map_bump" | "bump" => bump_scale(&values.join(" ")).err(),
             _ => None,
         };
         match problem {
@@ -434,9 +435,20 @@ fn checked_mtl_text(
                         values[0]
                     ));
                 }
-                if let (Some(name), "map_Kd" | "map_Ks" | "map_d") = (&current, keyword) {
+                if let (Some(name), "map_Kd" | "map_Ks" | "map_d" | "norm") = (&current, keyword) {
                     texture_lines.insert(
                         (name.clone(), keyword.to_string()),
+                        TextureLine {
+                            mtl: path.to_path_buf(),
+                            line: number + 1,
+                            keyword: keyword.to_string(),
+                        },
+                    );
+                }
+                // tobj keeps the last of the three spellings of a height map.
+                if let (Some(name), "map_Bump" | "map_bump" | "bump") = (&current, keyword) {
+                    texture_lines.insert(
+                        (name.clone(), "bump".to_string()),
                         TextureLine {
                             mtl: path.to_path_buf(),
                             line: number + 1,
@@ -469,6 +481,23 @@ fn ns_problem(values: &[&str]) -> Option<&'static str> {
     }
 }
 
+/// The `-bm` (bump multiplier) of a height map's `arguments` (what
+/// follows `map_Bump`): 1 without one; an error when its value is not a
+/// finite number.
+fn bump_scale(arguments: &str) -> Result<f32, String> {
+    let (_, options) = mtl_file_name(arguments);
+    let Some(option) = options.iter().find(|o| o.starts_with("-bm")) else {
+        return Ok(1.0);
+    };
+    let value = option["-bm".len()..].trim();
+    match value.parse::<f32>() {
+        Ok(scale) if scale.is_finite() => Ok(scale),
+        Ok(_) => Err(format!("-bm '{value}' is not finite")),
+        Err(_) if value.is_empty() => Err("-bm needs a number".into()),
+        Err(_) => Err(format!("-bm '{value}' is not a number")),
+    }
+}
+
 /// Where a material's texture map (`map_Kd`, `map_Ks`) was written.
 #[derive(Clone, Debug)]
 struct TextureLine {
@@ -477,27 +506,32 @@ struct TextureLine {
     keyword: String,
 }
 
-/// The texture of a material's `map_Kd`, `map_Ks` or `map_d` (`arguments`,
-/// written at `at`): `None`, with a warning naming the MTL file and line,
-/// when the file is missing or not a readable image (the material keeps its
-/// `Kd`, or `Ks`, or is drawn whole); an error past the texture memory
-/// limit.
+/// The texture of a material's `map_Kd`, `map_Ks`, `map_d`, height map
+/// or `norm` (`arguments`, written at `at`), its RGB read as `encoding`:
+/// `None`, with a warning naming the MTL file and line, when the file is
+/// missing or not a readable image (the material keeps its `Kd`, or `Ks`,
+/// or is drawn whole, or keeps its smooth normals); an error past the
+/// texture memory limit.
 fn load_mtl_texture(
     material: &str,
     arguments: &str,
     at: &TextureLine,
+    encoding: TextureEncoding,
     textures: &mut TextureCache,
     problems: &mut Vec<String>,
 ) -> Result<Option<TextureRef>, SceneError> {
     let here = format!("{}:{}: {}", at.mtl.display(), at.line, at.keyword);
     let fallback = match at.keyword.as_str() {
+        "map_Kd" => format!("material '{material}' uses its Kd"),
+        "map_Ks" => format!("material '{material}' uses its Ks"),
         "map_d" => format!("material '{material}' is drawn whole"),
-        keyword => {
-            let colour = keyword.strip_prefix("map_").unwrap_or("Kd");
-            format!("material '{material}' uses its {colour}")
-        }
+        _ => format!("material '{material}' is shaded without it"),
     };
-    let (name, options) = mtl_file_name(arguments);
+    let (name, mut options) = mtl_file_name(arguments);
+    // A height map's `-bm` is read (by `bump_scale`); nothing else's is.
+    if matches!(at.keyword.as_str(), "map_Bump" | "map_bump" | "bump") {
+        options.retain(|option| !option.starts_with("-bm"));
+    }
     if !options.is_empty() {
         problems.push(format!(
             "{here}: options {} are not supported: left out",
@@ -518,7 +552,7 @@ fn load_mtl_texture(
             found.path.display()
         ));
     }
-    match textures.load(&found.path) {
+    match textures.load_as(&found.path, encoding) {
         Ok(texture) => Ok(Some(texture)),
         Err(TextureProblem::Skipped(why)) => {
             problems.push(format!("{here}: {why}; {fallback}"));
@@ -568,6 +602,7 @@ fn material_from_mtl(
         roughness: mtl_roughness(m),
         diffuse_map,
         specular_map: specular_map.filter(|_| highlight),
+        bump_map: None,
         glass: super::glass::glass_from_mtl(m),
         cutout: None,
     }
@@ -655,21 +690,23 @@ pub fn load_obj_mesh_with(path: &Path, textures: &mut TextureCache) -> Result<Ob
             converted.push(None);
             continue;
         }
-        let mut map = |arguments: &Option<String>, keyword: &str| {
+        problems.extend(shadowed_height_map(m, &texture_lines));
+        let mut map = |arguments: Option<&String>, keyword: &str, encoding| {
             let at = texture_lines.get(&(m.name.clone(), keyword.to_string()));
             match (arguments, at) {
                 (Some(arguments), Some(at)) => {
-                    load_mtl_texture(&m.name, arguments, at, textures, &mut problems)
+                    load_mtl_texture(&m.name, arguments, at, encoding, textures, &mut problems)
                 }
                 _ => Ok(None),
             }
         };
-        let diffuse_map = map(&m.diffuse_texture, "map_Kd")?;
-        let specular_map = map(&m.specular_texture, "map_Ks")?;
-        let cutout = map(&m.dissolve_texture, "map_d")?
-            .map(|map| CoverageRef(std::sync::Arc::new(map.coverage())));
+        let diffuse_map = map(m.diffuse_texture.as_ref(), "map_Kd", TextureEncoding::Srgb)?;
+        let specular_map = map(m.specular_texture.as_ref(), "map_Ks", TextureEncoding::Srgb)?;
+        let bump_map = mtl_bump_map(m, &mut map)?;
         let mut material = material_from_mtl(m, diffuse_map, specular_map);
-        material.cutout = cutout;
+        material.bump_map = bump_map;
+        material.cutout = map(m.dissolve_texture.as_ref(), "map_d", TextureEncoding::Srgb)?
+            .map(|map| CoverageRef(std::sync::Arc::new(map.coverage())));
         converted.push(Some(material));
     }
 
@@ -713,6 +750,51 @@ pub fn load_obj_mesh_with(path: &Path, textures: &mut TextureCache) -> Result<Ob
         material_problem,
         problems,
     })
+}
+
+/// The relief of MTL material `m`: its `norm` normal map, else its height
+/// map (`map_Bump`, `bump`) with its `-bm`; `map` loads a texture line's
+/// file.
+fn mtl_bump_map(
+    m: &tobj::Material,
+    map: &mut impl FnMut(
+        Option<&String>,
+        &str,
+        TextureEncoding,
+    ) -> Result<Option<TextureRef>, SceneError>,
+) -> Result<Option<BumpMap>, SceneError> {
+    if let Some(normal) = m.unknown_param.get("norm") {
+        let loaded = map(Some(normal), "norm", TextureEncoding::Linear)?;
+        return Ok(loaded.map(|map| BumpMap::Normal { map }));
+    }
+    let loaded = map(m.normal_texture.as_ref(), "bump", TextureEncoding::Linear)?;
+    Ok(loaded.map(|map| BumpMap::Height {
+        map,
+        // Checked when the line was read.
+        scale: m
+            .normal_texture
+            .as_deref()
+            .map_or(1.0, |a| bump_scale(a).unwrap_or(1.0)),
+    }))
+}
+
+/// The warning for MTL material `m` when it has a normal map (`norm`) and
+/// a height map both: it shows the normal map.
+fn shadowed_height_map(
+    m: &tobj::Material,
+    texture_lines: &HashMap<(String, String), TextureLine>,
+) -> Option<String> {
+    m.unknown_param.get("norm")?;
+    m.normal_texture.as_ref()?;
+    let at = texture_lines.get(&(m.name.clone(), "bump".to_string()))?;
+    Some(format!(
+        "{}:{}: {}: material '{}' has a normal map (norm) too, which it shows: \
+         its height map is left out",
+        at.mtl.display(),
+        at.line,
+        at.keyword,
+        m.name
+    ))
 }
 
 /// Warns of each `usemtl` (once a name) naming a material no library
