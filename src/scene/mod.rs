@@ -13,7 +13,7 @@ use std::path::{Path, PathBuf};
 use glam::Vec3;
 
 use crate::camera::Camera;
-use crate::geometry::{CoverageRef, Cutout, Light, Object, Shape};
+use crate::geometry::{Coverage, CoverageRef, Cutout, Light, Object, Shape};
 use crate::texture::TextureRef;
 use crate::timeline::{Animation, ViewportTrack};
 
@@ -90,6 +90,16 @@ pub struct Material {
     /// Where the surface is cut away, letting rays through (MTL `map_d`, a
     /// scene's `cutout_texture`): on meshes with texture coordinates.
     pub cutout: Option<CoverageRef>,
+}
+
+/// `map`'s full-size image as a cut-out map.
+pub(crate) fn coverage_of(map: &TextureRef) -> CoverageRef {
+    let level = &map.levels()[0];
+    CoverageRef(std::sync::Arc::new(Coverage::from_rgba8(
+        level.width,
+        level.height,
+        &level.texels,
+    )))
 }
 
 /// Gives each mesh with texture coordinates its material's cut-out, where

@@ -29,7 +29,6 @@ use std::sync::{Arc, LazyLock};
 use glam::{Vec2, Vec4};
 
 use crate::color::encode_srgb;
-use crate::geometry::Coverage;
 
 /// How a texture is filtered.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -295,12 +294,6 @@ impl Texture {
     /// Width and height of the full-size image.
     pub fn size(&self) -> (u32, u32) {
         (self.levels[0].width, self.levels[0].height)
-    }
-
-    /// The full-size image as a cut-out map.
-    pub fn coverage(&self) -> Coverage {
-        let level = &self.levels[0];
-        Coverage::from_rgba8(level.width, level.height, &level.texels)
     }
 
     /// Bytes the pyramid holds.

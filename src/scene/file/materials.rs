@@ -6,14 +6,12 @@
 //! material's values as [`Glass`] promises.
 
 use std::path::Path;
-use std::sync::Arc;
 
 use toml::Spanned;
 
 use super::defs::MaterialDef;
 use super::values::colour;
 use super::Ctx;
-use crate::geometry::CoverageRef;
 use crate::scene::glass::{Glass, DEFAULT_IOR};
 use crate::scene::{BumpMap, Checker, Material, SceneError};
 use crate::texture::load::TextureProblem;
@@ -139,7 +137,7 @@ pub(super) fn convert_material(
     let cutout = match &m.cutout_texture {
         None => None,
         Some(written) => texture(ctx, name, "cutout_texture", written, TextureEncoding::Srgb)?
-            .map(|map| CoverageRef(Arc::new(map.coverage()))),
+            .map(|map| crate::scene::coverage_of(&map)),
     };
     let bump_map = bump_map(ctx, name, m, err)?;
     let untextured_grey = if diffuse_map.is_some() { 1.0 } else { 0.7 };

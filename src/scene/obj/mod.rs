@@ -23,8 +23,8 @@ use super::file::{SceneOverrides, UpAxis};
 use super::{BumpMap, Checker, Material, Scene, SceneError};
 use crate::camera::{yaw_pitch_toward, Camera, Projection};
 use crate::geometry::normals::{apply_crease_normals, DEFAULT_CREASE_ANGLE_DEG};
+use crate::geometry::Light;
 use crate::geometry::{Aabb, Object, Placement, Plane, Shape, TriangleMesh, WORLD_LIMIT};
-use crate::geometry::{CoverageRef, Light};
 use crate::texture::load::{TextureCache, TextureProblem};
 use crate::texture::path::{mtl_file_name, resolve, shown};
 use crate::texture::{TextureEncoding, TextureRef};
@@ -706,7 +706,7 @@ pub fn load_obj_mesh_with(path: &Path, textures: &mut TextureCache) -> Result<Ob
         let mut material = material_from_mtl(m, diffuse_map, specular_map);
         material.bump_map = bump_map;
         material.cutout = map(m.dissolve_texture.as_ref(), "map_d", TextureEncoding::Srgb)?
-            .map(|map| CoverageRef(std::sync::Arc::new(map.coverage())));
+            .map(|map| crate::scene::coverage_of(&map));
         converted.push(Some(material));
     }
 
