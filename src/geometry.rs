@@ -274,7 +274,8 @@ impl Object {
 /// light, which casts soft shadows).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Light {
-    /// A point light's position; an area light's centre.
+    /// A point light's position; an area light's centre; a triangle
+    /// light's first corner.
     pub position: Vec3,
     /// Colour times intensity.
     pub power: Vec3,
@@ -342,6 +343,14 @@ pub enum LightShape {
     /// its unit `normal` only.
     Disc {
         radius: f32,
+        normal: Vec3,
+    },
+    /// A triangle with corners at the position and the position plus
+    /// each edge, glowing to both sides: an emissive face of a model
+    /// (exporters do not agree on which way a face turns, and renderers
+    /// that import them light both sides). `normal` is its unit normal.
+    Triangle {
+        edges: [Vec3; 2],
         normal: Vec3,
     },
 }

@@ -13,13 +13,13 @@ use std::path::{Path, PathBuf};
 use glam::Vec3;
 
 use crate::camera::Camera;
-use crate::geometry::{Coverage, CoverageRef, Cutout, Light, Object, Shape};
+use crate::geometry::{Coverage, CoverageRef, Cutout, Light, LightShape, Object, Placement, Shape};
 use crate::texture::TextureRef;
 use crate::timeline::{Animation, ViewportTrack};
 
 pub use file::{parse_scene_str, SceneOverrides, UpAxis};
 pub use glass::Glass;
-pub use obj::{load_obj_mesh, load_obj_mesh_with, ObjMesh};
+pub use obj::{load_obj_mesh, load_obj_mesh_with, ObjMesh, ObjPart};
 
 /// The scene files of `scenes/` built into the binary, so `retrace render`
 /// and the lab work with no files at all: the paper's scene (checkerboard
@@ -90,6 +90,10 @@ pub struct Material {
     /// Where the surface is cut away, letting rays through (MTL `map_d`, a
     /// scene's `cutout_texture`): on meshes with texture coordinates.
     pub cutout: Option<CoverageRef>,
+    /// The light the surface gives off itself, seen where it is hit (MTL
+    /// `Ke`, on the faces of a model whose object asks for mesh lights;
+    /// zero elsewhere). The faces light the scene as triangle lights.
+    pub emission: Vec3,
 }
 
 /// `map`'s full-size image as a cut-out map.
@@ -112,6 +116,44 @@ pub fn cut_out_meshes(objects: &mut [Object], materials: &[Material]) {
             mesh.cutout = Cutout::new(mesh, coverage.clone());
         }
     }
+}
+
+/// A triangle light for each face of a mesh whose material glows (see
+/// [`Material::emission`]), in the order of the objects and their faces.
+/// Its power makes the light agree with the glow seen on the face: a
+/// white matte surface under a glowing ceiling that fills its sky looks
+/// as bright as the ceiling (the face's area over pi, times the glow,
+/// since a light's power is its intensity straight in front).
+pub fn mesh_lights(objects: &[Object], materials: &[Material]) -> Vec<Light> {
+    let mut lights = Vec::new();
+    for object in objects {
+        let emission = materials[object.material].emission;
+        let Shape::Mesh(mesh) = &object.shape else {
+            continue;
+        };
+        if emission == Vec3::ZERO {
+            continue;
+        }
+        let to_world = |p| match &object.placement {
+            Placement::World => p,
+            Placement::Instance(transform) => transform.transform_point3(p),
+        };
+        for triangle in &mesh.triangles {
+            let [a, b, c] = triangle.map(|i| to_world(mesh.positions[i as usize]));
+            let edges = [b - a, c - a];
+            let cross = edges[0].cross(edges[1]);
+            let area = 0.5 * cross.length();
+            lights.push(Light {
+                position: a,
+                power: emission * (area / std::f32::consts::PI),
+                shape: LightShape::Triangle {
+                    edges,
+                    normal: cross.normalize(),
+                },
+            });
+        }
+    }
+    lights
 }
 
 /// An image of a surface's relief, which bends its shading normal (the
@@ -169,6 +211,7 @@ impl Material {
             bump_map: None,
             glass: None,
             cutout: None,
+            emission: Vec3::ZERO,
         }
     }
 }

@@ -35,7 +35,8 @@ pub(super) const AREA_SHADOW_REACH: f32 = 0.9999;
 /// The point a shadow ray from `point` aims at for sample `(u, v)` (in
 /// [0, 1)^2) of `light`, and the weight the light's power takes there
 /// (before dividing by the samples taken); None where the sample cannot
-/// light the point (behind a one-sided light, within a sphere light).
+/// light the point (behind a one-sided light, within a sphere light, in
+/// a flat light's plane).
 pub(super) fn sample_toward(light: &Light, point: Vec3, (u, v): (f32, f32)) -> Option<(Vec3, f32)> {
     let centre = light.position;
     match light.shape {
@@ -59,6 +60,18 @@ pub(super) fn sample_toward(light: &Light, point: Vec3, (u, v): (f32, f32)) -> O
             let (a, b) = plane_axes(normal);
             let (x, y) = concentric_disc(u, v);
             planar_weight(centre + (a * x + b * y) * radius, normal, point)
+        }
+        LightShape::Triangle { edges, normal } => {
+            // Uniform over the triangle; the square root keeps strata
+            // compact, so stratified samples stay stratified.
+            let s = u.sqrt();
+            let target = centre + edges[0] * (s * (1.0 - v)) + edges[1] * (s * v);
+            let facing = if normal.dot(point - target) < 0.0 {
+                -normal
+            } else {
+                normal
+            };
+            planar_weight(target, facing, point)
         }
     }
 }
@@ -184,6 +197,10 @@ mod tests {
                 half_height: Vec3::Z * 0.2,
                 normal: down,
             },
+            LightShape::Triangle {
+                edges: [Vec3::X * 0.4, Vec3::Z * 0.3],
+                normal: Vec3::Y,
+            },
         ] {
             let got = mean_weight(&area(shape), below, 4);
             assert!(
@@ -218,6 +235,45 @@ mod tests {
             assert_eq!(target.y, 4.0);
             assert!(target.x.hypot(target.z) <= 2.0 + 1e-5, "{target}");
         }
+    }
+
+    #[test]
+    fn a_triangle_light_spreads_its_samples_evenly_and_lights_both_sides() {
+        let edges = [Vec3::new(2.0, 0.0, 0.0), Vec3::new(0.5, 0.0, 1.5)];
+        let light = area(LightShape::Triangle {
+            edges,
+            normal: edges[1].cross(edges[0]).normalize(),
+        });
+        let n = 32;
+        let mut mean = Vec3::ZERO;
+        for k in 0..n * n {
+            let (target, _) =
+                sample_toward(&light, Vec3::ZERO, stratum_position(3, 0, k, n * n)).unwrap();
+            // Within the triangle: barycentric coordinates in [0, 1].
+            let d = target - light.position;
+            let (a, b) = (edges[0], edges[1]);
+            let det = a.x * b.z - a.z * b.x;
+            let s = (d.x * b.z - d.z * b.x) / det;
+            let t = (a.x * d.z - a.z * d.x) / det;
+            assert!(d.y.abs() < 1e-5 && s >= -1e-5 && t >= -1e-5 && s + t <= 1.0 + 1e-5);
+            mean += target;
+        }
+        // Uniform over the area: the samples' mean is the centroid.
+        let centroid = light.position + (edges[0] + edges[1]) / 3.0;
+        let off = (mean / (n * n) as f32 - centroid).length();
+        assert!(off < 5e-3, "{off}");
+        // The same light from above as from below.
+        let below = mean_weight(&light, Vec3::new(0.8, 1.0, 0.5), 4);
+        let above = mean_weight(&light, Vec3::new(0.8, 7.0, 0.5), 4);
+        assert!(
+            below > 0.0 && (below / above - 1.0).abs() < 1e-3,
+            "{below} {above}"
+        );
+        // Nothing to a point in its plane.
+        assert_eq!(
+            sample_toward(&light, Vec3::new(-3.0, 4.0, 0.0), (0.3, 0.6)),
+            None
+        );
     }
 
     #[test]

@@ -407,6 +407,9 @@ pub struct Shader<'a> {
     /// Whether any light or surface draws samples (area lights, glossy
     /// surfaces): only then are rays' path keys worked out.
     draws: bool,
+    /// Whether any object glows (mesh lights): only then is a hit's glow
+    /// added.
+    any_emission: bool,
 }
 
 /// `x` to the power `n` by repeated squaring, the same multiplications in
@@ -478,6 +481,10 @@ impl<'a> Shader<'a> {
                 .any(|o| scene.materials[o.material].roughness > 0.0),
             draws: scene.lights.iter().any(Light::draws_samples)
                 || scene.materials.iter().any(|m| m.roughness > 0.0),
+            any_emission: scene
+                .objects
+                .iter()
+                .any(|o| scene.materials[o.material].emission != Vec3::ZERO),
         }
     }
 
@@ -673,6 +680,15 @@ impl<'a> Shader<'a> {
                 counts,
                 observer,
             );
+        }
+        if self.any_emission {
+            // The glow is the surface's own: not dimmed by its mirror.
+            for lane in lanes(hit_mask) {
+                let glow = scene.materials[lanes_hit.material[lane] as usize].emission;
+                if glow != Vec3::ZERO {
+                    colors.set(lane, colors.get(lane) + glow);
+                }
+            }
         }
         colors
     }

@@ -21,6 +21,7 @@ mod fuzz;
 mod glass;
 mod interrupt;
 mod layers;
+mod mesh_lights;
 mod moving_spheres;
 mod normals;
 mod obj_exporters;

@@ -19,7 +19,7 @@ use super::values::{colour, world3};
 use super::Ctx;
 use crate::camera::Camera;
 use crate::geometry::{Object, Shape, WORLD_LIMIT};
-use crate::scene::SceneError;
+use crate::scene::{Material, SceneError};
 use crate::timeline::{
     Animation, Bounce, CameraKey, Ease, LightKey, LightTrack, ObjectKey, ObjectTrack,
 };
@@ -35,10 +35,11 @@ pub(super) fn convert_animation(
     def: &AnimationDef,
     camera: &Camera,
     objects: &[Object],
+    materials: &[Material],
     lights: &[Spanned<LightDef>],
 ) -> Result<Animation, SceneError> {
     let mut animation = convert_timeline(ctx, def, camera)?;
-    animation.objects = convert_object_tracks(ctx, def, objects)?;
+    animation.objects = convert_object_tracks(ctx, def, objects, materials)?;
     animation.lights = convert_light_tracks(ctx, def, lights)?;
     Ok(animation)
 }
@@ -181,6 +182,7 @@ fn convert_object_tracks(
     ctx: &Ctx,
     def: &AnimationDef,
     objects: &[Object],
+    materials: &[Material],
 ) -> Result<Vec<ObjectTrack>, SceneError> {
     let mut tracks: Vec<ObjectTrack> = Vec::new();
     let track_for = |tracks: &mut Vec<ObjectTrack>,
@@ -209,6 +211,21 @@ fn convert_object_tracks(
                 format!(
                     "'{}' is an infinite plane, which cannot move (give it a size to make it finite)",
                     objects[plane].name
+                ),
+            ));
+        }
+        // Its triangle lights are made once, where the model stands.
+        if let Some(&glowing) = members
+            .iter()
+            .find(|&&i| materials[objects[i].material].emission != Vec3::ZERO)
+        {
+            return Err(ctx.error(
+                span,
+                field,
+                format!(
+                    "'{}' glows as mesh lights, which cannot move yet (light it with a \
+                     [[light]] the animation moves, or leave mesh_lights off)",
+                    objects[glowing].name
                 ),
             ));
         }

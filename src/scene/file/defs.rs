@@ -358,4 +358,8 @@ pub(super) struct ObjectDef {
     /// Meshes without normals in the file: degrees between two faces'
     /// normals below which their shared edge is smoothed.
     pub(super) crease_angle: Option<f32>,
+    /// Meshes: faces whose MTL material gives off light (`Ke`) glow and
+    /// light the scene, each a triangle light.
+    #[serde(default)]
+    pub(super) mesh_lights: bool,
 }

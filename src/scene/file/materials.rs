@@ -161,6 +161,7 @@ pub(super) fn convert_material(
         roughness: m.roughness,
         glass,
         cutout,
+        emission: glam::Vec3::ZERO,
     })
 }
 

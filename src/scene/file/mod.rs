@@ -305,6 +305,11 @@ pub(crate) fn parse_scene(
     let mut lights = convert_lights(&ctx, &file.light)?;
 
     let mut warnings = Vec::new();
+    let mut objects =
+        convert_objects(&ctx, &file, &mut materials, default_material, &mut warnings)?;
+    warnings.extend(ctx.texture_warnings.take());
+    // After the tables' lights: the animation's light keys number those.
+    lights.extend(crate::scene::mesh_lights(&objects, &materials));
     // Legal (an all-mirror or a flat-lit scene), but more often a light
     // forgotten: the picture comes out dim, flat and shadowless.
     if lights.is_empty() {
@@ -315,14 +320,11 @@ pub(crate) fn parse_scene(
             ambient.to_array()
         ));
     }
-    let mut objects =
-        convert_objects(&ctx, &file, &mut materials, default_material, &mut warnings)?;
-    warnings.extend(ctx.texture_warnings.take());
 
     let animation = file
         .animation
         .as_ref()
-        .map(|def| convert_animation(&ctx, def, &camera, &objects, &file.light))
+        .map(|def| convert_animation(&ctx, def, &camera, &objects, &materials, &file.light))
         .transpose()?;
     if let Some(animation) = &animation {
         // Animated objects become instances, so a move updates a transform

@@ -140,12 +140,13 @@ fn convert_object(
         ("file", o.file.is_some()),
         ("smooth", o.smooth),
         ("crease_angle", o.crease_angle.is_some()),
+        ("mesh_lights", o.mesh_lights),
     ];
     let used: &[&str] = match o.kind {
         ObjectKind::Sphere => &["center", "radius"],
         ObjectKind::Plane => &["point", "normal", "size"],
         ObjectKind::Quad | ObjectKind::Polygon => &["vertices"],
-        ObjectKind::Mesh => &["file", "smooth", "crease_angle"],
+        ObjectKind::Mesh => &["file", "smooth", "crease_angle", "mesh_lights"],
     };
     if let Some((unused, _)) = given.iter().find(|(f, given)| *given && !used.contains(f)) {
         return Err(err(
@@ -316,11 +317,22 @@ fn mesh_objects(
         ));
     }
     let crease_deg = mesh_crease_angle(o).map_err(|(f, m)| err(f, m))?;
-    let loaded = crate::scene::load_obj_mesh_with(&obj_path, &mut ctx.textures.borrow_mut())?;
+    if o.mesh_lights && o.material.is_some() {
+        return Err(err(
+            "mesh_lights",
+            "reads the glow (Ke) of the model's MTL materials, which `material` replaces: \
+             give one or the other"
+                .into(),
+        ));
+    }
+    let mut loaded = crate::scene::load_obj_mesh_with(&obj_path, &mut ctx.textures.borrow_mut())?;
     warnings.extend(loaded.warnings(&obj_path));
     if loaded.triangle_count() == 0 {
         warnings.push(format!("{}: mesh has no triangles", obj_path.display()));
     }
+    loaded
+        .keep_glow(o.mesh_lights, &obj_path, warnings)
+        .map_err(|m| err("mesh_lights", m))?;
     let name = o.name.clone().unwrap_or_else(|| format!("object[{index}]"));
     let mut objects = Vec::new();
     for (part_index, part) in loaded.parts.into_iter().enumerate() {

@@ -32,6 +32,11 @@ use triangulate::FaceCutter;
 
 mod triangulate;
 
+/// The most triangle lights one model may bring: each is sampled at every
+/// shaded point, so a finely cut glowing surface would multiply the
+/// shadow rays of every pixel.
+pub const MAX_MESH_LIGHT_TRIANGLES: usize = 64;
+
 /// One material's worth of an OBJ file.
 #[derive(Clone, Debug)]
 pub struct ObjPart {
@@ -71,6 +76,69 @@ impl ObjMesh {
         }
         warnings.extend(self.problems.iter().cloned());
         warnings
+    }
+
+    /// Keeps the glow of the MTL materials where mesh lights are
+    /// `wanted` (refusing more glowing triangles than
+    /// [`MAX_MESH_LIGHT_TRIANGLES`]), and clears it, with a warning, where
+    /// they are not: a model's `Ke` changes nothing unless asked for.
+    pub fn keep_glow(
+        &mut self,
+        wanted: bool,
+        obj_path: &Path,
+        warnings: &mut Vec<String>,
+    ) -> Result<(), String> {
+        let glowing = |part: &ObjPart| {
+            part.material
+                .as_ref()
+                .is_some_and(|m| m.emission != Vec3::ZERO)
+        };
+        let triangles: usize = self
+            .parts
+            .iter()
+            .filter(|p| glowing(p))
+            .map(|p| p.mesh.triangles.len())
+            .sum();
+        let mut names: Vec<String> = self
+            .parts
+            .iter()
+            .filter(|p| glowing(p))
+            .filter_map(|p| p.material.as_ref().map(|m| format!("'{}'", m.name)))
+            .collect();
+        names.dedup();
+        if !wanted {
+            if triangles > 0 {
+                warnings.push(format!(
+                    "{}: material {} gives off light (Ke), which is left out: give the \
+                     model's object mesh_lights = true in a scene file for its faces to glow \
+                     and light the scene",
+                    obj_path.display(),
+                    names.join(", ")
+                ));
+            }
+            for part in &mut self.parts {
+                if let Some(m) = &mut part.material {
+                    m.emission = Vec3::ZERO;
+                }
+            }
+            return Ok(());
+        }
+        if triangles == 0 {
+            warnings.push(format!(
+                "{}: mesh_lights = true, but no material of the model gives off light (Ke)",
+                obj_path.display()
+            ));
+        }
+        if triangles > MAX_MESH_LIGHT_TRIANGLES {
+            return Err(format!(
+                "{}: {triangles} glowing triangles (material {}), and at most \
+                 {MAX_MESH_LIGHT_TRIANGLES} can be lights, each sampled at every shaded point: \
+                 light a large glowing surface with a sphere, rectangle or disc [[light]]",
+                obj_path.display(),
+                names.join(", ")
+            ));
+        }
+        Ok(())
     }
 
     pub fn triangle_count(&self) -> usize {
@@ -605,6 +673,7 @@ fn material_from_mtl(
         bump_map: None,
         glass: super::glass::glass_from_mtl(m),
         cutout: None,
+        emission: rgb(m.emissive, 0.0).max(Vec3::ZERO),
     }
 }
 
@@ -915,7 +984,10 @@ pub(super) fn scene_around_obj(
             stand_up_z(&mut part.mesh);
         }
     }
-    let warnings = loaded.warnings(path);
+    let mut warnings = loaded.warnings(path);
+    loaded
+        .keep_glow(false, path, &mut warnings)
+        .map_err(|m| SceneError::new(path, m))?;
     let bounds = loaded.bounds();
     if loaded.triangle_count() == 0 || !bounds.is_finite() {
         return Err(SceneError::new(
