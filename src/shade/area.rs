@@ -14,7 +14,8 @@
 //! - Unbiased for the light's glow: the weights make the mean over a
 //!   light's samples converge to the light as an evenly glowing surface
 //!   whose far field is an inverse-square point light of the same power
-//!   (from straight in front, for the one-sided rectangle and disc).
+//!   (from straight in front, for the flat rectangle, disc and triangle;
+//!   the triangle glows to both sides).
 
 use std::f32::consts::{FRAC_PI_2, FRAC_PI_4, TAU};
 
