@@ -260,7 +260,8 @@ fn bad_animation_input_names_file_line_and_field() {
 
 /// A random small animation: a few spheres, quads and cut-out plants
 /// near the paper scene's centre, some moving (keys or bounces), maybe an
-/// area light (and glossy spheres), maybe moving lights, maybe a panning
+/// area light (and glossy spheres) or a model lit by its glowing panel
+/// (mesh lights, `scenes/cornell/`), maybe moving lights, maybe a panning
 /// camera, maybe a brick wall with a height map
 /// (`scenes/textured/wall.obj`), still or moving.
 fn random_animation() -> impl Strategy<Value = String> {
@@ -279,7 +280,7 @@ fn random_animation() -> impl Strategy<Value = String> {
         prop::bool::ANY,
         -30.0f64..30.0,
         -12.0f64..0.0,
-        0u8..3,
+        0u8..4,
         0u8..3,
     )
         .prop_map(|(objects, light_moves, yaw, pitch, area_light, wall)| {
@@ -288,7 +289,9 @@ fn random_animation() -> impl Strategy<Value = String> {
             let mut text = match area_light {
                 0 => String::new(),
                 1 => "[[light]]\nshape = \"rectangle\"\nposition = [1.0, 7.0, 4.0]\nsize = [3.0, 2.0]\nnormal = [0.0, -1.0, 0.2]\nintensity = 30.0\n".to_string(),
-                _ => "[[light]]\nshape = \"sphere\"\nposition = [-3.0, 5.0, 6.0]\nradius = 0.8\nintensity = 20.0\n".to_string(),
+                2 => "[[light]]\nshape = \"sphere\"\nposition = [-3.0, 5.0, 6.0]\nradius = 0.8\nintensity = 20.0\n".to_string(),
+                // A small open box lit inside by its two glowing triangles.
+                _ => "[[object]]\ntype = \"mesh\"\nname = \"lit box\"\nfile = \"cornell/cornell.obj\"\nmesh_lights = true\nscale = 0.5\ntranslate = [-2.0, 0.0, 2.5]\nrotate = [0.0, 160.0, 0.0]\n".to_string(),
             };
             // With the rectangle light the spheres are glossy mirrors.
             text += "[material.brushed]\ndiffuse = [0.2, 0.2, 0.25]\nreflectivity = 0.6\nroughness = 0.3\n";
@@ -342,7 +345,7 @@ fn random_animation() -> impl Strategy<Value = String> {
             }
             if light_moves {
                 timeline += "[[animation.light]]\nlight = 1\nframe = 1\n[[animation.light]]\nlight = 1\nframe = 3\nposition = [4.0, 9.0, 6.0]\n";
-                if area_light > 0 {
+                if area_light == 1 || area_light == 2 {
                     timeline += "[[animation.light]]\nlight = 2\nframe = 2\n[[animation.light]]\nlight = 2\nframe = 4\nposition = [0.0, 6.0, 5.0]\n";
                 }
             }
