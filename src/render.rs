@@ -18,7 +18,7 @@ use crate::color::srgb_table;
 use crate::ray::{LaneMask, Ray, RayPacket, PACKET_WIDTH};
 use crate::sampling::PixelSamples;
 use crate::scene::Scene;
-use crate::shade::{RayCounts, RayObserver, Shader};
+use crate::shade::{PixelStrata, RayCounts, RayObserver, Shader};
 
 pub const GROUP_WIDTH: u32 = 4;
 pub const GROUP_HEIGHT: u32 = 2;
@@ -90,6 +90,13 @@ pub trait PrimaryRays: Sync {
     /// How many sub-samples each cell is traced with, and where.
     fn samples(&self) -> PixelSamples {
         PixelSamples::ONE
+    }
+
+    /// When this source's cells are the strata of another's square count
+    /// n x n ([`Strata`]), n: its cell (col, row) is then a sub-sample in
+    /// cell (col mod n, row mod n) of its pixel's grid. 1 otherwise.
+    fn strata_side(&self) -> u32 {
+        1
     }
 
     /// The ray of sub-sample `index` of cell (col, row).
@@ -187,6 +194,10 @@ impl<P: PrimaryRays + ?Sized> PrimaryRays for Strata<'_, P> {
 
     fn primary_group(&self, group: SampleGroup) -> (RayPacket, LaneMask) {
         self.source.strata_group(group)
+    }
+
+    fn strata_side(&self) -> u32 {
+        self.side as u32
     }
 }
 
@@ -286,7 +297,11 @@ impl PrimaryRays for RayTable {
 ///
 /// With a square count n x n the packets are the n x n groups of the
 /// group's strata ([`Strata`]): a packet holds neighbouring rays, and a
-/// store keeping strata traces exactly these packets.
+/// store keeping strata traces exactly these packets. Either way each
+/// lane's cell of its pixel is read off its stratum's place on the lattice
+/// of strata and handed to shading ([`Shader::shade_strata`]), so a
+/// stratum shades alike whether traced in its cell's group or in a group
+/// of strata.
 pub fn trace_group(
     shader: &Shader,
     source: &dyn PrimaryRays,
@@ -298,6 +313,11 @@ pub fn trace_group(
     let count = samples.count();
     if count == 1 {
         let (rays, mask) = source.primary_group(group);
+        let side = source.strata_side();
+        if side > 1 {
+            let strata = PixelStrata::new(side, group.lane_samples());
+            return shader.shade_strata(&rays, mask, &strata, counts, observer);
+        }
         return shader.shade(&rays, mask, 0, counts, observer);
     }
     let side = samples.grid_side();
@@ -341,7 +361,8 @@ pub fn trace_group(
                 Some(ref mut o) => Some(&mut **o),
                 None => None,
             };
-            let colors = shader.shade(&rays, mask, 0, counts, watching);
+            let cells = PixelStrata::new(side as u32, packet.lane_samples());
+            let colors = shader.shade_strata(&rays, mask, &cells, counts, watching);
             for (lane, color) in colors.into_iter().enumerate() {
                 let lane = lane as i64;
                 // The stratum's place in the group's block of strata.
@@ -625,10 +646,8 @@ mod tests {
                 let sub: Vec<Vec3> = (0..count as i64)
                     .map(|k| {
                         let stratum = (col * side + k % side, row * side + k / side);
-                        let (rays, mask) =
-                            strata.primary_group(SampleGroup::containing(stratum.0, stratum.1));
-                        let colors = shader.shade(&rays, mask, 0, &mut counts, None);
                         let g = SampleGroup::containing(stratum.0, stratum.1);
+                        let colors = trace_group(&shader, &strata, g, &mut counts, None);
                         colors[((stratum.1 - g.row) * 4 + stratum.0 - g.col) as usize]
                     })
                     .collect();

@@ -2,8 +2,22 @@
 //!
 //! Promises:
 //! - A glossy direction is a pure function of the path's key (see
-//!   [`super::draws`]), the mirror direction, the surface's roughness and
-//!   a fixed seed: a reused sample reflects as a fresh trace of it.
+//!   [`super::draws`]), the mirror direction, the surface's roughness, a
+//!   fixed seed and, on a camera sample's first bounce, the sample's cell
+//!   of its pixel's n x n grid of sub-samples ([`PixelStrata`]): a reused
+//!   sample reflects as a fresh trace of it.
+//! - Stratified across a pixel's sub-samples: the first bounces of the
+//!   sub-samples of a square count n x n draw one in each cell of an
+//!   n x n grid over the lobe's parameter square, and so do those of any
+//!   n x n window of neighbouring strata (a view whose corner sits between
+//!   cells). The lobe cell a sub-sample's cell is dealt is a fixed shuffle
+//!   of the n^2 cells (the same in every pixel, or a window straddling
+//!   pixels could deal a lobe cell twice), not the cell itself, which
+//!   would tie where across the pixel a ray starts to which side of the
+//!   lobe it leaves by, axis for axis. Within its lobe cell a bounce is
+//!   placed by the path's key. Deeper bounces, refractions' children,
+//!   counts that are not squares and a single sample draw from the key
+//!   alone.
 //! - It lies in a Phong lobe about the mirror direction whose exponent is
 //!   `2 / roughness^2 - 2` (Walter et al.'s match of a Beckmann surface of
 //!   that roughness; a cosine lobe at 1), so its mean over many samples
@@ -12,25 +26,117 @@
 //!   direction the lobe tips below the surface is mirrored back above it.
 
 use std::f32::consts::TAU;
+use std::sync::OnceLock;
 
 use glam::Vec3;
 
-use super::draws::key_draw;
+use super::draws::{key_draw, ONE_BELOW};
 use crate::geometry::plane_axes;
+use crate::ray::PACKET_WIDTH;
+use crate::sampling::{hash, MAX_SAMPLES_PER_PIXEL};
 
 /// The seed glossy directions are drawn from.
 const SEED: u64 = 0x676c_6f73_7379_2121;
+
+/// The seed of the shuffle that deals a pixel's sub-sample cells their
+/// lobe cells: its own, so the shuffle shares nothing with the draws
+/// inside the cells or with where the sub-samples sit.
+const CELL_SEED: u64 = 0x6c6f_6265_2063_656c;
+
+/// The largest side of a pixel's grid of sub-samples.
+const MAX_SIDE: usize = 16;
+const _: () = assert!(MAX_SIDE * MAX_SIDE == MAX_SAMPLES_PER_PIXEL as usize);
+
+/// Where each lane's camera sample lies in its pixel: the cell of the
+/// pixel's n x n grid of sub-samples its stratum is, read off the
+/// stratum's place on the lattice of strata. That lattice is anchored to
+/// the world (a pan moves it by whole cells, n strata), so a sample keeps
+/// its cell whichever packet, frame or window traces it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct PixelStrata {
+    side: u32,
+    /// (column, row) in 0..side.
+    cells: [(u32, u32); PACKET_WIDTH],
+}
+
+impl PixelStrata {
+    /// The lanes' cells for strata at lattice positions `strata`
+    /// (column, row) on a lattice `side` strata a cell along each axis
+    /// (2 to 16).
+    pub fn new(side: u32, strata: [(i64, i64); PACKET_WIDTH]) -> PixelStrata {
+        assert!(
+            (2..=MAX_SIDE as u32).contains(&side),
+            "strata of 2 x 2 to 16 x 16 a cell, not {side}"
+        );
+        let n = i64::from(side);
+        PixelStrata {
+            side,
+            cells: strata.map(|(col, row)| (col.rem_euclid(n) as u32, row.rem_euclid(n) as u32)),
+        }
+    }
+
+    /// The side n and lane `lane`'s cell, as [`lobe_position`] takes them.
+    pub(super) fn lane(&self, lane: usize) -> (u32, (u32, u32)) {
+        (self.side, self.cells[lane])
+    }
+}
+
+/// The cell of the lobe's n x n grid a sub-sample in cell `cell` of its
+/// pixel's draws its first bounce in: a shuffle of the n^2 cells, fixed by
+/// `side` and the seed. A bijection, so any n x n window of strata, which
+/// holds each pixel cell once, draws in each lobe cell once.
+fn lobe_cell(side: u32, (col, row): (u32, u32)) -> (u32, u32) {
+    static SHUFFLES: [OnceLock<Box<[u16]>>; MAX_SIDE + 1] =
+        [const { OnceLock::new() }; MAX_SIDE + 1];
+    let shuffle = SHUFFLES[side as usize].get_or_init(|| shuffled(side * side));
+    let cell = u32::from(shuffle[(row * side + col) as usize]);
+    (cell % side, cell / side)
+}
+
+/// A shuffle of 0..`count` drawn from the seed (Fisher-Yates with hashed
+/// draws).
+fn shuffled(count: u32) -> Box<[u16]> {
+    let mut cells: Vec<u16> = (0..count as u16).collect();
+    for i in (1..count as usize).rev() {
+        let j = hash(&[CELL_SEED, u64::from(count), i as u64]) % (i as u64 + 1);
+        cells.swap(i, j as usize);
+    }
+    cells.into_boxed_slice()
+}
+
+/// Where in the lobe's parameter square, [0, 1)^2, the path keyed `path`
+/// reflects: with `stratum`, a camera sample's first bounce, (n, its cell
+/// of its pixel's n x n grid), within the lobe cell that cell is dealt;
+/// without, anywhere.
+pub(super) fn lobe_position(path: u64, stratum: Option<(u32, (u32, u32))>) -> (f32, f32) {
+    let (u, v) = (key_draw(path, SEED, &[0]), key_draw(path, SEED, &[1]));
+    let Some((side, cell)) = stratum else {
+        return (u, v);
+    };
+    let (a, b) = lobe_cell(side, cell);
+    let n = side as f32;
+    // f32 rounding can carry a cell's last draw onto its end.
+    (
+        ((a as f32 + u) / n).min(ONE_BELOW),
+        ((b as f32 + v) / n).min(ONE_BELOW),
+    )
+}
 
 /// The Phong exponent of the lobe of a surface of `roughness` in (0, 1].
 fn lobe_exponent(roughness: f32) -> f32 {
     (2.0 / (roughness * roughness) - 2.0).max(0.0)
 }
 
-/// The direction the reflection ray of the path keyed `path` leaves in, on a surface of
+/// The direction a reflection ray leaves in from point `(u, v)` of the
+/// lobe's parameter square ([`lobe_position`]), on a surface of
 /// `roughness` (above 0) whose perfect mirror would send it along unit
 /// `mirror`; `facing` is the unit geometric normal on the incoming side.
-pub(super) fn glossy_direction(mirror: Vec3, facing: Vec3, path: u64, roughness: f32) -> Vec3 {
-    let (u, v) = (key_draw(path, SEED, &[0]), key_draw(path, SEED, &[1]));
+pub(super) fn glossy_direction(
+    mirror: Vec3,
+    facing: Vec3,
+    roughness: f32,
+    (u, v): (f32, f32),
+) -> Vec3 {
     let cos_theta = u.powf(1.0 / (lobe_exponent(roughness) + 1.0));
     let sin_theta = (1.0 - cos_theta * cos_theta).max(0.0).sqrt();
     let (sin_phi, cos_phi) = (TAU * v).sin_cos();
@@ -50,7 +156,7 @@ mod tests {
     /// Glossy directions from `n` points near the origin.
     fn directions(mirror: Vec3, facing: Vec3, roughness: f32, n: usize) -> Vec<Vec3> {
         (0..n)
-            .map(|i| glossy_direction(mirror, facing, i as u64, roughness))
+            .map(|i| glossy_direction(mirror, facing, roughness, lobe_position(i as u64, None)))
             .collect()
     }
 
@@ -85,8 +191,72 @@ mod tests {
         {
             assert!(d.y >= 0.0 && (d.length() - 1.0).abs() < 1e-5, "{i}: {d}");
         }
-        let a = glossy_direction(mirror, Vec3::Y, 99, 0.4);
-        assert_eq!(a, glossy_direction(mirror, Vec3::Y, 99, 0.4));
-        assert_ne!(a, glossy_direction(mirror, Vec3::Y, 100, 0.4));
+        let at = |path| glossy_direction(mirror, Vec3::Y, 0.4, lobe_position(path, None));
+        assert_eq!(at(99), at(99));
+        assert_ne!(at(99), at(100));
+    }
+
+    /// The lobe cells the first bounces of the `side` x `side` strata from
+    /// lattice position `corner` draw in, counted.
+    fn lobe_cells(side: u32, corner: (i64, i64)) -> Vec<u32> {
+        let n = i64::from(side);
+        let window: Vec<(i64, i64)> = (0..n * n)
+            .map(|k| (corner.0 + k % n, corner.1 + k / n))
+            .collect();
+        let mut cells = vec![0; (side * side) as usize];
+        for lanes in window.chunks(PACKET_WIDTH) {
+            let strata = std::array::from_fn(|lane| lanes.get(lane).copied().unwrap_or((0, 0)));
+            let strata = PixelStrata::new(side, strata);
+            for (lane, &(col, row)) in lanes.iter().enumerate() {
+                let path = crate::sampling::hash(&[col as u64, row as u64]);
+                let (u, v) = lobe_position(path, Some(strata.lane(lane)));
+                assert!((0.0..1.0).contains(&u) && (0.0..1.0).contains(&v));
+                let cell = |x: f32| (x * side as f32) as u32;
+                cells[(cell(v) * side + cell(u)) as usize] += 1;
+            }
+        }
+        cells
+    }
+
+    #[test]
+    fn any_window_of_strata_draws_one_first_bounce_in_each_lobe_cell() {
+        for side in [2, 3, 4, 5, 16] {
+            let n = i64::from(side);
+            // On a pixel, between pixels, and far from the origin on either
+            // side of it (a pan's lattice runs both ways).
+            for corner in [(0, 0), (-7 * n, 3 * n), (1 << 40, -(1 << 33))] {
+                for (dx, dy) in [(0, 0), (1, 0), (0, n - 1), (n - 1, 1), (n / 2, n / 2)] {
+                    let at = (corner.0 + dx, corner.1 + dy);
+                    assert_eq!(
+                        lobe_cells(side, at),
+                        vec![1; (side * side) as usize],
+                        "{side} at {at:?}"
+                    );
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn sub_samples_are_dealt_shuffled_lobe_cells_and_jitter_in_them_by_the_key() {
+        for side in 2..=MAX_SIDE as u32 {
+            let cells: Vec<(u32, u32)> = (0..side * side)
+                .map(|k| lobe_cell(side, (k % side, k / side)))
+                .collect();
+            let own = cells
+                .iter()
+                .enumerate()
+                .filter(|&(k, &(a, b))| (a, b) == (k as u32 % side, k as u32 / side))
+                .count();
+            // A shuffle keeps about one cell in place (as many as it keeps
+            // on average), not all.
+            assert!(own <= 3, "{side}: {own} cells kept");
+        }
+        // Within its cell a draw is the key's, as unstratified.
+        let path = 0x5eed_cafe;
+        let (u, v) = lobe_position(path, None);
+        let (a, b) = lobe_cell(4, (1, 2));
+        let (su, sv) = lobe_position(path, Some((4, (1, 2))));
+        assert_eq!((su, sv), ((a as f32 + u) / 4.0, (b as f32 + v) / 4.0));
     }
 }

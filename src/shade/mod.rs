@@ -26,6 +26,7 @@ use crate::ray::{lanes, offset_origin, Hit, LaneMask, Ray, RayPacket, PACKET_WID
 use crate::scene::{Material, Scene};
 use crate::texture::{cone_level_of_detail, Texture};
 pub use first_hit::FirstHit;
+pub use glossy::PixelStrata;
 
 use cones::{reflected_spread, refracted_spread, sample_spread, RayCones};
 use lanes::{lane_flags, lanes_where, AnalyticHits, HitLanes, Lanes, RayColumns, Vec3Lanes};
@@ -504,6 +505,36 @@ impl<'a> Shader<'a> {
         counts: &mut RayCounts,
         observer: Option<&mut dyn RayObserver>,
     ) -> [Vec3; PACKET_WIDTH] {
+        self.shade_generation(rays, mask, depth, None, counts, observer)
+    }
+
+    /// [`Shader::shade`] for camera rays (depth 0) that are sub-samples of
+    /// square counts, `strata` saying which cell of its pixel's grid each
+    /// is: their first glossy bounces are then stratified across the
+    /// pixel's sub-samples (see [`glossy`]) rather than drawn at random.
+    /// The rest of their shading is [`Shader::shade`]'s, bit for bit.
+    pub fn shade_strata(
+        &self,
+        rays: &RayPacket,
+        mask: LaneMask,
+        strata: &PixelStrata,
+        counts: &mut RayCounts,
+        observer: Option<&mut dyn RayObserver>,
+    ) -> [Vec3; PACKET_WIDTH] {
+        self.shade_generation(rays, mask, 0, Some(strata), counts, observer)
+    }
+
+    /// A packet entering the recursion at `depth`, its lanes' cells of
+    /// their pixels given where they are camera sub-samples.
+    fn shade_generation(
+        &self,
+        rays: &RayPacket,
+        mask: LaneMask,
+        depth: u32,
+        strata: Option<&PixelStrata>,
+        counts: &mut RayCounts,
+        observer: Option<&mut dyn RayObserver>,
+    ) -> [Vec3; PACKET_WIDTH] {
         let cones = RayCones {
             width: [0.0; PACKET_WIDTH],
             spread: [self.primary_spread; PACKET_WIDTH],
@@ -523,6 +554,7 @@ impl<'a> Shader<'a> {
             kind,
             cones: &cones,
             paths: &paths,
+            strata,
         };
         self.shade_lanes(rays, mask, generation, counts, observer)
             .vectors()
@@ -544,6 +576,7 @@ impl<'a> Shader<'a> {
             kind,
             cones,
             paths,
+            strata,
         } = generation;
         let scene = self.scene;
         if mask == 0 {
@@ -671,6 +704,7 @@ impl<'a> Shader<'a> {
                 cones,
                 next_cones: &next_cones,
                 curvature_radii: &curvature_radii,
+                strata,
             };
             self.add_secondary(
                 &lanes_hit,
@@ -710,6 +744,7 @@ impl<'a> Shader<'a> {
             cones,
             next_cones,
             curvature_radii,
+            strata,
         } = secondary;
         let h = lanes_hit;
         // Scene numbers are finite (a `Scene` promise), so no NaN to exclude.
@@ -730,8 +765,9 @@ impl<'a> Shader<'a> {
                     if roughness > 0.0 {
                         let mirror = directions.get(lane);
                         let facing = h.geometric_normal.get(lane);
-                        let path = h.path[lane];
-                        let glossy = glossy::glossy_direction(mirror, facing, path, roughness);
+                        let stratum = strata.map(|strata| strata.lane(lane));
+                        let lobe = glossy::lobe_position(h.path[lane], stratum);
+                        let glossy = glossy::glossy_direction(mirror, facing, roughness, lobe);
                         directions.set(lane, glossy);
                     }
                 }
@@ -750,6 +786,7 @@ impl<'a> Shader<'a> {
                     kind: RayKind::Reflection,
                     cones: next_cones,
                     paths: &child_paths(h, 1),
+                    strata: None,
                 },
                 counts,
                 reborrow(&mut observer),
@@ -778,6 +815,7 @@ impl<'a> Shader<'a> {
                     kind: RayKind::Refraction,
                     cones: &refracted_cones,
                     paths: &child_paths(h, 2),
+                    strata: None,
                 },
                 counts,
                 observer,
@@ -797,11 +835,14 @@ struct Secondary<'a> {
     next_cones: &'a RayCones,
     /// Each mirror or glass lane's radius of curvature.
     curvature_radii: &'a [f32; PACKET_WIDTH],
+    /// The packet's cells of their pixels, where it is a packet of camera
+    /// sub-samples of a square count.
+    strata: Option<&'a PixelStrata>,
 }
 
 /// What a packet of rays is in the recursion: its depth (0 for primary
-/// rays), its kind (primary, reflection or refraction) and the ray cones
-/// it carries.
+/// rays), its kind (primary, reflection or refraction), the ray cones it
+/// carries and what its lanes' draws are keyed by.
 #[derive(Clone, Copy)]
 struct Generation<'c> {
     depth: u32,
@@ -809,6 +850,9 @@ struct Generation<'c> {
     cones: &'c RayCones,
     /// Each lane's path key (zeros in scenes that draw no samples).
     paths: &'c [u64; PACKET_WIDTH],
+    /// Each lane's cell of its pixel: camera sub-samples of a square
+    /// count only, so the bounces they spawn draw without.
+    strata: Option<&'c PixelStrata>,
 }
 
 /// The path keys of the rays a bounce of kind `bounce` (1 reflection, 2

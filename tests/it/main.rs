@@ -19,6 +19,7 @@ mod extremes;
 mod farm;
 mod fuzz;
 mod glass;
+mod glossy;
 mod interrupt;
 mod layers;
 mod mesh_lights;
