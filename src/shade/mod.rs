@@ -385,6 +385,68 @@ struct ObjectShading<'a> {
     highlight_cutoff: f32,
 }
 
+/// What a hit reads off its object's maps where ray cones are followed
+/// (scenes with textures), and passes on to its children.
+struct MapsRead {
+    /// The cone leaving the hit: its width there and its spread.
+    cone_width: f32,
+    cone_spread: f32,
+    /// Mirrors and glass: the surface's radius of curvature, which bends
+    /// refracted cones; infinite elsewhere.
+    curvature_radius: f32,
+    /// The specular map's texel; white (a multiplication that changes no
+    /// bits) without one.
+    specular_texel: Vec3,
+}
+
+impl ObjectShading<'_> {
+    /// Reads the object's diffuse, specular and relief maps at `hit`
+    /// through the ray's cone, arriving as (width at the ray's origin,
+    /// spread): the diffuse texel multiplies `albedo` and the relief bends
+    /// `surface`'s shading normal.
+    #[inline(always)]
+    fn read_maps(
+        &self,
+        ray: &Ray,
+        hit: &Hit,
+        (width_at_origin, spread): (f32, f32),
+        surface: &mut Surface,
+        albedo: &mut Vec3,
+    ) -> MapsRead {
+        let width = width_at_origin + spread * hit.t * ray.dir.length();
+        let material = self.material;
+        // Only mirrors and glass pass cones on: the curvature of other
+        // surfaces is never needed.
+        let (curvature_radius, cone_spread) =
+            if material.reflectivity > 0.0 || material.glass.is_some() {
+                let radius = self.shape.curvature_radius(hit, surface);
+                (radius, reflected_spread(spread, width, radius))
+            } else {
+                (f32::INFINITY, spread)
+            };
+        if let Some(map) = &material.diffuse_map {
+            if let Some(texel) = self.shape.texel(map, ray, hit, width) {
+                *albedo *= texel;
+            }
+        }
+        let specular_texel = material
+            .specular_map
+            .as_ref()
+            .and_then(|map| self.shape.texel(map, ray, hit, width))
+            .unwrap_or(Vec3::ONE);
+        if let Some(bump) = &material.bump_map {
+            let normal = surface.shading_normal;
+            surface.shading_normal = self.shape.bumped_normal(bump, ray, hit, width, normal);
+        }
+        MapsRead {
+            cone_width: width,
+            cone_spread,
+            curvature_radius,
+            specular_texel,
+        }
+    }
+}
+
 /// Traces and shades packets for one scene through one intersector.
 pub struct Shader<'a> {
     scene: &'a Scene,
@@ -639,34 +701,12 @@ impl<'a> Shader<'a> {
                 .surface(&rays[lane], hit, object.material_index);
             let mut albedo = albedo(object.material, surface.point, surface.plane_uv);
             if self.textured {
-                let ray = &rays[lane];
-                let width = cones.width[lane] + cones.spread[lane] * hit.t * ray.dir.length();
-                next_cones.width[lane] = width;
-                // Only mirrors and glass pass cones on: the curvature of
-                // other surfaces is never needed.
-                let material = object.material;
-                if material.reflectivity > 0.0 || material.glass.is_some() {
-                    let radius = object.shape.curvature_radius(hit, &surface);
-                    curvature_radii[lane] = radius;
-                    next_cones.spread[lane] = reflected_spread(cones.spread[lane], width, radius);
-                } else {
-                    next_cones.spread[lane] = cones.spread[lane];
-                }
-                if let Some(map) = &object.material.diffuse_map {
-                    if let Some(texel) = object.shape.texel(map, ray, hit, width) {
-                        albedo *= texel;
-                    }
-                }
-                if let Some(map) = &object.material.specular_map {
-                    if let Some(texel) = object.shape.texel(map, ray, hit, width) {
-                        specular_texels[lane] = texel;
-                    }
-                }
-                if let Some(bump) = &object.material.bump_map {
-                    let normal = surface.shading_normal;
-                    surface.shading_normal =
-                        object.shape.bumped_normal(bump, ray, hit, width, normal);
-                }
+                let cone = (cones.width[lane], cones.spread[lane]);
+                let read = object.read_maps(&rays[lane], hit, cone, &mut surface, &mut albedo);
+                next_cones.width[lane] = read.cone_width;
+                next_cones.spread[lane] = read.cone_spread;
+                curvature_radii[lane] = read.curvature_radius;
+                specular_texels[lane] = read.specular_texel;
             }
             lanes_hit.set(lane, &surface, albedo);
         }
@@ -716,15 +756,20 @@ impl<'a> Shader<'a> {
             );
         }
         if self.any_emission {
-            // The glow is the surface's own: not dimmed by its mirror.
-            for lane in lanes(hit_mask) {
-                let glow = scene.materials[lanes_hit.material[lane] as usize].emission;
-                if glow != Vec3::ZERO {
-                    colors.set(lane, colors.get(lane) + glow);
-                }
-            }
+            self.add_glow(&lanes_hit, hit_mask, &mut colors);
         }
         colors
+    }
+
+    /// Adds each hit lane's glow (mesh lights) to `colors`: the surface's
+    /// own light, not dimmed by its mirror.
+    fn add_glow(&self, lanes_hit: &HitLanes, hit_mask: LaneMask, colors: &mut Vec3Lanes) {
+        for lane in lanes(hit_mask) {
+            let glow = self.scene.materials[lanes_hit.material[lane] as usize].emission;
+            if glow != Vec3::ZERO {
+                colors.set(lane, colors.get(lane) + glow);
+            }
+        }
     }
 
     /// Adds to `colors` what the mirror and glass lanes reflect and
