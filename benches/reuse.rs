@@ -18,6 +18,7 @@ use retrace::reuse::pan::EqualAngleLattice;
 use retrace::reuse::regions::{RegionGrid, RegionSet};
 use retrace::reuse::rsvp::{Level, LevelRays, RsvpKnobs, SampleBuffer, SampleLattice};
 use retrace::rng::SplitMix64;
+use retrace::sampling::PixelSamples;
 use retrace::scene::{paper_scene, SceneOverrides};
 use retrace::shade::{RayKind, RayObserver, Shader};
 
@@ -190,7 +191,8 @@ fn rsvp_null_batches(c: &mut Criterion) {
 /// its zoom, resampled from a buffer that already holds every sample it
 /// reads (pass 1's mapping and pass 2's gather, nothing traced). Besides
 /// its few new samples, this is what each later frame of E2 pays, timed
-/// far more steadily than one run of `retrace bench` can.
+/// far more steadily than one run of `retrace bench` can. At 4 and 16
+/// samples a pixel, the pixel box at the density `RsvpStore` reads it.
 fn rsvp_resample(c: &mut Criterion) {
     let scene = paper_scene(&SceneOverrides::default()).expect("built-in scene loads");
     let accel = Accelerator::build(BackendKind::Embree, &scene.objects).expect("backend builds");
@@ -200,9 +202,22 @@ fn rsvp_resample(c: &mut Criterion) {
         fov: 100f64.to_radians(),
         ..scene.camera.clone()
     };
-    let knobs = RsvpKnobs::default();
     let mut group = c.benchmark_group("rsvp viewport frame 640x480 from a traced buffer");
-    for (name, zoom) in [("100 deg (zoom 1)", 1.0), ("50 deg (zoom 2.56)", 2.5557238)] {
+    let at = |spp: u32| {
+        let samples = PixelSamples::new(spp).expect("a valid count");
+        let knobs = RsvpKnobs::default_for(samples);
+        RsvpKnobs {
+            oversample: knobs.oversample * knobs.density_scale(samples),
+            ..knobs
+        }
+    };
+    for (name, zoom, knobs) in [
+        ("100 deg (zoom 1)", 1.0, at(1)),
+        ("50 deg (zoom 2.56)", 2.5557238, at(1)),
+        ("100 deg, pixel box at 4 spp", 1.0, at(4)),
+        ("50 deg, pixel box at 4 spp", 2.5557238, at(4)),
+        ("100 deg, pixel box at 16 spp", 1.0, at(16)),
+    ] {
         let pose = ViewportPose::new(
             camera.clone(),
             ViewTransform {

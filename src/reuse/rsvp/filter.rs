@@ -169,7 +169,7 @@ impl RsvpKnobs {
     /// at the oversampling), and for the pixel box the square root of a
     /// quarter of the samples, at least 1 (its oversampling is set at
     /// four).
-    pub(crate) fn density_scale(&self, samples: PixelSamples) -> f64 {
+    pub fn density_scale(&self, samples: PixelSamples) -> f64 {
         if self.filter == Filter::PixelBox {
             (f64::from(samples.count()) / 4.0).max(1.0).sqrt()
         } else {
@@ -490,38 +490,49 @@ impl PatchFilter {
 }
 
 /// Calls `each(column, row)` for every sample a pixel at lattice
-/// coordinates (x, y) reads: the filter's square of samples from its
-/// origin (for the pixel box, the taps it covers), row by row; rows
-/// clamped to the lattice (`0..=last_row`), as reads are. The filter is
-/// matched once a pixel, so the 2x2 filters keep a fixed four-read body:
-/// pass 1 marks every pixel's reads.
+/// coordinates (x, y) reads: [`for_each_read_run`]'s runs, sample by
+/// sample.
 #[inline(always)]
 pub(super) fn for_each_read(
     filter: &PatchFilter,
-    (x, y): (f64, f64),
+    pixel: (f64, f64),
     last_row: i64,
     mut each: impl FnMut(i64, i64),
+) {
+    for_each_read_run(filter, pixel, last_row, |col, row, run| {
+        for i in 0..run {
+            each(col + i, row);
+        }
+    });
+}
+
+/// Calls `each(column, row, run)` for every row of samples a pixel at
+/// lattice coordinates (x, y) reads, `run` samples from `column`: the
+/// filter's square of samples from its origin (for the pixel box, the
+/// taps it covers), row by row; rows clamped to the lattice
+/// (`0..=last_row`), as reads are. The filter is matched once a pixel,
+/// so the 2x2 filters keep a fixed two-run body.
+#[inline(always)]
+pub(super) fn for_each_read_run(
+    filter: &PatchFilter,
+    (x, y): (f64, f64),
+    last_row: i64,
+    mut each: impl FnMut(i64, i64, i64),
 ) {
     let ((col, fx), (row, fy)) = filter.split(x, y);
     let (col, row) = (col as i64, row as i64);
     match filter.filter {
-        Filter::Nearest => each(col, row.clamp(0, last_row)),
+        Filter::Nearest => each(col, row.clamp(0, last_row), 1),
         Filter::Bilinear | Filter::Box => {
-            let (top, bottom) = (row.clamp(0, last_row), (row + 1).clamp(0, last_row));
-            each(col, top);
-            each(col + 1, top);
-            each(col, bottom);
-            each(col + 1, bottom);
+            each(col, row.clamp(0, last_row), 2);
+            each(col, (row + 1).clamp(0, last_row), 2);
         }
         Filter::PixelBox => {
             let (wx, wy) = filter.width();
             let nx = box_taps(fx as f32, wx) as i64;
             let ny = box_taps(fy as f32, wy) as i64;
             for j in 0..ny {
-                let row = (row + j).clamp(0, last_row);
-                for i in 0..nx {
-                    each(col + i, row);
-                }
+                each(col, (row + j).clamp(0, last_row), nx);
             }
         }
     }

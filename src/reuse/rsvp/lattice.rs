@@ -396,6 +396,7 @@ pub(super) fn owned_positions(k: u32, owner: u32) -> (i64, i64) {
 /// one turn and one aligned `chunk` (a power of two: a tile, a block):
 /// `each(first column in the turn, length)`, while it returns true;
 /// whether it always did.
+#[inline(always)]
 pub(super) fn column_runs(
     from: i64,
     to: i64,

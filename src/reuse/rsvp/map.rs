@@ -9,7 +9,7 @@ use rayon::prelude::*;
 
 use super::{
     fast_atan2,
-    filter::{for_each_read, PatchFilter},
+    filter::{for_each_read, for_each_read_run, PatchFilter},
     lattice::{column_runs, owned_positions},
     tiles::{tile_key, TILE_COLS, TILE_COL_SHIFT, TILE_ROW_SHIFT},
     viewport::PixelMap,
@@ -625,12 +625,23 @@ impl SampleMarks {
         for_each_pixel: impl FnOnce(&mut dyn FnMut((f64, f64))),
     ) -> SampleMarks {
         let (width, height) = ((c1 - c0 + 1) as usize, (r1 - r0 + 1) as usize);
-        let mut bits = vec![0u64; (width * height).div_ceil(64)];
+        // A word past the end, which a run in the last word may spill into.
+        let mut bits = vec![0u64; (width * height).div_ceil(64) + 1];
         for_each_pixel(&mut |pixel| {
-            for_each_read(filter, pixel, last_row, |col, row| {
-                debug_assert!((c0..=c1).contains(&col), "{col} outside {c0}..={c1}");
+            for_each_read_run(filter, pixel, last_row, |col, row, run| {
+                debug_assert!(
+                    c0 <= col && col + run - 1 <= c1 && run <= 64,
+                    "{col} + {run} outside {c0}..={c1}"
+                );
+                // A run a word at a time: the pixel box's rows are up to
+                // eleven samples long.
                 let bit = (row - r0) as usize * width + (col - c0) as usize;
-                bits[bit >> 6] |= 1 << (bit & 63);
+                let (word, offset) = (bit >> 6, (bit & 63) as u32);
+                let mask = u64::MAX >> (64 - run as u32);
+                bits[word] |= mask << offset;
+                if offset + run as u32 > 64 {
+                    bits[word + 1] |= mask >> (64 - offset);
+                }
             });
         });
         SampleMarks {
