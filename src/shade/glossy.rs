@@ -81,28 +81,67 @@ impl PixelStrata {
     }
 }
 
-/// The cell of the lobe's n x n grid a sub-sample in cell `cell` of its
-/// pixel's draws its first bounce in: a shuffle of the n^2 cells, fixed by
-/// `side` and the seed. A bijection, so any n x n window of strata, which
-/// holds each pixel cell once, draws in each lobe cell once.
-fn lobe_cell(side: u32, (col, row): (u32, u32)) -> (u32, u32) {
-    static SHUFFLES: [OnceLock<Box<[u16]>>; MAX_SIDE + 1] =
-        [const { OnceLock::new() }; MAX_SIDE + 1];
-    let shuffle = SHUFFLES[side as usize].get_or_init(|| shuffled(side * side));
-    let cell = u32::from(shuffle[(row * side + col) as usize]);
-    (cell % side, cell / side)
+/// A fixed shuffle of a pixel's n x n cells for each side n, drawn from a
+/// seed: which cell of a sampled square (a lobe's, a lens's) a sub-sample
+/// in cell `cell` of its pixel draws in. A bijection, so any n x n window
+/// of strata, which holds each pixel cell once, draws in each cell of the
+/// square once. Each purpose has its own seed, so its cells share nothing
+/// with another's or with where the sub-samples sit.
+pub(super) struct CellDeal {
+    seed: u64,
+    shuffles: [OnceLock<Box<[u16]>>; MAX_SIDE + 1],
 }
 
-/// A shuffle of 0..`count` drawn from the seed (Fisher-Yates with hashed
-/// draws).
-fn shuffled(count: u32) -> Box<[u16]> {
-    let mut cells: Vec<u16> = (0..count as u16).collect();
-    for i in (1..count as usize).rev() {
-        let j = hash(&[CELL_SEED, u64::from(count), i as u64]) % (i as u64 + 1);
-        cells.swap(i, j as usize);
+impl CellDeal {
+    pub(super) const fn new(seed: u64) -> CellDeal {
+        CellDeal {
+            seed,
+            shuffles: [const { OnceLock::new() }; MAX_SIDE + 1],
+        }
     }
-    cells.into_boxed_slice()
+
+    /// The cell of the square's `side` x `side` grid a sub-sample in
+    /// pixel cell `cell` draws in.
+    fn cell(&self, side: u32, (col, row): (u32, u32)) -> (u32, u32) {
+        let shuffle = self.shuffles[side as usize].get_or_init(|| self.shuffled(side * side));
+        let cell = u32::from(shuffle[(row * side + col) as usize]);
+        (cell % side, cell / side)
+    }
+
+    /// A shuffle of 0..`count` drawn from the seed (Fisher-Yates with
+    /// hashed draws).
+    fn shuffled(&self, count: u32) -> Box<[u16]> {
+        let mut cells: Vec<u16> = (0..count as u16).collect();
+        for i in (1..count as usize).rev() {
+            let j = hash(&[self.seed, u64::from(count), i as u64]) % (i as u64 + 1);
+            cells.swap(i, j as usize);
+        }
+        cells.into_boxed_slice()
+    }
+
+    /// `(u, v)` (in [0, 1)^2) placed in the cell a sub-sample with
+    /// `stratum` (n, its cell of its pixel's n x n grid) is dealt; as it
+    /// is without.
+    pub(super) fn place(
+        &self,
+        (u, v): (f32, f32),
+        stratum: Option<(u32, (u32, u32))>,
+    ) -> (f32, f32) {
+        let Some((side, cell)) = stratum else {
+            return (u, v);
+        };
+        let (a, b) = self.cell(side, cell);
+        let n = side as f32;
+        // f32 rounding can carry a cell's last draw onto its end.
+        (
+            ((a as f32 + u) / n).min(ONE_BELOW),
+            ((b as f32 + v) / n).min(ONE_BELOW),
+        )
+    }
 }
+
+/// The deal of the lobe's cells.
+static LOBE_CELLS: CellDeal = CellDeal::new(CELL_SEED);
 
 /// Where in the lobe's parameter square, [0, 1)^2, the path keyed `path`
 /// reflects: with `stratum`, a camera sample's first bounce, (n, its cell
@@ -110,16 +149,7 @@ fn shuffled(count: u32) -> Box<[u16]> {
 /// without, anywhere.
 pub(super) fn lobe_position(path: u64, stratum: Option<(u32, (u32, u32))>) -> (f32, f32) {
     let (u, v) = (key_draw(path, SEED, &[0]), key_draw(path, SEED, &[1]));
-    let Some((side, cell)) = stratum else {
-        return (u, v);
-    };
-    let (a, b) = lobe_cell(side, cell);
-    let n = side as f32;
-    // f32 rounding can carry a cell's last draw onto its end.
-    (
-        ((a as f32 + u) / n).min(ONE_BELOW),
-        ((b as f32 + v) / n).min(ONE_BELOW),
-    )
+    LOBE_CELLS.place((u, v), stratum)
 }
 
 /// The Phong exponent of the lobe of a surface of `roughness` in (0, 1].
@@ -241,7 +271,7 @@ mod tests {
     fn sub_samples_are_dealt_shuffled_lobe_cells_and_jitter_in_them_by_the_key() {
         for side in 2..=MAX_SIDE as u32 {
             let cells: Vec<(u32, u32)> = (0..side * side)
-                .map(|k| lobe_cell(side, (k % side, k / side)))
+                .map(|k| LOBE_CELLS.cell(side, (k % side, k / side)))
                 .collect();
             let own = cells
                 .iter()
@@ -255,7 +285,7 @@ mod tests {
         // Within its cell a draw is the key's, as unstratified.
         let path = 0x5eed_cafe;
         let (u, v) = lobe_position(path, None);
-        let (a, b) = lobe_cell(4, (1, 2));
+        let (a, b) = LOBE_CELLS.cell(4, (1, 2));
         let (su, sv) = lobe_position(path, Some((4, (1, 2))));
         assert_eq!((su, sv), ((a as f32 + u) / 4.0, (b as f32 + v) / 4.0));
     }
