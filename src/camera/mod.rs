@@ -25,7 +25,10 @@ use glam::{DVec2, DVec3, Vec3};
 use crate::ray::Ray;
 use crate::sampling::PixelSamples;
 
+mod lens;
 mod viewport;
+
+pub use lens::{concentric_disc, Lens};
 
 pub use viewport::{TransformError, ViewTransform, Viewport, ViewportPose, MAX_ZOOM, MIN_ZOOM};
 

@@ -226,6 +226,8 @@ pub const MAX_LIGHT_SAMPLES: u32 = 256;
 #[derive(Clone, Debug)]
 pub struct Scene {
     pub camera: Camera,
+    /// A thin lens at the eye (depth of field); none: a pinhole.
+    pub lens: Option<crate::camera::Lens>,
     pub objects: Vec<Object>,
     pub materials: Vec<Material>,
     pub lights: Vec<Light>,

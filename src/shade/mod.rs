@@ -13,6 +13,7 @@ mod draws;
 mod first_hit;
 mod glossy;
 mod lanes;
+mod lens;
 mod lighting;
 
 use glam::{Affine3A, Mat3A, Vec3};
@@ -606,6 +607,12 @@ impl<'a> Shader<'a> {
         } else {
             RayKind::Reflection
         };
+        // Camera rays come as a pinhole's; a lens moves them onto itself.
+        let through_lens = match &self.scene.lens {
+            Some(lens) if depth == 0 => Some(lens::lens_rays(lens, rays, mask, strata)),
+            _ => None,
+        };
+        let rays = through_lens.as_ref().unwrap_or(rays);
         let paths = if self.draws {
             draws::ray_keys(rays, depth)
         } else {

@@ -22,6 +22,7 @@ mod glass;
 mod glossy;
 mod interrupt;
 mod layers;
+mod lens;
 mod mesh_lights;
 mod moving_spheres;
 mod normals;

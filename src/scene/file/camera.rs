@@ -12,7 +12,7 @@ use toml::Spanned;
 
 use super::defs::{CameraDef, RenderDef};
 use super::{Ctx, SceneOverrides};
-use crate::camera::{yaw_pitch_toward, Camera, CameraError, MAX_IMAGE_SIDE};
+use crate::camera::{yaw_pitch_toward, Camera, CameraError, Lens, MAX_IMAGE_SIDE};
 use crate::scene::SceneError;
 
 /// The camera of `def`, its image sized by `render` (the [render] table at
@@ -70,6 +70,50 @@ pub(super) fn convert_camera(
         .validate()
         .map_err(|err| camera_error(ctx, def, render_span, overrides, err))?;
     Ok(camera)
+}
+
+/// The lens of `def`: none without an aperture (or at 0), else focused at
+/// `focus_distance`, or where `look_at` is when that is left out.
+pub(super) fn convert_lens(
+    ctx: &Ctx,
+    def: &Spanned<CameraDef>,
+) -> Result<Option<Lens>, SceneError> {
+    let c = def.get_ref();
+    let error = |field: &str, message: String| ctx.error(def.span(), field, message);
+    let aperture = c.aperture.unwrap_or(0.0);
+    if !(aperture.is_finite() && aperture >= 0.0) {
+        return Err(error(
+            "camera.aperture",
+            format!("the lens's radius: finite and at least 0, got {aperture}"),
+        ));
+    }
+    if let Some(focus) = c.focus_distance {
+        if !(focus.is_finite() && focus > 0.0) {
+            return Err(error(
+                "camera.focus_distance",
+                format!("finite and above 0, got {focus}"),
+            ));
+        }
+    }
+    if aperture == 0.0 {
+        return Ok(None);
+    }
+    let to_target = c
+        .look_at
+        .map(|target| (DVec3::from_array(target) - DVec3::from_array(c.position)).length());
+    let Some(focus_distance) = c.focus_distance.or(to_target) else {
+        return Err(error(
+            "camera.focus_distance",
+            format!(
+                "a lens (aperture {aperture}) needs a distance to focus at: give \
+                 focus_distance, or look_at to focus there"
+            ),
+        ));
+    };
+    Ok(Some(Lens {
+        aperture,
+        focus_distance,
+    }))
 }
 
 /// `err` of the camera of `def`, blamed on what gave the values at fault:

@@ -207,6 +207,10 @@ pub(super) struct CameraDef {
     pub(super) look_at: Option<[f64; 3]>,
     /// Horizontal field of view, degrees.
     pub(super) fov: f64,
+    /// The lens's radius (depth of field), scene units; 0: a pinhole.
+    pub(super) aperture: Option<f64>,
+    /// The distance in focus, along each ray (default: to `look_at`).
+    pub(super) focus_distance: Option<f64>,
 }
 
 fn default_projection() -> Projection {

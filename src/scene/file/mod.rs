@@ -36,7 +36,7 @@ use crate::sampling::PixelSamples;
 use crate::texture::load::{TextureCache, DEFAULT_TEXTURE_MEMORY_MB};
 use crate::texture::TextureFilter;
 use animation::convert_animation;
-use camera::convert_camera;
+use camera::{convert_camera, convert_lens};
 use defs::{RenderDef, SceneFile};
 use include::{line_of, splice, Source};
 pub(crate) use include::{read_text, Files, MAX_SCENE_TEXT};
@@ -294,6 +294,7 @@ pub(crate) fn parse_scene(
             .map_err(|m| render_error("render.light_samples", m))?,
     };
     let camera = convert_camera(&ctx, &file.camera, render, render_span, overrides)?;
+    let lens = convert_lens(&ctx, &file.camera)?;
 
     let mut materials = Vec::with_capacity(file.material.len() + 1);
     for (name, def) in &file.material {
@@ -342,6 +343,7 @@ pub(crate) fn parse_scene(
 
     Ok(Scene {
         camera,
+        lens,
         viewports,
         objects,
         materials,

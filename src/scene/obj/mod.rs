@@ -757,6 +757,7 @@ pub(super) fn scene_around_obj(
     crate::scene::cut_out_meshes(&mut objects, &materials);
     Ok(Scene {
         camera,
+        lens: None,
         objects,
         materials,
         lights: vec![Light::point(key, Vec3::splat(1.0))],

@@ -1,0 +1,42 @@
+//! Where on the lens each camera ray passes (depth of field).
+//!
+//! Promise: a camera ray's lens position is a pure function of its
+//! pinhole ray (through [`super::draws`]: a hash of the ray's bits, so of
+//! the world-anchored sample), a fixed seed and, for the sub-samples of a
+//! square count n x n, the sample's cell of its pixel ([`PixelStrata`]):
+//! those draw one in each cell of an n x n grid over the lens's square
+//! (a fixed shuffle of the cells, its own), jittered inside it by the key.
+//! So a reused sample passes the lens where a fresh trace of it does.
+
+use super::draws::{key_draw, ray_keys};
+use super::glossy::{CellDeal, PixelStrata};
+use crate::camera::Lens;
+use crate::ray::{LaneMask, RayPacket};
+
+/// The seed lens positions are drawn from.
+const SEED: u64 = 0x6c65_6e73_2070_6f73;
+
+/// The deal of the lens square's cells to a pixel's sub-samples.
+static LENS_CELLS: CellDeal = CellDeal::new(0x6c65_6e73_2063_656c);
+
+/// The lens rays of the pinhole camera rays `rays` (lanes outside `mask`
+/// as they were).
+pub(super) fn lens_rays(
+    lens: &Lens,
+    rays: &RayPacket,
+    mask: LaneMask,
+    strata: Option<&PixelStrata>,
+) -> RayPacket {
+    let keys = ray_keys(rays, 0);
+    std::array::from_fn(|lane| {
+        if mask & (1 << lane) == 0 {
+            return rays[lane];
+        }
+        let (u, v) = (
+            key_draw(keys[lane], SEED, &[0]),
+            key_draw(keys[lane], SEED, &[1]),
+        );
+        let at = LENS_CELLS.place((u, v), strata.map(|s| s.lane(lane)));
+        lens.ray(&rays[lane], at)
+    })
+}
