@@ -9,32 +9,12 @@ use retrace::scene::{parse_scene_str, Scene, SceneOverrides};
 
 /// `scenes/name` with its include spliced in, at `width` x `height`.
 fn shipped(name: &str, width: u32, height: u32) -> Scene {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("scenes")
-        .join(name);
-    let overrides = SceneOverrides {
-        width: Some(width),
-        height: Some(height),
-        ..SceneOverrides::default()
-    };
-    retrace::scene::load_scene(&path, &overrides).unwrap()
+    crate::common::shipped_at(name, width, height)
 }
 
 /// The paper scene with `extra` tables, at 48x32.
 fn paper_with(extra: &str) -> Scene {
-    let paper =
-        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/paper.toml")).unwrap();
-    let overrides = SceneOverrides {
-        width: Some(48),
-        height: Some(32),
-        ..SceneOverrides::default()
-    };
-    parse_scene_str(
-        &format!("{paper}\n{extra}"),
-        Path::new("scenes/paper.toml"),
-        &overrides,
-    )
-    .unwrap()
+    crate::common::paper_with_at(extra, 48, 32)
 }
 
 fn four() -> PixelSamples {

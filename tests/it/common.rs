@@ -6,7 +6,7 @@ use std::process::{Command, Output};
 
 use retrace::accel::{Accelerator, BackendKind};
 use retrace::frame_loop::{Animator, FrameStats, Options, Techniques};
-use retrace::scene::Scene;
+use retrace::scene::{load_scene, parse_scene_str, Scene, SceneOverrides};
 use retrace::verify::{Checks, Verifier};
 
 /// Renders every frame of `scene`'s timeline with `techniques`, checks each
@@ -156,4 +156,34 @@ pub fn skip_unless_ci(why: &str) {
         panic!("{why}");
     }
     eprintln!("skipped: {why}");
+}
+
+/// The paper scene (`scenes/paper.toml`) at `width` x `height` with
+/// `extra` tables appended.
+pub fn paper_with_at(extra: &str, width: u32, height: u32) -> Scene {
+    let paper = include_str!("../../scenes/paper.toml");
+    parse_scene_str(
+        &format!("{paper}\n{extra}"),
+        Path::new("scenes/paper.toml"),
+        &sized(width, height),
+    )
+    .unwrap()
+}
+
+/// The shipped scene `scenes/name`, its includes spliced in, at `width` x
+/// `height`.
+pub fn shipped_at(name: &str, width: u32, height: u32) -> Scene {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("scenes")
+        .join(name);
+    load_scene(&path, &sized(width, height)).unwrap()
+}
+
+/// The command line's `--width` and `--height`.
+fn sized(width: u32, height: u32) -> SceneOverrides {
+    SceneOverrides {
+        width: Some(width),
+        height: Some(height),
+        ..SceneOverrides::default()
+    }
 }

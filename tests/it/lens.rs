@@ -6,7 +6,7 @@ use std::path::Path;
 use retrace::accel::{Accelerator, BackendKind};
 use retrace::frame_loop::{Options, Techniques};
 use retrace::sampling::PixelSamples;
-use retrace::scene::{load_scene, parse_scene_str, Scene, SceneOverrides};
+use retrace::scene::{parse_scene_str, Scene, SceneOverrides};
 
 /// A white ball of radius `radius` at distance 10 straight ahead of a
 /// 90-degree perspective camera at the origin, 128x96, on black, lit by
@@ -101,36 +101,18 @@ const PAPER_LENS: retrace::camera::Lens = retrace::camera::Lens {
 
 /// The paper scene at 48x32 with `extra` tables, through [`PAPER_LENS`].
 fn paper_with(extra: &str) -> Scene {
-    let paper =
-        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/paper.toml")).unwrap();
-    let overrides = SceneOverrides {
-        width: Some(48),
-        height: Some(32),
-        ..SceneOverrides::default()
-    };
-    let mut scene = parse_scene_str(
-        &format!("{paper}\n{extra}"),
-        Path::new("scenes/paper.toml"),
-        &overrides,
-    )
-    .unwrap();
-    scene.lens = Some(PAPER_LENS);
-    scene
+    Scene {
+        lens: Some(PAPER_LENS),
+        ..crate::common::paper_with_at(extra, 48, 32)
+    }
 }
 
 /// A shipped scene at 48x32, through [`PAPER_LENS`].
 fn shipped_with_lens(name: &str) -> Scene {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("scenes")
-        .join(name);
-    let overrides = SceneOverrides {
-        width: Some(48),
-        height: Some(32),
-        ..SceneOverrides::default()
-    };
-    let mut scene = load_scene(&path, &overrides).unwrap();
-    scene.lens = Some(PAPER_LENS);
-    scene
+    Scene {
+        lens: Some(PAPER_LENS),
+        ..crate::common::shipped_at(name, 48, 32)
+    }
 }
 
 /// A lens changes the picture (so the exactness tests above are not of a

@@ -15,13 +15,7 @@ const PAPER: &str = include_str!("../../scenes/paper.toml");
 /// The paper scene at `width` x `height` with `extra` (objects and a
 /// timeline) appended.
 fn paper_with(extra: &str, width: u32, height: u32) -> Scene {
-    let text = format!("{PAPER}\n{extra}");
-    let overrides = SceneOverrides {
-        width: Some(width),
-        height: Some(height),
-        ..SceneOverrides::default()
-    };
-    parse_scene_str(&text, Path::new("scenes/paper.toml"), &overrides).unwrap()
+    crate::common::paper_with_at(extra, width, height)
 }
 
 const BALL: &str = r#"
