@@ -9,9 +9,11 @@ use glam::{Affine3A, Mat3A, Vec2, Vec3};
 use crate::ray::{LaneMask, Ray, RayPacket, PACKET_WIDTH};
 
 pub mod cutout;
+pub mod motion;
 pub mod normals;
 
 pub use cutout::{Coverage, CoverageRef, Cutout};
+pub use motion::{Motion, MovingSphere, MOTION_STEPS};
 
 /// How far from the origin a scene may reach, on each axis. Beyond, f32
 /// positions lie more than 6e4 apart, and Embree refuses (aborts on) rays
@@ -242,6 +244,9 @@ impl Shape {
 }
 
 /// How an object is placed in the world.
+// A motion's poses make the enum large; a scene holds one per object, and
+// staying `Copy` keeps posing a frame free of allocation.
+#[allow(clippy::large_enum_variant)]
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Placement {
     /// The shape is already in world space (static objects: their transform
@@ -251,6 +256,9 @@ pub enum Placement {
     /// transform; backends build it once and only update the transform when
     /// the object moves.
     Instance(Affine3A),
+    /// The shape is in object space and moves while the shutter is open
+    /// (motion blur): each ray meets it where its time puts it.
+    Moving(Motion),
 }
 
 #[derive(Clone, Debug)]
@@ -261,11 +269,24 @@ pub struct Object {
     pub placement: Placement,
 }
 
+impl Placement {
+    /// The object-to-world transform of a ray cast at shutter time `time`;
+    /// `None` for a shape already in world space.
+    pub fn transform_at(&self, time: f32) -> Option<Affine3A> {
+        match self {
+            Placement::World => None,
+            Placement::Instance(xf) => Some(*xf),
+            Placement::Moving(motion) => Some(motion.at(time)),
+        }
+    }
+}
+
 impl Object {
     pub fn world_bounds(&self) -> Aabb {
         match &self.placement {
             Placement::World => self.shape.bounds(),
             Placement::Instance(xf) => self.shape.bounds().transformed(xf),
+            Placement::Moving(motion) => motion.swept(self.shape.bounds()),
         }
     }
 }

@@ -23,6 +23,11 @@ pub struct Ray {
     pub dir: Vec3,
     pub tmin: f32,
     pub tmax: f32,
+    /// When the ray is cast, as a fraction of the shutter's opening (0 at
+    /// its opening, 1 at its closing): what it meets is where moving
+    /// objects are then. Every ray of a camera sample's path shares its
+    /// camera ray's time; 0 in a scene without a shutter.
+    pub time: f32,
 }
 
 impl Ray {
@@ -32,6 +37,7 @@ impl Ray {
             dir,
             tmin: 0.0,
             tmax: f32::INFINITY,
+            time: 0.0,
         }
     }
 
@@ -41,7 +47,13 @@ impl Ray {
             dir,
             tmin: 0.0,
             tmax,
+            time: 0.0,
         }
+    }
+
+    /// The ray cast at shutter time `time`.
+    pub fn at_time(self, time: f32) -> Ray {
+        Ray { time, ..self }
     }
 
     pub fn at(&self, t: f32) -> Vec3 {
@@ -55,6 +67,7 @@ impl Ray {
         dir: Vec3::Z,
         tmin: 0.0,
         tmax: 0.0,
+        time: 0.0,
     };
 }
 

@@ -9,7 +9,7 @@
 use glam::{Affine3A, DVec3, EulerRot, Quat, Vec3};
 
 use crate::camera::{Camera, ViewTransform, Viewport, ViewportPose};
-use crate::geometry::{Light, LightShape, Object, Placement};
+use crate::geometry::{Light, LightShape, Motion, Object, Placement, MOTION_STEPS};
 
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Deserialize, serde::Serialize)]
 #[serde(rename_all = "kebab-case")]
@@ -61,12 +61,12 @@ impl CameraKey {
 /// keys, the next key with the eased fraction of the way to it.
 fn key_segment<K>(
     keys: &[K],
-    frame: u32,
+    time: f64,
     frame_of: impl Fn(&K) -> u32,
     ease_of: impl Fn(&K) -> Ease,
 ) -> Option<(&K, Option<(&K, f64)>)> {
     let first = keys.first()?;
-    let next = keys.partition_point(|k| frame_of(k) <= frame);
+    let next = keys.partition_point(|k| f64::from(frame_of(k)) <= time);
     if next == 0 {
         return Some((first, None));
     }
@@ -75,7 +75,7 @@ fn key_segment<K>(
         return Some((a, None));
     };
     let (fa, fb) = (frame_of(a), frame_of(b));
-    let t = ease_of(a).apply(f64::from(frame - fa) / f64::from(fb - fa));
+    let t = ease_of(a).apply((time - f64::from(fa)) / f64::from(fb - fa));
     Some((a, Some((b, t))))
 }
 
@@ -105,8 +105,9 @@ pub struct Bounce {
 }
 
 impl Bounce {
-    pub fn lift(&self, frame: u32) -> f32 {
-        let p = (f64::from(frame) / self.period + self.phase).rem_euclid(1.0);
+    /// The height at `time` (in frames, not necessarily whole).
+    pub fn lift(&self, time: f64) -> f32 {
+        let p = (time / self.period + self.phase).rem_euclid(1.0);
         (f64::from(self.height) * 4.0 * p * (1.0 - p)) as f32
     }
 }
@@ -127,7 +128,13 @@ pub struct ObjectTrack {
 impl ObjectTrack {
     /// Object-to-world transform at `frame`, from the rest placement.
     pub fn transform_at(&self, frame: u32) -> Affine3A {
-        let (translate, rotate) = match key_segment(&self.keys, frame, |k| k.frame, |k| k.ease) {
+        self.transform_at_time(f64::from(frame))
+    }
+
+    /// Object-to-world transform at `time`, in frames (between frames
+    /// while a shutter is open).
+    pub fn transform_at_time(&self, time: f64) -> Affine3A {
+        let (translate, rotate) = match key_segment(&self.keys, time, |k| k.frame, |k| k.ease) {
             None => (Vec3::ZERO, Vec3::ZERO),
             Some((a, None)) => (a.translate, a.rotate),
             Some((a, Some((b, t)))) => (
@@ -135,7 +142,7 @@ impl ObjectTrack {
                 lerp3(a.rotate, b.rotate, t),
             ),
         };
-        let lift = self.bounce.map_or(0.0, |b| b.lift(frame));
+        let lift = self.bounce.map_or(0.0, |b| b.lift(time));
         let rotation = Quat::from_euler(
             EulerRot::ZYX,
             rotate.z.to_radians(),
@@ -175,7 +182,7 @@ impl LightTrack {
             power: k.color * k.intensity,
             shape,
         };
-        match key_segment(&self.keys, frame, |k| k.frame, |k| k.ease) {
+        match key_segment(&self.keys, f64::from(frame), |k| k.frame, |k| k.ease) {
             None => unreachable!("a light track has keys"),
             Some((a, None)) => key(a),
             Some((a, Some((b, t)))) => {
@@ -191,10 +198,28 @@ impl LightTrack {
     }
 }
 
+/// When the camera's shutter is open around each frame's instant, in
+/// frames: a ray's shutter time 0 is `open`, 1 is `close` (motion blur).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Shutter {
+    pub open: f64,
+    pub close: f64,
+}
+
+impl Shutter {
+    /// The timeline's time at shutter time `time` of `frame`.
+    pub fn instant(&self, frame: u32, time: f64) -> f64 {
+        f64::from(frame) + self.open + (self.close - self.open) * time
+    }
+}
+
 #[derive(Clone, Debug, PartialEq)]
 pub struct Animation {
     pub frames: u32,
     pub fps: f64,
+    /// Motion blur: objects move while it is open. `None`: every frame
+    /// is an instant.
+    pub shutter: Option<Shutter>,
     /// In increasing frame order.
     pub camera_keys: Vec<CameraKey>,
     pub objects: Vec<ObjectTrack>,
@@ -207,6 +232,7 @@ impl Animation {
         Animation {
             frames,
             fps,
+            shutter: None,
             camera_keys,
             objects: Vec::new(),
             lights: Vec::new(),
@@ -216,7 +242,7 @@ impl Animation {
     /// The camera at `frame`: before the first key and after the last, the
     /// nearest key; between two keys, interpolated (with the first key's ease).
     pub fn camera_at(&self, base: &Camera, frame: u32) -> Camera {
-        match key_segment(&self.camera_keys, frame, |k| k.frame, |k| k.ease) {
+        match key_segment(&self.camera_keys, f64::from(frame), |k| k.frame, |k| k.ease) {
             None => base.clone(),
             Some((a, None)) => a.apply(base),
             Some((a, Some((b, t)))) => {
@@ -238,11 +264,21 @@ impl Animation {
     }
 
     /// Puts a scene's animated `objects` and `lights` where they are at
-    /// `frame`. Returns the objects whose placement changed.
+    /// `frame`: with a shutter, each object as it moves while the shutter
+    /// is open (lights stand where they are at the frame's instant).
+    /// Returns the objects whose placement changed.
     pub fn pose(&self, objects: &mut [Object], lights: &mut [Light], frame: u32) -> Vec<usize> {
         let mut moved = Vec::new();
         for track in &self.objects {
-            let placement = Placement::Instance(track.transform_at(frame));
+            let placement = match &self.shutter {
+                None => Placement::Instance(track.transform_at(frame)),
+                Some(shutter) => Placement::Moving(Motion {
+                    poses: std::array::from_fn(|step| {
+                        let time = step as f64 / (MOTION_STEPS - 1) as f64;
+                        track.transform_at_time(shutter.instant(frame, time))
+                    }),
+                }),
+            };
             for &object in &track.objects {
                 if objects[object].placement != placement {
                     objects[object].placement = placement;

@@ -47,8 +47,8 @@ use rayon::prelude::*;
 
 pub use primitives::{intersect_sphere, TriangleHit, WatertightRay};
 
-use super::{placed_sphere, Intersector};
-use crate::geometry::{Aabb, Cutout, Object, Placement, Shape, Sphere};
+use super::{moving_sphere, placed_sphere, Intersector};
+use crate::geometry::{Aabb, Cutout, Motion, MovingSphere, Object, Placement, Shape, Sphere};
 use crate::ray::{Hit, Ray};
 use crate::voxel::{padded, GridSpec};
 
@@ -77,11 +77,13 @@ pub struct GridIntersector {
 }
 
 /// A sphere placed by a transform: its own description, and where its
-/// world-space copy sits in the world level's spheres.
+/// world-space copy sits in the world level's spheres (or, moving while
+/// the shutter is open, its moving spheres).
 struct PlacedSphere {
     object: u32,
     local: Sphere,
     slot: usize,
+    moving: bool,
 }
 
 impl GridIntersector {
@@ -108,12 +110,27 @@ impl GridIntersector {
                             object: id,
                             local: *sphere,
                             slot: prims.spheres.len(),
+                            moving: false,
                         });
                         prims.spheres.push((placed, id));
                     }
                 }
+                (Placement::Moving(motion), Shape::Sphere(sphere)) => {
+                    if let Some(moving) = moving_sphere(sphere, motion) {
+                        placed_spheres.push(PlacedSphere {
+                            object: id,
+                            local: *sphere,
+                            slot: prims.moving_spheres.len(),
+                            moving: true,
+                        });
+                        prims.moving_spheres.push((moving, id));
+                    }
+                }
                 (Placement::Instance(xf), shape) => {
                     prims.nested.extend(Nested::new(id, shape, Some(xf)));
+                }
+                (Placement::Moving(motion), shape) => {
+                    prims.nested.extend(Nested::moving(id, shape, motion));
                 }
             }
         }
@@ -136,10 +153,21 @@ impl GridIntersector {
     /// Several moves as [`GridIntersector::set_instance_transform`], with one
     /// re-bin. Returns false if any move was refused; the others are made.
     pub fn move_objects(&mut self, moves: &[(u32, Affine3A)]) -> bool {
+        let placements: Vec<(u32, Placement)> = moves
+            .iter()
+            .map(|&(object, xf)| (object, Placement::Instance(xf)))
+            .collect();
+        self.place_objects(&placements)
+    }
+
+    /// Places several objects, each built with the same kind of placement
+    /// (a transform, or a motion over the shutter), with one re-bin.
+    /// Returns false if any placement was refused; the others are made.
+    pub fn place_objects(&mut self, placements: &[(u32, Placement)]) -> bool {
         let mut all_made = true;
         let mut any_made = false;
-        for (object, transform) in moves {
-            let made = self.place(*object, transform);
+        for (object, placement) in placements {
+            let made = self.place(*object, placement);
             all_made &= made;
             any_made |= made;
         }
@@ -149,29 +177,46 @@ impl GridIntersector {
         all_made
     }
 
-    /// Moves one object without re-binning.
-    fn place(&mut self, object: u32, transform: &Affine3A) -> bool {
+    /// Places one object without re-binning.
+    fn place(&mut self, object: u32, placement: &Placement) -> bool {
         if let Some(placed) = self.placed_spheres.iter().find(|p| p.object == object) {
-            let Some(sphere) = placed_sphere(&placed.local, transform) else {
-                return false;
+            let prims = &mut self.world.prims;
+            return match (placement, placed.moving) {
+                (Placement::Instance(xf), false) => placed_sphere(&placed.local, xf)
+                    .map(|sphere| prims.spheres[placed.slot].0 = sphere)
+                    .is_some(),
+                (Placement::Moving(motion), true) => moving_sphere(&placed.local, motion)
+                    .map(|moving| prims.moving_spheres[placed.slot].0 = moving)
+                    .is_some(),
+                _ => false,
             };
-            self.world.prims.spheres[placed.slot].0 = sphere;
-            return true;
         }
-        let Some(inverse) = invert(transform) else {
-            return false;
-        };
         let Some(nested) = self
             .world
             .prims
             .nested
             .iter_mut()
-            .find(|n| n.object == object && n.world_to_object.is_some())
+            .find(|n| n.object == object && !matches!(n.place, NestedPlace::World))
         else {
             return false;
         };
-        nested.world_to_object = Some(inverse);
-        nested.bounds = nested.local_bounds.transformed(transform);
+        match (placement, &mut nested.place) {
+            (Placement::Instance(xf), NestedPlace::Instance(world_to_object)) => {
+                let Some(inverse) = invert(xf) else {
+                    return false;
+                };
+                *world_to_object = inverse;
+                nested.bounds = nested.local_bounds.transformed(xf);
+            }
+            (Placement::Moving(motion), NestedPlace::Moving(moving)) => {
+                if motion.poses.iter().any(|pose| invert(pose).is_none()) {
+                    return false;
+                }
+                *moving = *motion;
+                nested.bounds = motion.swept(nested.local_bounds);
+            }
+            _ => return false,
+        }
         true
     }
 
@@ -205,6 +250,8 @@ struct Prims {
     /// (object, primitive index in the object) per triangle.
     triangle_ids: Vec<[u32; 2]>,
     spheres: Vec<(Sphere, u32)>,
+    /// Spheres that move while the shutter is open.
+    moving_spheres: Vec<(MovingSphere, u32)>,
     nested: Vec<Nested>,
     /// The cut-outs of the meshes among the triangles, by object: few, so
     /// looked up by a scan, and only once a triangle is hit.
@@ -236,7 +283,15 @@ impl Prims {
     }
 
     fn len(&self) -> usize {
-        self.triangles.len() + self.spheres.len() + self.nested.len()
+        self.triangles.len() + self.spheres.len() + self.moving_spheres.len() + self.nested.len()
+    }
+
+    /// Where each kind's indices start: spheres, moving spheres, nested.
+    #[inline]
+    fn starts(&self) -> (usize, usize, usize) {
+        let spheres = self.triangles.len();
+        let moving = spheres + self.spheres.len();
+        (spheres, moving, moving + self.moving_spheres.len())
     }
 
     /// Whether triangle primitive `p`'s mesh is clear where `hit` met it.
@@ -253,14 +308,15 @@ impl Prims {
     }
 
     fn bounds(&self, p: usize) -> Aabb {
-        let nt = self.triangles.len();
-        let ns = self.spheres.len();
-        if p < nt {
+        let (spheres, moving, nested) = self.starts();
+        if p < spheres {
             Aabb::from_points(self.triangles[p])
-        } else if p < nt + ns {
-            Shape::Sphere(self.spheres[p - nt].0).bounds()
+        } else if p < moving {
+            Shape::Sphere(self.spheres[p - spheres].0).bounds()
+        } else if p < nested {
+            self.moving_spheres[p - moving].0.swept()
         } else {
-            self.nested[p - nt - ns].bounds
+            self.nested[p - nested].bounds
         }
     }
 
@@ -268,12 +324,11 @@ impl Prims {
     /// Exact for triangles (separating axes) and spheres; nested objects use
     /// their box, which the caller already checked.
     fn overlaps(&self, p: usize, b: &Aabb, slack: Vec3) -> bool {
-        let nt = self.triangles.len();
-        let ns = self.spheres.len();
-        if p < nt {
+        let (spheres, moving, _) = self.starts();
+        if p < spheres {
             triangle_overlaps_box(&self.triangles[p], b, slack)
-        } else if p < nt + ns {
-            let s = &self.spheres[p - nt].0;
+        } else if p < moving {
+            let s = &self.spheres[p - spheres].0;
             let nearest = s.center.clamp(b.min, b.max);
             let r = s.radius + slack.max_element();
             (nearest - s.center).length_squared() <= r * r
@@ -314,7 +369,7 @@ impl Cells {
 /// a transform) or a large world mesh (no transform).
 struct Nested {
     object: u32,
-    world_to_object: Option<Affine3A>,
+    place: NestedPlace,
     /// Bounds in object space, and in the world (for an instance, the
     /// object box transformed).
     local_bounds: Aabb,
@@ -332,14 +387,46 @@ fn invert(xf: &Affine3A) -> Option<Affine3A> {
     (inverse.matrix3.is_finite() && inverse.translation.is_finite()).then_some(inverse)
 }
 
+/// How a nested object reaches the world.
+// One per nested object, read by every ray that reaches it: kept inline.
+#[allow(clippy::large_enum_variant)]
+enum NestedPlace {
+    World,
+    /// The inverse of its transform.
+    Instance(Affine3A),
+    /// Its motion over the shutter: a ray is mapped by the inverse of the
+    /// transform at the ray's time, as Embree maps it.
+    Moving(Motion),
+}
+
 impl Nested {
     /// `None` for shapes with nothing to hit (planes, empty meshes) or a
     /// transform that cannot be inverted.
     fn new(object: u32, shape: &Shape, xf: Option<&Affine3A>) -> Option<Nested> {
-        let world_to_object = match xf {
-            None => None,
-            Some(xf) => Some(invert(xf)?),
+        let place = match xf {
+            None => NestedPlace::World,
+            Some(xf) => NestedPlace::Instance(invert(xf)?),
         };
+        let mut nested = Nested::unplaced(object, shape, place)?;
+        if let Some(xf) = xf {
+            nested.bounds = nested.local_bounds.transformed(xf);
+        }
+        Some(nested)
+    }
+
+    /// A nested object moving over the shutter; `None` as for
+    /// [`Nested::new`], or if a pose cannot be inverted.
+    fn moving(object: u32, shape: &Shape, motion: &Motion) -> Option<Nested> {
+        if motion.poses.iter().any(|pose| invert(pose).is_none()) {
+            return None;
+        }
+        let mut nested = Nested::unplaced(object, shape, NestedPlace::Moving(*motion))?;
+        nested.bounds = motion.swept(nested.local_bounds);
+        Some(nested)
+    }
+
+    /// The object's own grid, its bounds those in object space.
+    fn unplaced(object: u32, shape: &Shape, place: NestedPlace) -> Option<Nested> {
         let mut prims = Prims::default();
         prims.add_shape(object, shape);
         if prims.len() == 0 {
@@ -348,35 +435,45 @@ impl Nested {
         let local_bounds = (0..prims.len()).fold(Aabb::EMPTY, |b, p| b.union(prims.bounds(p)));
         Some(Nested {
             object,
-            world_to_object,
+            place,
             local_bounds,
-            bounds: xf.map_or(local_bounds, |xf| local_bounds.transformed(xf)),
+            bounds: local_bounds,
             level: Level::build(prims, None),
+        })
+    }
+
+    /// `ray` in the object's space, `None` when no transform is needed;
+    /// at a time whose transform cannot be inverted, a ray that meets
+    /// nothing.
+    #[inline]
+    fn to_object(&self, ray: &Ray) -> Option<Ray> {
+        let inverse = match &self.place {
+            NestedPlace::World => return None,
+            NestedPlace::Instance(m) => *m,
+            NestedPlace::Moving(motion) => {
+                invert(&motion.at(ray.time)).unwrap_or(Affine3A::from_scale(Vec3::ZERO))
+            }
+        };
+        Some(Ray {
+            origin: inverse.transform_point3(ray.origin),
+            dir: inverse.transform_vector3(ray.dir),
+            ..*ray
         })
     }
 
     #[inline]
     fn closest(&self, ray: &Ray, prepared: &Prepared, tmax: f32) -> Option<Hit> {
-        match &self.world_to_object {
+        match self.to_object(ray) {
             None => self.level.closest_prepared(&Ray { tmax, ..*ray }, prepared),
-            Some(m) => self.level.closest(&Ray {
-                origin: m.transform_point3(ray.origin),
-                dir: m.transform_vector3(ray.dir),
-                tmin: ray.tmin,
-                tmax,
-            }),
+            Some(local) => self.level.closest(&Ray { tmax, ..local }),
         }
     }
 
     #[inline]
     fn any(&self, ray: &Ray, prepared: &Prepared) -> bool {
-        match &self.world_to_object {
+        match self.to_object(ray) {
             None => self.level.any_prepared(ray, prepared),
-            Some(m) => self.level.any(&Ray {
-                origin: m.transform_point3(ray.origin),
-                dir: m.transform_vector3(ray.dir),
-                ..*ray
-            }),
+            Some(local) => self.level.any(&local),
         }
     }
 }
@@ -451,9 +548,8 @@ impl Level {
     #[inline]
     fn test_closest(&self, p: u32, ray: &Ray, prepared: &Prepared, best: &mut Closest) {
         let p = p as usize;
-        let nt = self.prims.triangles.len();
-        let ns = self.prims.spheres.len();
-        if p < nt {
+        let (spheres, moving, nested) = self.prims.starts();
+        if p < spheres {
             if let Some(h) = prepared
                 .wt
                 .intersect_triangle(&self.prims.triangles[p], ray.tmin, best.tmax)
@@ -469,19 +565,25 @@ impl Level {
                     v: h.v,
                 });
             }
-        } else if p < nt + ns {
-            let (sphere, object) = &self.prims.spheres[p - nt];
-            if let Some(t) = intersect_sphere(sphere, ray.origin, ray.dir, ray.tmin, best.tmax) {
+        } else if p < nested {
+            let (sphere, object) = if p < moving {
+                let (sphere, object) = &self.prims.spheres[p - spheres];
+                (*sphere, *object)
+            } else {
+                let (sphere, object) = &self.prims.moving_spheres[p - moving];
+                (sphere.at(ray.time), *object)
+            };
+            if let Some(t) = intersect_sphere(&sphere, ray.origin, ray.dir, ray.tmin, best.tmax) {
                 best.tmax = t;
                 best.hit = Some(Hit {
                     t,
-                    object: *object,
+                    object,
                     prim: 0,
                     u: 0.0,
                     v: 0.0,
                 });
             }
-        } else if let Some(h) = self.prims.nested[p - nt - ns].closest(ray, prepared, best.tmax) {
+        } else if let Some(h) = self.prims.nested[p - nested].closest(ray, prepared, best.tmax) {
             best.tmax = h.t;
             best.hit = Some(h);
         }
@@ -518,18 +620,20 @@ impl Level {
     #[inline]
     fn test_any(&self, p: u32, ray: &Ray, prepared: &Prepared) -> bool {
         let p = p as usize;
-        let nt = self.prims.triangles.len();
-        let ns = self.prims.spheres.len();
-        if p < nt {
+        let (spheres, moving, nested) = self.prims.starts();
+        if p < spheres {
             prepared
                 .wt
                 .intersect_triangle(&self.prims.triangles[p], ray.tmin, ray.tmax)
                 .is_some_and(|h| !self.prims.lets_through(p, &h))
-        } else if p < nt + ns {
-            let (sphere, _) = &self.prims.spheres[p - nt];
+        } else if p < moving {
+            let (sphere, _) = &self.prims.spheres[p - spheres];
             intersect_sphere(sphere, ray.origin, ray.dir, ray.tmin, ray.tmax).is_some()
+        } else if p < nested {
+            let sphere = self.prims.moving_spheres[p - moving].0.at(ray.time);
+            intersect_sphere(&sphere, ray.origin, ray.dir, ray.tmin, ray.tmax).is_some()
         } else {
-            self.prims.nested[p - nt - ns].any(ray, prepared)
+            self.prims.nested[p - nested].any(ray, prepared)
         }
     }
 }

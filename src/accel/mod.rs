@@ -19,7 +19,10 @@ use std::str::FromStr;
 
 use glam::Affine3A;
 
-use crate::geometry::{plane_distance, transform_normal, Object, Placement, Plane, Shape, Sphere};
+use crate::geometry::{
+    plane_distance, transform_normal, Motion, MovingSphere, Object, Placement, Plane, Shape,
+    Sphere, MOTION_STEPS,
+};
 use crate::ray::{lanes, Hit, HitPacket, LaneMask, Ray, RayPacket, PACKET_WIDTH};
 
 /// Closest-hit and any-hit queries, one ray or an 8-wide packet at a time.
@@ -119,6 +122,16 @@ pub fn placed_sphere(sphere: &Sphere, transform: &Affine3A) -> Option<Sphere> {
     (similar && placed.center.is_finite() && placed.radius.is_finite()).then_some(placed)
 }
 
+/// `sphere` at each pose of `motion`, as [`placed_sphere`] places it; `None`
+/// if a pose would not keep it round.
+pub fn moving_sphere(sphere: &Sphere, motion: &Motion) -> Option<MovingSphere> {
+    let mut steps = [*sphere; MOTION_STEPS];
+    for (step, pose) in steps.iter_mut().zip(&motion.poses) {
+        *step = placed_sphere(sphere, pose)?;
+    }
+    Some(MovingSphere { steps })
+}
+
 /// The backend behind an [`Accelerator`], kept concrete so instanced
 /// objects can be moved.
 enum Backend {
@@ -159,10 +172,13 @@ impl Accelerator {
     ) -> Result<Accelerator, AccelError> {
         let mut placed_spheres = Vec::new();
         for (id, object) in objects.iter().enumerate() {
-            if let (Shape::Sphere(sphere), Placement::Instance(xf)) =
-                (&object.shape, &object.placement)
-            {
-                if placed_sphere(sphere, xf).is_none() {
+            if let Shape::Sphere(sphere) = &object.shape {
+                let round = match &object.placement {
+                    Placement::World => continue,
+                    Placement::Instance(xf) => placed_sphere(sphere, xf).is_some(),
+                    Placement::Moving(motion) => moving_sphere(sphere, motion).is_some(),
+                };
+                if !round {
                     return Err(AccelError::SphereNotRound { object: id as u32 });
                 }
                 placed_spheres.push((id as u32, *sphere));
@@ -179,7 +195,11 @@ impl Accelerator {
             .enumerate()
             .filter_map(|(id, object)| match (&object.shape, &object.placement) {
                 (Shape::Plane(plane), Placement::World) => Some((id as u32, *plane)),
-                (Shape::Plane(plane), Placement::Instance(xf)) => Some((
+                // The scene file keeps planes from moving while the shutter
+                // is open; a plane given a motion anyway stands at its first
+                // pose.
+                (Shape::Plane(plane), Placement::Instance(xf))
+                | (Shape::Plane(plane), Placement::Moving(Motion { poses: [xf, ..] })) => Some((
                     id as u32,
                     Plane {
                         point: xf.transform_point3(plane.point),
@@ -221,21 +241,38 @@ impl Accelerator {
     /// paying for one re-commit or re-bin. Nothing moves if a sphere's new
     /// transform would not keep it round.
     pub fn move_objects(&mut self, moves: &[(u32, Affine3A)]) -> Result<(), AccelError> {
-        for (object, transform) in moves {
+        let placements: Vec<(u32, Placement)> = moves
+            .iter()
+            .map(|&(object, xf)| (object, Placement::Instance(xf)))
+            .collect();
+        self.place_objects(&placements)
+    }
+
+    /// Places several objects at once, each built with the same kind of
+    /// placement (a transform, or a motion over the shutter), paying for
+    /// one re-commit or re-bin. Nothing moves if a sphere's new placement
+    /// would not keep it round.
+    pub fn place_objects(&mut self, placements: &[(u32, Placement)]) -> Result<(), AccelError> {
+        for (object, placement) in placements {
             let sphere = self.placed_spheres.iter().find(|(id, _)| id == object);
             if let Some((_, sphere)) = sphere {
-                if placed_sphere(sphere, transform).is_none() {
+                let round = match placement {
+                    Placement::World => true,
+                    Placement::Instance(xf) => placed_sphere(sphere, xf).is_some(),
+                    Placement::Moving(motion) => moving_sphere(sphere, motion).is_some(),
+                };
+                if !round {
                     return Err(AccelError::SphereNotRound { object: *object });
                 }
             }
         }
         match &mut self.bounded {
-            Backend::Embree(embree) => Ok(embree.move_objects(moves)?),
+            Backend::Embree(embree) => Ok(embree.place_objects(placements)?),
             Backend::Grid(grid) => {
                 // False means the grid holds nothing of some object (an
                 // empty mesh): nothing to move. Motion transforms are rigid,
                 // so always invertible.
-                grid.move_objects(moves);
+                grid.place_objects(placements);
                 Ok(())
             }
         }

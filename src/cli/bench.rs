@@ -29,7 +29,8 @@ pub(crate) struct BenchArgs {
     /// experiments on a larger scene and at 1280x960), `frame` (a full
     /// frame against bare Embree on the same ray packets), `backends` (the
     /// grid against Embree on the same ray packets), `E4nomotion` (pan 3.6
-    /// deg/frame and zoom together) or `knobs` (RSVP filter, oversampling
+    /// deg/frame and zoom together), `E3blur`, `E4blur` or `blur` (E3 and
+    /// E4 with the shutter open half a frame: motion blur) or `knobs` (RSVP filter, oversampling
     /// and level bias: cost and error), `chunking` (E1, E3 and E4, or the
     /// scene given, cut into farm chunks: CPU and wall time against the
     /// number of chunks).
@@ -117,6 +118,9 @@ pub(crate) fn bench(args: BenchArgs) -> Result<()> {
         "e3" => vec![Experiment::E3],
         "e4" => vec![Experiment::E4],
         "e4nomotion" => vec![Experiment::E4NoMotion],
+        "e3blur" => vec![Experiment::E3Blur],
+        "e4blur" => vec![Experiment::E4Blur],
+        "blur" => vec![Experiment::E3Blur, Experiment::E4Blur],
         "scaling" => Vec::new(),
         "chunking" => return chunking::bench_chunking_cli(&args, bar),
         "frame" | "backends" | "knobs" => {
@@ -141,7 +145,7 @@ pub(crate) fn bench(args: BenchArgs) -> Result<()> {
         }
         _ => {
             anyhow::bail!(
-                "unknown measurement '{}' for --only (available: all, E1, E2, E3, E4, scaling, frame, backends, E4nomotion, knobs, chunking)",
+                "unknown measurement '{}' for --only (available: all, E1, E2, E3, E4, scaling, frame, backends, E4nomotion, E3blur, E4blur, blur, knobs, chunking)",
                 args.only
             )
         }
@@ -193,7 +197,8 @@ pub(crate) fn bench(args: BenchArgs) -> Result<()> {
     bench_suite(&args, planned, bar)
 }
 
-/// The experiments of the paper's table, and E4 without its ball.
+/// The experiments of the paper's table, E4 without its ball, and E3
+/// and E4 with motion blur.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Experiment {
     E1,
@@ -202,6 +207,8 @@ enum Experiment {
     E3,
     E4,
     E4NoMotion,
+    E3Blur,
+    E4Blur,
 }
 
 impl Experiment {
@@ -225,6 +232,8 @@ impl Experiment {
                 "~2x",
             ),
             Experiment::E4NoMotion => ("E4 no motion", "pan + zoom in, viewport", "RSVP", "-"),
+            Experiment::E3Blur => ("E3 blur", "E3, shutter open half a frame", "OSTC", "-"),
+            Experiment::E4Blur => ("E4 blur", "E4, shutter open half a frame", "RSVP+OSTC", "-"),
         }
     }
 
@@ -238,6 +247,8 @@ impl Experiment {
             Experiment::E3 => "paper-bounce.toml",
             Experiment::E4 => "paper-all.toml",
             Experiment::E4NoMotion => "paper-pan-zoom.toml",
+            Experiment::E3Blur => "paper-bounce-blur.toml",
+            Experiment::E4Blur => "paper-all-blur.toml",
         }
     }
 
@@ -248,7 +259,10 @@ impl Experiment {
             Experiment::E2In => Some("bunnies-zoom-in.toml"),
             Experiment::E3 => Some("bunnies.toml"),
             Experiment::E4 => Some("bunnies-all.toml"),
-            Experiment::E2Out | Experiment::E4NoMotion => None,
+            Experiment::E2Out
+            | Experiment::E4NoMotion
+            | Experiment::E3Blur
+            | Experiment::E4Blur => None,
         }
     }
 }

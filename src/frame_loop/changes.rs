@@ -9,7 +9,7 @@
 use std::time::Instant;
 
 use crate::clock;
-use crate::geometry::{Aabb, Light, Object, Placement, Shape};
+use crate::geometry::{Aabb, Light, Object, Placement, Shape, MOTION_STEPS};
 use crate::reuse::ostc::{Footprint, Ostc};
 use crate::reuse::regions::{RegionLayout, RegionSet};
 use crate::reuse::{Dirty, Erasure, SampleStore};
@@ -78,6 +78,14 @@ pub fn swept_bounds(scene: &Scene, animation: &Animation) -> Aabb {
         }
         for frame in 0..animation.frames {
             swept = swept.union(rest.transformed(&track.transform_at(frame)));
+            // An object is placed between its poses over a shutter by
+            // interpolation, which stays within the poses' boxes.
+            if let Some(shutter) = &animation.shutter {
+                for step in 0..MOTION_STEPS {
+                    let time = shutter.instant(frame, step as f64 / (MOTION_STEPS - 1) as f64);
+                    swept = swept.union(rest.transformed(&track.transform_at_time(time)));
+                }
+            }
         }
     }
     swept

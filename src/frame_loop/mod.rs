@@ -35,8 +35,6 @@ pub use stats::{
 
 use std::sync::atomic::AtomicBool;
 
-use glam::Affine3A;
-
 use crate::accel::{Accelerator, Intersector};
 use crate::aov::{AovSet, Aovs};
 use crate::camera::{Camera, ViewTransform, ViewportPose};
@@ -256,15 +254,12 @@ impl<'a> Animator<'a> {
                     .flat_map(|track| track.objects.iter().copied())
                     .collect(),
             };
-            let moves: Vec<(u32, Affine3A)> = moved
+            let placements: Vec<(u32, Placement)> = moved
                 .into_iter()
-                .map(|object| match self.scene.objects[object].placement {
-                    Placement::Instance(transform) => (object as u32, transform),
-                    Placement::World => unreachable!("animated objects are instances"),
-                })
+                .map(|object| (object as u32, self.scene.objects[object].placement))
                 .collect();
             self.accel
-                .move_objects(&moves)
+                .place_objects(&placements)
                 .unwrap_or_else(|err| panic!("moving objects: {err}"));
         }
         self.posed_frame = Some(frame);

@@ -27,7 +27,7 @@
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 
-use crate::accel::{placed_sphere, Intersector};
+use crate::accel::{moving_sphere, placed_sphere, Intersector};
 use crate::camera::RayTable;
 use crate::geometry::{transform_normal, Aabb, Placement, Shape};
 use crate::ray::{Hit, Ray};
@@ -119,10 +119,7 @@ pub fn hit_point_bound(scene: &Scene, ray: &Ray, a: &Hit, b: &Hit, n: u32) -> (f
     let dir = ray.dir.as_dvec3();
     let (ta, tb) = (f64::from(a.t), f64::from(b.t));
     let object = &scene.objects[a.object as usize];
-    let transform = match object.placement {
-        Placement::World => None,
-        Placement::Instance(xf) => Some(xf),
-    };
+    let transform = object.placement.transform_at(ray.time);
     let place = |p: Vec3| transform.map_or(p, |xf| xf.transform_point3(p));
     let (normal, primitive) = match &object.shape {
         Shape::Mesh(mesh) => {
@@ -131,9 +128,12 @@ pub fn hit_point_bound(scene: &Scene, ray: &Ray, a: &Hit, b: &Hit, n: u32) -> (f
             ((q - p).cross(r - p).normalize_or_zero(), scale)
         }
         Shape::Sphere(sphere) => {
-            let sphere = match transform {
-                Some(xf) => placed_sphere(sphere, &xf).unwrap_or(*sphere),
-                None => *sphere,
+            let sphere = match (&object.placement, transform) {
+                (Placement::Moving(motion), _) => {
+                    moving_sphere(sphere, motion).map_or(*sphere, |moving| moving.at(ray.time))
+                }
+                (_, Some(xf)) => placed_sphere(sphere, &xf).unwrap_or(*sphere),
+                (_, None) => *sphere,
             };
             let center = sphere.center.as_dvec3();
             let hit = origin + dir * ta;
@@ -183,10 +183,8 @@ pub fn texcoord_bound(scene: &Scene, ray: &Ray, a: &Hit, b: &Hit, n: u32) -> Opt
         mesh.texcoord(a.prim, a.u, a.v)?,
         mesh.texcoord(b.prim, b.u, b.v)?,
     );
-    let place = |p: Vec3| match object.placement {
-        Placement::World => p,
-        Placement::Instance(xf) => xf.transform_point3(p),
-    };
+    let transform = object.placement.transform_at(ray.time);
+    let place = |p: Vec3| transform.map_or(p, |xf| xf.transform_point3(p));
     let [p, q, r] = mesh.vertices(a.prim).map(|v| place(v).as_dvec3());
     let cross = (q - p).cross(r - p);
     let longest = (q - p).length().max((r - q).length()).max((p - r).length());

@@ -13,7 +13,7 @@ use std::path::{Path, PathBuf};
 use glam::Vec3;
 
 use crate::camera::Camera;
-use crate::geometry::{Coverage, CoverageRef, Cutout, Light, LightShape, Object, Placement, Shape};
+use crate::geometry::{Coverage, CoverageRef, Cutout, Light, LightShape, Object, Shape};
 use crate::texture::TextureRef;
 use crate::timeline::{Animation, ViewportTrack};
 
@@ -46,6 +46,14 @@ pub const BUILTIN_SCENES: &[(&str, &str)] = &[
     (
         "paper-all.toml",
         include_str!("../../scenes/paper-all.toml"),
+    ),
+    (
+        "paper-bounce-blur.toml",
+        include_str!("../../scenes/paper-bounce-blur.toml"),
+    ),
+    (
+        "paper-all-blur.toml",
+        include_str!("../../scenes/paper-all-blur.toml"),
     ),
     (
         "paper-pan-zoom.toml",
@@ -134,10 +142,9 @@ pub fn mesh_lights(objects: &[Object], materials: &[Material]) -> Vec<Light> {
         if emission == Vec3::ZERO {
             continue;
         }
-        let to_world = |p| match &object.placement {
-            Placement::World => p,
-            Placement::Instance(transform) => transform.transform_point3(p),
-        };
+        // Glowing objects do not move (the scene file refuses it).
+        let transform = object.placement.transform_at(0.0);
+        let to_world = |p| transform.map_or(p, |xf: glam::Affine3A| xf.transform_point3(p));
         for triangle in &mesh.triangles {
             let [a, b, c] = triangle.map(|i| to_world(mesh.positions[i as usize]));
             let edges = [b - a, c - a];

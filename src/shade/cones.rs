@@ -203,10 +203,8 @@ mod tests {
         };
         let [a, b, c] = mesh.vertices(prim);
         let at = a * 0.4 + b * 0.3 + c * 0.3;
-        let to_world = |p: Vec3| match object.placement {
-            Placement::World => p,
-            Placement::Instance(xf) => xf.transform_point3(p),
-        };
+        let transform = object.placement.transform_at(0.0);
+        let to_world = |p: Vec3| transform.map_or(p, |xf| xf.transform_point3(p));
         let ray = Ray::new(to_world(from), to_world(at) - to_world(from));
         let hit = Hit {
             t: 1.0,

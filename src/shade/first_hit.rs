@@ -35,19 +35,22 @@ impl Shader<'_> {
             let hit = hits[lane].filter(|_| mask & (1 << lane) != 0)?;
             let ray = &rays[lane];
             let object = &self.objects[hit.object as usize];
-            let mut surface = object.shape.surface(ray, &hit, object.material_index);
-            let mut colour = albedo(object.material, surface.point, surface.plane_uv);
-            // A primary ray's cone starts as a point at the eye.
-            let width = self.primary_spread * hit.t * ray.dir.length();
-            if let Some(map) = &object.material.diffuse_map {
-                if let Some(texel) = object.shape.texel(map, ray, &hit, width) {
-                    colour *= texel;
+            let (surface, colour) = object.with_shape_at(ray.time, |shape| {
+                let mut surface = shape.surface(ray, &hit, object.material_index);
+                let mut colour = albedo(object.material, surface.point, surface.plane_uv);
+                // A primary ray's cone starts as a point at the eye.
+                let width = self.primary_spread * hit.t * ray.dir.length();
+                if let Some(map) = &object.material.diffuse_map {
+                    if let Some(texel) = shape.texel(map, ray, &hit, width) {
+                        colour *= texel;
+                    }
                 }
-            }
-            if let Some(bump) = &object.material.bump_map {
-                let normal = surface.shading_normal;
-                surface.shading_normal = object.shape.bumped_normal(bump, ray, &hit, width, normal);
-            }
+                if let Some(bump) = &object.material.bump_map {
+                    let normal = surface.shading_normal;
+                    surface.shading_normal = shape.bumped_normal(bump, ray, &hit, width, normal);
+                }
+                (surface, colour)
+            });
             Some(FirstHit {
                 distance: hit.t * ray.dir.length(),
                 normal: surface.shading_normal,

@@ -140,6 +140,20 @@ impl CellDeal {
     }
 }
 
+impl CellDeal {
+    /// `u` (in [0, 1)) placed in the interval a sub-sample with `stratum`
+    /// is dealt, of [0, 1) cut into n^2 (dealt cell (a, b) of the n x n
+    /// grid is interval `b n + a`); as it is without.
+    pub(super) fn place_on_line(&self, u: f32, stratum: Option<(u32, (u32, u32))>) -> f32 {
+        let Some((side, cell)) = stratum else {
+            return u;
+        };
+        let (a, b) = self.cell(side, cell);
+        let intervals = side * side;
+        ((b * side + a) as f32 + u) / intervals as f32
+    }
+}
+
 /// The deal of the lobe's cells.
 static LOBE_CELLS: CellDeal = CellDeal::new(CELL_SEED);
 

@@ -188,6 +188,9 @@ pub(super) struct HitLanes {
     /// Scenes with area lights or glossy surfaces only: each lane's path
     /// key, which their samples are drawn from (`super::draws`).
     pub(super) path: [u64; PACKET_WIDTH],
+    /// The incoming ray's shutter time, which every ray leaving the hit
+    /// keeps.
+    pub(super) time: Lanes,
 }
 
 impl HitLanes {
@@ -259,7 +262,7 @@ impl HitLanes {
                 // below it as rays leaving the near side start above it.
                 let point = self.point.get(lane);
                 let through = point + (point - self.spawn_point.get(lane));
-                out.rays[lane] = Ray::new(through, t);
+                out.rays[lane] = Ray::new(through, t).at_time(self.time[lane]);
             }
             out.eta[lane] = eta;
             out.transparency[lane] = glass.transparency;
@@ -482,10 +485,9 @@ mod tests {
                 anchor + along,
             )
         };
-        let point = match placement {
-            Placement::Instance(xf) => xf.transform_point3(point),
-            Placement::World => point,
-        };
+        let point = placement
+            .transform_at(0.0)
+            .map_or(point, |xf| xf.transform_point3(point));
         let object = Object {
             name: String::new(),
             shape,

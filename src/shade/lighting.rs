@@ -114,7 +114,7 @@ impl Shader<'_> {
         // Nearly every lane is lit: filling all of them and resetting
         // the few others beats picking lanes out one by one.
         let mut shadow_rays: RayPacket = std::array::from_fn(|lane| {
-            Ray::segment(h.shadow_point.get(lane), to_light.get(lane), reach)
+            Ray::segment(h.shadow_point.get(lane), to_light.get(lane), reach).at_time(h.time[lane])
         });
         for lane in lanes(!lit_mask) {
             shadow_rays[lane] = Ray::INACTIVE;

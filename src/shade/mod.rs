@@ -15,18 +15,19 @@ mod glossy;
 mod lanes;
 mod lens;
 mod lighting;
+mod shutter;
 mod surface;
 
 use glam::Vec3;
 
 use crate::accel::Intersector;
-use crate::geometry::Light;
+use crate::geometry::{Light, Placement};
 use crate::ray::{lanes, Hit, LaneMask, Ray, RayPacket, PACKET_WIDTH};
 use crate::scene::{Material, Scene};
 pub use first_hit::FirstHit;
 pub use glossy::PixelStrata;
 pub use surface::Surface;
-use surface::{albedo, WorldShape};
+use surface::{albedo, ShapeMotion, WorldShape};
 
 use cones::{reflected_spread, refracted_spread, sample_spread, RayCones};
 use lanes::{lane_flags, lanes_where, AnalyticHits, HitLanes, Lanes, RayColumns, Vec3Lanes};
@@ -96,6 +97,8 @@ pub enum RayKind {
 /// world space and its material, with what lighting derives from it.
 struct ObjectShading<'a> {
     shape: WorldShape<'a>,
+    /// How the shape moves while the shutter is open, for objects that do.
+    motion: Option<ShapeMotion<'a>>,
     material_index: usize,
     material: &'a Material,
     /// R.V below which the material's highlight is negligible.
@@ -116,7 +119,17 @@ struct MapsRead {
     specular_texel: Vec3,
 }
 
-impl ObjectShading<'_> {
+impl<'a> ObjectShading<'a> {
+    /// Calls `f` with the object's shape where a ray cast at shutter time
+    /// `time` meets it.
+    #[inline(always)]
+    fn with_shape_at<R>(&self, time: f32, f: impl FnOnce(&WorldShape<'a>) -> R) -> R {
+        match &self.motion {
+            None => f(&self.shape),
+            Some(motion) => f(&motion.at(time)),
+        }
+    }
+
     /// Reads the object's diffuse, specular and relief maps at `hit`
     /// through the ray's cone, arriving as (width at the ray's origin,
     /// spread): the diffuse texel multiplies `albedo` and the relief bends
@@ -124,6 +137,7 @@ impl ObjectShading<'_> {
     #[inline(always)]
     fn read_maps(
         &self,
+        shape: &WorldShape<'_>,
         ray: &Ray,
         hit: &Hit,
         (width_at_origin, spread): (f32, f32),
@@ -136,24 +150,24 @@ impl ObjectShading<'_> {
         // surfaces is never needed.
         let (curvature_radius, cone_spread) =
             if material.reflectivity > 0.0 || material.glass.is_some() {
-                let radius = self.shape.curvature_radius(hit, surface);
+                let radius = shape.curvature_radius(hit, surface);
                 (radius, reflected_spread(spread, width, radius))
             } else {
                 (f32::INFINITY, spread)
             };
         if let Some(map) = &material.diffuse_map {
-            if let Some(texel) = self.shape.texel(map, ray, hit, width) {
+            if let Some(texel) = shape.texel(map, ray, hit, width) {
                 *albedo *= texel;
             }
         }
         let specular_texel = material
             .specular_map
             .as_ref()
-            .and_then(|map| self.shape.texel(map, ray, hit, width))
+            .and_then(|map| shape.texel(map, ray, hit, width))
             .unwrap_or(Vec3::ONE);
         if let Some(bump) = &material.bump_map {
             let normal = surface.shading_normal;
-            surface.shading_normal = self.shape.bumped_normal(bump, ray, hit, width, normal);
+            surface.shading_normal = shape.bumped_normal(bump, ray, hit, width, normal);
         }
         MapsRead {
             cone_width: width,
@@ -190,6 +204,9 @@ pub struct Shader<'a> {
     /// Whether any object glows (mesh lights): only then is a hit's glow
     /// added.
     any_emission: bool,
+    /// Whether any object moves while the shutter is open: only then are
+    /// camera rays cast at times across it.
+    motion_blur: bool,
 }
 
 /// `x` to the power `n` by repeated squaring, the same multiplications in
@@ -235,6 +252,7 @@ impl<'a> Shader<'a> {
                     let material = &scene.materials[object.material];
                     ObjectShading {
                         shape: WorldShape::new(object),
+                        motion: ShapeMotion::new(object),
                         material_index: object.material,
                         material,
                         highlight_cutoff: material.highlight_cutoff(),
@@ -265,6 +283,10 @@ impl<'a> Shader<'a> {
                 .objects
                 .iter()
                 .any(|o| scene.materials[o.material].emission != Vec3::ZERO),
+            motion_blur: scene
+                .objects
+                .iter()
+                .any(|o| matches!(o.placement, Placement::Moving(_))),
         }
     }
 
@@ -323,7 +345,12 @@ impl<'a> Shader<'a> {
         } else {
             RayKind::Reflection
         };
-        // Camera rays come as a pinhole's; a lens moves them onto itself.
+        // Camera rays come as a pinhole's at the shutter's opening: with
+        // motion blur each is cast at its own time, and a lens moves them
+        // onto itself (both drawn from the pinhole ray).
+        let timed =
+            (self.motion_blur && depth == 0).then(|| shutter::timed_rays(rays, mask, strata));
+        let rays = timed.as_ref().unwrap_or(rays);
         let through_lens = match &self.scene.lens {
             Some(lens) if depth == 0 => Some(lens::lens_rays(lens, rays, mask, strata)),
             _ => None,
@@ -389,6 +416,7 @@ impl<'a> Shader<'a> {
         }
         let mut lanes_hit = HitLanes {
             path: *paths,
+            time: rays.map(|ray| ray.time),
             ..HitLanes::default()
         };
         // The cones leaving each hit, followed only where textures are.
@@ -415,23 +443,24 @@ impl<'a> Shader<'a> {
             if self.any_glass {
                 lanes_hit.glass[lane] = object.material.glass;
             }
-            if !self.textured && analytic.add(lane, &object.shape, hit.t) {
-                analytic_mask |= 1 << lane;
-                continue;
-            }
-            let mut surface = object
-                .shape
-                .surface(&rays[lane], hit, object.material_index);
-            let mut albedo = albedo(object.material, surface.point, surface.plane_uv);
-            if self.textured {
-                let cone = (cones.width[lane], cones.spread[lane]);
-                let read = object.read_maps(&rays[lane], hit, cone, &mut surface, &mut albedo);
-                next_cones.width[lane] = read.cone_width;
-                next_cones.spread[lane] = read.cone_spread;
-                curvature_radii[lane] = read.curvature_radius;
-                specular_texels[lane] = read.specular_texel;
-            }
-            lanes_hit.set(lane, &surface, albedo);
+            let ray = &rays[lane];
+            object.with_shape_at(ray.time, |shape| {
+                if !self.textured && analytic.add(lane, shape, hit.t) {
+                    analytic_mask |= 1 << lane;
+                    return;
+                }
+                let mut surface = shape.surface(ray, hit, object.material_index);
+                let mut albedo = albedo(object.material, surface.point, surface.plane_uv);
+                if self.textured {
+                    let cone = (cones.width[lane], cones.spread[lane]);
+                    let read = object.read_maps(shape, ray, hit, cone, &mut surface, &mut albedo);
+                    next_cones.width[lane] = read.cone_width;
+                    next_cones.spread[lane] = read.cone_spread;
+                    curvature_radii[lane] = read.curvature_radius;
+                    specular_texels[lane] = read.specular_texel;
+                }
+                lanes_hit.set(lane, &surface, albedo);
+            });
         }
         if analytic_mask != 0 {
             analytic.reconstruct(&columns, &lane_flags(analytic_mask), &mut lanes_hit);
@@ -541,8 +570,9 @@ impl<'a> Shader<'a> {
                 }
             }
             // As for shadow rays: all lanes, then reset the others.
-            let mut reflected: RayPacket =
-                std::array::from_fn(|lane| Ray::new(h.spawn_point.get(lane), directions.get(lane)));
+            let mut reflected: RayPacket = std::array::from_fn(|lane| {
+                Ray::new(h.spawn_point.get(lane), directions.get(lane)).at_time(h.time[lane])
+            });
             for lane in lanes(!reflect_mask) {
                 reflected[lane] = Ray::INACTIVE;
             }

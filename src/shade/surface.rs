@@ -4,9 +4,11 @@
 
 use glam::{Affine3A, Mat3A, Vec3};
 
+use crate::accel::moving_sphere;
 use crate::geometry::normals::terminator_point;
 use crate::geometry::{
-    normal_matrix, plane_axes, transform_normal, Object, Placement, Shape, TriangleMesh,
+    normal_matrix, plane_axes, transform_normal, Motion, MovingSphere, Object, Placement, Shape,
+    TriangleMesh,
 };
 use crate::ray::{offset_origin, Hit, Ray};
 use crate::scene::{Material, Scene};
@@ -44,7 +46,55 @@ impl Surface {
     /// [`Shader`], which prepares every object's world-space data once.
     pub fn from_hit(scene: &Scene, ray: &Ray, hit: &Hit) -> Surface {
         let object = &scene.objects[hit.object as usize];
-        WorldShape::new(object).surface(ray, hit, object.material)
+        let shape = match ShapeMotion::new(object) {
+            Some(motion) => motion.at(ray.time),
+            None => WorldShape::new(object),
+        };
+        shape.surface(ray, hit, object.material)
+    }
+}
+
+/// How an object moving while the shutter is open changes shape in the
+/// world: its shape for a ray is made at the ray's time, placed as every
+/// backend places it then (a sphere's centre and radius interpolated, a
+/// mesh through the interpolated transform).
+pub(super) enum ShapeMotion<'a> {
+    Sphere(MovingSphere),
+    Placed {
+        object: &'a Object,
+        motion: &'a Motion,
+    },
+}
+
+impl<'a> ShapeMotion<'a> {
+    /// `None` unless `object` moves while the shutter is open.
+    pub(super) fn new(object: &'a Object) -> Option<ShapeMotion<'a>> {
+        let Placement::Moving(motion) = &object.placement else {
+            return None;
+        };
+        Some(match &object.shape {
+            // A motion that would not keep the sphere round never reaches
+            // shading (the accelerator refuses it).
+            Shape::Sphere(sphere) => {
+                ShapeMotion::Sphere(moving_sphere(sphere, motion).unwrap_or(MovingSphere {
+                    steps: [*sphere; crate::geometry::MOTION_STEPS],
+                }))
+            }
+            _ => ShapeMotion::Placed { object, motion },
+        })
+    }
+
+    /// The shape where a ray cast at shutter time `time` meets it.
+    pub(super) fn at(&self, time: f32) -> WorldShape<'a> {
+        match self {
+            ShapeMotion::Sphere(moving) => {
+                let sphere = moving.at(time);
+                WorldShape::sphere(sphere.center, sphere.radius)
+            }
+            ShapeMotion::Placed { object, motion } => {
+                WorldShape::placed(object, Some(motion.at(time)))
+            }
+        }
     }
 }
 
@@ -79,11 +129,23 @@ pub(super) enum WorldShape<'a> {
 }
 
 impl<'a> WorldShape<'a> {
+    /// The shape of `object`; one moving while the shutter is open as it
+    /// is when the shutter opens (shading asks [`ShapeMotion`] instead).
     pub(super) fn new(object: &'a Object) -> WorldShape<'a> {
-        let transform = match object.placement {
-            Placement::World => None,
-            Placement::Instance(xf) => Some(xf),
-        };
+        WorldShape::placed(object, object.placement.transform_at(0.0))
+    }
+
+    fn sphere(center: Vec3, radius: f32) -> WorldShape<'a> {
+        WorldShape::Sphere {
+            center,
+            radius,
+            scale: center.abs().max_element() + radius,
+        }
+    }
+
+    /// `object`'s shape placed by `transform` (`None`: already in world
+    /// space).
+    fn placed(object: &'a Object, transform: Option<Affine3A>) -> WorldShape<'a> {
         let to_world = |p: Vec3| transform.map_or(p, |xf| xf.transform_point3(p));
         match &object.shape {
             Shape::Mesh(mesh) => WorldShape::Mesh {
@@ -97,11 +159,7 @@ impl<'a> WorldShape<'a> {
                     Some(xf) => sphere.radius * xf.matrix3.x_axis.length(),
                     None => sphere.radius,
                 };
-                WorldShape::Sphere {
-                    center,
-                    radius,
-                    scale: center.abs().max_element() + radius,
-                }
+                WorldShape::sphere(center, radius)
             }
             Shape::Plane(plane) => {
                 let (origin, normal) = match transform {

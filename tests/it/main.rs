@@ -24,6 +24,7 @@ mod interrupt;
 mod layers;
 mod lens;
 mod mesh_lights;
+mod motion_blur;
 mod moving_spheres;
 mod normals;
 mod obj_exporters;

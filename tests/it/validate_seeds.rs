@@ -23,6 +23,11 @@ fn moved(mut scene: Scene, scale: f32, offset: Vec3) -> Scene {
     for object in &mut scene.objects {
         match &mut object.placement {
             Placement::Instance(xf) => *xf = placement * *xf,
+            Placement::Moving(motion) => {
+                for pose in &mut motion.poses {
+                    *pose = placement * *pose;
+                }
+            }
             Placement::World => match &mut object.shape {
                 Shape::Mesh(mesh) => mesh.positions.iter_mut().for_each(|p| *p = map(*p)),
                 Shape::Sphere(sphere) => {

@@ -16,7 +16,7 @@ use glam::Affine3A;
 
 use super::trace::{intersect1, intersect8, occluded1, occluded8};
 use super::{CommittedScene, Device, EmbreeError, SceneBuilder};
-use crate::accel::{placed_sphere, Intersector};
+use crate::accel::{moving_sphere, placed_sphere, Intersector};
 use crate::geometry::{Object, Placement, Shape, Sphere};
 use crate::ray::{Hit, HitPacket, LaneMask, Ray, RayPacket};
 
@@ -71,7 +71,8 @@ impl EmbreeIntersector {
         split: StillSplit,
     ) -> Result<EmbreeIntersector, EmbreeError> {
         let device = Device::new()?;
-        let moves = |object: &Object| matches!(object.placement, Placement::Instance(_));
+        let moves = |object: &Object| !matches!(object.placement, Placement::World);
+        let blurs = |object: &Object| matches!(object.placement, Placement::Moving(_));
         let still_primitives: usize = objects
             .iter()
             .filter(|object| !moves(object))
@@ -84,7 +85,9 @@ impl EmbreeIntersector {
         let split = still_primitives > 0
             && objects.iter().any(moves)
             && match split {
-                StillSplit::Auto => still_primitives >= SPLIT_MIN_STILL_PRIMITIVES,
+                StillSplit::Auto => {
+                    still_primitives >= SPLIT_MIN_STILL_PRIMITIVES || objects.iter().any(blurs)
+                }
                 StillSplit::Always => true,
                 StillSplit::Never => false,
             };
@@ -101,17 +104,28 @@ impl EmbreeIntersector {
                 (Placement::World, shape) => {
                     attach_shape(still.as_mut().unwrap_or(&mut top), id, shape)?
                 }
-                (Placement::Instance(_), Shape::Plane(_)) => {}
+                (Placement::Instance(_) | Placement::Moving(_), Shape::Plane(_)) => {}
                 (Placement::Instance(transform), Shape::Sphere(sphere)) => {
                     let placed =
                         placed_sphere(sphere, transform).ok_or_else(|| not_round(id, transform))?;
                     top.attach_sphere(id, placed.center, placed.radius)?;
                     placed_spheres.push((id, *sphere));
                 }
+                (Placement::Moving(motion), Shape::Sphere(sphere)) => {
+                    let moving = moving_sphere(sphere, motion)
+                        .ok_or_else(|| not_round(id, &motion.poses[0]))?;
+                    top.attach_moving_sphere(id, &moving)?;
+                    placed_spheres.push((id, *sphere));
+                }
                 (Placement::Instance(transform), shape) => {
                     let mut child = SceneBuilder::new(&device)?;
                     attach_shape(&mut child, 0, shape)?;
                     top.attach_instance(id, child.commit()?, transform)?;
+                }
+                (Placement::Moving(motion), shape) => {
+                    let mut child = SceneBuilder::new(&device)?;
+                    attach_shape(&mut child, 0, shape)?;
+                    top.attach_moving_instance(id, child.commit()?, motion)?;
                 }
             }
         }
@@ -130,15 +144,41 @@ impl EmbreeIntersector {
     /// Places each object of `moves` (built with a transform) by its new
     /// transform, then re-commits the scene once.
     pub fn move_objects(&mut self, moves: &[(u32, Affine3A)]) -> Result<(), EmbreeError> {
+        let placements: Vec<(u32, Placement)> = moves
+            .iter()
+            .map(|&(object, xf)| (object, Placement::Instance(xf)))
+            .collect();
+        self.place_objects(&placements)
+    }
+
+    /// Places each object of `placements` (built with the same kind of
+    /// placement: a transform, or a motion over the shutter), then
+    /// re-commits the scene once.
+    pub fn place_objects(&mut self, placements: &[(u32, Placement)]) -> Result<(), EmbreeError> {
         let mut edit = self.scene.edit();
-        for (object, transform) in moves {
-            match self.placed_spheres.iter().find(|(id, _)| id == object) {
-                Some((_, sphere)) => {
+        for (object, placement) in placements {
+            let sphere = self.placed_spheres.iter().find(|(id, _)| id == object);
+            match (placement, sphere) {
+                (Placement::Instance(transform), Some((_, sphere))) => {
                     let placed = placed_sphere(sphere, transform)
                         .ok_or_else(|| not_round(*object, transform))?;
                     edit.move_sphere(*object, placed.center, placed.radius)?;
                 }
-                None => edit.set_instance_transform(*object, transform)?,
+                (Placement::Moving(motion), Some((_, sphere))) => {
+                    let moving = moving_sphere(sphere, motion)
+                        .ok_or_else(|| not_round(*object, &motion.poses[0]))?;
+                    edit.move_moving_sphere(*object, &moving)?;
+                }
+                (Placement::Instance(transform), None) => {
+                    edit.set_instance_transform(*object, transform)?
+                }
+                (Placement::Moving(motion), None) => edit.set_instance_motion(*object, motion)?,
+                (Placement::World, _) => {
+                    return Err(EmbreeError {
+                        code: "invalid argument",
+                        message: format!("object {object}: a move needs a transform or a motion"),
+                    })
+                }
             }
         }
         edit.commit()

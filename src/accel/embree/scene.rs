@@ -35,7 +35,7 @@ use glam::{Affine3A, Vec3};
 
 use super::{callback_panic, sys};
 use super::{Device, EmbreeError};
-use crate::geometry::{Aabb, Cutout};
+use crate::geometry::{Aabb, Cutout, Motion, MovingSphere, Sphere, MOTION_STEPS};
 
 /// A scene being built. Attach geometry, then [`SceneBuilder::commit`].
 pub struct SceneBuilder {
@@ -55,6 +55,8 @@ pub struct SceneBuilder {
 struct MovableIds {
     instances: Vec<u32>,
     spheres: Vec<u32>,
+    moving_instances: Vec<u32>,
+    moving_spheres: Vec<u32>,
 }
 
 impl SceneBuilder {
@@ -104,13 +106,25 @@ impl SceneBuilder {
         format: sys::RTCFormat,
         items: &[T],
     ) -> Result<(), EmbreeError> {
+        self.fill_slot(geometry, kind, 0, format, items)
+    }
+
+    /// [`SceneBuilder::fill_buffer`] for buffer `slot` (a time step's).
+    fn fill_slot<T: Copy>(
+        &self,
+        geometry: sys::RTCGeometry,
+        kind: sys::RTCBufferType,
+        slot: u32,
+        format: sys::RTCFormat,
+        items: &[T],
+    ) -> Result<(), EmbreeError> {
         // SAFETY: `geometry` is live; Embree allocates `items.len()` elements
         // of `size_of::<T>()` bytes (plus padding) and returns that memory.
         let ptr = unsafe {
             sys::rtcSetNewGeometryBuffer(
                 geometry,
                 kind,
-                0,
+                slot,
                 format,
                 std::mem::size_of::<T>(),
                 items.len(),
@@ -200,10 +214,57 @@ impl SceneBuilder {
         // SAFETY: both handles are live; Embree keeps its own reference to the
         // child scene, and we keep `child` too for as long as this scene.
         unsafe { sys::rtcSetGeometryInstancedScene(geometry, child.raw) };
-        set_transform(geometry, transform);
+        set_transform(geometry, 0, transform);
         self.children.push(child);
         self.attach(geometry, id)?;
         self.movable.instances.push(id);
+        Ok(())
+    }
+
+    /// [`SceneBuilder::attach_instance`] for an instance moving while the
+    /// shutter is open: a transform per time step, which Embree
+    /// interpolates at each ray's time.
+    pub fn attach_moving_instance(
+        &mut self,
+        id: u32,
+        child: CommittedScene,
+        motion: &Motion,
+    ) -> Result<(), EmbreeError> {
+        let geometry = self.new_geometry(sys::RTCGeometryType::RTC_GEOMETRY_TYPE_INSTANCE)?;
+        // SAFETY: as in `attach_instance`; the time steps are set before
+        // any transform is.
+        unsafe {
+            sys::rtcSetGeometryInstancedScene(geometry, child.raw);
+            sys::rtcSetGeometryTimeStepCount(geometry, MOTION_STEPS as u32);
+        }
+        set_motion(geometry, motion);
+        self.children.push(child);
+        self.attach(geometry, id)?;
+        self.movable.moving_instances.push(id);
+        Ok(())
+    }
+
+    /// A sphere moving while the shutter is open: a vertex buffer per time
+    /// step, which Embree interpolates at each ray's time.
+    pub fn attach_moving_sphere(
+        &mut self,
+        id: u32,
+        sphere: &MovingSphere,
+    ) -> Result<(), EmbreeError> {
+        let geometry = self.new_geometry(sys::RTCGeometryType::RTC_GEOMETRY_TYPE_SPHERE_POINT)?;
+        // SAFETY: `geometry` is live and has no buffers yet.
+        unsafe { sys::rtcSetGeometryTimeStepCount(geometry, MOTION_STEPS as u32) };
+        for (slot, step) in sphere.steps.iter().enumerate() {
+            self.fill_slot(
+                geometry,
+                sys::RTCBufferType::RTC_BUFFER_TYPE_VERTEX,
+                slot as u32,
+                sys::RTCFormat::RTC_FORMAT_FLOAT4,
+                &[sphere_vertex(step.center, step.radius)],
+            )?;
+        }
+        self.attach(geometry, id)?;
+        self.movable.moving_spheres.push(id);
         Ok(())
     }
 
@@ -260,7 +321,16 @@ fn sphere_vertex(center: Vec3, radius: f32) -> [f32; 4] {
     [center.x, center.y, center.z, radius]
 }
 
-fn set_transform(geometry: sys::RTCGeometry, transform: &Affine3A) {
+/// Every time step's transform of a moving instance.
+fn set_motion(geometry: sys::RTCGeometry, motion: &Motion) {
+    for (step, pose) in motion.poses.iter().enumerate() {
+        set_transform(geometry, step as u32, pose);
+    }
+}
+
+/// Time step `step`'s transform (0 for an instance that does not move
+/// while the shutter is open).
+fn set_transform(geometry: sys::RTCGeometry, step: u32, transform: &Affine3A) {
     // Column-major 3x4: the three basis columns, then the translation.
     let m = transform.matrix3;
     let t = transform.translation;
@@ -268,11 +338,12 @@ fn set_transform(geometry: sys::RTCGeometry, transform: &Affine3A) {
         m.x_axis.x, m.x_axis.y, m.x_axis.z, m.y_axis.x, m.y_axis.y, m.y_axis.z, m.z_axis.x,
         m.z_axis.y, m.z_axis.z, t.x, t.y, t.z,
     ];
-    // SAFETY: `geometry` is a live instance; Embree copies the 12 floats.
+    // SAFETY: `geometry` is a live instance with more than `step` time
+    // steps; Embree copies the 12 floats.
     unsafe {
         sys::rtcSetGeometryTransform(
             geometry,
-            0,
+            step,
             sys::RTCFormat::RTC_FORMAT_FLOAT3X4_COLUMN_MAJOR,
             columns.as_ptr() as *const c_void,
         )
@@ -363,7 +434,7 @@ impl SceneEdit<'_> {
         // `id` names an attached instance, which the scene keeps alive.
         unsafe {
             let geometry = sys::rtcGetGeometry(self.scene.raw, id);
-            set_transform(geometry, transform);
+            set_transform(geometry, 0, transform);
             sys::rtcCommitGeometry(geometry);
         }
         self.scene.device.take_error()
@@ -375,14 +446,61 @@ impl SceneEdit<'_> {
         if !self.scene.movable.spheres.contains(&id) {
             return Err(Self::unknown("sphere", id));
         }
+        self.write_sphere(id, 0, center, radius)
+    }
+
+    /// Gives moving instance `id` (attached with
+    /// [`SceneBuilder::attach_moving_instance`]) its motion over a new
+    /// shutter.
+    pub fn set_instance_motion(&mut self, id: u32, motion: &Motion) -> Result<(), EmbreeError> {
+        if !self.scene.movable.moving_instances.contains(&id) {
+            return Err(Self::unknown("moving instance", id));
+        }
+        // SAFETY: as in `set_instance_transform`; the instance was made
+        // with MOTION_STEPS time steps.
+        unsafe {
+            let geometry = sys::rtcGetGeometry(self.scene.raw, id);
+            set_motion(geometry, motion);
+            sys::rtcCommitGeometry(geometry);
+        }
+        self.scene.device.take_error()
+    }
+
+    /// Gives moving sphere `id` (attached with
+    /// [`SceneBuilder::attach_moving_sphere`]) its spheres over a new
+    /// shutter.
+    pub fn move_moving_sphere(
+        &mut self,
+        id: u32,
+        sphere: &MovingSphere,
+    ) -> Result<(), EmbreeError> {
+        if !self.scene.movable.moving_spheres.contains(&id) {
+            return Err(Self::unknown("moving sphere", id));
+        }
+        for (slot, Sphere { center, radius }) in sphere.steps.iter().enumerate() {
+            self.write_sphere(id, slot as u32, *center, *radius)?;
+        }
+        Ok(())
+    }
+
+    /// Rewrites sphere `id`'s vertex in buffer `slot` and commits the
+    /// geometry.
+    fn write_sphere(
+        &mut self,
+        id: u32,
+        slot: u32,
+        center: Vec3,
+        radius: f32,
+    ) -> Result<(), EmbreeError> {
         let vertex_buffer = sys::RTCBufferType::RTC_BUFFER_TYPE_VERTEX;
         // SAFETY: as above; `id` names a sphere geometry whose vertex buffer
-        // Embree allocated in `attach_sphere` with one FLOAT4 element.
+        // in `slot` Embree allocated when it was attached, with one FLOAT4
+        // element.
         let data = unsafe {
             let geometry = sys::rtcGetGeometry(self.scene.raw, id);
             (
                 geometry,
-                sys::rtcGetGeometryBufferData(geometry, vertex_buffer, 0),
+                sys::rtcGetGeometryBufferData(geometry, vertex_buffer, slot),
             )
         };
         self.scene.device.take_error()?;
@@ -395,7 +513,7 @@ impl SceneEdit<'_> {
         // scene's, both after this write.
         unsafe {
             std::ptr::write(vertex as *mut [f32; 4], sphere_vertex(center, radius));
-            sys::rtcUpdateGeometryBuffer(geometry, vertex_buffer, 0);
+            sys::rtcUpdateGeometryBuffer(geometry, vertex_buffer, slot);
             sys::rtcCommitGeometry(geometry);
         }
         self.scene.device.take_error()

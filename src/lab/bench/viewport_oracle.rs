@@ -208,15 +208,13 @@ pub fn viewport_oracle(
                     .collect();
                 first_pose = false;
             }
-            for object in moved {
-                if let crate::geometry::Placement::Instance(transform) =
-                    posed.objects[object].placement
-                {
-                    accel
-                        .set_object_transform(object as u32, &transform)
-                        .unwrap_or_else(|err| panic!("moving object {object}: {err}"));
-                }
-            }
+            let placements: Vec<_> = moved
+                .into_iter()
+                .map(|object| (object as u32, posed.objects[object].placement))
+                .collect();
+            accel
+                .place_objects(&placements)
+                .unwrap_or_else(|err| panic!("moving objects: {err}"));
         }
         let shader = Shader::new(&posed, &*accel);
         // Which kept samples still hold their true colour: in a still

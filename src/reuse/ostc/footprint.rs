@@ -231,7 +231,7 @@ mod tests {
                 .collect();
             let origin = Vec3::from(origin);
             // Aimed near the first place, so many segments graze it.
-            let ray = Ray { origin, dir: center + Vec3::from(aim) * radius - origin, tmin: 0.0, tmax: t1 };
+            let ray = Ray { origin, dir: center + Vec3::from(aim) * radius - origin, tmin: 0.0, tmax: t1, time: 0.0 };
             let meets = volumes.iter().any(|v| v.meets_segment(&ray));
             proptest::prop_assert!(!meets || Reach::around(&volumes).may_meet(&ray));
         }

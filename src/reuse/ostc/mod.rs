@@ -603,6 +603,7 @@ impl RayObserver for RegionMarker<'_> {
                     dir,
                     tmin: t0,
                     tmax: t1,
+                    time: ray.time,
                 },
                 shadow,
                 group: self.group,
@@ -850,7 +851,7 @@ mod tests {
             }
             let walked = voxels.spec.walk(origin, dir, 0.0, t1).next().is_some();
             let mut rays = [Ray::INACTIVE; PACKET_WIDTH];
-            rays[3] = Ray { origin, dir, tmin: 0.0, tmax: t1 };
+            rays[3] = Ray { origin, dir, tmin: 0.0, tmax: t1, time: 0.0 };
             let crossing = voxels.spec.bounds.crossing_lanes(&rays, 1 << 3, &[t1; PACKET_WIDTH]);
             proptest::prop_assert!(!walked || crossing == 1 << 3);
         }

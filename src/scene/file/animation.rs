@@ -21,7 +21,7 @@ use crate::camera::Camera;
 use crate::geometry::{Object, Shape, WORLD_LIMIT};
 use crate::scene::{Material, SceneError};
 use crate::timeline::{
-    Animation, Bounce, CameraKey, Ease, LightKey, LightTrack, ObjectKey, ObjectTrack,
+    Animation, Bounce, CameraKey, Ease, LightKey, LightTrack, ObjectKey, ObjectTrack, Shutter,
 };
 
 /// The longest animation accepted, in frames.
@@ -39,9 +39,42 @@ pub(super) fn convert_animation(
     lights: &[Spanned<LightDef>],
 ) -> Result<Animation, SceneError> {
     let mut animation = convert_timeline(ctx, def, camera)?;
+    animation.shutter = def
+        .shutter
+        .as_ref()
+        .map(|shutter| convert_shutter(ctx, shutter))
+        .transpose()?;
     animation.objects = convert_object_tracks(ctx, def, objects, materials)?;
     animation.lights = convert_light_tracks(ctx, def, lights)?;
     Ok(animation)
+}
+
+/// The shutter's opening and closing around each frame: in order, at most
+/// a frame apart and within a frame of the frame's instant.
+fn convert_shutter(ctx: &Ctx, shutter: &Spanned<[f64; 2]>) -> Result<Shutter, SceneError> {
+    let [open, close] = *shutter.get_ref();
+    let problem = if !(open.is_finite() && close.is_finite()) {
+        Some("must be finite".to_string())
+    } else if open >= close {
+        Some(format!(
+            "opens before it closes: [open, close] in frames, as [-0.25, 0.25]; got [{open}, {close}]"
+        ))
+    } else if close - open > 1.0 {
+        Some(format!(
+            "stays open at most a frame (close - open <= 1), got {}",
+            close - open
+        ))
+    } else if open < -1.0 || close > 1.0 {
+        Some(format!(
+            "opens and closes within a frame of the frame's instant (-1 to 1), got [{open}, {close}]"
+        ))
+    } else {
+        None
+    };
+    match problem {
+        Some(problem) => Err(ctx.error(shutter.span(), "animation.shutter", problem)),
+        None => Ok(Shutter { open, close }),
+    }
 }
 
 /// The timeline of `def`: its length and rate, and the camera's keys,

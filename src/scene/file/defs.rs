@@ -37,6 +37,10 @@ pub(super) struct AnimationDef {
     /// Frames per second, 25 when not given.
     #[serde(default)]
     pub(super) fps: Option<Spanned<f64>>,
+    /// When the shutter opens and closes around each frame, in frames
+    /// (motion blur); none when not given.
+    #[serde(default)]
+    pub(super) shutter: Option<Spanned<[f64; 2]>>,
     #[serde(default)]
     pub(super) camera: Vec<Spanned<CameraKeyDef>>,
     #[serde(default)]

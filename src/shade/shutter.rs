@@ -1,0 +1,86 @@
+//! When in the shutter each camera ray is cast (motion blur).
+//!
+//! Promise: a camera ray's shutter time is a pure function of its pinhole
+//! ray (through [`super::draws`]: a hash of the ray's bits, so of the
+//! world-anchored sample), a fixed seed and, for the sub-samples of a
+//! square count n x n, the sample's cell of its pixel ([`PixelStrata`]):
+//! those draw one in each of n^2 equal intervals of the shutter (a fixed
+//! shuffle of the cells, its own), jittered inside it by the key. So a
+//! reused sample is cast when a fresh trace of it is, in every frame.
+
+use super::draws::{key_draw, ray_keys, ONE_BELOW};
+use super::glossy::{CellDeal, PixelStrata};
+use crate::ray::{LaneMask, RayPacket};
+
+/// The seed shutter times are drawn from.
+const SEED: u64 = 0x7368_7574_2074_696d;
+
+/// The deal of the shutter's intervals to a pixel's sub-samples.
+static SHUTTER_INTERVALS: CellDeal = CellDeal::new(0x7368_7574_2063_656c);
+
+/// `rays` (pinhole camera rays) each cast at its shutter time (lanes
+/// outside `mask` as they were).
+pub(super) fn timed_rays(
+    rays: &RayPacket,
+    mask: LaneMask,
+    strata: Option<&PixelStrata>,
+) -> RayPacket {
+    let keys = ray_keys(rays, 0);
+    std::array::from_fn(|lane| {
+        if mask & (1 << lane) == 0 {
+            return rays[lane];
+        }
+        let u = key_draw(keys[lane], SEED, &[0]);
+        // f32 rounding can carry an interval's last draw onto its end.
+        let time = SHUTTER_INTERVALS
+            .place_on_line(u, strata.map(|s| s.lane(lane)))
+            .min(ONE_BELOW);
+        rays[lane].at_time(time)
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use glam::Vec3;
+
+    use super::*;
+    use crate::ray::{Ray, PACKET_WIDTH};
+
+    fn packet(seed: u32) -> RayPacket {
+        std::array::from_fn(|lane| {
+            let x = (seed * 8 + lane as u32) as f32 * 0.013;
+            Ray::new(Vec3::new(0.5, 1.0, 2.0), Vec3::new(x, 0.2, -1.0))
+        })
+    }
+
+    #[test]
+    fn times_lie_in_the_shutter_and_depend_on_the_ray_alone() {
+        let rays = packet(3);
+        let timed = timed_rays(&rays, 0xff, None);
+        let again = timed_rays(&rays, 0xff, None);
+        for lane in 0..PACKET_WIDTH {
+            assert!((0.0..1.0).contains(&timed[lane].time));
+            assert_eq!(timed[lane].time.to_bits(), again[lane].time.to_bits());
+            assert_eq!(
+                (timed[lane].origin, timed[lane].dir),
+                (rays[lane].origin, rays[lane].dir)
+            );
+        }
+        // Lanes outside the mask are left as they were.
+        let some = timed_rays(&rays, 0b1, None);
+        assert_eq!(some[1], rays[1]);
+    }
+
+    #[test]
+    fn a_pixels_sub_samples_draw_one_time_in_each_interval() {
+        let side = 2u32;
+        let mut intervals = Vec::new();
+        for (index, cell) in [(0, 0), (1, 0), (0, 1), (1, 1)].into_iter().enumerate() {
+            let strata = PixelStrata::new(side, [(cell.0, cell.1); PACKET_WIDTH]);
+            let timed = timed_rays(&packet(index as u32), 0xff, Some(&strata));
+            intervals.push((timed[0].time * 4.0) as u32);
+        }
+        intervals.sort_unstable();
+        assert_eq!(intervals, vec![0, 1, 2, 3]);
+    }
+}
