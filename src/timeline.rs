@@ -8,7 +8,7 @@
 
 use glam::{Affine3A, DVec3, EulerRot, Quat, Vec3};
 
-use crate::camera::{Camera, ViewTransform, Viewport, ViewportPose};
+use crate::camera::{Camera, Lens, ViewTransform, Viewport, ViewportPose};
 use crate::geometry::{Light, LightShape, Motion, Object, Placement, MOTION_STEPS};
 
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Deserialize, serde::Serialize)]
@@ -39,6 +39,10 @@ pub struct CameraKey {
     pub pitch: f64,
     pub fov: f64,
     pub position: DVec3,
+    /// The lens's radius (0: a pinhole) and the distance in focus (NaN
+    /// while no key or camera has given one).
+    pub aperture: f64,
+    pub focus_distance: f64,
     /// How the segment from this key to the next is eased.
     pub ease: Ease,
 }
@@ -258,6 +262,32 @@ impl Animation {
         }
     }
 
+    /// The lens at `frame` (None: a pinhole), from the camera keys as
+    /// [`Animation::camera_at`] finds them; `base` without keys. A lens
+    /// two keys share is theirs bit for bit between them.
+    pub fn lens_at(&self, base: Option<Lens>, frame: u32) -> Option<Lens> {
+        let lens = |aperture: f64, focus_distance: f64| {
+            (aperture > 0.0).then_some(Lens {
+                aperture,
+                focus_distance,
+            })
+        };
+        match key_segment(&self.camera_keys, f64::from(frame), |k| k.frame, |k| k.ease) {
+            None => base,
+            Some((a, None)) => lens(a.aperture, a.focus_distance),
+            Some((a, Some((b, t)))) => {
+                // A key before the lens first opens has no focus yet: the
+                // other key's holds.
+                let focus = match (a.focus_distance, b.focus_distance) {
+                    (x, y) if x.is_nan() => y,
+                    (x, y) if y.is_nan() => x,
+                    (x, y) => x + (y - x) * t,
+                };
+                lens(a.aperture + (b.aperture - a.aperture) * t, focus)
+            }
+        }
+    }
+
     /// Whether anything but the camera moves.
     pub fn moves_scene(&self) -> bool {
         !self.objects.is_empty() || !self.lights.is_empty()
@@ -362,6 +392,8 @@ mod tests {
             pitch: 0.0,
             fov: 1.0,
             position: DVec3::ZERO,
+            aperture: 0.0,
+            focus_distance: f64::NAN,
             ease,
         }
     }

@@ -8,6 +8,7 @@
 
 use std::time::Instant;
 
+use crate::camera::Lens;
 use crate::clock;
 use crate::geometry::{Aabb, Light, Object, Placement, Shape, MOTION_STEPS};
 use crate::reuse::ostc::{Footprint, Ostc};
@@ -30,6 +31,7 @@ pub(super) struct ScenePose {
     /// Where each animated object is (in the order of the tracks).
     places: Vec<Footprint>,
     lights: Vec<Light>,
+    pub(super) lens: Option<Lens>,
 }
 
 impl ScenePose {
@@ -43,6 +45,7 @@ impl ScenePose {
         ScenePose {
             places,
             lights: scene.lights.clone(),
+            lens: scene.lens,
         }
     }
 }

@@ -244,6 +244,7 @@ impl<'a> Animator<'a> {
         }
         if let Some(animation) = self.animation() {
             let moved = animation.pose(&mut self.scene.objects, &mut self.scene.lights, frame);
+            self.scene.lens = animation.lens_at(self.base.lens, frame);
             // The accelerator may be shared with another animator that left
             // it elsewhere: the first pose sets every animated object.
             let moved = match self.posed_frame {
@@ -322,6 +323,7 @@ impl<'a> Animator<'a> {
         let mut scene = self.base.clone();
         if let Some(animation) = self.animation() {
             animation.pose(&mut scene.objects, &mut scene.lights, frame);
+            scene.lens = animation.lens_at(self.base.lens, frame);
         }
         let accel = Accelerator::build(self.accel.kind(), &scene.objects)?;
         let view = self.views(frame).swap_remove(index);
@@ -420,6 +422,10 @@ impl<'a> Animator<'a> {
         };
         if let Some(unfit) = kept.store.unfit(views) {
             return Some(Restart::Unfit(unfit));
+        }
+        // Every camera ray passes the lens: a new one changes them all.
+        if kept.pose.lens != pose.lens {
+            return Some(Restart::LensChanged);
         }
         (kept.pose != *pose && kept.ostc.is_none()).then(|| Restart::SceneMoved {
             store: kept.store.name(),

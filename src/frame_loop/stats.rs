@@ -17,12 +17,17 @@ pub enum Restart {
         store: &'static str,
         ostc_refused: bool,
     },
+    /// The lens's aperture or focus changed: every camera ray with it.
+    LensChanged,
 }
 
 impl std::fmt::Display for Restart {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
             Restart::FirstFrame => write!(f, "first frame"),
+            Restart::LensChanged => {
+                write!(f, "the lens's aperture or focus changed: buffer restarted")
+            }
             Restart::Unfit(unfit) => write!(f, "{unfit}"),
             Restart::SceneMoved {
                 store,

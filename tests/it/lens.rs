@@ -205,3 +205,86 @@ fn a_zoom_through_a_lens_keeps_its_buffer_exact() {
         .unwrap_or_else(|| panic!("{stdout}"));
     assert!(checked.ends_with(" 0 differ"), "{checked}");
 }
+
+/// A focus pull keyed on the camera while a ball bounces: each frame is
+/// rendered through the lens its keys give (bit for bit a full render of
+/// it), frames whose lens is unchanged keep what OSTC leaves of the frame
+/// before, and a frame whose lens changed starts again, saying why (OSTC,
+/// which follows moving objects, would keep samples of the old lens).
+#[test]
+fn a_keyed_focus_pull_restarts_where_the_lens_changes_and_reuses_elsewhere() {
+    let mut scene = crate::common::paper_with_at(
+        "[[object]]\ntype = \"sphere\"\nname = \"ball\"\ncenter = [-2.6, 0.5, 3.0]\nradius = 0.5\n\
+         [animation]\nframes = 6\n\
+         [[animation.bounce]]\nobject = \"ball\"\nheight = 2.0\nperiod = 25\n\
+         [[animation.camera]]\nframe = 0\naperture = 0.15\nfocus_distance = 4.0\n\
+         [[animation.camera]]\nframe = 2\n\
+         [[animation.camera]]\nframe = 4\nfocus_distance = 9.0\n",
+        48,
+        32,
+    );
+    scene.samples = PixelSamples::new(4).unwrap();
+    let animation = scene.animation.clone().unwrap();
+    let focus = |frame| animation.lens_at(scene.lens, frame).unwrap().focus_distance;
+    assert_eq!(
+        [focus(0), focus(2), focus(3), focus(5)],
+        [4.0, 4.0, 6.5, 9.0]
+    );
+    let stats = crate::common::run_exact_with(
+        &scene,
+        BackendKind::Embree,
+        Options::new(Techniques::AUTO, 0..6),
+    );
+    let reasons: Vec<String> = stats.iter().map(crate::common::reason).collect();
+    for frame in [3, 4] {
+        assert!(
+            reasons[frame].contains("lens"),
+            "frame {frame}: {:?}",
+            reasons[frame]
+        );
+    }
+    for frame in [1, 2, 5] {
+        assert!(
+            stats[frame].mode.as_str() != "full" && stats[frame].reason.is_none(),
+            "frame {frame} reuses: {} {:?}",
+            stats[frame].mode,
+            reasons[frame]
+        );
+    }
+}
+
+#[test]
+fn bad_lens_keys_name_the_key() {
+    let error = |keys: &str| {
+        let text = format!(
+            "[camera]\nposition = [0, 1, 5]\nfov = 60\n[animation]\nframes = 3\n\
+             [[animation.camera]]\nframe = 0\n[[animation.camera]]\nframe = 2\n{keys}\n"
+        );
+        parse_scene_str(&text, Path::new("keys.toml"), &SceneOverrides::default())
+            .unwrap_err()
+            .to_string()
+    };
+    for (keys, field, words) in [
+        (
+            "aperture = -1",
+            "animation.camera[1].aperture",
+            "at least 0",
+        ),
+        (
+            "aperture = 0.1\nfocus_distance = -2",
+            "animation.camera[1].focus_distance",
+            "above 0",
+        ),
+        (
+            "aperture = 0.1",
+            "animation.camera[1].focus_distance",
+            "needs a distance to focus at",
+        ),
+    ] {
+        let message = error(keys);
+        assert!(
+            message.contains("keys.toml") && message.contains(field) && message.contains(words),
+            "{keys:?}: {message}"
+        );
+    }
+}

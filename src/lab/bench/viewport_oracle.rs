@@ -170,7 +170,12 @@ pub fn viewport_oracle(
 ) -> Vec<u64> {
     let base_lattice = SampleLattice::for_camera(&scene.camera);
     let animation = scene.animation.as_ref();
-    let moves = animation.is_some_and(|a| a.moves_scene());
+    // A lens the keys change changes samples as a move does.
+    let lens_moves = animation.is_some_and(|a| {
+        let first = a.lens_at(scene.lens, 0);
+        (1..a.frames).any(|f| a.lens_at(scene.lens, f) != first)
+    });
+    let moves = animation.is_some_and(|a| a.moves_scene()) || lens_moves;
     let mut posed = scene.clone();
     // Per sample traced so far, a hash of the colour it was traced with.
     let mut kept: HashMap<SampleId, u64> = HashMap::new();
@@ -199,6 +204,7 @@ pub fn viewport_oracle(
         if moves {
             let animation = animation.expect("moves implies an animation");
             let mut moved = animation.pose(&mut posed.objects, &mut posed.lights, frame);
+            posed.lens = animation.lens_at(scene.lens, frame);
             if first_pose {
                 // The accelerator may have been left posed anywhere.
                 moved = animation

@@ -17,7 +17,7 @@ use super::defs::{
 use super::lights::check_intensity;
 use super::values::{colour, world3};
 use super::Ctx;
-use crate::camera::Camera;
+use crate::camera::{Camera, Lens};
 use crate::geometry::{Object, Shape, WORLD_LIMIT};
 use crate::scene::{Material, SceneError};
 use crate::timeline::{
@@ -30,15 +30,19 @@ pub const MAX_FRAMES: u32 = 1_000_000;
 /// The `[animation]` table: the timeline, the camera's keys (from the
 /// scene's `camera`), and the tracks of the `objects` and `lights` (their
 /// tables, already checked) that move.
+///
+/// `lens` is the camera's, the keys' starting point: its aperture 0 for a
+/// pinhole, its focus distance NaN when the camera gives none.
 pub(super) fn convert_animation(
     ctx: &Ctx,
     def: &AnimationDef,
     camera: &Camera,
+    lens: Lens,
     objects: &[Object],
     materials: &[Material],
     lights: &[Spanned<LightDef>],
 ) -> Result<Animation, SceneError> {
-    let mut animation = convert_timeline(ctx, def, camera)?;
+    let mut animation = convert_timeline(ctx, def, camera, lens)?;
     animation.shutter = def
         .shutter
         .as_ref()
@@ -78,8 +82,13 @@ fn convert_shutter(ctx: &Ctx, shutter: &Spanned<[f64; 2]>) -> Result<Shutter, Sc
 }
 
 /// The timeline of `def`: its length and rate, and the camera's keys,
-/// which start from the scene's camera, `base`.
-fn convert_timeline(ctx: &Ctx, def: &AnimationDef, base: &Camera) -> Result<Animation, SceneError> {
+/// which start from the scene's camera, `base`, and its lens.
+fn convert_timeline(
+    ctx: &Ctx,
+    def: &AnimationDef,
+    base: &Camera,
+    lens: Lens,
+) -> Result<Animation, SceneError> {
     let frames = *def.frames.get_ref();
     let fps = def.fps.as_ref().map_or(DEFAULT_FPS, |fps| *fps.get_ref());
     if frames == 0 {
@@ -110,6 +119,8 @@ fn convert_timeline(ctx: &Ctx, def: &AnimationDef, base: &Camera) -> Result<Anim
             pitch: base.pitch,
             fov: base.fov,
             position: base.position,
+            aperture: lens.aperture,
+            focus_distance: lens.focus_distance,
             ease: Ease::Linear,
         });
         let mut resolved = CameraKey {
@@ -118,8 +129,11 @@ fn convert_timeline(ctx: &Ctx, def: &AnimationDef, base: &Camera) -> Result<Anim
             pitch: k.pitch.map_or(previous.pitch, f64::to_radians),
             fov: k.fov.map_or(previous.fov, f64::to_radians),
             position: k.position.map_or(previous.position, DVec3::from_array),
+            aperture: k.aperture.unwrap_or(previous.aperture),
+            focus_distance: k.focus_distance.unwrap_or(previous.focus_distance),
             ease: k.ease,
         };
+        check_key_lens(ctx, key, &resolved, &field)?;
         for (name, value) in [
             ("yaw", resolved.yaw),
             ("pitch", resolved.pitch),
@@ -148,6 +162,44 @@ fn convert_timeline(ctx: &Ctx, def: &AnimationDef, base: &Camera) -> Result<Anim
         keys.push(resolved);
     }
     Ok(Animation::camera_only(frames, fps, keys))
+}
+
+/// A key's lens: an aperture of 0 or more, and a distance in focus above
+/// 0 once the lens is open.
+fn check_key_lens(
+    ctx: &Ctx,
+    key: &Spanned<CameraKeyDef>,
+    resolved: &CameraKey,
+    field: &dyn Fn(&str) -> String,
+) -> Result<(), SceneError> {
+    let (aperture, focus) = (resolved.aperture, resolved.focus_distance);
+    if !(aperture.is_finite() && aperture >= 0.0) {
+        return Err(ctx.error(
+            key.span(),
+            field("aperture"),
+            format!("the lens's radius: finite and at least 0, got {aperture}"),
+        ));
+    }
+    // NaN: no distance given yet; anything else must be one.
+    let usable = focus.is_nan() || (focus.is_finite() && focus > 0.0);
+    if !usable {
+        return Err(ctx.error(
+            key.span(),
+            field("focus_distance"),
+            format!("finite and above 0, got {focus}"),
+        ));
+    }
+    if aperture > 0.0 && focus.is_nan() {
+        return Err(ctx.error(
+            key.span(),
+            field("focus_distance"),
+            format!(
+                "a lens (aperture {aperture}) needs a distance to focus at: give focus_distance \
+                 here, on an earlier key, or on the camera (or a look_at to focus there)"
+            ),
+        ));
+    }
+    Ok(())
 }
 
 /// Keys with a `frame`, for [`check_key_order`].

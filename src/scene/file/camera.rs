@@ -98,10 +98,7 @@ pub(super) fn convert_lens(
     if aperture == 0.0 {
         return Ok(None);
     }
-    let to_target = c
-        .look_at
-        .map(|target| (DVec3::from_array(target) - DVec3::from_array(c.position)).length());
-    let Some(focus_distance) = c.focus_distance.or(to_target) else {
+    let Some(focus_distance) = focus_default(def) else {
         return Err(error(
             "camera.focus_distance",
             format!(
@@ -114,6 +111,16 @@ pub(super) fn convert_lens(
         aperture,
         focus_distance,
     }))
+}
+
+/// Where the camera of `def` focuses when its lens is open: its
+/// `focus_distance`, else the distance to `look_at`.
+pub(super) fn focus_default(def: &Spanned<CameraDef>) -> Option<f64> {
+    let c = def.get_ref();
+    let to_target = c
+        .look_at
+        .map(|target| (DVec3::from_array(target) - DVec3::from_array(c.position)).length());
+    c.focus_distance.or(to_target)
 }
 
 /// `err` of the camera of `def`, blamed on what gave the values at fault:

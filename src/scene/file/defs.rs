@@ -141,6 +141,9 @@ pub(super) struct CameraKeyDef {
     /// Degrees.
     pub(super) fov: Option<f64>,
     pub(super) position: Option<[f64; 3]>,
+    /// The lens's radius, scene units.
+    pub(super) aperture: Option<f64>,
+    pub(super) focus_distance: Option<f64>,
     #[serde(default)]
     pub(super) ease: Ease,
 }

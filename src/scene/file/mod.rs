@@ -36,7 +36,7 @@ use crate::sampling::PixelSamples;
 use crate::texture::load::{TextureCache, DEFAULT_TEXTURE_MEMORY_MB};
 use crate::texture::TextureFilter;
 use animation::convert_animation;
-use camera::{convert_camera, convert_lens};
+use camera::{convert_camera, convert_lens, focus_default};
 use defs::{RenderDef, SceneFile};
 use include::{line_of, splice, Source};
 pub(crate) use include::{read_text, Files, MAX_SCENE_TEXT};
@@ -294,7 +294,7 @@ pub(crate) fn parse_scene(
             .map_err(|m| render_error("render.light_samples", m))?,
     };
     let camera = convert_camera(&ctx, &file.camera, render, render_span, overrides)?;
-    let lens = convert_lens(&ctx, &file.camera)?;
+    let mut lens = convert_lens(&ctx, &file.camera)?;
 
     let mut materials = Vec::with_capacity(file.material.len() + 1);
     for (name, def) in &file.material {
@@ -325,7 +325,21 @@ pub(crate) fn parse_scene(
     let animation = file
         .animation
         .as_ref()
-        .map(|def| convert_animation(&ctx, def, &camera, &objects, &materials, &file.light))
+        .map(|def| {
+            let base_lens = lens.unwrap_or(crate::camera::Lens {
+                aperture: 0.0,
+                focus_distance: focus_default(&file.camera).unwrap_or(f64::NAN),
+            });
+            convert_animation(
+                &ctx,
+                def,
+                &camera,
+                base_lens,
+                &objects,
+                &materials,
+                &file.light,
+            )
+        })
         .transpose()?;
     if let Some(animation) = &animation {
         // Animated objects become instances, so a move updates a transform
@@ -336,6 +350,7 @@ pub(crate) fn parse_scene(
             }
         }
         animation.pose(&mut objects, &mut lights, 0);
+        lens = animation.lens_at(lens, 0);
     }
 
     let viewports = convert_viewports(&ctx, &file, &camera)?;
