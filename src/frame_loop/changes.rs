@@ -29,7 +29,7 @@ pub const OSTC_LIMIT_BYTES: f64 = 2e9;
 #[derive(Clone, Debug, PartialEq)]
 pub(super) struct ScenePose {
     /// Where each animated object is (in the order of the tracks).
-    places: Vec<Footprint>,
+    places: Vec<Place>,
     lights: Vec<Light>,
     pub(super) lens: Option<Lens>,
 }
@@ -40,7 +40,13 @@ impl ScenePose {
             .into_iter()
             .flat_map(|a| &a.objects)
             .flat_map(|track| &track.objects)
-            .map(|&object| footprint(&scene.objects[object]))
+            .map(|&object| {
+                let object = &scene.objects[object];
+                Place {
+                    placement: object.placement,
+                    footprint: footprint(object),
+                }
+            })
             .collect();
         ScenePose {
             places,
@@ -48,6 +54,27 @@ impl ScenePose {
             lens: scene.lens,
         }
     }
+}
+
+/// An animated object's placement, which says whether it moved, and its
+/// footprint, which says what a move dirties. The footprint alone would
+/// not do with a shutter: a ball rising through one shutter and falling
+/// through the next, either side of its hop's peak, covers the same
+/// heights in both, at other times.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Place {
+    placement: Placement,
+    footprint: Footprint,
+}
+
+/// The footprints of the places that changed from `old` to `new`: where
+/// each moved object was and is.
+fn moves<'a>(old: &'a ScenePose, new: &'a ScenePose) -> impl Iterator<Item = [Footprint; 2]> + 'a {
+    old.places
+        .iter()
+        .zip(&new.places)
+        .filter(|(was, is)| was.placement != is.placement)
+        .map(|(was, is)| [was.footprint, is.footprint])
 }
 
 /// Where an object is in the world, for OSTC.
@@ -189,10 +216,8 @@ pub(super) fn invalidate(
     let (regions, samples_nulled) = match store.erasure() {
         Erasure::Regions => {
             let mut dirty = lit;
-            for (was, is) in old.places.iter().zip(&new.places) {
-                if was != is {
-                    dirty.union_with(&ostc.dirty_for(&[*was, *is]));
-                }
+            for footprints in moves(old, new) {
+                dirty.union_with(&ostc.dirty_for(&footprints));
             }
             let nulled = store.erase(&Dirty {
                 layout: &layout,
@@ -244,12 +269,10 @@ fn dirty_by_lights(ostc: &Ostc, old: &ScenePose, new: &ScenePose) -> RegionSet {
 fn dirty_groups(ostc: &Ostc, old: &ScenePose, new: &ScenePose) -> (RegionSet, Vec<u128>) {
     let mut regions = RegionSet::empty(ostc.layout().count());
     let mut groups = Vec::new();
-    for (was, is) in old.places.iter().zip(&new.places) {
-        if was != is {
-            let (r, g) = ostc.dirty_groups_for(&[*was, *is]);
-            regions.union_with(&r);
-            groups.extend(g);
-        }
+    for footprints in moves(old, new) {
+        let (r, g) = ostc.dirty_groups_for(&footprints);
+        regions.union_with(&r);
+        groups.extend(g);
     }
     groups.sort_unstable();
     groups.dedup();

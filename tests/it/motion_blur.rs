@@ -85,15 +85,20 @@ on_every_backend! {
         }
     }
 
+    // Over the hop's peak (frame 12.5) and its touchdown (25): shutters
+    // on either side of the peak sweep the same heights in reverse, so
+    // only the motion itself, not where it reaches, tells them apart.
     the_bouncing_ball_with_a_shutter_equals_full_renders_bit_for_bit(backend) {
         let mut scene = crate::common::shipped_at("paper-bounce-blur.toml", 48, 32);
         scene.samples = PixelSamples::new(4).unwrap();
-        let stats = crate::common::run_exact_reusing_with(
-            &scene,
-            backend,
-            Options::new(Techniques::AUTO, 20..26),
-        );
-        assert!(stats.iter().all(|s| s.mode.as_str() == "ostc"));
+        for frames in [11..15, 23..27] {
+            let stats = crate::common::run_exact_reusing_with(
+                &scene,
+                backend,
+                Options::new(Techniques::AUTO, frames),
+            );
+            assert!(stats.iter().all(|s| s.mode.as_str() == "ostc"));
+        }
     }
 }
 
