@@ -85,6 +85,15 @@ fn footprint(object: &Object) -> Footprint {
             // Motion is rigid: any axis gives the scale.
             radius: sphere.radius * xf.matrix3.x_axis.length(),
         },
+        (Shape::Sphere(sphere), Placement::Moving(motion)) => {
+            match crate::accel::moving_sphere(sphere, &motion) {
+                Some(moving) => Footprint::Path {
+                    centers: moving.steps.map(|s| s.center),
+                    radius: moving.steps.iter().map(|s| s.radius).fold(0.0, f32::max),
+                },
+                None => Footprint::Box(object.world_bounds()),
+            }
+        }
         (Shape::Sphere(sphere), Placement::World) => Footprint::Ball {
             center: sphere.center,
             radius: sphere.radius,

@@ -8,7 +8,7 @@
 
 use glam::{DVec3, Vec3};
 
-use crate::geometry::Aabb;
+use crate::geometry::{Aabb, MOTION_STEPS};
 use crate::ray::Ray;
 
 use super::{padded_outward, WALK_END_SLACK};
@@ -19,7 +19,17 @@ use super::{padded_outward, WALK_END_SLACK};
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Footprint {
     Box(Aabb),
-    Ball { center: Vec3, radius: f32 },
+    Ball {
+        center: Vec3,
+        radius: f32,
+    },
+    /// A sphere moving while the shutter is open: everything within
+    /// `radius` (its largest) of the path through its centres at the
+    /// motion's poses, which it follows straight between them.
+    Path {
+        centers: [Vec3; MOTION_STEPS],
+        radius: f32,
+    },
 }
 
 impl Footprint {
@@ -30,6 +40,10 @@ impl Footprint {
                 min: center - Vec3::splat(radius),
                 max: center + Vec3::splat(radius),
             },
+            Footprint::Path { centers, radius } => Aabb {
+                min: centers.into_iter().reduce(Vec3::min).unwrap() - Vec3::splat(radius),
+                max: centers.into_iter().reduce(Vec3::max).unwrap() + Vec3::splat(radius),
+            },
         }
     }
 
@@ -37,7 +51,7 @@ impl Footprint {
     /// rounding: voxel boxes are computed in f32 too).
     pub(super) fn may_touch(&self, voxel: &Aabb) -> bool {
         match *self {
-            Footprint::Box(_) => true,
+            Footprint::Box(_) | Footprint::Path { .. } => true,
             Footprint::Ball { center, radius } => {
                 let closest = center.clamp(voxel.min, voxel.max);
                 let slack = (radius + voxel.extent().max_element()) * 1e-3
@@ -80,6 +94,26 @@ impl Footprint {
                 // A NaN (an overflow) is kept.
                 distance <= radius + slack || distance.is_nan()
             }
+            Footprint::Path { centers, radius } => {
+                let radius = f64::from(radius);
+                // Past where the line leaves the path's bounds the segment
+                // only moves away: an endless one is cut there.
+                let bounds = self.bounds();
+                let reach = (bounds.center().as_dvec3() - origin).length()
+                    + bounds.extent().as_dvec3().length()
+                    + 1.0;
+                let t1 = t1.min(t0 + 2.0 * reach / dir.length());
+                let (p, q) = (origin + dir * t0, origin + dir * t1);
+                centers.windows(2).any(|ends| {
+                    let (a, b) = (ends[0].as_dvec3(), ends[1].as_dvec3());
+                    let (on_ray, on_path) = closest_points(p, q, a, b);
+                    let slack = radius * 1e-3
+                        + (a.abs().max(b.abs()).max_element() + on_ray.abs().max_element()) * 1e-5;
+                    let distance = (on_ray - on_path).length();
+                    // A NaN (an overflow) is kept.
+                    distance <= radius + slack || distance.is_nan()
+                })
+            }
             Footprint::Box(bounds) => {
                 let bounds = padded_outward(bounds);
                 let (lo, hi) = (bounds.min.as_dvec3(), bounds.max.as_dvec3());
@@ -102,6 +136,40 @@ impl Footprint {
             }
         }
     }
+}
+
+/// The closest points of the segments `p`-`q` and `a`-`b` (Ericson,
+/// *Real-Time Collision Detection*, 5.1.9), in f64.
+fn closest_points(p: DVec3, q: DVec3, a: DVec3, b: DVec3) -> (DVec3, DVec3) {
+    let (d1, d2, r) = (q - p, b - a, p - a);
+    let (len1, len2, f) = (d1.length_squared(), d2.length_squared(), d2.dot(r));
+    let (s, t) = if len1 == 0.0 && len2 == 0.0 {
+        (0.0, 0.0)
+    } else if len1 == 0.0 {
+        (0.0, (f / len2).clamp(0.0, 1.0))
+    } else {
+        let c = d1.dot(r);
+        if len2 == 0.0 {
+            ((-c / len1).clamp(0.0, 1.0), 0.0)
+        } else {
+            let cross = d1.dot(d2);
+            let denom = len1 * len2 - cross * cross;
+            let s = if denom > 0.0 {
+                ((cross * f - c * len2) / denom).clamp(0.0, 1.0)
+            } else {
+                0.0
+            };
+            let t = (cross * s + f) / len2;
+            if t < 0.0 {
+                ((-c / len1).clamp(0.0, 1.0), 0.0)
+            } else if t > 1.0 {
+                (((cross - c) / len1).clamp(0.0, 1.0), 1.0)
+            } else {
+                (s, t)
+            }
+        }
+    };
+    (p + d1 * s, a + d2 * t)
 }
 
 impl Footprint {
@@ -204,6 +272,57 @@ mod tests {
     use super::*;
     use proptest::prop_oneof;
     use proptest::strategy::Just;
+
+    /// A path meets every segment that meets the sphere at some time
+    /// between its poses, and no segment far from all of them.
+    #[test]
+    fn a_path_meets_what_the_moving_sphere_meets_at_any_time() {
+        use crate::geometry::{MovingSphere, Sphere};
+        let mut rng = crate::rng::SplitMix64(7);
+        let (mut met, mut missed) = (0, 0);
+        for _ in 0..2_000 {
+            let start = rng.direction() * rng.range(0.0, 5.0);
+            let steps: [Sphere; MOTION_STEPS] = std::array::from_fn(|k| Sphere {
+                center: start + Vec3::new(k as f32 * 0.4, (k * k) as f32 * 0.1, 0.0),
+                radius: 0.5 + 0.05 * k as f32,
+            });
+            let moving = MovingSphere { steps };
+            let path = Footprint::Path {
+                centers: steps.map(|s| s.center),
+                radius: steps.iter().map(|s| s.radius).fold(0.0, f32::max),
+            };
+            let origin = rng.direction() * 20.0;
+            let aim = start + rng.direction() * rng.range(0.0, 4.0);
+            let tmax = if rng.unit() < 0.5 {
+                f32::INFINITY
+            } else {
+                rng.range(0.5, 1.5)
+            };
+            let ray = Ray {
+                origin,
+                dir: aim - origin,
+                tmin: 0.0,
+                tmax,
+                time: 0.0,
+            };
+            let sphere_met = (0..=400).any(|i| {
+                let s = moving.at(i as f32 / 400.0);
+                Footprint::Ball {
+                    center: s.center,
+                    radius: s.radius,
+                }
+                .meets_segment(&ray)
+            });
+            let path_met = path.meets_segment(&ray);
+            assert!(
+                !sphere_met || path_met,
+                "{ray:?} meets the sphere, not the path"
+            );
+            met += usize::from(path_met);
+            missed += usize::from(!path_met);
+        }
+        assert!(met > 200 && missed > 200, "{met} met, {missed} missed");
+    }
 
     proptest::proptest! {
         /// The quick ball around a move's footprints never rules out a
