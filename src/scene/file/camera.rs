@@ -113,9 +113,19 @@ pub(super) fn convert_lens(
     }))
 }
 
+/// The lens the camera keys start from: the camera's `lens`, or a closed
+/// one (aperture 0) focused where an opened one would be (NaN: nowhere
+/// given).
+pub(super) fn keys_start_lens(def: &Spanned<CameraDef>, lens: Option<Lens>) -> Lens {
+    lens.unwrap_or(Lens {
+        aperture: 0.0,
+        focus_distance: focus_default(def).unwrap_or(f64::NAN),
+    })
+}
+
 /// Where the camera of `def` focuses when its lens is open: its
 /// `focus_distance`, else the distance to `look_at`.
-pub(super) fn focus_default(def: &Spanned<CameraDef>) -> Option<f64> {
+fn focus_default(def: &Spanned<CameraDef>) -> Option<f64> {
     let c = def.get_ref();
     let to_target = c
         .look_at

@@ -36,7 +36,7 @@ use crate::sampling::PixelSamples;
 use crate::texture::load::{TextureCache, DEFAULT_TEXTURE_MEMORY_MB};
 use crate::texture::TextureFilter;
 use animation::convert_animation;
-use camera::{convert_camera, convert_lens, focus_default};
+use camera::{convert_camera, convert_lens, keys_start_lens};
 use defs::{RenderDef, SceneFile};
 use include::{line_of, splice, Source};
 pub(crate) use include::{read_text, Files, MAX_SCENE_TEXT};
@@ -326,15 +326,12 @@ pub(crate) fn parse_scene(
         .animation
         .as_ref()
         .map(|def| {
-            let base_lens = lens.unwrap_or(crate::camera::Lens {
-                aperture: 0.0,
-                focus_distance: focus_default(&file.camera).unwrap_or(f64::NAN),
-            });
+            let keys_lens = keys_start_lens(&file.camera, lens);
             convert_animation(
                 &ctx,
                 def,
                 &camera,
-                base_lens,
+                keys_lens,
                 &objects,
                 &materials,
                 &file.light,
