@@ -13,7 +13,7 @@ pub mod motion;
 pub mod normals;
 
 pub use cutout::{Coverage, CoverageRef, Cutout};
-pub use motion::{Motion, MovingSphere, MOTION_STEPS};
+pub use motion::{motion_segment, Motion, MovingSphere, MOTION_STEPS};
 
 /// How far from the origin a scene may reach, on each axis. Beyond, f32
 /// positions lie more than 6e4 apart, and Embree refuses (aborts on) rays
@@ -301,6 +301,19 @@ pub struct Light {
     /// Colour times intensity.
     pub power: Vec3,
     pub shape: LightShape,
+    /// Where the light is and how bright while the shutter is open, when
+    /// it changes then (motion blur); `position` and `power` are its
+    /// opening's.
+    pub motion: Option<LightMotion>,
+}
+
+/// A light's positions and powers at [`MOTION_STEPS`] evenly spaced
+/// shutter times, interpolated straight between them as a moving
+/// object's poses are.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LightMotion {
+    pub positions: [Vec3; MOTION_STEPS],
+    pub powers: [Vec3; MOTION_STEPS],
 }
 
 impl Light {
@@ -312,7 +325,32 @@ impl Light {
             shape: LightShape::Point {
                 falloff: Falloff::None,
             },
+            motion: None,
         }
+    }
+
+    /// The light as it stands at shutter time `time` (0 at the opening,
+    /// 1 at the closing).
+    #[inline]
+    pub fn at_time(&self, time: f32) -> Light {
+        let Some(motion) = &self.motion else {
+            return *self;
+        };
+        let (i, f) = motion_segment(time);
+        let lerp = |a: Vec3, b: Vec3| (1.0 - f) * a + f * b;
+        Light {
+            position: lerp(motion.positions[i], motion.positions[i + 1]),
+            power: lerp(motion.powers[i], motion.powers[i + 1]),
+            motion: None,
+            ..*self
+        }
+    }
+
+    /// Whether the light stands anywhere else than `other` at any time of
+    /// the shutter (a change of power alone does not move it).
+    pub fn moved_from(&self, other: &Light) -> bool {
+        self.position != other.position
+            || self.motion.map(|m| m.positions) != other.motion.map(|m| m.positions)
     }
 
     /// Whether the light has an extent (soft shadows, sampled).
@@ -486,5 +524,36 @@ mod tests {
             intersect_plane(&plane, Vec3::Y, Vec3::Y, 0.0, f32::INFINITY),
             None
         );
+    }
+
+    #[test]
+    fn a_light_moves_through_its_poses_and_a_new_motion_is_a_move() {
+        let still = Light::point(Vec3::ZERO, Vec3::ONE);
+        let motion = LightMotion {
+            positions: std::array::from_fn(|step| Vec3::X * step as f32),
+            powers: std::array::from_fn(|step| Vec3::ONE * (1.0 + step as f32)),
+        };
+        let moving = Light {
+            motion: Some(motion),
+            ..still
+        };
+        assert_eq!(still.at_time(0.7), still);
+        let halfway = moving.at_time(0.5);
+        assert_eq!(
+            (halfway.position, halfway.power),
+            (Vec3::X * 2.0, Vec3::ONE * 3.0)
+        );
+        assert_eq!(halfway.motion, None);
+        assert_eq!(moving.at_time(1.0).position, Vec3::X * 4.0);
+        // Standing where it stood at the opening, it moves later on.
+        assert!(moving.moved_from(&still) && still.moved_from(&moving));
+        let brighter = Light {
+            motion: Some(LightMotion {
+                powers: [Vec3::ONE; MOTION_STEPS],
+                ..motion
+            }),
+            ..moving
+        };
+        assert!(!brighter.moved_from(&moving));
     }
 }

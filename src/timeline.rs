@@ -8,8 +8,8 @@
 
 use glam::{Affine3A, DVec3, EulerRot, Quat, Vec3};
 
-use crate::camera::{Camera, Lens, ViewTransform, Viewport, ViewportPose};
-use crate::geometry::{Light, LightShape, Motion, Object, Placement, MOTION_STEPS};
+use crate::camera::{Camera, CameraMotion, Lens, ViewTransform, Viewport, ViewportPose};
+use crate::geometry::{Light, LightMotion, LightShape, Motion, Object, Placement, MOTION_STEPS};
 
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Deserialize, serde::Serialize)]
 #[serde(rename_all = "kebab-case")]
@@ -181,12 +181,18 @@ impl LightTrack {
     /// The light at `frame`: its keyed position and power, with the
     /// `shape` its table gave (keys do not change a light's shape).
     pub fn light_at(&self, frame: u32, shape: LightShape) -> Light {
+        self.light_at_time(f64::from(frame), shape)
+    }
+
+    /// As [`LightTrack::light_at`], at any time of the timeline (in frames).
+    pub fn light_at_time(&self, time: f64, shape: LightShape) -> Light {
         let key = |k: &LightKey| Light {
             position: k.position,
             power: k.color * k.intensity,
             shape,
+            motion: None,
         };
-        match key_segment(&self.keys, f64::from(frame), |k| k.frame, |k| k.ease) {
+        match key_segment(&self.keys, time, |k| k.frame, |k| k.ease) {
             None => unreachable!("a light track has keys"),
             Some((a, None)) => key(a),
             Some((a, Some((b, t)))) => {
@@ -196,8 +202,26 @@ impl LightTrack {
                     position: lerp3(a.position, b.position, t),
                     power: lerp3(a.color, b.color, t) * intensity as f32,
                     shape,
+                    motion: None,
                 }
             }
+        }
+    }
+
+    /// The light over `frame`'s `shutter`: as it stands at the opening,
+    /// with its motion while the shutter is open if it changes then.
+    pub fn light_over(&self, frame: u32, shutter: &Shutter, shape: LightShape) -> Light {
+        let steps: [Light; MOTION_STEPS] = std::array::from_fn(|step| {
+            let time = step as f64 / (MOTION_STEPS - 1) as f64;
+            self.light_at_time(shutter.instant(frame, time), shape)
+        });
+        let still = steps.iter().all(|light| *light == steps[0]);
+        Light {
+            motion: (!still).then(|| LightMotion {
+                positions: steps.map(|light| light.position),
+                powers: steps.map(|light| light.power),
+            }),
+            ..steps[0]
         }
     }
 }
@@ -246,7 +270,12 @@ impl Animation {
     /// The camera at `frame`: before the first key and after the last, the
     /// nearest key; between two keys, interpolated (with the first key's ease).
     pub fn camera_at(&self, base: &Camera, frame: u32) -> Camera {
-        match key_segment(&self.camera_keys, f64::from(frame), |k| k.frame, |k| k.ease) {
+        self.camera_at_time(base, f64::from(frame))
+    }
+
+    /// As [`Animation::camera_at`], at any time of the timeline (in frames).
+    pub fn camera_at_time(&self, base: &Camera, time: f64) -> Camera {
+        match key_segment(&self.camera_keys, time, |k| k.frame, |k| k.ease) {
             None => base.clone(),
             Some((a, None)) => a.apply(base),
             Some((a, Some((b, t)))) => {
@@ -260,6 +289,17 @@ impl Animation {
                 }
             }
         }
+    }
+
+    /// How the camera moves while `frame`'s shutter is open: None without
+    /// a shutter or when it stands still then.
+    pub fn camera_motion(&self, base: &Camera, frame: u32) -> Option<CameraMotion> {
+        let shutter = self.shutter.as_ref()?;
+        let poses = std::array::from_fn(|step| {
+            let time = step as f64 / (MOTION_STEPS - 1) as f64;
+            self.camera_at_time(base, shutter.instant(frame, time))
+        });
+        CameraMotion::new(self.camera_at(base, frame), poses)
     }
 
     /// The lens at `frame` (None: a pinhole), from the camera keys as
@@ -294,8 +334,8 @@ impl Animation {
     }
 
     /// Puts a scene's animated `objects` and `lights` where they are at
-    /// `frame`: with a shutter, each object as it moves while the shutter
-    /// is open (lights stand where they are at the frame's instant).
+    /// `frame`: with a shutter, each as it moves while the shutter is
+    /// open.
     /// Returns the objects whose placement changed.
     pub fn pose(&self, objects: &mut [Object], lights: &mut [Light], frame: u32) -> Vec<usize> {
         let mut moved = Vec::new();
@@ -317,7 +357,11 @@ impl Animation {
             }
         }
         for track in &self.lights {
-            lights[track.light] = track.light_at(frame, lights[track.light].shape);
+            let shape = lights[track.light].shape;
+            lights[track.light] = match &self.shutter {
+                None => track.light_at(frame, shape),
+                Some(shutter) => track.light_over(frame, shutter, shape),
+            };
         }
         moved
     }

@@ -26,9 +26,11 @@ use crate::ray::Ray;
 use crate::sampling::PixelSamples;
 
 mod lens;
+mod motion;
 mod viewport;
 
 pub use lens::{concentric_disc, Lens};
+pub use motion::CameraMotion;
 
 pub use viewport::{TransformError, ViewTransform, Viewport, ViewportPose, MAX_ZOOM, MIN_ZOOM};
 

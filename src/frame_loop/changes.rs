@@ -32,6 +32,8 @@ pub(super) struct ScenePose {
     places: Vec<Place>,
     lights: Vec<Light>,
     pub(super) lens: Option<Lens>,
+    /// Whether the camera moves while the shutter is open.
+    pub(super) camera_moves: bool,
 }
 
 impl ScenePose {
@@ -52,6 +54,7 @@ impl ScenePose {
             places,
             lights: scene.lights.clone(),
             lens: scene.lens,
+            camera_moves: scene.camera_motion.is_some(),
         }
     }
 }
@@ -266,7 +269,7 @@ fn dirty_by_lights(ostc: &Ostc, old: &ScenePose, new: &ScenePose) -> RegionSet {
     let mut dirty = RegionSet::empty(ostc.layout().count());
     for (index, (was, is)) in old.lights.iter().zip(&new.lights).enumerate() {
         if was != is {
-            let moved = was.position != is.position;
+            let moved = is.moved_from(was);
             dirty.union_with(&ostc.dirty_for_light(index, moved));
         }
     }

@@ -245,6 +245,12 @@ impl<'a> Animator<'a> {
         if let Some(animation) = self.animation() {
             let moved = animation.pose(&mut self.scene.objects, &mut self.scene.lights, frame);
             self.scene.lens = animation.lens_at(self.base.lens, frame);
+            // An interactive run's camera goes where its caller takes it,
+            // not where the keys say.
+            self.scene.camera_motion = match self.interactive {
+                true => None,
+                false => animation.camera_motion(&self.base.camera, frame),
+            };
             // The accelerator may be shared with another animator that left
             // it elsewhere: the first pose sets every animated object.
             let moved = match self.posed_frame {
@@ -324,6 +330,7 @@ impl<'a> Animator<'a> {
         if let Some(animation) = self.animation() {
             animation.pose(&mut scene.objects, &mut scene.lights, frame);
             scene.lens = animation.lens_at(self.base.lens, frame);
+            scene.camera_motion = animation.camera_motion(&self.base.camera, frame);
         }
         let accel = Accelerator::build(self.accel.kind(), &scene.objects)?;
         let view = self.views(frame).swap_remove(index);
@@ -426,6 +433,11 @@ impl<'a> Animator<'a> {
         // Every camera ray passes the lens: a new one changes them all.
         if kept.pose.lens != pose.lens {
             return Some(Restart::LensChanged);
+        }
+        // A kept sample's ray moved as the camera did in its own frame's
+        // shutter, not as in this one's.
+        if pose.camera_moves || kept.pose.camera_moves {
+            return Some(Restart::CameraMoving);
         }
         (kept.pose != *pose && kept.ostc.is_none()).then(|| Restart::SceneMoved {
             store: kept.store.name(),

@@ -19,6 +19,10 @@ pub enum Restart {
     },
     /// The lens's aperture or focus changed: every camera ray with it.
     LensChanged,
+    /// The camera moves while this frame's shutter is open, or moved while
+    /// the kept samples' was (motion blur): every camera ray moves with
+    /// it, as its own frame's camera does.
+    CameraMoving,
 }
 
 impl std::fmt::Display for Restart {
@@ -27,6 +31,13 @@ impl std::fmt::Display for Restart {
             Restart::FirstFrame => write!(f, "first frame"),
             Restart::LensChanged => {
                 write!(f, "the lens's aperture or focus changed: buffer restarted")
+            }
+            Restart::CameraMoving => {
+                write!(
+                    f,
+                    "the camera moves in this frame's shutter or moved in the kept samples': \
+                     traced in full"
+                )
             }
             Restart::Unfit(unfit) => write!(f, "{unfit}"),
             Restart::SceneMoved {

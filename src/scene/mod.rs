@@ -157,6 +157,7 @@ pub fn mesh_lights(objects: &[Object], materials: &[Material]) -> Vec<Light> {
                     edges,
                     normal: cross.normalize(),
                 },
+                motion: None,
             });
         }
     }
@@ -235,6 +236,9 @@ pub struct Scene {
     pub camera: Camera,
     /// A thin lens at the eye (depth of field); none: a pinhole.
     pub lens: Option<crate::camera::Lens>,
+    /// The camera moving while the shutter is open (motion blur), posed
+    /// with the frame; none while it stands still or the shutter is shut.
+    pub camera_motion: Option<crate::camera::CameraMotion>,
     pub objects: Vec<Object>,
     pub materials: Vec<Material>,
     pub lights: Vec<Light>,

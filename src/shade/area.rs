@@ -163,6 +163,7 @@ mod tests {
             position: Vec3::new(0.0, 4.0, 0.0),
             power: Vec3::ONE,
             shape,
+            motion: None,
         }
     }
 

@@ -6,6 +6,7 @@ use glam::Vec3;
 
 use super::lanes::{lane_flags, lanes_where, HitLanes, Lanes, Vec3Lanes};
 use super::{area, phong, reborrow, RayCounts, RayKind, RayObserver, Shader};
+use crate::geometry::Light;
 use crate::ray::{lanes, LaneMask, Ray, RayPacket, PACKET_WIDTH};
 
 impl Shader<'_> {
@@ -24,14 +25,27 @@ impl Shader<'_> {
     ) {
         let scene = self.scene;
         for (light_index, light) in scene.lights.iter().enumerate() {
+            // A light moving while the shutter is open stands, for each
+            // lane, where it is at that lane's ray's time.
+            let timed: Option<[Light; PACKET_WIDTH]> = light
+                .motion
+                .is_some()
+                .then(|| std::array::from_fn(|lane| light.at_time(lanes_hit.time[lane])));
+            let power = match &timed {
+                None => LightPower::Same(light.power),
+                Some(timed) => LightPower::ByLane(lane_vectors(timed.map(|l| l.power))),
+            };
             let shade = LightSample {
                 light: light_index,
-                power: light.power,
+                power,
                 hit_mask,
                 specular_texels,
             };
             if !light.draws_samples() {
-                let target = Vec3Lanes::splat(light.position);
+                let target = match &timed {
+                    None => Vec3Lanes::splat(light.position),
+                    Some(timed) => lane_vectors(timed.map(|l| l.position)),
+                };
                 let ray = (&target, 1.0);
                 self.add_light_sample(
                     lanes_hit,
@@ -62,6 +76,7 @@ impl Shader<'_> {
                     } else {
                         (0.0, 0.0)
                     };
+                    let light = timed.as_ref().map_or(light, |timed| &timed[lane]);
                     if let Some((at, w)) = area::sample_toward(light, point, uv) {
                         target.set(lane, at);
                         weight[lane] = w * share;
@@ -155,14 +170,15 @@ impl Shader<'_> {
                 specular.set(lane, specular.get(lane) * weight[lane]);
             }
         }
-        add_light(
-            colors,
-            sample.power,
-            &h.albedo,
-            &n_dot_l,
-            &specular,
-            &lane_flags(shaded),
-        );
+        let keep = lane_flags(shaded);
+        match &sample.power {
+            LightPower::Same(power) => {
+                add_light(colors, *power, &h.albedo, &n_dot_l, &specular, &keep);
+            }
+            LightPower::ByLane(power) => {
+                add_light_by_lane(colors, power, &h.albedo, &n_dot_l, &specular, &keep);
+            }
+        }
     }
 }
 
@@ -171,10 +187,46 @@ impl Shader<'_> {
 struct LightSample<'a> {
     /// The light's number in the scene.
     light: usize,
-    power: Vec3,
+    power: LightPower,
     /// The lanes the sample may light.
     hit_mask: LaneMask,
     specular_texels: &'a [Vec3; PACKET_WIDTH],
+}
+
+/// A light's colour times intensity, as each lane's ray meets it.
+#[derive(Clone, Copy)]
+enum LightPower {
+    /// The light's all through the shutter.
+    Same(Vec3),
+    /// Each lane's, at its ray's time (a light whose power changes while
+    /// the shutter is open).
+    ByLane(Vec3Lanes),
+}
+
+/// Per-lane `vectors` as lanes.
+fn lane_vectors(vectors: [Vec3; PACKET_WIDTH]) -> Vec3Lanes {
+    let mut lanes = Vec3Lanes::default();
+    for (lane, v) in vectors.into_iter().enumerate() {
+        lanes.set(lane, v);
+    }
+    lanes
+}
+
+/// As [`add_light`], each lane with its own power: the same sum, channel
+/// by channel, so a power every lane shares adds as it does there.
+#[inline(never)]
+fn add_light_by_lane(
+    colors: &mut Vec3Lanes,
+    power: &Vec3Lanes,
+    albedo: &Vec3Lanes,
+    n_dot_l: &Lanes,
+    specular: &Vec3Lanes,
+    keep: &[bool; PACKET_WIDTH],
+) {
+    for lane in (0..PACKET_WIDTH).filter(|&lane| keep[lane]) {
+        let term = power.get(lane) * (albedo.get(lane) * n_dot_l[lane] + specular.get(lane));
+        colors.set(lane, colors.get(lane) + term);
+    }
 }
 
 /// One light's contribution to every channel, added in the `keep` lanes.

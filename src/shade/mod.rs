@@ -204,9 +204,12 @@ pub struct Shader<'a> {
     /// Whether any object glows (mesh lights): only then is a hit's glow
     /// added.
     any_emission: bool,
-    /// Whether any object moves while the shutter is open: only then are
-    /// camera rays cast at times across it.
+    /// Whether any object, light or the camera moves while the shutter is
+    /// open: only then are camera rays cast at times across it.
     motion_blur: bool,
+    /// The shutter time of the frame's instant (0 without a shutter):
+    /// when the AOVs see the scene.
+    instant_time: f32,
 }
 
 /// `x` to the power `n` by repeated squaring, the same multiplications in
@@ -286,7 +289,14 @@ impl<'a> Shader<'a> {
             motion_blur: scene
                 .objects
                 .iter()
-                .any(|o| matches!(o.placement, Placement::Moving(_))),
+                .any(|o| matches!(o.placement, Placement::Moving(_)))
+                || scene.lights.iter().any(|light| light.motion.is_some())
+                || scene.camera_motion.is_some(),
+            instant_time: scene
+                .animation
+                .as_ref()
+                .and_then(|a| a.shutter)
+                .map_or(0.0, |s| shutter::time_of_instant(&s)),
         }
     }
 
@@ -345,11 +355,12 @@ impl<'a> Shader<'a> {
         } else {
             RayKind::Reflection
         };
-        // Camera rays come as a pinhole's at the shutter's opening: with
-        // motion blur each is cast at its own time, and a lens moves them
-        // onto itself (both drawn from the pinhole ray).
-        let timed =
-            (self.motion_blur && depth == 0).then(|| shutter::timed_rays(rays, mask, strata));
+        // Camera rays come as a pinhole's at the frame's instant: with
+        // motion blur each is cast at its own time (drawn from the pinhole
+        // ray) by the camera as it stands then, and a lens moves them onto
+        // itself.
+        let timed = (self.motion_blur && depth == 0)
+            .then(|| shutter::timed_rays(rays, mask, strata, self.scene.camera_motion.as_ref()));
         let rays = timed.as_ref().unwrap_or(rays);
         let through_lens = match &self.scene.lens {
             Some(lens) if depth == 0 => Some(lens::lens_rays(lens, rays, mask, strata)),

@@ -10,7 +10,9 @@
 
 use super::draws::{key_draw, ray_keys, ONE_BELOW};
 use super::glossy::{CellDeal, PixelStrata};
+use crate::camera::CameraMotion;
 use crate::ray::{LaneMask, RayPacket};
+use crate::timeline::Shutter;
 
 /// The seed shutter times are drawn from.
 const SEED: u64 = 0x7368_7574_2074_696d;
@@ -18,12 +20,14 @@ const SEED: u64 = 0x7368_7574_2074_696d;
 /// The deal of the shutter's intervals to a pixel's sub-samples.
 static SHUTTER_INTERVALS: CellDeal = CellDeal::new(0x7368_7574_2063_656c);
 
-/// `rays` (pinhole camera rays) each cast at its shutter time (lanes
-/// outside `mask` as they were).
+/// `rays` (pinhole camera rays) each cast at its shutter time, by the
+/// camera as it stands then when it moves (lanes outside `mask` as they
+/// were).
 pub(super) fn timed_rays(
     rays: &RayPacket,
     mask: LaneMask,
     strata: Option<&PixelStrata>,
+    camera: Option<&CameraMotion>,
 ) -> RayPacket {
     let keys = ray_keys(rays, 0);
     std::array::from_fn(|lane| {
@@ -35,8 +39,16 @@ pub(super) fn timed_rays(
         let time = SHUTTER_INTERVALS
             .place_on_line(u, strata.map(|s| s.lane(lane)))
             .min(ONE_BELOW);
-        rays[lane].at_time(time)
+        let ray = rays[lane].at_time(time);
+        camera.map_or(ray, |camera| camera.moved(&ray))
     })
+}
+
+/// The shutter time (0 at the opening, 1 at the closing) of the frame's
+/// instant, the nearest end when the shutter does not span it.
+pub(super) fn time_of_instant(shutter: &Shutter) -> f32 {
+    let time = -shutter.open / (shutter.close - shutter.open);
+    (time as f32).clamp(0.0, ONE_BELOW)
 }
 
 #[cfg(test)]
@@ -56,8 +68,8 @@ mod tests {
     #[test]
     fn times_lie_in_the_shutter_and_depend_on_the_ray_alone() {
         let rays = packet(3);
-        let timed = timed_rays(&rays, 0xff, None);
-        let again = timed_rays(&rays, 0xff, None);
+        let timed = timed_rays(&rays, 0xff, None, None);
+        let again = timed_rays(&rays, 0xff, None, None);
         for lane in 0..PACKET_WIDTH {
             assert!((0.0..1.0).contains(&timed[lane].time));
             assert_eq!(timed[lane].time.to_bits(), again[lane].time.to_bits());
@@ -67,7 +79,7 @@ mod tests {
             );
         }
         // Lanes outside the mask are left as they were.
-        let some = timed_rays(&rays, 0b1, None);
+        let some = timed_rays(&rays, 0b1, None, None);
         assert_eq!(some[1], rays[1]);
     }
 
@@ -77,7 +89,7 @@ mod tests {
         let mut intervals = Vec::new();
         for (index, cell) in [(0, 0), (1, 0), (0, 1), (1, 1)].into_iter().enumerate() {
             let strata = PixelStrata::new(side, [(cell.0, cell.1); PACKET_WIDTH]);
-            let timed = timed_rays(&packet(index as u32), 0xff, Some(&strata));
+            let timed = timed_rays(&packet(index as u32), 0xff, Some(&strata), None);
             intervals.push((timed[0].time * 4.0) as u32);
         }
         intervals.sort_unstable();

@@ -298,6 +298,7 @@ on_every_backend! {
             }
             let scene = retrace::scene::Scene {
                 lens: None,
+                camera_motion: None,
                 camera: Camera {
                     projection: Projection::Perspective,
                     position: (offset + Vec3::new(1.5, 2.0, 8.0) * scale).as_dvec3(),

@@ -85,6 +85,66 @@ on_every_backend! {
         }
     }
 
+    // The camera turning 0.2 radians a frame (12.8 pixels at the middle
+    // of the image, to within a third of a percent) open for half a frame
+    // streaks the ball standing still ahead of it as far as the ball
+    // moving 2 units a frame above: 6.4 pixels.
+    a_camera_turning_through_an_open_shutter_streaks_what_it_sees(backend) {
+        let turning = |shutter: &str| {
+            let text = format!(
+                "[render]\nwidth = 128\nheight = 96\nambient = [1.0, 1.0, 1.0]\nbackground = [0.0, 0.0, 0.0]\n\
+                 [camera]\nprojection = \"perspective\"\nposition = [0, 0, 0]\nfov = 90\n\
+                 [material.white]\ndiffuse = [1.0, 1.0, 1.0]\n\
+                 [[object]]\nname = \"ball\"\nmaterial = \"white\"\n{BALL}\n\
+                 [animation]\nframes = 2\n{shutter}\n\
+                 [[animation.camera]]\nframe = 0\nyaw = 0\n\
+                 [[animation.camera]]\nframe = 1\nyaw = {}\n",
+                0.2f64.to_degrees()
+            );
+            let mut scene =
+                parse_scene_str(&text, Path::new("turning.toml"), &SceneOverrides::default()).unwrap();
+            let animation = scene.animation.clone().unwrap();
+            scene.camera_motion = animation.camera_motion(&scene.camera, 0);
+            scene
+        };
+        let sweep = 0.2 * PIXELS_A_UNIT * 0.5;
+        let streak = middle_width(&turning("shutter = [0.0, 0.5]"), backend);
+        assert!(
+            (streak - sweep).abs() <= 1.0,
+            "{backend:?}: a streak {streak:.2} px long, the sweep {sweep:.2}"
+        );
+        let still = turning("");
+        assert!(still.camera_motion.is_none());
+        let sharp = middle_width(&still, backend);
+        let width = 0.6 / 10.0 * PIXELS_A_UNIT;
+        assert!((sharp - width).abs() <= 1.0, "{backend:?}: without a shutter {sharp:.2} px");
+    }
+
+    // A pan with the shutter open: frames where the camera turns are
+    // traced in full, with the reason, and equal the full renders; those
+    // where it holds still reuse as before.
+    a_camera_moving_in_the_shutter_is_traced_in_full_and_still_frames_reuse(backend) {
+        let mut scene = crate::common::paper_with_at(
+            "[animation]\nframes = 6\nshutter = [-0.25, 0.25]\n\
+             [[animation.camera]]\nframe = 0\nyaw = 0\n\
+             [[animation.camera]]\nframe = 3\nyaw = 10\n",
+            64,
+            48,
+        );
+        scene.samples = PixelSamples::new(4).unwrap();
+        let stats = crate::common::run_exact(&scene, backend, Techniques::AUTO);
+        let reasons: Vec<String> = stats.iter().map(crate::common::reason).collect();
+        // Frame 4 may not keep frame 3's samples: they moved in its shutter.
+        for (frame, reason) in reasons.iter().enumerate().take(5).skip(1) {
+            assert!(
+                reason.contains("the camera moves in this frame's shutter"),
+                "frame {frame}: {reason}"
+            );
+        }
+        // From frame 3.25 on the camera holds still.
+        assert!(stats[5..].iter().all(|s| s.reason.is_none() && s.work.pixels_reused > 0), "{reasons:?}");
+    }
+
     // Over the hop's peak (frame 12.5) and its touchdown (25): shutters
     // on either side of the peak sweep the same heights in reverse, so
     // only the motion itself, not where it reaches, tells them apart.
@@ -100,6 +160,94 @@ on_every_backend! {
             assert!(stats.iter().all(|s| s.mode.as_str() == "ostc"));
         }
     }
+    // Open for the whole frame, a light moving at constant speed lights
+    // the scene as the mean of where it stands over the frame: shading
+    // and shadows sweep with it. The light of the frame's instant alone
+    // is far from that mean.
+    a_light_moving_through_an_open_shutter_lights_as_the_mean_of_its_instants(backend) {
+        let render = |scene: &Scene| {
+            let accel = Accelerator::build(backend, &scene.objects).unwrap();
+            retrace::render::render_view_sampled(scene, &scene.camera, scene.samples, &accel).0
+        };
+        let posed = |shutter: &str| {
+            let mut scene = sweeping_light(shutter);
+            let animation = scene.animation.clone().unwrap();
+            animation.pose(&mut scene.objects, &mut scene.lights, 0);
+            scene
+        };
+        let blurred = render(&posed("shutter = [0.0, 1.0]"));
+        assert!(posed("shutter = [0.0, 1.0]").lights[0].motion.is_some());
+        let instant = render(&posed(""));
+        let instants = 16;
+        let mut mean = retrace::render::Frame::new(instant.width, instant.height);
+        let still = sweeping_light("");
+        let track = &still.animation.as_ref().unwrap().lights[0];
+        for k in 0..instants {
+            let mut scene = still.clone();
+            let time = (f64::from(k) + 0.5) / f64::from(instants);
+            scene.lights[0] = track.light_at_time(time, scene.lights[0].shape);
+            let image = render(&scene);
+            for (sum, p) in mean.pixels.iter_mut().zip(&image.pixels) {
+                *sum += *p / instants as f32;
+            }
+        }
+        let blur_error = mean_difference(&blurred, &mean);
+        let instant_error = mean_difference(&instant, &mean);
+        assert!(
+            blur_error < 0.2 * instant_error,
+            "{backend:?}: blurred {blur_error:.5} from the mean of the instants, \
+             the frame's instant {instant_error:.5}"
+        );
+    }
+
+    // A light still for two frames, then sweeping, and another changing
+    // colour while the shutter is open: frames reused through OSTC equal
+    // their full renders bit for bit.
+    moving_lights_with_a_shutter_keep_reuse_exact(backend) {
+        let mut scene = crate::common::paper_with_at(
+            "[animation]\nframes = 6\nshutter = [-0.25, 0.25]\n\
+             [[animation.light]]\nlight = 0\nframe = 0\n\
+             [[animation.light]]\nlight = 0\nframe = 2\n\
+             [[animation.light]]\nlight = 0\nframe = 5\nposition = [-4.0, 10.0, 12.0]\n\
+             [[animation.light]]\nlight = 1\nframe = 3\n\
+             [[animation.light]]\nlight = 1\nframe = 5\ncolor = [1.0, 0.3, 0.2]\n",
+            64,
+            48,
+        );
+        scene.samples = PixelSamples::new(4).unwrap();
+        let stats = crate::common::run_exact_reusing(&scene, backend, Techniques::AUTO);
+        assert!(stats.iter().all(|s| s.mode.as_str() == "ostc"));
+    }
+}
+
+/// The paper scene at 64x48 with its first light swept from x = -9 to 9
+/// between frames 0 and 1 and `shutter` (an `[animation]` line, or none).
+fn sweeping_light(shutter: &str) -> Scene {
+    let mut scene = crate::common::paper_with_at(
+        &format!(
+            "[animation]\nframes = 2\n{shutter}\n\
+             [[animation.light]]\nlight = 0\nframe = 0\nposition = [-9.0, 14.0, 10.0]\n\
+             [[animation.light]]\nlight = 0\nframe = 1\nposition = [9.0, 14.0, 10.0]\n"
+        ),
+        64,
+        48,
+    );
+    scene.samples = PixelSamples::new(16).unwrap();
+    scene
+}
+
+/// The mean absolute difference, over every channel of every pixel, of
+/// two images.
+fn mean_difference(a: &retrace::render::Frame, b: &retrace::render::Frame) -> f64 {
+    let (w, h) = (a.width, a.height);
+    let mut sum = 0.0;
+    for y in 0..h {
+        for x in 0..w {
+            let d = a.get(x, y) - b.get(x, y);
+            sum += f64::from(d.x.abs() + d.y.abs() + d.z.abs());
+        }
+    }
+    sum / f64::from(3 * w * h)
 }
 
 /// The shutter blurs the shipped bouncing ball (so the exactness test

@@ -205,6 +205,7 @@ pub fn viewport_oracle(
             let animation = animation.expect("moves implies an animation");
             let mut moved = animation.pose(&mut posed.objects, &mut posed.lights, frame);
             posed.lens = animation.lens_at(scene.lens, frame);
+            posed.camera_motion = animation.camera_motion(&scene.camera, frame);
             if first_pose {
                 // The accelerator may have been left posed anywhere.
                 moved = animation

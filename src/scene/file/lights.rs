@@ -38,6 +38,7 @@ pub(super) fn convert_lights(
                 position,
                 power: color * l.intensity,
                 shape,
+                motion: None,
             })
         })
         .collect()

@@ -356,6 +356,7 @@ pub(crate) fn parse_scene(
     Ok(Scene {
         camera,
         lens,
+        camera_motion: None,
         viewports,
         objects,
         materials,

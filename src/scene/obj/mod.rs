@@ -758,6 +758,7 @@ pub(super) fn scene_around_obj(
     Ok(Scene {
         camera,
         lens: None,
+        camera_motion: None,
         objects,
         materials,
         lights: vec![Light::point(key, Vec3::splat(1.0))],
