@@ -8,7 +8,9 @@
 
 use glam::{Affine3A, DVec3, EulerRot, Quat, Vec3};
 
-use crate::camera::{Camera, CameraMotion, Lens, ViewTransform, Viewport, ViewportPose};
+use crate::camera::{
+    Camera, CameraMotion, Lens, Projection, ViewTransform, Viewport, ViewportPose,
+};
 use crate::geometry::{Light, LightMotion, LightShape, Motion, Object, Placement, MOTION_STEPS};
 
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Deserialize, serde::Serialize)]
@@ -295,11 +297,42 @@ impl Animation {
     /// a shutter or when it stands still then.
     pub fn camera_motion(&self, base: &Camera, frame: u32) -> Option<CameraMotion> {
         let shutter = self.shutter.as_ref()?;
+        if base.projection == Projection::EqualAngle {
+            if let Some(steady) = self.steady_camera(frame, shutter) {
+                return steady;
+            }
+        }
         let poses = std::array::from_fn(|step| {
             let time = step as f64 / (MOTION_STEPS - 1) as f64;
             self.camera_at_time(base, shutter.instant(frame, time))
         });
-        CameraMotion::new(self.camera_at(base, frame), poses)
+        CameraMotion::posed(self.camera_at(base, frame), poses)
+    }
+
+    /// When `frame`'s whole shutter lies in one constant-speed segment of
+    /// the camera keys at one field of view: the camera's steady motion
+    /// there (None inside: it stands still), the same for every frame of
+    /// the segment bit for bit.
+    fn steady_camera(&self, frame: u32, shutter: &Shutter) -> Option<Option<CameraMotion>> {
+        let (open, close) = (shutter.instant(frame, 0.0), shutter.instant(frame, 1.0));
+        let keys = &self.camera_keys;
+        let next = keys.partition_point(|k| f64::from(k.frame) <= open);
+        let (a, b) = (keys.get(next.checked_sub(1)?)?, keys.get(next)?);
+        let fits = f64::from(b.frame) >= close && a.ease == Ease::Linear && a.fov == b.fov;
+        if !fits {
+            return None;
+        }
+        let frames = f64::from(b.frame - a.frame);
+        let (yaw, pitch) = ((b.yaw - a.yaw) / frames, (b.pitch - a.pitch) / frames);
+        let position = (b.position - a.position) / frames;
+        let still = yaw == 0.0 && pitch == 0.0 && position == DVec3::ZERO;
+        Some((!still).then_some(CameraMotion::Steady {
+            yaw,
+            pitch,
+            position,
+            open: shutter.open,
+            close: shutter.close,
+        }))
     }
 
     /// The lens at `frame` (None: a pinhole), from the camera keys as

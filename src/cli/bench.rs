@@ -29,8 +29,9 @@ pub(crate) struct BenchArgs {
     /// experiments on a larger scene and at 1280x960), `frame` (a full
     /// frame against bare Embree on the same ray packets), `backends` (the
     /// grid against Embree on the same ray packets), `E4nomotion` (pan 3.6
-    /// deg/frame and zoom together), `E3blur`, `E4blur` or `blur` (E3 and
-    /// E4 with the shutter open half a frame: motion blur) or `knobs` (RSVP filter, oversampling
+    /// deg/frame and zoom together), `E1blur`, `E3blur`, `E4blur` or `blur`
+    /// (E1, E3 and E4 with the shutter open half a frame: motion blur),
+    /// `E1lens` or `lens` (E1 through a lens: depth of field) or `knobs` (RSVP filter, oversampling
     /// and level bias: cost and error), `chunking` (E1, E3 and E4, or the
     /// scene given, cut into farm chunks: CPU and wall time against the
     /// number of chunks).
@@ -120,7 +121,9 @@ pub(crate) fn bench(args: BenchArgs) -> Result<()> {
         "e4nomotion" => vec![Experiment::E4NoMotion],
         "e3blur" => vec![Experiment::E3Blur],
         "e4blur" => vec![Experiment::E4Blur],
-        "blur" => vec![Experiment::E3Blur, Experiment::E4Blur],
+        "e1blur" => vec![Experiment::E1Blur],
+        "blur" => vec![Experiment::E1Blur, Experiment::E3Blur, Experiment::E4Blur],
+        "e1lens" | "lens" => vec![Experiment::E1Lens],
         "scaling" => Vec::new(),
         "chunking" => return chunking::bench_chunking_cli(&args, bar),
         "frame" | "backends" | "knobs" => {
@@ -145,7 +148,7 @@ pub(crate) fn bench(args: BenchArgs) -> Result<()> {
         }
         _ => {
             anyhow::bail!(
-                "unknown measurement '{}' for --only (available: all, E1, E2, E3, E4, scaling, frame, backends, E4nomotion, E3blur, E4blur, blur, knobs, chunking)",
+                "unknown measurement '{}' for --only (available: all, E1, E2, E3, E4, scaling, frame, backends, E4nomotion, E1blur, E3blur, E4blur, blur, E1lens, lens, knobs, chunking)",
                 args.only
             )
         }
@@ -197,8 +200,8 @@ pub(crate) fn bench(args: BenchArgs) -> Result<()> {
     bench_suite(&args, planned, bar)
 }
 
-/// The experiments of the paper's table, E4 without its ball, and E3
-/// and E4 with motion blur.
+/// The experiments of the paper's table, E4 without its ball, E1, E3
+/// and E4 with motion blur, and E1 through a lens.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Experiment {
     E1,
@@ -209,6 +212,8 @@ enum Experiment {
     E4NoMotion,
     E3Blur,
     E4Blur,
+    E1Lens,
+    E1Blur,
 }
 
 impl Experiment {
@@ -234,6 +239,13 @@ impl Experiment {
             Experiment::E4NoMotion => ("E4 no motion", "pan + zoom in, viewport", "RSVP", "-"),
             Experiment::E3Blur => ("E3 blur", "E3, shutter open half a frame", "OSTC", "-"),
             Experiment::E4Blur => ("E4 blur", "E4, shutter open half a frame", "RSVP+OSTC", "-"),
+            Experiment::E1Lens => ("E1 lens", "E1 through a lens", "Panimation", "-"),
+            Experiment::E1Blur => (
+                "E1 blur",
+                "E1, shutter open half a frame",
+                "Panimation",
+                "-",
+            ),
         }
     }
 
@@ -249,6 +261,8 @@ impl Experiment {
             Experiment::E4NoMotion => "paper-pan-zoom.toml",
             Experiment::E3Blur => "paper-bounce-blur.toml",
             Experiment::E4Blur => "paper-all-blur.toml",
+            Experiment::E1Lens => "paper-pan-lens.toml",
+            Experiment::E1Blur => "paper-pan-blur.toml",
         }
     }
 
@@ -262,7 +276,9 @@ impl Experiment {
             Experiment::E2Out
             | Experiment::E4NoMotion
             | Experiment::E3Blur
-            | Experiment::E4Blur => None,
+            | Experiment::E4Blur
+            | Experiment::E1Lens
+            | Experiment::E1Blur => None,
         }
     }
 }

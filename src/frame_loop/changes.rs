@@ -8,7 +8,7 @@
 
 use std::time::Instant;
 
-use crate::camera::Lens;
+use crate::camera::{CameraMotion, Lens};
 use crate::clock;
 use crate::geometry::{Aabb, Light, Object, Placement, Shape, MOTION_STEPS};
 use crate::reuse::ostc::{Footprint, Ostc};
@@ -32,8 +32,8 @@ pub(super) struct ScenePose {
     places: Vec<Place>,
     lights: Vec<Light>,
     pub(super) lens: Option<Lens>,
-    /// Whether the camera moves while the shutter is open.
-    pub(super) camera_moves: bool,
+    /// How the camera moves while the shutter is open.
+    pub(super) camera_motion: Option<CameraMotion>,
 }
 
 impl ScenePose {
@@ -54,7 +54,7 @@ impl ScenePose {
             places,
             lights: scene.lights.clone(),
             lens: scene.lens,
-            camera_moves: scene.camera_motion.is_some(),
+            camera_motion: scene.camera_motion.clone(),
         }
     }
 }

@@ -435,8 +435,8 @@ impl<'a> Animator<'a> {
             return Some(Restart::LensChanged);
         }
         // A kept sample's ray moved as the camera did in its own frame's
-        // shutter, not as in this one's.
-        if pose.camera_moves || kept.pose.camera_moves {
+        // shutter: only a steady turn moves it the same in this one's.
+        if kept.pose.camera_motion != pose.camera_motion {
             return Some(Restart::CameraMoving);
         }
         (kept.pose != *pose && kept.ostc.is_none()).then(|| Restart::SceneMoved {

@@ -19,9 +19,9 @@ pub enum Restart {
     },
     /// The lens's aperture or focus changed: every camera ray with it.
     LensChanged,
-    /// The camera moves while this frame's shutter is open, or moved while
-    /// the kept samples' was (motion blur): every camera ray moves with
-    /// it, as its own frame's camera does.
+    /// The camera moves otherwise while this frame's shutter is open than
+    /// while the kept samples' was (motion blur): every camera ray moves
+    /// with it, as its own frame's camera does.
     CameraMoving,
 }
 
@@ -35,8 +35,8 @@ impl std::fmt::Display for Restart {
             Restart::CameraMoving => {
                 write!(
                     f,
-                    "the camera moves in this frame's shutter or moved in the kept samples': \
-                     traced in full"
+                    "the camera moves otherwise in this frame's shutter than in the kept \
+                     samples': traced in full"
                 )
             }
             Restart::Unfit(unfit) => write!(f, "{unfit}"),

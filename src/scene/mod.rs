@@ -56,6 +56,14 @@ pub const BUILTIN_SCENES: &[(&str, &str)] = &[
         include_str!("../../scenes/paper-all-blur.toml"),
     ),
     (
+        "paper-pan-blur.toml",
+        include_str!("../../scenes/paper-pan-blur.toml"),
+    ),
+    (
+        "paper-pan-lens.toml",
+        include_str!("../../scenes/paper-pan-lens.toml"),
+    ),
+    (
         "paper-pan-zoom.toml",
         include_str!("../../scenes/paper-pan-zoom.toml"),
     ),
