@@ -9,7 +9,7 @@
 //! So a reused sample passes the lens where a fresh trace of it does.
 
 use super::draws::{key_draw, ray_keys};
-use super::glossy::{CellDeal, PixelStrata};
+use super::strata::{CellDeal, PixelStrata};
 use crate::camera::Lens;
 use crate::ray::{LaneMask, RayPacket};
 

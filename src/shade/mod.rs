@@ -16,6 +16,7 @@ mod lanes;
 mod lens;
 mod lighting;
 mod shutter;
+mod strata;
 mod surface;
 
 use glam::Vec3;
@@ -25,7 +26,7 @@ use crate::geometry::{Light, Placement};
 use crate::ray::{lanes, Hit, LaneMask, Ray, RayPacket, PACKET_WIDTH};
 use crate::scene::{Material, Scene};
 pub use first_hit::FirstHit;
-pub use glossy::PixelStrata;
+pub use strata::PixelStrata;
 pub use surface::Surface;
 use surface::{albedo, ShapeMotion, WorldShape};
 

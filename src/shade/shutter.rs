@@ -9,7 +9,7 @@
 //! reused sample is cast when a fresh trace of it is, in every frame.
 
 use super::draws::{key_draw, ray_keys, ONE_BELOW};
-use super::glossy::{CellDeal, PixelStrata};
+use super::strata::{CellDeal, PixelStrata};
 use crate::camera::CameraMotion;
 use crate::ray::{LaneMask, RayPacket};
 use crate::timeline::Shutter;
