@@ -92,11 +92,13 @@ pub trait PrimaryRays: Sync {
         PixelSamples::ONE
     }
 
-    /// When this source's cells are the strata of another's square count
-    /// n x n ([`Strata`]), n: its cell (col, row) is then a sub-sample in
-    /// cell (col mod n, row mod n) of its pixel's grid. 1 otherwise.
-    fn strata_side(&self) -> u32 {
-        1
+    /// Where the cells of one-sample `group` stand for stratifying their
+    /// draws, if anywhere: when this source's cells are the strata of
+    /// another's square count n x n ([`Strata`]), cell (col, row) is a
+    /// sub-sample in cell (col mod n, row mod n) of its pixel's grid.
+    fn draw_strata(&self, group: SampleGroup) -> Option<PixelStrata> {
+        let _ = group;
+        None
     }
 
     /// The ray of sub-sample `index` of cell (col, row).
@@ -196,8 +198,8 @@ impl<P: PrimaryRays + ?Sized> PrimaryRays for Strata<'_, P> {
         self.source.strata_group(group)
     }
 
-    fn strata_side(&self) -> u32 {
-        self.side as u32
+    fn draw_strata(&self, group: SampleGroup) -> Option<PixelStrata> {
+        Some(PixelStrata::new(self.side as u32, group.lane_samples()))
     }
 }
 
@@ -313,9 +315,7 @@ pub fn trace_group(
     let count = samples.count();
     if count == 1 {
         let (rays, mask) = source.primary_group(group);
-        let side = source.strata_side();
-        if side > 1 {
-            let strata = PixelStrata::new(side, group.lane_samples());
+        if let Some(strata) = source.draw_strata(group) {
             return shader.shade_strata(&rays, mask, &strata, counts, observer);
         }
         return shader.shade(&rays, mask, 0, counts, observer);

@@ -15,9 +15,11 @@
 //!   pixels could deal a lobe cell twice), not the cell itself, which
 //!   would tie where across the pixel a ray starts to which side of the
 //!   lobe it leaves by, axis for axis. Within its lobe cell a bounce is
-//!   placed by the path's key. Deeper bounces, refractions' children,
-//!   counts that are not squares and a single sample draw from the key
-//!   alone.
+//!   placed by the path's key. The first bounces of the RSVP lattice's
+//!   samples are stratified across every aligned block of neighbours of
+//!   any level instead ([`super::strata::lattice_digits`]). Deeper
+//!   bounces, refractions' children, counts that are not squares and a
+//!   single sample draw from the key alone.
 //! - It lies in a Phong lobe about the mirror direction whose exponent is
 //!   `2 / roughness^2 - 2` (Walter et al.'s match of a Beckmann surface of
 //!   that roughness; a cosine lobe at 1), so its mean over many samples
@@ -30,7 +32,7 @@ use std::f32::consts::TAU;
 use glam::Vec3;
 
 use super::draws::key_draw;
-use super::strata::CellDeal;
+use super::strata::{CellDeal, Stratum};
 use crate::geometry::plane_axes;
 
 /// The seed glossy directions are drawn from.
@@ -45,10 +47,10 @@ const CELL_SEED: u64 = 0x6c6f_6265_2063_656c;
 static LOBE_CELLS: CellDeal = CellDeal::new(CELL_SEED);
 
 /// Where in the lobe's parameter square, [0, 1)^2, the path keyed `path`
-/// reflects: with `stratum`, a camera sample's first bounce, (n, its cell
-/// of its pixel's n x n grid), within the lobe cell that cell is dealt;
-/// without, anywhere.
-pub(super) fn lobe_position(path: u64, stratum: Option<(u32, (u32, u32))>) -> (f32, f32) {
+/// reflects: with `stratum`, a camera sample's first bounce (where the
+/// sample stands among its neighbours), within the lobe cell that place
+/// is dealt; without, anywhere.
+pub(super) fn lobe_position(path: u64, stratum: Option<Stratum>) -> (f32, f32) {
     let (u, v) = (key_draw(path, SEED, &[0]), key_draw(path, SEED, &[1]));
     LOBE_CELLS.place((u, v), stratum)
 }
@@ -189,7 +191,7 @@ mod tests {
         let path = 0x5eed_cafe;
         let (u, v) = lobe_position(path, None);
         let (a, b) = LOBE_CELLS.cell(4, (1, 2));
-        let (su, sv) = lobe_position(path, Some((4, (1, 2))));
+        let (su, sv) = lobe_position(path, Some(Stratum::Cell(4, (1, 2))));
         assert_eq!((su, sv), ((a as f32 + u) / 4.0, (b as f32 + v) / 4.0));
     }
 }

@@ -2,11 +2,17 @@
 //!
 //! Promise: a camera ray's lens position is a pure function of its
 //! pinhole ray (through [`super::draws`]: a hash of the ray's bits, so of
-//! the world-anchored sample), a fixed seed and, for the sub-samples of a
-//! square count n x n, the sample's cell of its pixel ([`PixelStrata`]):
-//! those draw one in each cell of an n x n grid over the lens's square
-//! (a fixed shuffle of the cells, its own), jittered inside it by the key.
-//! So a reused sample passes the lens where a fresh trace of it does.
+//! the world-anchored sample), a fixed seed and where the sample stands
+//! among its neighbours ([`PixelStrata`]), so a reused sample passes the
+//! lens where a fresh trace of it does. Stratified:
+//! - the sub-samples of a square count n x n draw one in each cell of an
+//!   n x n grid over the lens's square (their pixel cells dealt a fixed
+//!   shuffle of the grid's cells, its own);
+//! - the RSVP lattice's samples draw one in each cell of a 2^m x 2^m grid
+//!   across every aligned 2^m x 2^m block of any level
+//!   ([`super::strata::lattice_digits`]);
+//!
+//! each jittered inside its cell by the key.
 
 use super::draws::{key_draw, ray_keys};
 use super::strata::{CellDeal, PixelStrata};

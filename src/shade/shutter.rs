@@ -2,11 +2,17 @@
 //!
 //! Promise: a camera ray's shutter time is a pure function of its pinhole
 //! ray (through [`super::draws`]: a hash of the ray's bits, so of the
-//! world-anchored sample), a fixed seed and, for the sub-samples of a
-//! square count n x n, the sample's cell of its pixel ([`PixelStrata`]):
-//! those draw one in each of n^2 equal intervals of the shutter (a fixed
-//! shuffle of the cells, its own), jittered inside it by the key. So a
-//! reused sample is cast when a fresh trace of it is, in every frame.
+//! world-anchored sample), a fixed seed and where the sample stands among
+//! its neighbours ([`PixelStrata`]), so a reused sample is cast when a
+//! fresh trace of it is, in every frame. Stratified:
+//! - the sub-samples of a square count n x n draw one in each of n^2
+//!   equal intervals of the shutter (their pixel cells dealt a fixed
+//!   shuffle of the intervals, its own);
+//! - the RSVP lattice's samples draw one in each of 4^m intervals across
+//!   every aligned 2^m x 2^m block of any level
+//!   ([`super::strata::lattice_digits`]);
+//!
+//! each jittered inside its interval by the key.
 
 use super::draws::{key_draw, ray_keys, ONE_BELOW};
 use super::strata::{CellDeal, PixelStrata};

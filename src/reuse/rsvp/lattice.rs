@@ -10,6 +10,7 @@ use crate::camera::Camera;
 use crate::camera::ViewportPose;
 use crate::ray::{LaneMask, Ray, RayPacket, PACKET_WIDTH};
 use crate::render::{PrimaryRays, SampleGroup, GROUP_HEIGHT, GROUP_WIDTH};
+use crate::shade::PixelStrata;
 
 /// (-1)^n / (2n + 1): atan's Taylor series in t^2 after the leading t.
 const ATAN_TAYLOR: [f64; 15] = {
@@ -477,6 +478,23 @@ impl PrimaryRays for LevelRays<'_> {
             mask |= 1 << lane;
         }
         (packet, mask)
+    }
+
+    /// Each sample stands at its place on the finest level, where every
+    /// level's samples sit: a sample draws alike at every level and in
+    /// both pyramids, and neighbouring samples of any level draw
+    /// stratified (see `shade::PixelStrata`).
+    fn draw_strata(&self, group: SampleGroup) -> Option<PixelStrata> {
+        let (lattice, level) = (self.lattice, self.level);
+        Some(PixelStrata::on_lattice(group.lane_samples().map(
+            |(col, row)| {
+                let (col, row) = lattice.slot_position(level, col, row);
+                (
+                    lattice.wrap_column(level.x, col) << (MAX_LEVEL - level.x),
+                    row << (MAX_LEVEL - level.y),
+                )
+            },
+        )))
     }
 }
 
