@@ -90,6 +90,13 @@ impl Run<'_> {
         let moves = |other: u32| self.camera_at(other) != *camera;
         (frame == 0 || !moves(frame - 1)) && !moves(frame + 1)
     }
+
+    /// Whether `camera`, the camera of `frame`, has its eye where it is in
+    /// the frames on either side.
+    pub fn eye_still_at(&self, frame: u32, camera: &Camera) -> bool {
+        let moves = |other: u32| self.camera_at(other).position != camera.position;
+        (frame == 0 || !moves(frame - 1)) && !moves(frame + 1)
+    }
 }
 
 /// Whether a frame's views come from a store.
@@ -247,6 +254,9 @@ pub enum FullReason {
     CameraMovesPanOff,
     /// A camera of another projection moves.
     CameraMovesNotEqualAngle(Projection),
+    /// The camera's eye (its position) moves: every store keeps its
+    /// samples only while the eye stands still.
+    EyeMoves,
 }
 
 impl std::fmt::Display for FullReason {
@@ -266,6 +276,11 @@ impl std::fmt::Display for FullReason {
             FullReason::CameraMovesNotEqualAngle(projection) => write!(
                 f,
                 "the {projection} camera moves: only equal-angle views pan"
+            ),
+            FullReason::EyeMoves => write!(
+                f,
+                "the camera's eye moves: samples are kept only while the eye stands still \
+                 (pans, zooms and moving objects)"
             ),
         }
     }
@@ -296,7 +311,7 @@ pub enum Erasure {
 /// Why a store cannot serve a frame's views and must start again.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Unfit {
-    /// The eye moved or the field of view changed: another lattice.
+    /// The field of view changed: another lattice.
     LatticeChanged,
     /// A view reaches rows the pan buffer does not hold.
     RowsLeft,
@@ -304,14 +319,14 @@ pub enum Unfit {
     MovedPanOff,
     /// A still camera (of this projection) moved.
     CameraMoved(crate::camera::Projection),
-    /// RSVP: the eye moved.
+    /// The eye moved: samples are another eye's.
     EyeMoved,
 }
 
 impl std::fmt::Display for Unfit {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
-            Unfit::LatticeChanged => write!(f, "eye or field of view changed: buffer restarted"),
+            Unfit::LatticeChanged => write!(f, "field of view changed: buffer restarted"),
             Unfit::RowsLeft => write!(f, "view left the pan buffer's rows: restarted"),
             Unfit::MovedPanOff => write!(f, "the camera moved and pan is off: buffer restarted"),
             Unfit::CameraMoved(projection) => write!(

@@ -65,6 +65,9 @@ impl StorePlan for StillPlan {
         if run.interactive || run.camera_still_at(frame, camera) {
             return Serve::Store;
         }
+        if !run.eye_still_at(frame, camera) {
+            return Serve::Full(Some(FullReason::EyeMoves));
+        }
         Serve::Full(Some(match camera.projection {
             Projection::EqualAngle => FullReason::CameraMovesPanOff,
             projection => FullReason::CameraMovesNotEqualAngle(projection),
@@ -133,6 +136,9 @@ impl SampleStore for StillStore {
     fn unfit(&self, views: &[ViewportPose]) -> Option<Unfit> {
         let camera = &views.first()?.camera;
         let own = self.buffer.lattice().camera();
+        if own.position != camera.position {
+            return Some(Unfit::EyeMoved);
+        }
         (own != camera).then_some(Unfit::CameraMoved(own.projection))
     }
 

@@ -893,3 +893,56 @@ fn a_killed_runs_temporary_files_are_removed_by_the_next_run() {
         "{err}"
     );
 }
+
+/// A dolly moves the eye, which no store keeps samples across: a
+/// perspective camera's frames are rendered in full and an equal-angle
+/// camera's pan buffer starts again, each saying the eye moved (not that
+/// only equal-angle views pan, which would not help).
+#[test]
+fn a_moving_eye_is_named_as_the_reason_for_full_frames() {
+    let dir = tempfile::tempdir().unwrap();
+    let paper = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/paper.toml");
+    std::fs::copy(paper, dir.path().join("paper.toml")).unwrap();
+    let text = format!(
+        "include = \"paper.toml\"\n\n[animation]\nframes = 4\n\n{}{}",
+        key(0, "position = [0.0, 3.2, 14.0]"),
+        key(3, "position = [0.0, 3.2, 10.0]")
+    );
+    std::fs::write(dir.path().join("dolly.toml"), text).unwrap();
+    for camera in ["perspective", "equal-angle"] {
+        let stats = format!("{camera}.csv");
+        let out = retrace(
+            &[
+                "animate",
+                "dolly.toml",
+                "--camera",
+                camera,
+                "--width",
+                "32",
+                "--height",
+                "24",
+                "-o",
+                "out/f_#.png",
+                "--stats",
+                &stats,
+            ],
+            dir.path(),
+        );
+        assert!(out.status.success(), "{}", stderr(&out));
+        let reasons: Vec<String> = std::fs::read_to_string(dir.path().join(&stats))
+            .unwrap()
+            .lines()
+            .skip(2)
+            .map(|line| line.split(',').nth(2).unwrap_or("").to_string())
+            .collect();
+        assert_eq!(reasons.len(), 3, "{camera}: {reasons:?}");
+        assert!(
+            reasons.iter().all(|r| r.contains("eye move")),
+            "{camera}: {reasons:?}"
+        );
+        assert!(
+            !stderr(&out).contains("only equal-angle views pan"),
+            "{camera}"
+        );
+    }
+}

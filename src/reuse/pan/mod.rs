@@ -521,6 +521,9 @@ impl SampleStore for PanStore {
     fn unfit(&self, views: &[ViewportPose]) -> Option<Unfit> {
         let camera = &views.first()?.camera;
         let lattice = self.buffer.lattice();
+        if camera.position != lattice.position {
+            return Some(Unfit::EyeMoved);
+        }
         if !lattice.fits(camera) {
             return Some(Unfit::LatticeChanged);
         }
