@@ -1,7 +1,9 @@
 //! Where a camera sample stands among its neighbours, for stratifying
 //! what it draws (its shutter time, lens position and first glossy
-//! bounce): the cell of its pixel's n x n grid of sub-samples, and the
-//! deal of those cells to the cells of each purpose's sampled square.
+//! bounce): a sub-sample's cell of its pixel's n x n grid, dealt to the
+//! cells of each purpose's sampled square ([`CellDeal`]), or an RSVP
+//! buffer sample's place on the lattice, which fixes its draws' leading
+//! digits ([`lattice_digits`]).
 
 use std::sync::OnceLock;
 
