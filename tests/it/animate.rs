@@ -141,15 +141,24 @@ fn stderr(out: &std::process::Output) -> String {
 
 /// A small animated scene in a temp dir that includes the real paper scene.
 pub fn pan_case(extra: &str) -> tempfile::TempDir {
+    paper_case(
+        "pan.toml",
+        &format!(
+            "[animation]\nframes = 6\n\n{}{}{extra}",
+            key(0, "yaw = 0.0"),
+            key(5, "yaw = 50.0")
+        ),
+    )
+}
+
+/// A folder holding the paper scene and `name`, which includes it and
+/// adds `tables`.
+fn paper_case(name: &str, tables: &str) -> tempfile::TempDir {
     let dir = tempfile::tempdir().unwrap();
     let paper = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/paper.toml");
     std::fs::copy(paper, dir.path().join("paper.toml")).unwrap();
-    let text = format!(
-        "include = \"paper.toml\"\n\n[animation]\nframes = 6\n\n{}{}{extra}",
-        key(0, "yaw = 0.0"),
-        key(5, "yaw = 50.0")
-    );
-    std::fs::write(dir.path().join("pan.toml"), text).unwrap();
+    let text = format!("include = \"paper.toml\"\n\n{tables}");
+    std::fs::write(dir.path().join(name), text).unwrap();
     dir
 }
 
@@ -900,15 +909,14 @@ fn a_killed_runs_temporary_files_are_removed_by_the_next_run() {
 /// only equal-angle views pan, which would not help).
 #[test]
 fn a_moving_eye_is_named_as_the_reason_for_full_frames() {
-    let dir = tempfile::tempdir().unwrap();
-    let paper = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/paper.toml");
-    std::fs::copy(paper, dir.path().join("paper.toml")).unwrap();
-    let text = format!(
-        "include = \"paper.toml\"\n\n[animation]\nframes = 4\n\n{}{}",
-        key(0, "position = [0.0, 3.2, 14.0]"),
-        key(3, "position = [0.0, 3.2, 10.0]")
+    let dir = paper_case(
+        "dolly.toml",
+        &format!(
+            "[animation]\nframes = 4\n\n{}{}",
+            key(0, "position = [0.0, 3.2, 14.0]"),
+            key(3, "position = [0.0, 3.2, 10.0]")
+        ),
     );
-    std::fs::write(dir.path().join("dolly.toml"), text).unwrap();
     for camera in ["perspective", "equal-angle"] {
         let stats = format!("{camera}.csv");
         let out = retrace(

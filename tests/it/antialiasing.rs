@@ -224,40 +224,10 @@ fn antialiased_viewports_are_no_worse_than_direct_renders_at_the_same_samples() 
     let mut scene = shipped("paper-zoom-in.toml", 160, 120);
     scene.viewports[0].viewport.width = 160;
     scene.viewports[0].viewport.height = 120;
-    let mut accel =
-        retrace::accel::Accelerator::build(retrace::accel::BackendKind::Embree, &scene.objects)
-            .unwrap();
-    let at_samples = |samples: u32| retrace::scene::Scene {
-        samples: PixelSamples::new(samples).unwrap(),
-        ..scene.clone()
-    };
-    let (reference, four) = (at_samples(64), at_samples(4));
     for frame in [0, 60, 99] {
-        let at = |scene: &retrace::scene::Scene, techniques: Techniques| Options {
-            rsvp: retrace::reuse::rsvp::RsvpKnobs::default_for(scene.samples),
-            ..Options::new(techniques, frame..frame + 1)
-        };
-        let (truth, _) = retrace::frame_loop::Animator::new(
-            &reference,
-            &mut accel,
-            at(&reference, Techniques::FULL),
-        )
-        .render_full(frame, 0, None);
-        let (direct, _) =
-            retrace::frame_loop::Animator::new(&four, &mut accel, at(&four, Techniques::FULL))
-                .render_full(frame, 0, None);
-        let mut rsvp =
-            retrace::frame_loop::Animator::new(&four, &mut accel, at(&four, Techniques::AUTO));
-        let output = rsvp.render(frame).remove(0);
-        assert_eq!(output.stats.mode.as_str(), "rsvp");
-        let (compared, differing) = rsvp.verify_store().unwrap();
-        assert!(compared > 0 && differing == 0, "{differing} of {compared}");
-        let error = |image: &retrace::render::Frame| {
-            retrace::metrics::image_error(image, &truth)
-                .unwrap()
-                .psnr_db
-        };
-        let (rsvp_db, direct_db) = (error(output.frame.as_ref().unwrap()), error(&direct));
+        let (mode, rsvp_db, direct_db) =
+            crate::common::viewport_and_direct_psnr(&scene, frame, 4, 64);
+        assert_eq!(mode, "rsvp");
         assert!(
             rsvp_db >= direct_db - 0.25,
             "frame {frame}: RSVP {rsvp_db:.2} dB, direct {direct_db:.2} dB"

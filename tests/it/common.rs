@@ -187,3 +187,46 @@ fn sized(width: u32, height: u32) -> SceneOverrides {
         ..SceneOverrides::default()
     }
 }
+
+/// Frame `frame` of `scene` (whose output is its viewport) at `samples` a
+/// pixel, scored against a full render at `reference` a pixel: the RSVP
+/// frame's mode and PSNR, and the direct render's PSNR. The RSVP buffer is
+/// checked bit-exact on the way (its samples re-traced afresh).
+pub fn viewport_and_direct_psnr(
+    scene: &Scene,
+    frame: u32,
+    samples: u32,
+    reference: u32,
+) -> (String, f64, f64) {
+    use retrace::frame_loop::{Animator, Options, Techniques};
+    let mut accel =
+        retrace::accel::Accelerator::build(retrace::accel::BackendKind::Embree, &scene.objects)
+            .unwrap();
+    let at_samples = |samples: u32| Scene {
+        samples: retrace::sampling::PixelSamples::new(samples).unwrap(),
+        ..scene.clone()
+    };
+    let (reference, sampled) = (at_samples(reference), at_samples(samples));
+    let at = |scene: &Scene, techniques: Techniques| Options {
+        rsvp: retrace::reuse::rsvp::RsvpKnobs::default_for(scene.samples),
+        ..Options::new(techniques, frame..frame + 1)
+    };
+    let (truth, _) = Animator::new(&reference, &mut accel, at(&reference, Techniques::FULL))
+        .render_full(frame, 0, None);
+    let (direct, _) = Animator::new(&sampled, &mut accel, at(&sampled, Techniques::FULL))
+        .render_full(frame, 0, None);
+    let mut rsvp = Animator::new(&sampled, &mut accel, at(&sampled, Techniques::AUTO));
+    let output = rsvp.render(frame).remove(0);
+    let (compared, differing) = rsvp.verify_store().unwrap();
+    assert!(compared > 0 && differing == 0, "{differing} of {compared}");
+    let error = |image: &retrace::render::Frame| {
+        retrace::metrics::image_error(image, &truth)
+            .unwrap()
+            .psnr_db
+    };
+    (
+        output.stats.mode.to_string(),
+        error(output.frame.as_ref().unwrap()),
+        error(&direct),
+    )
+}

@@ -307,39 +307,9 @@ fn blurred_viewports_are_no_worse_than_direct_renders_at_the_same_samples() {
     let mut scene = crate::common::shipped_at("paper-all-blur.toml", 320, 240);
     scene.viewports[0].viewport.width = 320;
     scene.viewports[0].viewport.height = 240;
-    let mut accel = Accelerator::build(BackendKind::Embree, &scene.objects).unwrap();
-    let at_samples = |samples: u32| Scene {
-        samples: PixelSamples::new(samples).unwrap(),
-        ..scene.clone()
-    };
-    let (reference, four) = (at_samples(64), at_samples(4));
     // Zoomed about twofold, the world streaking a few pixels.
-    let frame = 80;
-    let at = |scene: &Scene, techniques: Techniques| Options {
-        rsvp: retrace::reuse::rsvp::RsvpKnobs::default_for(scene.samples),
-        ..Options::new(techniques, frame..frame + 1)
-    };
-    let (truth, _) = retrace::frame_loop::Animator::new(
-        &reference,
-        &mut accel,
-        at(&reference, Techniques::FULL),
-    )
-    .render_full(frame, 0, None);
-    let (direct, _) =
-        retrace::frame_loop::Animator::new(&four, &mut accel, at(&four, Techniques::FULL))
-            .render_full(frame, 0, None);
-    let mut rsvp =
-        retrace::frame_loop::Animator::new(&four, &mut accel, at(&four, Techniques::AUTO));
-    let output = rsvp.render(frame).remove(0);
-    assert!(output.stats.mode.as_str().starts_with("rsvp"));
-    let (compared, differing) = rsvp.verify_store().unwrap();
-    assert!(compared > 0 && differing == 0, "{differing} of {compared}");
-    let error = |image: &retrace::render::Frame| {
-        retrace::metrics::image_error(image, &truth)
-            .unwrap()
-            .psnr_db
-    };
-    let (rsvp_db, direct_db) = (error(output.frame.as_ref().unwrap()), error(&direct));
+    let (mode, rsvp_db, direct_db) = crate::common::viewport_and_direct_psnr(&scene, 80, 4, 64);
+    assert!(mode.starts_with("rsvp"));
     assert!(
         rsvp_db >= direct_db - 0.25,
         "RSVP {rsvp_db:.2} dB, direct {direct_db:.2} dB"
